@@ -1,0 +1,2 @@
+//! placeholder
+pub use snerf_data as data;
