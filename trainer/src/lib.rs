@@ -1,2 +1,22 @@
-//! placeholder
+//! snerf-trainer: learns a radiance field from posed views, fast on a CPU.
+//!
+//! Data flow: `snerf_data::load` gives posed RGBA views -> `space` maps the world into the
+//! field's grid (box, NDC or contraction, by scene kind) -> `train` samples random rays
+//! across views and runs the fused `render` pipeline (occupancy-skipping march, K-Planes
+//! `field` encode + decoder, stable `composite`, per-ray `view_mlp`) forward and backward on
+//! rayon workers -> `adam` updates the one flat parameter vector -> `checkpoint` writes it
+//! atomically. `eval` renders held-out views and scores them with `metrics`.
+
 pub use snerf_data as data;
+
+pub mod adam;
+pub mod checkpoint;
+pub mod composite;
+pub mod eval;
+pub mod field;
+pub mod metrics;
+pub mod occupancy;
+pub mod render;
+pub mod space;
+pub mod train;
+pub mod view_mlp;

@@ -1,0 +1,162 @@
+//! Rendering whole images from a model and scoring them against held-out views.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use rayon::prelude::*;
+use serde::Serialize;
+use snerf_data::{Intrinsics, View};
+
+use crate::metrics::{psnr, ssim};
+use crate::render::{render_chunk, RayResult, RayTask, WorkspacePool};
+use crate::space::Vec3;
+use crate::train::Model;
+
+/// A rendered image: RGB floats, expected depth (march-space units) and opacity per pixel.
+pub struct Rendered {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<f32>,
+    pub depth: Vec<f32>,
+    pub opacity: Vec<f32>,
+    pub samples: u64,
+}
+
+/// Render a camera (c2w in OpenGL convention) at a time, over a background colour.
+pub fn render_camera(
+    model: &Model,
+    pool: &WorkspacePool,
+    c2w: &[[f32; 4]; 3],
+    k: &Intrinsics,
+    time: Option<f32>,
+    bg: Vec3,
+) -> Rendered {
+    let (w, h) = (k.width as usize, k.height as usize);
+    let mut results = vec![RayResult::default(); w * h];
+    const CHUNK: usize = 256;
+    results.par_chunks_mut(CHUNK).enumerate().for_each(|(ci, out)| {
+        let tasks: Vec<RayTask> = (0..out.len())
+            .map(|j| {
+                let p = ci * CHUNK + j;
+                let (x, y) = (p % w, p / w);
+                let ray = model.space.ray(c2w, k, x as f32 + 0.5, y as f32 + 0.5, time);
+                RayTask { ray, bg, target: [0.0; 3], jitter: 0.5 }
+            })
+            .collect();
+        pool.with(|ws| render_chunk(&model.field, &model.space, &model.occ, &tasks, ws, out));
+    });
+    Rendered {
+        width: w,
+        height: h,
+        rgb: results.iter().flat_map(|r| r.rgb).collect(),
+        depth: results.iter().map(|r| r.depth).collect(),
+        opacity: results.iter().map(|r| r.opacity).collect(),
+        samples: results.iter().map(|r| r.samples as u64).sum(),
+    }
+}
+
+/// Ground truth of a view as RGB floats composited over `bg`.
+pub fn ground_truth(v: &View, bg: Vec3) -> Vec<f32> {
+    v.rgba
+        .chunks_exact(4)
+        .flat_map(|p| {
+            let a = p[3] as f32 / 255.0;
+            [0, 1, 2].map(|c| p[c] as f32 / 255.0 * a + bg[c] * (1.0 - a))
+        })
+        .collect()
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct ViewScore {
+    pub name: String,
+    pub psnr: f64,
+    pub ssim: f64,
+    pub time: Option<f32>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalReport {
+    pub views: Vec<ViewScore>,
+    pub mean_psnr: f64,
+    pub mean_ssim: f64,
+    pub seconds: f64,
+}
+
+/// Background used for evaluation: white for objects on transparent background (the
+/// nerf_synthetic convention), black otherwise (opaque images ignore it).
+pub fn eval_background(has_alpha: bool) -> Vec3 {
+    if has_alpha {
+        [1.0; 3]
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// Render and score views; with `out_dir`, write `NAME.png` = prediction | truth | depth.
+pub fn evaluate(
+    model: &Model,
+    pool: &WorkspacePool,
+    views: &[View],
+    has_alpha: bool,
+    out_dir: Option<&Path>,
+    with_ssim: bool,
+) -> Result<EvalReport> {
+    let t0 = std::time::Instant::now();
+    let bg = eval_background(has_alpha);
+    let mut scores = Vec::new();
+    for (i, v) in views.iter().enumerate() {
+        let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
+        let gt = ground_truth(v, bg);
+        let p = psnr(&r.rgb, &gt);
+        let s = if with_ssim { ssim(&r.rgb, &gt, r.width, r.height) } else { f64::NAN };
+        let name = v.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| format!("view_{i:03}"));
+        if let Some(dir) = out_dir {
+            let img = side_by_side(&[&r.rgb, &gt, &depth_image(&r)], r.width, r.height);
+            crate::checkpoint::write_png_atomic(&dir.join(format!("{name}.png")), &img)
+                .with_context(|| format!("writing evaluation image for {name}"))?;
+        }
+        scores.push(ViewScore { name, psnr: p, ssim: s, time: v.time });
+    }
+    let n = scores.len().max(1) as f64;
+    Ok(EvalReport {
+        mean_psnr: scores.iter().map(|s| s.psnr).sum::<f64>() / n,
+        mean_ssim: scores.iter().map(|s| s.ssim).sum::<f64>() / n,
+        views: scores,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// Depth as a grey image: near = bright, normalized over the pixels the field covers.
+pub fn depth_image(r: &Rendered) -> Vec<f32> {
+    let covered: Vec<f32> = r.depth.iter().zip(&r.opacity).filter(|(_, &a)| a > 0.5).map(|(&d, _)| d).collect();
+    let lo = covered.iter().cloned().fold(f32::INFINITY, f32::min);
+    let hi = covered.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    r.depth
+        .iter()
+        .zip(&r.opacity)
+        .flat_map(|(&d, &a)| {
+            let v = if a > 0.05 && lo.is_finite() { (1.0 - (d - lo) / span).clamp(0.0, 1.0) * a } else { 0.0 };
+            [v; 3]
+        })
+        .collect()
+}
+
+/// Place RGB float images (same size) next to each other as an 8-bit image.
+pub fn side_by_side(images: &[&[f32]], w: usize, h: usize) -> image::RgbImage {
+    let mut out = image::RgbImage::new((w * images.len()) as u32, h as u32);
+    for (k, img) in images.iter().enumerate() {
+        for y in 0..h {
+            for x in 0..w {
+                let i = (y * w + x) * 3;
+                out.put_pixel((k * w + x) as u32, y as u32, image::Rgb([0, 1, 2].map(|c| to_u8(img[i + c]))));
+            }
+        }
+    }
+    out
+}
+
+#[inline]
+pub fn to_u8(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}

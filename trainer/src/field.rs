@@ -1,0 +1,424 @@
+//! The radiance field: multi-scale factorized feature planes (K-Planes style) and a small
+//! decoder MLP to the deferred, bakeable outputs of SNeRG — density σ, diffuse RGB and a
+//! 4-channel specular feature per point. View dependence is *not* here: it lives in the
+//! per-ray [`crate::view_mlp`], which runs once per ray on the composited outputs.
+//!
+//! Encoding at grid point g ∈ [-1,1]³ (and time τ ∈ [0,1] for dynamic fields):
+//!   feature_l = Π_p bilerp(plane_{l,p}, (g_a, g_b))      (Hadamard product over planes)
+//! with planes xy, xz, yz (+ xt, yt, zt when the scene is dynamic: static scenes carry no
+//! time planes at all). Levels are concatenated: L levels x C channels. Planes are stored
+//! channel-last so one bilinear corner is one contiguous run of C = 8 floats (one AVX lane set).
+//!
+//! Decoder: h = relu(W1 f + b1), o = W2 h + b2, then σ = exp(o0) (truncated), rgb and features
+//! = sigmoid(o1..7). The decoder runs on whole batches of samples with `matrixmultiply`.
+//!
+//! All parameters (planes, decoder, view MLP) live in one flat `Vec<f32>` so the optimizer,
+//! checkpoints and per-thread gradient buffers are single contiguous arrays.
+
+use serde::{Deserialize, Serialize};
+
+use crate::view_mlp::ViewLayout;
+
+/// Channels per plane and level.
+pub const C: usize = 8;
+/// Decoder outputs: σ, diffuse rgb (3), specular features (4).
+pub const OUT: usize = 8;
+/// Plane axes: x=0, y=1, z=2, t=3. Static fields use the first three.
+pub const PLANE_AXES: [(usize, usize); 6] = [(0, 1), (0, 2), (1, 2), (0, 3), (1, 3), (2, 3)];
+/// Pre-activation clamp for σ = exp(o): beyond it σ saturates and its gradient is 0.
+pub const SIGMA_LOGIT_MAX: f32 = 15.0;
+pub const SIGMA_LOGIT_MIN: f32 = -30.0;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FieldConfig {
+    /// Spatial plane resolution per level.
+    pub resolutions: Vec<u32>,
+    /// Time resolution per level; empty for a static field (no time planes are allocated).
+    pub time_resolutions: Vec<u32>,
+    /// Decoder hidden width (multiple of 4).
+    pub hidden: usize,
+}
+
+impl FieldConfig {
+    pub fn levels(&self) -> usize {
+        self.resolutions.len()
+    }
+    pub fn dynamic(&self) -> bool {
+        !self.time_resolutions.is_empty()
+    }
+    pub fn planes(&self) -> usize {
+        if self.dynamic() {
+            6
+        } else {
+            3
+        }
+    }
+    pub fn input_dim(&self) -> usize {
+        self.levels() * C
+    }
+    pub fn validate(&self) -> anyhow::Result<()> {
+        anyhow::ensure!(!self.resolutions.is_empty(), "field needs at least one level");
+        anyhow::ensure!(
+            self.resolutions.iter().all(|&r| (2..=4096).contains(&r)),
+            "plane resolutions must be in 2..=4096, got {:?}",
+            self.resolutions
+        );
+        anyhow::ensure!(
+            self.time_resolutions.is_empty() || self.time_resolutions.len() == self.resolutions.len(),
+            "time resolutions must be empty (static) or one per level"
+        );
+        anyhow::ensure!(
+            self.time_resolutions.iter().all(|&r| (2..=1024).contains(&r)),
+            "time resolutions must be in 2..=1024"
+        );
+        anyhow::ensure!(self.hidden >= 4 && self.hidden % 4 == 0, "hidden width must be a multiple of 4");
+        Ok(())
+    }
+}
+
+/// One plane's place in the parameter vector.
+#[derive(Clone, Copy, Debug)]
+pub struct PlaneRef {
+    pub offset: usize,
+    /// Resolution along the plane's first and second axis.
+    pub ru: usize,
+    pub rv: usize,
+    pub axes: (usize, usize),
+}
+
+/// Offsets of every parameter group in the flat parameter vector.
+#[derive(Clone, Debug)]
+pub struct Layout {
+    /// planes[level][plane]
+    pub planes: Vec<Vec<PlaneRef>>,
+    /// End of the plane parameters (they start at 0): the optimizer gives them their own rate.
+    pub plane_end: usize,
+    pub w1: usize,
+    pub b1: usize,
+    pub w2: usize,
+    pub b2: usize,
+    pub view: ViewLayout,
+    pub total: usize,
+    pub input: usize,
+    pub hidden: usize,
+}
+
+impl Layout {
+    pub fn new(cfg: &FieldConfig) -> Layout {
+        let mut off = 0;
+        let mut planes = Vec::new();
+        for l in 0..cfg.levels() {
+            let r = cfg.resolutions[l] as usize;
+            let mut level = Vec::new();
+            for &axes in PLANE_AXES.iter().take(cfg.planes()) {
+                let rv = if axes.1 == 3 { cfg.time_resolutions[l] as usize } else { r };
+                level.push(PlaneRef { offset: off, ru: r, rv, axes });
+                off += r * rv * C;
+            }
+            planes.push(level);
+        }
+        let plane_end = off;
+        let input = cfg.input_dim();
+        let hidden = cfg.hidden;
+        let w1 = off;
+        off += hidden * input;
+        let b1 = off;
+        off += hidden;
+        let w2 = off;
+        off += OUT * hidden;
+        let b2 = off;
+        off += OUT;
+        let view = ViewLayout::new(off);
+        off = view.end;
+        Layout { planes, plane_end, w1, b1, w2, b2, view, total: off, input, hidden }
+    }
+}
+
+/// Continuous grid coordinate x ∈ [-1,1] (or τ ∈ [0,1]) to the lower corner index and the
+/// fraction towards the next one. Out-of-range and NaN coordinates clamp to the border.
+#[inline(always)]
+fn corner(u: f32, res: usize) -> (usize, f32) {
+    let max = (res - 1) as f32;
+    let u = if u >= 0.0 { u.min(max) } else { 0.0 }; // NaN lands here too
+    let i = (u as usize).min(res - 2);
+    (i, u - i as f32)
+}
+
+#[inline(always)]
+fn plane_coord(g: &[f32; 3], t: f32, axis: usize, res: usize) -> (usize, f32) {
+    if axis == 3 {
+        corner(t * (res - 1) as f32, res)
+    } else {
+        corner((g[axis] + 1.0) * 0.5 * (res - 1) as f32, res)
+    }
+}
+
+/// Bilinear lookup of one plane: returns the C-vector and the four corner (index, weight) pairs.
+#[inline(always)]
+fn bilerp(params: &[f32], p: &PlaneRef, g: &[f32; 3], t: f32) -> ([f32; C], [usize; 4], [f32; 4]) {
+    let (iu, fu) = plane_coord(g, t, p.axes.0, p.ru);
+    let (iv, fv) = plane_coord(g, t, p.axes.1, p.rv);
+    let base = p.offset + (iv * p.ru + iu) * C;
+    let idx = [base, base + C, base + p.ru * C, base + p.ru * C + C];
+    let wts = [(1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv];
+    let mut out = [0.0f32; C];
+    for k in 0..4 {
+        let v = &params[idx[k]..idx[k] + C];
+        for c in 0..C {
+            out[c] += wts[k] * v[c];
+        }
+    }
+    (out, idx, wts)
+}
+
+#[derive(Clone, Debug)]
+pub struct Field {
+    pub cfg: FieldConfig,
+    pub layout: Layout,
+    pub params: Vec<f32>,
+}
+
+/// Small deterministic generator for initialization and sampling (xorshift*; no extra crate).
+#[derive(Clone, Debug)]
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    #[inline]
+    pub fn next_u64(&mut self) -> u64 {
+        let mut x = self.0;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.0 = x;
+        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0,1).
+    #[inline]
+    pub fn uniform(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+    }
+    #[inline]
+    pub fn below(&mut self, n: usize) -> usize {
+        ((self.next_u64() >> 32) * n as u64 >> 32) as usize
+    }
+}
+
+impl Field {
+    pub fn new(cfg: FieldConfig, seed: u64) -> anyhow::Result<Field> {
+        cfg.validate()?;
+        let layout = Layout::new(&cfg);
+        let mut params = vec![0.0f32; layout.total];
+        let mut rng = Rng::new(seed);
+        // Spatial planes start in [0.1, 0.5] (products of three stay small and positive);
+        // time planes start at 1 so a dynamic field begins as its static counterpart.
+        for level in &layout.planes {
+            for p in level {
+                let n = p.ru * p.rv * C;
+                let dst = &mut params[p.offset..p.offset + n];
+                if p.axes.1 == 3 {
+                    dst.fill(1.0);
+                } else {
+                    for x in dst.iter_mut() {
+                        *x = 0.1 + 0.4 * rng.uniform();
+                    }
+                }
+            }
+        }
+        let (inp, hid) = (layout.input, layout.hidden);
+        let s1 = (6.0 / inp as f32).sqrt();
+        for x in &mut params[layout.w1..layout.w1 + hid * inp] {
+            *x = s1 * (2.0 * rng.uniform() - 1.0);
+        }
+        let s2 = (3.0 / hid as f32).sqrt();
+        for x in &mut params[layout.w2..layout.w2 + OUT * hid] {
+            *x = s2 * (2.0 * rng.uniform() - 1.0);
+        }
+        layout.view.init(&mut params, &mut rng);
+        Ok(Field { cfg, layout, params })
+    }
+
+    /// Encode one point: writes `input_dim` features into `out`.
+    #[inline]
+    pub fn encode(&self, g: &[f32; 3], t: f32, out: &mut [f32]) {
+        for (l, level) in self.layout.planes.iter().enumerate() {
+            let mut acc = [1.0f32; C];
+            for p in level {
+                let (v, _, _) = bilerp(&self.params, p, g, t);
+                for c in 0..C {
+                    acc[c] *= v[c];
+                }
+            }
+            out[l * C..(l + 1) * C].copy_from_slice(&acc);
+        }
+    }
+
+    /// Backward of [`encode`]: scatters dL/d(features) into the plane gradients.
+    #[inline]
+    pub fn encode_backward(&self, g: &[f32; 3], t: f32, d_feat: &[f32], grad: &mut [f32]) {
+        let mut vals = [[0.0f32; C]; 6];
+        let mut idxs = [[0usize; 4]; 6];
+        let mut wts = [[0.0f32; 4]; 6];
+        for (l, level) in self.layout.planes.iter().enumerate() {
+            let np = level.len();
+            for (k, p) in level.iter().enumerate() {
+                (vals[k], idxs[k], wts[k]) = bilerp(&self.params, p, g, t);
+            }
+            let df = &d_feat[l * C..(l + 1) * C];
+            // d plane_k = df ⊙ Π_{q≠k} val_q, via prefix and suffix products.
+            let mut prefix = [1.0f32; C];
+            let mut suffix = [[1.0f32; C]; 7];
+            for k in (0..np).rev() {
+                for c in 0..C {
+                    suffix[k][c] = suffix[k + 1][c] * vals[k][c];
+                }
+            }
+            for k in 0..np {
+                let mut d = [0.0f32; C];
+                for c in 0..C {
+                    d[c] = df[c] * prefix[c] * suffix[k + 1][c];
+                    prefix[c] *= vals[k][c];
+                }
+                for j in 0..4 {
+                    let w = wts[k][j];
+                    let dst = &mut grad[idxs[k][j]..idxs[k][j] + C];
+                    for c in 0..C {
+                        dst[c] += w * d[c];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Decoder forward on `n` samples: `feat` is n x input (row per sample); writes the
+    /// post-ReLU hidden layer `hid` (n x hidden) and the raw outputs `out` (n x OUT).
+    pub fn decode_forward(&self, n: usize, feat: &[f32], hid: &mut [f32], out: &mut [f32]) {
+        let (inp, h) = (self.layout.input, self.layout.hidden);
+        let p = &self.params;
+        let b1 = &p[self.layout.b1..self.layout.b1 + h];
+        for r in 0..n {
+            hid[r * h..(r + 1) * h].copy_from_slice(b1);
+        }
+        // hid (n x h) += feat (n x inp) * W1^T (inp x h); W1 is stored h x inp.
+        unsafe {
+            matrixmultiply::sgemm(
+                n, inp, h, 1.0,
+                feat.as_ptr(), inp as isize, 1,
+                p[self.layout.w1..].as_ptr(), 1, inp as isize,
+                1.0, hid.as_mut_ptr(), h as isize, 1,
+            );
+        }
+        for x in &mut hid[..n * h] {
+            *x = x.max(0.0);
+        }
+        let b2 = &p[self.layout.b2..self.layout.b2 + OUT];
+        for r in 0..n {
+            out[r * OUT..(r + 1) * OUT].copy_from_slice(b2);
+        }
+        unsafe {
+            matrixmultiply::sgemm(
+                n, h, OUT, 1.0,
+                hid.as_ptr(), h as isize, 1,
+                p[self.layout.w2..].as_ptr(), 1, h as isize,
+                1.0, out.as_mut_ptr(), OUT as isize, 1,
+            );
+        }
+    }
+
+    /// Decoder backward on `n` samples. `d_out` (n x OUT) is dL/d(raw outputs); `d_hid` is
+    /// scratch (n x hidden); accumulates weight gradients into `grad` and writes dL/d(features)
+    /// into `d_feat` (n x input).
+    #[allow(clippy::too_many_arguments)]
+    pub fn decode_backward(
+        &self,
+        n: usize,
+        feat: &[f32],
+        hid: &[f32],
+        d_out: &[f32],
+        d_hid: &mut [f32],
+        d_feat: &mut [f32],
+        grad: &mut [f32],
+    ) {
+        let (inp, h) = (self.layout.input, self.layout.hidden);
+        let p = &self.params;
+        let l = &self.layout;
+        // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
+        unsafe {
+            matrixmultiply::sgemm(
+                OUT, n, h, 1.0,
+                d_out.as_ptr(), 1, OUT as isize,
+                hid.as_ptr(), h as isize, 1,
+                1.0, grad[l.w2..].as_mut_ptr(), h as isize, 1,
+            );
+        }
+        for r in 0..n {
+            for k in 0..OUT {
+                grad[l.b2 + k] += d_out[r * OUT + k];
+            }
+        }
+        // d_hid (n x h) = d_out (n x OUT) * W2 (OUT x h), masked by ReLU.
+        unsafe {
+            matrixmultiply::sgemm(
+                n, OUT, h, 1.0,
+                d_out.as_ptr(), OUT as isize, 1,
+                p[l.w2..].as_ptr(), h as isize, 1,
+                0.0, d_hid.as_mut_ptr(), h as isize, 1,
+            );
+        }
+        for (d, &x) in d_hid[..n * h].iter_mut().zip(&hid[..n * h]) {
+            if x <= 0.0 {
+                *d = 0.0;
+            }
+        }
+        // dW1 (h x inp) += d_hid^T (h x n) * feat (n x inp)
+        unsafe {
+            matrixmultiply::sgemm(
+                h, n, inp, 1.0,
+                d_hid.as_ptr(), 1, h as isize,
+                feat.as_ptr(), inp as isize, 1,
+                1.0, grad[l.w1..].as_mut_ptr(), inp as isize, 1,
+            );
+        }
+        for r in 0..n {
+            for j in 0..h {
+                grad[l.b1 + j] += d_hid[r * h + j];
+            }
+        }
+        // d_feat (n x inp) = d_hid (n x h) * W1 (h x inp)
+        unsafe {
+            matrixmultiply::sgemm(
+                n, h, inp, 1.0,
+                d_hid.as_ptr(), h as isize, 1,
+                p[l.w1..].as_ptr(), inp as isize, 1,
+                0.0, d_feat.as_mut_ptr(), inp as isize, 1,
+            );
+        }
+    }
+}
+
+/// Raw decoder outputs to (σ, [rgb, features]).
+#[inline]
+pub fn activate(o: &[f32]) -> (f32, [f32; 7]) {
+    let sigma = o[0].clamp(SIGMA_LOGIT_MIN, SIGMA_LOGIT_MAX).exp();
+    let mut v = [0.0f32; 7];
+    for c in 0..7 {
+        v[c] = sigmoid(o[c + 1]);
+    }
+    (sigma, v)
+}
+
+/// Backward of [`activate`]: given σ, the activated values and their gradients, writes
+/// dL/d(raw outputs).
+#[inline]
+pub fn activate_backward(o: &[f32], sigma: f32, v: &[f32], d_sigma: f32, d_v: &[f32], d_o: &mut [f32]) {
+    d_o[0] = if o[0] > SIGMA_LOGIT_MIN && o[0] < SIGMA_LOGIT_MAX { d_sigma * sigma } else { 0.0 };
+    for c in 0..7 {
+        d_o[c + 1] = d_v[c] * v[c] * (1.0 - v[c]);
+    }
+}
+
+#[inline]
+pub fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}

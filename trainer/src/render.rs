@@ -1,0 +1,330 @@
+//! Fused per-chunk volume rendering: march -> encode -> decode -> composite -> view MLP, and
+//! for training the whole backward pass in the same workspace, so a chunk of rays never
+//! leaves one core's cache and nothing is allocated per step.
+//!
+//! Rays are marched in *waves*: every live ray of the chunk takes up to `WAVE` more samples,
+//! the wave is evaluated as one batch, and rays whose transmittance fell below
+//! `T_TERMINATE` stop (early ray termination without evaluating what lies behind a surface,
+//! including the never-seen inside of solid objects).
+
+use crate::composite::{self, V};
+use crate::field::{activate, activate_backward, Field, OUT};
+use crate::occupancy::{MarchState, Occupancy, Sample};
+use crate::space::{Ray, SceneSpace};
+use crate::view_mlp::{ViewCache, ViewLayout, VOUT};
+
+/// Samples a live ray takes per wave.
+pub const WAVE: usize = 24;
+/// Rays stop once transmittance is below this.
+pub const T_TERMINATE: f32 = 1.0e-4;
+
+/// One ray to render, with what it should look like when training.
+#[derive(Clone, Copy, Debug)]
+pub struct RayTask {
+    pub ray: Option<Ray>,
+    /// Background colour behind the field.
+    pub bg: [f32; 3],
+    /// Target colour (training only).
+    pub target: [f32; 3],
+    pub jitter: f32,
+}
+
+/// What a rendered ray looks like.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RayResult {
+    pub rgb: [f32; 3],
+    /// Expected depth along the march-space ray, normalized by opacity (0 when empty).
+    pub depth: f32,
+    pub opacity: f32,
+    pub samples: u32,
+}
+
+/// Per-thread scratch memory, reused across chunks and steps.
+#[derive(Default)]
+pub struct Workspace {
+    samples: Vec<Sample>,
+    sample_time: Vec<f32>,
+    sample_ray: Vec<u32>,
+    sigma: Vec<f32>,
+    feat: Vec<f32>,
+    hid: Vec<f32>,
+    out: Vec<f32>,
+    d_out: Vec<f32>,
+    d_hid: Vec<f32>,
+    d_feat: Vec<f32>,
+    ray_samples: Vec<Vec<u32>>,
+    states: Vec<MarchState>,
+    depth_sum: Vec<f32>,
+    live: Vec<u32>,
+    // per-ray compositing scratch
+    c_sigma: Vec<f32>,
+    c_delta: Vec<f32>,
+    c_v: Vec<[f32; V]>,
+    c_dsigma: Vec<f32>,
+    c_dv: Vec<[f32; V]>,
+    c_scratch: Vec<f32>,
+    /// Parameter gradient accumulated by this thread.
+    pub grad: Vec<f32>,
+}
+
+/// Statistics of one processed chunk.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ChunkStats {
+    pub loss_sum: f64,
+    pub samples: u64,
+    pub rays: u64,
+}
+
+impl Workspace {
+    fn reset(&mut self, n_rays: usize) {
+        self.samples.clear();
+        self.sample_time.clear();
+        self.sample_ray.clear();
+        self.sigma.clear();
+        if self.ray_samples.len() < n_rays {
+            self.ray_samples.resize_with(n_rays, Vec::new);
+        }
+        for r in &mut self.ray_samples[..n_rays] {
+            r.clear();
+        }
+        self.states.clear();
+        self.depth_sum.clear();
+        self.depth_sum.resize(n_rays, 0.0);
+        self.live.clear();
+    }
+
+    /// March and evaluate the field on all rays of the chunk (forward only), wave by wave.
+    fn forward_field(&mut self, field: &Field, space: &SceneSpace, occ: &Occupancy, tasks: &[RayTask]) {
+        self.reset(tasks.len());
+        for (i, task) in tasks.iter().enumerate() {
+            match task.ray {
+                Some(r) => {
+                    self.states.push(occ.start(space, &r, task.jitter));
+                    self.live.push(i as u32);
+                }
+                None => self.states.push(MarchState { t: 0.0, done: true }),
+            }
+        }
+        let (inp, h) = (field.layout.input, field.layout.hidden);
+        let log_terminate = -T_TERMINATE.ln();
+        while !self.live.is_empty() {
+            let start = self.samples.len();
+            for &ri in &self.live {
+                let ri = ri as usize;
+                let ray = tasks[ri].ray.as_ref().unwrap();
+                let before = self.samples.len();
+                occ.march(space, ray, &mut self.states[ri], WAVE, &mut self.samples);
+                for k in before..self.samples.len() {
+                    self.ray_samples[ri].push(k as u32);
+                    self.sample_ray.push(ri as u32);
+                    self.sample_time.push(ray.time);
+                }
+            }
+            let end = self.samples.len();
+            if end == start {
+                break;
+            }
+            let n = end - start;
+            self.feat.resize(end * inp, 0.0);
+            self.hid.resize(end * h, 0.0);
+            self.out.resize(end * OUT, 0.0);
+            for k in start..end {
+                field.encode(&self.samples[k].g, self.sample_time[k], &mut self.feat[k * inp..(k + 1) * inp]);
+            }
+            field.decode_forward(
+                n,
+                &self.feat[start * inp..end * inp],
+                &mut self.hid[start * h..end * h],
+                &mut self.out[start * OUT..end * OUT],
+            );
+            for k in start..end {
+                let (sg, _) = activate(&self.out[k * OUT..(k + 1) * OUT]);
+                self.sigma.push(sg);
+                let ri = self.sample_ray[k] as usize;
+                self.depth_sum[ri] += composite::optical_depth(sg, self.samples[k].delta);
+            }
+            let (states, depth_sum) = (&self.states, &self.depth_sum);
+            self.live.retain(|&ri| !states[ri as usize].done && depth_sum[ri as usize] < log_terminate);
+        }
+    }
+
+    /// Gather ray `ri`'s samples into the compositing scratch arrays.
+    fn gather(&mut self, ri: usize) {
+        self.c_sigma.clear();
+        self.c_delta.clear();
+        self.c_v.clear();
+        for &k in &self.ray_samples[ri] {
+            let k = k as usize;
+            let (sg, v7) = activate(&self.out[k * OUT..(k + 1) * OUT]);
+            self.c_sigma.push(sg);
+            self.c_delta.push(self.samples[k].delta);
+            let mut v = [1.0f32; V];
+            v[..7].copy_from_slice(&v7);
+            self.c_v.push(v);
+        }
+    }
+}
+
+/// Final colour from the composited vector: diffuse + opacity * specular + T_N * background.
+#[inline]
+fn shade(value: &[f32; V], t_final: f32, spec: &[f32; VOUT], bg: &[f32; 3]) -> [f32; 3] {
+    let acc = value[7];
+    [0, 1, 2].map(|c| value[c] + acc * spec[c] + t_final * bg[c])
+}
+
+/// Render rays without gradients.
+pub fn render_chunk(
+    field: &Field,
+    space: &SceneSpace,
+    occ: &Occupancy,
+    tasks: &[RayTask],
+    ws: &mut Workspace,
+    results: &mut [RayResult],
+) {
+    ws.forward_field(field, space, occ, tasks);
+    let view: &ViewLayout = &field.layout.view;
+    for (ri, task) in tasks.iter().enumerate() {
+        let Some(ray) = task.ray else {
+            results[ri] = RayResult { rgb: task.bg, depth: 0.0, opacity: 0.0, samples: 0 };
+            continue;
+        };
+        ws.gather(ri);
+        let comp = composite::forward(&ws.c_sigma, &ws.c_delta, &ws.c_v);
+        let (spec, _) = view.forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
+        // expected depth
+        let mut depth = 0.0f32;
+        composite::weights(&ws.c_sigma, &ws.c_delta, &mut ws.c_dsigma, &mut ws.c_scratch);
+        for (j, &k) in ws.ray_samples[ri].iter().enumerate() {
+            depth += ws.c_dsigma[j] * ws.samples[k as usize].t;
+        }
+        let acc = comp.value[7];
+        results[ri] = RayResult {
+            rgb: shade(&comp.value, comp.t_final, &spec, &task.bg),
+            depth: if acc > 1e-6 { depth / acc } else { 0.0 },
+            opacity: acc,
+            samples: ws.ray_samples[ri].len() as u32,
+        };
+    }
+}
+
+/// One training chunk: forward, mean-squared-error loss against the targets, and the full
+/// backward into `ws.grad`. `loss_scale` multiplies dL/dcolour (1 / (3 * batch rays)).
+pub fn train_chunk(
+    field: &Field,
+    space: &SceneSpace,
+    occ: &Occupancy,
+    tasks: &[RayTask],
+    ws: &mut Workspace,
+    loss_scale: f32,
+) -> ChunkStats {
+    ws.forward_field(field, space, occ, tasks);
+    let n = ws.samples.len();
+    let (inp, h) = (field.layout.input, field.layout.hidden);
+    ws.d_out.clear();
+    ws.d_out.resize(n * OUT, 0.0);
+    let view = field.layout.view;
+    let mut stats = ChunkStats { samples: n as u64, rays: tasks.len() as u64, ..Default::default() };
+    for (ri, task) in tasks.iter().enumerate() {
+        let Some(ray) = task.ray else {
+            let e: f32 = (0..3).map(|c| (task.bg[c] - task.target[c]).powi(2)).sum();
+            stats.loss_sum += e as f64;
+            continue;
+        };
+        ws.gather(ri);
+        let comp = composite::forward(&ws.c_sigma, &ws.c_delta, &ws.c_v);
+        let (spec, cache): ([f32; VOUT], ViewCache) =
+            view.forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
+        let rgb = shade(&comp.value, comp.t_final, &spec, &task.bg);
+        let mut d_rgb = [0.0f32; 3];
+        for c in 0..3 {
+            let e = rgb[c] - task.target[c];
+            stats.loss_sum += (e * e) as f64;
+            d_rgb[c] = 2.0 * e * loss_scale;
+        }
+        let acc = comp.value[7];
+        // colour = value[0..3] + acc * spec + T_N * bg
+        let d_spec = [0, 1, 2].map(|c| d_rgb[c] * acc);
+        let d_x = view.backward(&field.params, &cache, &d_spec, &mut ws.grad);
+        let mut g = [0.0f32; V];
+        for c in 0..3 {
+            g[c] = d_rgb[c] + d_x[c];
+        }
+        g[3..7].copy_from_slice(&d_x[3..7]);
+        g[7] = (0..3).map(|c| d_rgb[c] * spec[c]).sum();
+        let g_t: f32 = (0..3).map(|c| d_rgb[c] * task.bg[c]).sum();
+        let m = ws.c_sigma.len();
+        ws.c_dsigma.resize(m, 0.0);
+        ws.c_dv.resize(m, [0.0; V]);
+        composite::backward(
+            &ws.c_sigma,
+            &ws.c_delta,
+            &ws.c_v,
+            &g,
+            g_t,
+            &mut ws.c_dsigma,
+            &mut ws.c_dv,
+            &mut ws.c_scratch,
+        );
+        for (j, &k) in ws.ray_samples[ri].iter().enumerate() {
+            let k = k as usize;
+            let o = &ws.out[k * OUT..(k + 1) * OUT];
+            let v = &ws.c_v[j];
+            activate_backward(o, ws.c_sigma[j], &v[..7], ws.c_dsigma[j], &ws.c_dv[j][..7], &mut ws.d_out[k * OUT..(k + 1) * OUT]);
+        }
+    }
+    if n > 0 {
+        ws.d_hid.resize(n * h, 0.0);
+        ws.d_feat.resize(n * inp, 0.0);
+        field.decode_backward(n, &ws.feat[..n * inp], &ws.hid[..n * h], &ws.d_out, &mut ws.d_hid, &mut ws.d_feat, &mut ws.grad);
+        for k in 0..n {
+            field.encode_backward(&ws.samples[k].g, ws.sample_time[k], &ws.d_feat[k * inp..(k + 1) * inp], &mut ws.grad);
+        }
+    }
+    stats
+}
+
+/// σ at many grid points (occupancy refresh, baking): forward only, in batches.
+pub fn density_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, out: &mut [f32]) {
+    let (inp, h) = (field.layout.input, field.layout.hidden);
+    const B: usize = 1024;
+    for (bi, chunk) in points.chunks(B).enumerate() {
+        let n = chunk.len();
+        ws.feat.resize(n * inp, 0.0);
+        ws.hid.resize(n * h, 0.0);
+        ws.out.resize(n * OUT, 0.0);
+        for (k, g) in chunk.iter().enumerate() {
+            field.encode(g, times[bi * B + k], &mut ws.feat[k * inp..(k + 1) * inp]);
+        }
+        field.decode_forward(n, &ws.feat[..n * inp], &mut ws.hid[..n * h], &mut ws.out[..n * OUT]);
+        for k in 0..n {
+            out[bi * B + k] = activate(&ws.out[k * OUT..(k + 1) * OUT]).0;
+        }
+    }
+}
+
+/// One workspace per rayon worker thread; a task locks the one of the thread it runs on,
+/// so locks are never contended and gradient buffers are per thread.
+pub struct WorkspacePool {
+    pub slots: Vec<std::sync::Mutex<Workspace>>,
+}
+
+impl WorkspacePool {
+    pub fn new(grad_len: usize) -> WorkspacePool {
+        let n = rayon::current_num_threads().max(1) + 1;
+        let slots = (0..n)
+            .map(|_| std::sync::Mutex::new(Workspace { grad: vec![0.0; grad_len], ..Default::default() }))
+            .collect();
+        WorkspacePool { slots }
+    }
+
+    /// The calling thread's workspace (the last slot serves threads outside the pool).
+    pub fn with<R>(&self, f: impl FnOnce(&mut Workspace) -> R) -> R {
+        let i = rayon::current_thread_index().unwrap_or(self.slots.len() - 1).min(self.slots.len() - 1);
+        let mut ws = self.slots[i].lock().unwrap_or_else(|e| e.into_inner());
+        f(&mut ws)
+    }
+
+    pub fn grads(&mut self) -> Vec<&mut Vec<f32>> {
+        self.slots.iter_mut().map(|m| &mut m.get_mut().unwrap_or_else(|e| e.into_inner()).grad).collect()
+    }
+}

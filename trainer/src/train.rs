@@ -1,0 +1,326 @@
+//! The training loop: random rays across all training views, fused forward/backward on rayon
+//! workers (one gradient buffer per worker), Adam, occupancy refreshes, a learning-rate decay
+//! over the run's budget (steps or minutes, whichever ends first), and the curve of test
+//! PSNR against seconds that `metrics.json` records.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use snerf_data::{Dataset, SceneKind, View};
+
+use crate::adam::Adam;
+use crate::field::{Field, FieldConfig, Rng};
+use crate::occupancy::Occupancy;
+use crate::render::{density_batch, train_chunk, ChunkStats, RayTask, WorkspacePool};
+use crate::space::SceneSpace;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainConfig {
+    pub batch_rays: usize,
+    pub chunk_rays: usize,
+    pub lr_planes: f32,
+    pub lr_mlp: f32,
+    /// Learning rate at the end of the budget, as a fraction of the start.
+    pub lr_final: f32,
+    pub occupancy_res: usize,
+    pub steps_per_diagonal: usize,
+    /// Refresh the occupancy grid every this many steps.
+    pub occupancy_every: u64,
+    pub seed: u64,
+    pub field: FieldConfig,
+}
+
+impl TrainConfig {
+    /// Defaults that suit the dataset: plane resolution follows image resolution, time planes
+    /// only for dynamic scenes.
+    pub fn for_dataset(data: &Dataset) -> TrainConfig {
+        let max_dim = data.train.iter().map(|v| v.intrinsics.width.max(v.intrinsics.height)).max().unwrap_or(128);
+        let finest = (2 * max_dim).next_power_of_two().clamp(128, 512);
+        let resolutions: Vec<u32> = match data.kind {
+            SceneKind::Object => vec![finest / 8, finest / 4, finest / 2, finest],
+            _ => vec![finest / 8, finest / 4, finest / 2, finest],
+        };
+        let time_resolutions = if data.dynamic {
+            let frames = data.train.len().clamp(8, 400) as u32;
+            let tmax = (frames / 3).clamp(8, 64);
+            vec![(tmax / 4).max(4), (tmax / 2).max(4), tmax, tmax]
+        } else {
+            Vec::new()
+        };
+        TrainConfig {
+            batch_rays: 4096,
+            chunk_rays: 64,
+            lr_planes: 0.02,
+            lr_mlp: 0.005,
+            lr_final: 0.1,
+            occupancy_res: 64,
+            steps_per_diagonal: 512,
+            occupancy_every: 16,
+            seed: 0,
+            field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
+        }
+    }
+}
+
+/// What a renderer needs: the scene mapping, the field and its occupancy grid.
+#[derive(Clone, Debug)]
+pub struct Model {
+    pub space: SceneSpace,
+    pub field: Field,
+    pub occ: Occupancy,
+}
+
+/// One point of the error-against-time curve.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct CurvePoint {
+    pub step: u64,
+    /// Training time only (evaluations excluded).
+    pub train_seconds: f64,
+    pub train_psnr: f64,
+    pub test_psnr: Option<f64>,
+    pub samples_per_second: f64,
+}
+
+pub struct Trainer {
+    pub cfg: TrainConfig,
+    pub model: Model,
+    pub adam: Adam,
+    pub step: u64,
+    pub train_seconds: f64,
+    pub samples_seen: u64,
+    pub curve: Vec<CurvePoint>,
+    pub pool: WorkspacePool,
+    rng: Rng,
+    views: Vec<View>,
+    has_alpha: bool,
+    /// Cumulative pixel counts, for uniform sampling of pixels across views.
+    cum_pixels: Vec<usize>,
+}
+
+/// Statistics of one step.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StepStats {
+    pub loss: f64,
+    pub samples: u64,
+    pub seconds: f64,
+}
+
+impl StepStats {
+    pub fn psnr(&self) -> f64 {
+        mse_to_psnr(self.loss)
+    }
+}
+
+pub fn mse_to_psnr(mse: f64) -> f64 {
+    -10.0 * mse.max(1e-12).log10()
+}
+
+/// True when any training image has transparent pixels (a bounded object on no background).
+pub fn views_have_alpha(views: &[View]) -> bool {
+    views.iter().any(|v| v.rgba.chunks_exact(4).any(|p| p[3] < 255))
+}
+
+impl Trainer {
+    pub fn new(data: &Dataset, cfg: TrainConfig) -> Result<Trainer> {
+        let space = SceneSpace::from_dataset(data)?;
+        let field = Field::new(cfg.field.clone(), cfg.seed)?;
+        let occ = Occupancy::new(cfg.occupancy_res, cfg.steps_per_diagonal);
+        let adam = Adam::new(field.params.len());
+        let mut t = Trainer::from_parts(data, cfg, Model { space, field, occ }, adam)?;
+        if t.model.space.kind == SceneKind::Object && t.has_alpha {
+            t.carve();
+        }
+        Ok(t)
+    }
+
+    /// Rebuild a trainer around saved state (resume) and the dataset's training views.
+    pub fn from_parts(data: &Dataset, cfg: TrainConfig, model: Model, adam: Adam) -> Result<Trainer> {
+        anyhow::ensure!(!data.train.is_empty(), "{}: no training views", data.root.display());
+        let views = data.train.clone();
+        let mut cum = Vec::with_capacity(views.len());
+        let mut total = 0usize;
+        for v in &views {
+            total += (v.intrinsics.width * v.intrinsics.height) as usize;
+            cum.push(total);
+        }
+        let has_alpha = views_have_alpha(&views);
+        let pool = WorkspacePool::new(model.field.params.len());
+        Ok(Trainer {
+            rng: Rng::new(cfg.seed ^ 0x5eed),
+            cfg,
+            model,
+            adam,
+            step: 0,
+            train_seconds: 0.0,
+            samples_seen: 0,
+            curve: Vec::new(),
+            pool,
+            views,
+            has_alpha,
+            cum_pixels: cum,
+        })
+    }
+
+    pub fn has_alpha(&self) -> bool {
+        self.has_alpha
+    }
+
+    /// Silhouette carving: a cell whose projection falls on transparent background (alpha 0
+    /// in a window covering the cell) in any training view is empty for good. Dynamic scenes
+    /// use a wider window, since a silhouette can grow at another time.
+    pub fn carve(&mut self) {
+        let occ = &self.model.occ;
+        let space = &self.model.space;
+        let res = occ.res;
+        let cell_world = 2.0 / res as f32 / space.scale * 0.87; // half-diagonal of a cell
+        let extra = if space.dynamic { 3.0 } else { 1.0 };
+        let views = &self.views;
+        let allowed: Vec<bool> = (0..res * res * res)
+            .into_par_iter()
+            .map(|i| {
+                let pw = space.to_world(space.grid_to_march(occ.cell_center(i)));
+                for v in views {
+                    let k = &v.intrinsics;
+                    let c = &v.c2w;
+                    let rel = [pw[0] - c[0][3], pw[1] - c[1][3], pw[2] - c[2][3]];
+                    // camera coordinates = R^T rel
+                    let xc = c[0][0] * rel[0] + c[1][0] * rel[1] + c[2][0] * rel[2];
+                    let yc = c[0][1] * rel[0] + c[1][1] * rel[1] + c[2][1] * rel[2];
+                    let zc = c[0][2] * rel[0] + c[1][2] * rel[1] + c[2][2] * rel[2];
+                    if zc > -1e-3 {
+                        continue;
+                    }
+                    let px = k.fx * xc / -zc + k.cx;
+                    let py = -k.fy * yc / -zc + k.cy;
+                    let r = (k.fx * cell_world / -zc + extra).ceil() as i64;
+                    let (w, h) = (k.width as i64, k.height as i64);
+                    let (x0, y0) = (px.floor() as i64, py.floor() as i64);
+                    if x0 + r < 0 || y0 + r < 0 || x0 - r >= w || y0 - r >= h {
+                        continue; // outside this view: it says nothing
+                    }
+                    let mut any = false;
+                    'win: for y in (y0 - r).max(0)..=(y0 + r).min(h - 1) {
+                        for x in (x0 - r).max(0)..=(x0 + r).min(w - 1) {
+                            if v.rgba[((y * w + x) * 4 + 3) as usize] > 0 {
+                                any = true;
+                                break 'win;
+                            }
+                        }
+                    }
+                    // The window must lie fully inside the image to prove emptiness.
+                    let inside = x0 - r >= 0 && y0 - r >= 0 && x0 + r < w && y0 + r < h;
+                    if !any && inside {
+                        return false;
+                    }
+                }
+                true
+            })
+            .collect();
+        self.model.occ.allowed = allowed;
+        self.model.occ.refresh_bits();
+    }
+
+    fn sample_tasks(&mut self, n: usize) -> Vec<RayTask> {
+        let total = *self.cum_pixels.last().unwrap();
+        let mut tasks = Vec::with_capacity(n);
+        for _ in 0..n {
+            let p = self.rng.below(total);
+            let vi = self.cum_pixels.partition_point(|&c| c <= p);
+            let v = &self.views[vi];
+            let local = p - if vi == 0 { 0 } else { self.cum_pixels[vi - 1] };
+            let w = v.intrinsics.width as usize;
+            let (x, y) = (local % w, local / w);
+            let px = &v.rgba[local * 4..local * 4 + 4];
+            let a = px[3] as f32 / 255.0;
+            let bg = if self.has_alpha {
+                [self.rng.uniform(), self.rng.uniform(), self.rng.uniform()]
+            } else {
+                [0.0; 3]
+            };
+            let target = [0, 1, 2].map(|c| px[c] as f32 / 255.0 * a + bg[c] * (1.0 - a));
+            let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time);
+            tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
+        }
+        tasks
+    }
+
+    /// Learning-rate multiplier at `progress` in [0,1] of the budget (exponential decay).
+    pub fn lr_scale(&self, progress: f64) -> f32 {
+        let warm = ((self.step + 1) as f32 / 16.0).min(1.0);
+        warm * self.cfg.lr_final.powf(progress.clamp(0.0, 1.0) as f32)
+    }
+
+    /// One optimization step.
+    pub fn step(&mut self, progress: f64) -> StepStats {
+        let t0 = Instant::now();
+        let tasks = self.sample_tasks(self.cfg.batch_rays);
+        let loss_scale = 1.0 / (3.0 * tasks.len() as f32);
+        let model = &self.model;
+        let pool = &self.pool;
+        let stats = tasks
+            .par_chunks(self.cfg.chunk_rays)
+            .map(|chunk| pool.with(|ws| train_chunk(&model.field, &model.space, &model.occ, chunk, ws, loss_scale)))
+            .reduce(ChunkStats::default, |a, b| ChunkStats {
+                loss_sum: a.loss_sum + b.loss_sum,
+                samples: a.samples + b.samples,
+                rays: a.rays + b.rays,
+            });
+        let s = self.lr_scale(progress);
+        let ranges = [
+            (self.model.field.layout.plane_end, self.cfg.lr_planes * s),
+            (self.model.field.params.len(), self.cfg.lr_mlp * s),
+        ];
+        let mut grads = self.pool.grads();
+        self.adam.update(&mut self.model.field.params, &mut grads, &ranges);
+        self.step += 1;
+        if self.step % self.cfg.occupancy_every == 0 || self.step < 64 && self.step % 4 == 0 {
+            self.update_occupancy();
+        }
+        let secs = t0.elapsed().as_secs_f64();
+        self.train_seconds += secs;
+        self.samples_seen += stats.samples;
+        StepStats { loss: stats.loss_sum / (3.0 * stats.rays.max(1) as f64), samples: stats.samples, seconds: secs }
+    }
+
+    /// Re-measure density in a rotating quarter of the cells (all of them while warming up)
+    /// at jittered points and random times; early on the measurement replaces the stored
+    /// value so free space is pruned within the first few dozen steps, later it is a decayed
+    /// running max so thin surfaces are not lost to one unlucky sample.
+    pub fn update_occupancy(&mut self) {
+        let warm = self.step < 256;
+        let stride: usize = if warm { 1 } else { 4 };
+        let phase = ((self.step / self.cfg.occupancy_every) as usize) % stride;
+        let occ = &self.model.occ;
+        let res = occ.res;
+        let n = res * res * res;
+        let cell = 2.0 / res as f32;
+        let cells: Vec<usize> = (phase..n).step_by(stride).filter(|&i| occ.allowed[i]).collect();
+        let mut rng = Rng::new(self.rng.next_u64());
+        let mut points = Vec::with_capacity(cells.len());
+        let mut times = Vec::with_capacity(cells.len());
+        for &i in &cells {
+            let c = occ.cell_center(i);
+            points.push([0, 1, 2].map(|a| c[a] + (rng.uniform() - 0.5) * cell));
+            times.push(rng.uniform());
+        }
+        let mut sigma = vec![0.0f32; cells.len()];
+        let field = &self.model.field;
+        let pool = &self.pool;
+        const B: usize = 4096;
+        sigma.par_chunks_mut(B).enumerate().for_each(|(bi, out)| {
+            let lo = bi * B;
+            let hi = lo + out.len();
+            pool.with(|ws| density_batch(field, &points[lo..hi], &times[lo..hi], ws, out));
+        });
+        let space = &self.model.space;
+        let occ = &mut self.model.occ;
+        for (j, &i) in cells.iter().enumerate() {
+            let d = sigma[j] * occ.typical_delta(space, &points[j]);
+            let d = if d.is_finite() { d } else { 0.0 };
+            occ.depth[i] = if warm { d } else { (occ.depth[i] * 0.9).max(d) };
+        }
+        occ.refresh_bits();
+    }
+}
