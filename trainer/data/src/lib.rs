@@ -1,8 +1,25 @@
-//! Posed images in: `transforms.json` (Blender / nerfstudio), LLFF `poses_bounds.npy`, COLMAP
-//! sparse models. Every loader produces the same [`Dataset`]: cameras in the OpenGL convention
-//! (camera-to-world, x right, y up, looking down -z), images as 8-bit RGBA, optional time.
-//! The scene kind is detected from the poses (see `detect`) unless the caller overrides it.
+//! snerf-data: posed multi-view datasets in. Reads `transforms.json` (Blender / nerfstudio),
+//! LLFF `poses_bounds.npy` and COLMAP sparse models (text and binary) into one [`Dataset`]:
+//! cameras in the OpenGL convention (camera-to-world, x right, y up, looking down -z), images as
+//! 8-bit RGBA, optional per-frame time. Data flow: `source` finds which format a path holds, the
+//! format module (`transforms`, `llff`, `colmap`) parses poses and intrinsics into pending views,
+//! `images` decodes and downscales the PNGs in parallel, and `detect` decides the scene kind
+//! (object / forward / unbounded) and whether the scene is dynamic, unless the caller overrides it.
 
+mod colmap;
+pub mod detect;
+mod images;
+mod llff;
+mod npy;
+mod pose;
+mod source;
+mod summary;
+mod transforms;
+
+pub use detect::{detect_kind, max_view_angle_deg, transparent_fraction};
+pub use summary::summary;
+
+use std::path::Path;
 use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
@@ -21,7 +38,7 @@ pub struct Intrinsics {
 }
 
 /// One posed image.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct View {
     /// The image file this view was read from (for error messages and outputs).
     pub path: PathBuf,
@@ -35,7 +52,7 @@ pub struct View {
 }
 
 /// What kind of space the scene occupies; decides the field's parametrization.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SceneKind {
     /// A bounded object seen from around it: a box, no contraction.
@@ -52,7 +69,8 @@ pub struct LoadOptions {
     pub kind: Option<SceneKind>,
     /// Some(false) forces a static field even if frames carry times.
     pub dynamic: Option<bool>,
-    /// For formats without splits (LLFF, COLMAP): every n-th image is a test view (default 8).
+    /// For formats without splits (LLFF, COLMAP, a single transforms.json): every n-th image
+    /// (indices 0, n, 2n, ...) is a test view (default 8); `Some(0)` holds nothing out.
     pub holdout_every: Option<usize>,
     /// Integer image downscale factor (LLFF `images_N` folders are used when present).
     pub downscale: Option<u32>,
@@ -73,4 +91,142 @@ pub struct Dataset {
     /// Axis-aligned box of interest in world units when the data says so
     /// (`aabb` key in transforms.json, a snerf extension).
     pub aabb: Option<([f32; 3], [f32; 3])>,
+    /// Why `kind` and `dynamic` have their values (override, file hint or detection measures),
+    /// for the CLI to print.
+    pub detection_note: String,
+}
+
+impl SceneKind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SceneKind::Object => "object",
+            SceneKind::Forward => "forward",
+            SceneKind::Unbounded => "unbounded",
+        }
+    }
+
+    /// Parses "object", "forward" or "unbounded" (case-insensitive).
+    pub fn parse(s: &str) -> Option<SceneKind> {
+        match s.to_ascii_lowercase().as_str() {
+            "object" => Some(SceneKind::Object),
+            "forward" => Some(SceneKind::Forward),
+            "unbounded" => Some(SceneKind::Unbounded),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for SceneKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl Intrinsics {
+    /// The intrinsics after an integer box-filter downscale by `s` (image cropped to a multiple
+    /// of `s` first).
+    pub fn downscaled(&self, s: u32) -> Intrinsics {
+        let sf = s.max(1) as f32;
+        Intrinsics {
+            width: self.width / s.max(1),
+            height: self.height / s.max(1),
+            fx: self.fx / sf,
+            fy: self.fy / sf,
+            cx: self.cx / sf,
+            cy: self.cy / sf,
+            distortion: self.distortion,
+        }
+    }
+}
+
+impl std::fmt::Debug for View {
+    /// Like a derived Debug, but the pixels are summarised by their byte count.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("View")
+            .field("path", &self.path)
+            .field("intrinsics", &self.intrinsics)
+            .field("c2w", &self.c2w)
+            .field("time", &self.time)
+            .field("rgba", &format_args!("[{} bytes]", self.rgba.len()))
+            .finish()
+    }
+}
+
+impl View {
+    /// Camera centre in world space.
+    pub fn origin(&self) -> [f32; 3] {
+        [self.c2w[0][3], self.c2w[1][3], self.c2w[2][3]]
+    }
+
+    /// Unit viewing direction in world space (the camera's -z axis).
+    pub fn forward(&self) -> [f32; 3] {
+        [-self.c2w[0][2], -self.c2w[1][2], -self.c2w[2][2]]
+    }
+}
+
+impl Dataset {
+    /// All views: train, then val, then test.
+    pub fn all_views(&self) -> impl Iterator<Item = &View> {
+        self.train
+            .iter()
+            .chain(self.val.iter())
+            .chain(self.test.iter())
+    }
+
+    /// (min, max) of the per-frame times, if any frame has one.
+    pub fn time_range(&self) -> Option<(f32, f32)> {
+        let mut r: Option<(f32, f32)> = None;
+        for t in self.all_views().filter_map(|v| v.time) {
+            r = Some(match r {
+                None => (t, t),
+                Some((a, b)) => (a.min(t), b.max(t)),
+            });
+        }
+        r
+    }
+}
+
+/// Loads a dataset from a directory or a file (`transforms*.json`, `poses_bounds.npy`, or a
+/// COLMAP `cameras`/`images` file), detecting the format; see the crate docs.
+pub fn load(path: &Path, opts: &LoadOptions) -> anyhow::Result<Dataset> {
+    let src = source::locate(path)?;
+    let raw = match &src {
+        source::Source::Transforms { files } => transforms::load(files, opts)?,
+        source::Source::Llff { dir } => llff::load(dir, opts)?,
+        source::Source::Colmap { model_dir } => colmap::load(model_dir, opts)?,
+    };
+    detect::finish(raw, opts)
+}
+
+/// What a format loader hands to `detect::finish`.
+pub(crate) struct RawDataset {
+    pub root: std::path::PathBuf,
+    pub format: String,
+    pub train: Vec<View>,
+    pub val: Vec<View>,
+    pub test: Vec<View>,
+    /// The file that holds the poses (for messages).
+    pub pose_file: std::path::PathBuf,
+    pub kind_hint: Option<SceneKind>,
+    pub near_far: Option<(f32, f32)>,
+    pub aabb: Option<([f32; 3], [f32; 3])>,
+}
+
+/// Indices `0, n, 2n, ...` are test (the LLFF protocol); `n == 0` holds nothing out; fewer than
+/// two frames are all train.
+pub(crate) fn holdout_split<T>(items: Vec<T>, opts: &LoadOptions) -> (Vec<T>, Vec<T>) {
+    let n = opts.holdout_every.unwrap_or(8);
+    if n == 0 || items.len() < 2 {
+        return (items, Vec::new());
+    }
+    let mut train = Vec::new();
+    let mut test = Vec::new();
+    for (i, it) in items.into_iter().enumerate() {
+        if i % n == 0 {
+            test.push(it);
+        } else {
+            train.push(it);
+        }
+    }
+    (train, test)
 }
