@@ -10,6 +10,7 @@
 pub use snerf_data as data;
 
 pub mod adam;
+pub mod camera_path;
 pub mod checkpoint;
 pub mod composite;
 pub mod eval;
@@ -17,6 +18,7 @@ pub mod field;
 pub mod metrics;
 pub mod occupancy;
 pub mod render;
+pub mod run;
 pub mod space;
 pub mod train;
 pub mod view_mlp;

@@ -76,6 +76,11 @@ pub struct ChunkStats {
 }
 
 impl Workspace {
+    /// A workspace whose gradient buffer fits `params` parameters.
+    pub fn new(params: usize) -> Workspace {
+        Workspace { grad: vec![0.0; params], ..Default::default() }
+    }
+
     fn reset(&mut self, n_rays: usize) {
         self.samples.clear();
         self.sample_time.clear();
@@ -312,7 +317,7 @@ impl WorkspacePool {
     pub fn new(grad_len: usize) -> WorkspacePool {
         let n = rayon::current_num_threads().max(1) + 1;
         let slots = (0..n)
-            .map(|_| std::sync::Mutex::new(Workspace { grad: vec![0.0; grad_len], ..Default::default() }))
+            .map(|_| std::sync::Mutex::new(Workspace::new(grad_len)))
             .collect();
         WorkspacePool { slots }
     }

@@ -1,0 +1,406 @@
+//! Command-line interface: argument parsing and one function per subcommand.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::{json, Value};
+use snerf_trainer::data::{self, Dataset, LoadOptions, SceneKind};
+use snerf_trainer::{checkpoint, eval, run, train};
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "snerf",
+    version,
+    about = "Stylized radiance fields: capture -> train -> stylize -> bake -> view",
+    long_about = "snerf learns a radiance field from posed views (transforms.json, LLFF, COLMAP, or its own \
+                  generated scenes), fast on a CPU.\n\nStart with `snerf demo --out demo` for the whole path on \
+                  built-in data. Every command takes --json to print a machine-readable summary on stdout."
+)]
+pub struct Cli {
+    /// Print a JSON summary of the result on stdout (progress goes to stderr).
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    pub threads: Option<usize>,
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Cmd {
+    /// Write a multi-view dataset (nerf_synthetic layout) from a built-in scene or a glTF file.
+    Scene(SceneArgs),
+    /// Describe a dataset: format, detected scene kind (and why), splits, image sizes.
+    Data(DataArgs),
+    /// Train a radiance field on a dataset.
+    Train(TrainArgs),
+    /// Score a trained run on held-out views: PSNR, SSIM, side-by-side images and depth.
+    Eval(EvalArgs),
+    /// Render a turntable of a trained run.
+    Turntable(TurntableArgs),
+    /// The whole path on built-in data: scene -> train -> eval -> turntable + contact sheet.
+    Demo(crate::demo::DemoArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SceneArgs {
+    /// object | room | outdoor | avatar | gltf:<file.gltf|file.glb>
+    pub name: String,
+    /// Output dataset directory (replaced only if empty or a previous snerf dataset).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Training views (default depends on the scene).
+    #[arg(long)]
+    pub views: Option<usize>,
+    /// Held-out test views.
+    #[arg(long)]
+    pub test_views: Option<usize>,
+    /// Image size WxH, e.g. 128x128.
+    #[arg(long)]
+    pub size: Option<String>,
+    /// Supersampling per axis for anti-aliasing (4 = 16 samples per pixel).
+    #[arg(long)]
+    pub supersample: Option<u32>,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Cameras: sphere (train spread over a sphere, test on an orbit) or orbit.
+    #[arg(long, default_value = "sphere")]
+    pub path: String,
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct DataOpts {
+    /// Override the detected scene kind: object | forward | unbounded.
+    #[arg(long)]
+    pub kind: Option<String>,
+    /// Treat the scene as static even if frames carry times.
+    #[arg(long = "static")]
+    pub force_static: bool,
+    /// Integer image downscale factor.
+    #[arg(long)]
+    pub downscale: Option<u32>,
+    /// For LLFF/COLMAP/single-file data: every n-th image is held out for testing.
+    #[arg(long)]
+    pub holdout_every: Option<usize>,
+}
+
+impl DataOpts {
+    pub fn load(&self, path: &Path) -> Result<Dataset> {
+        let kind = match self.kind.as_deref() {
+            None => None,
+            Some(k) => Some(parse_kind(k)?),
+        };
+        let opts = LoadOptions {
+            kind,
+            dynamic: if self.force_static { Some(false) } else { None },
+            holdout_every: self.holdout_every,
+            downscale: self.downscale,
+        };
+        data::load(path, &opts)
+    }
+}
+
+fn parse_kind(k: &str) -> Result<SceneKind> {
+    Ok(match k {
+        "object" => SceneKind::Object,
+        "forward" => SceneKind::Forward,
+        "unbounded" => SceneKind::Unbounded,
+        _ => bail!("unknown scene kind '{k}' (use object, forward or unbounded)"),
+    })
+}
+
+#[derive(Args, Debug)]
+pub struct DataArgs {
+    pub data: PathBuf,
+    #[command(flatten)]
+    pub opts: DataOpts,
+}
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    /// Dataset: a directory or transforms.json (Blender/nerfstudio), LLFF or COLMAP.
+    pub data: PathBuf,
+    /// Run directory (checkpoint, metrics.json, config.json).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Stop after this many steps in total (a resumed run counts its earlier steps).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Stop after this many minutes of training in total (default 5 when --steps is absent).
+    #[arg(long)]
+    pub minutes: Option<f64>,
+    /// Continue the run in --out from its last checkpoint.
+    #[arg(long)]
+    pub resume: bool,
+    /// Rays per step.
+    #[arg(long)]
+    pub batch: Option<usize>,
+    /// Held-out views used for the PSNR-vs-time curve.
+    #[arg(long, default_value_t = 8)]
+    pub curve_views: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[command(flatten)]
+    pub opts: DataOpts,
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Run directory written by `snerf train`.
+    pub run: PathBuf,
+    /// The dataset it was trained on.
+    pub data: PathBuf,
+    /// Where to write side-by-side images (default RUN/eval).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Which split to score: test, val or train.
+    #[arg(long, default_value = "test")]
+    pub split: String,
+    #[command(flatten)]
+    pub opts: DataOpts,
+}
+
+#[derive(Args, Debug)]
+pub struct TurntableArgs {
+    pub run: PathBuf,
+    pub data: PathBuf,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 36)]
+    pub frames: usize,
+    #[command(flatten)]
+    pub opts: DataOpts,
+}
+
+pub fn dispatch(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global().ok();
+    }
+    let summary = match cli.cmd {
+        Cmd::Scene(a) => scene(&a)?,
+        Cmd::Data(a) => {
+            let d = a.opts.load(&a.data)?;
+            let s = data::summary(&d);
+            if !cli.json {
+                eprintln!("{}", serde_json::to_string_pretty(&s)?);
+            }
+            s
+        }
+        Cmd::Train(a) => train_cmd(&a, cli.json)?,
+        Cmd::Eval(a) => eval_cmd(&a)?,
+        Cmd::Turntable(a) => turntable_cmd(&a)?,
+        Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
+    };
+    if cli.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    }
+    Ok(())
+}
+
+pub fn bar(len: u64, template: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(ProgressStyle::with_template(template).unwrap().progress_chars("=> "));
+    pb
+}
+
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size '{s}': expected WxH, e.g. 128x128"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size '{s}': bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size '{s}': bad height"))?;
+    if !(8..=8192).contains(&w) || !(8..=8192).contains(&h) {
+        bail!("--size '{s}': width and height must be in 8..=8192");
+    }
+    Ok((w, h))
+}
+
+pub fn scene(a: &SceneArgs) -> Result<Value> {
+    let source = snerf_scene::Source::parse(&a.name)?;
+    let mut spec = snerf_scene::SceneSpec::default_for(source);
+    if let Some(v) = a.views {
+        spec.train_views = v;
+    }
+    if let Some(v) = a.test_views {
+        spec.test_views = v;
+    }
+    if let Some(s) = &a.size {
+        (spec.width, spec.height) = parse_size(s)?;
+    }
+    if let Some(s) = a.supersample {
+        spec.supersample = s.clamp(1, 16);
+    }
+    spec.seed = a.seed;
+    spec.path = match a.path.as_str() {
+        "sphere" => snerf_scene::CameraPath::Sphere,
+        "orbit" => snerf_scene::CameraPath::Orbit,
+        p => bail!("--path '{p}': use sphere or orbit"),
+    };
+    let pb = bar((spec.train_views + spec.test_views) as u64, "{spinner} rendering views {bar:30} {pos}/{len} [{elapsed}]");
+    let out = snerf_scene::write_dataset(&spec, &a.out, &|done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    })?;
+    pb.finish_and_clear();
+    eprintln!("wrote {} ({} train + {} test views)", a.out.display(), spec.train_views, spec.test_views);
+    Ok(out)
+}
+
+pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
+    let data = a.opts.load(&a.data)?;
+    let mut cfg = train::TrainConfig::for_dataset(&data);
+    cfg.seed = a.seed;
+    if let Some(b) = a.batch {
+        cfg.batch_rays = b.clamp(64, 1 << 20);
+    }
+    let seconds = match (a.steps, a.minutes) {
+        (None, None) => Some(300.0),
+        (_, m) => m.map(|m| m * 60.0),
+    };
+    if let Some(s) = seconds {
+        anyhow::ensure!(s.is_finite() && s > 0.0, "--minutes must be positive");
+    }
+    train_run(&data, cfg, &a.out, a.resume, a.steps, seconds, a.curve_views, quiet)
+}
+
+/// Train (or resume) with a progress bar; returns the run summary.
+#[allow(clippy::too_many_arguments)]
+pub fn train_run(
+    data: &Dataset,
+    cfg: train::TrainConfig,
+    out: &Path,
+    resume: bool,
+    steps: Option<u64>,
+    seconds: Option<f64>,
+    curve_views: usize,
+    quiet: bool,
+) -> Result<Value> {
+    let wall = Instant::now();
+    let mut trainer = run::open(data, cfg, out, resume)?;
+    let opts = run::RunOptions { dir: out.to_path_buf(), steps, seconds, curve_views, checkpoint_every: 30.0 };
+    if !quiet {
+        eprintln!(
+            "training {} ({:?}{}, {} train views, {} parameters, {:.1}% of space occupied after carving)",
+            data.root.display(),
+            trainer.model.space.kind,
+            if data.dynamic { ", dynamic" } else { "" },
+            data.train.len(),
+            trainer.model.field.params.len(),
+            100.0 * trainer.model.occ.occupied_fraction()
+        );
+    }
+    let pb = bar(1000, "{spinner} {bar:30} {percent:>3}% [{elapsed}<{eta}] {msg}");
+    let mut ema: Option<(f64, f64)> = None;
+    run::run(&mut trainer, data, &opts, &mut |t, s, p| {
+        let sps = s.samples as f64 / s.seconds.max(1e-9);
+        let e = ema.map(|(l, r)| (0.9 * l + 0.1 * s.loss, 0.9 * r + 0.1 * sps)).unwrap_or((s.loss, sps));
+        ema = Some(e);
+        pb.set_position((p * 1000.0) as u64);
+        if t.step % 5 == 0 {
+            pb.set_message(format!(
+                "step {} loss {:.5} psnr {:.2} dB {:.2} M samples/s",
+                t.step,
+                e.0,
+                train::mse_to_psnr(e.0),
+                e.1 / 1e6
+            ));
+        }
+    })?;
+    pb.finish_and_clear();
+    let metrics = run::metrics_json(&trainer);
+    let last = trainer.curve.last();
+    if !quiet {
+        eprintln!(
+            "trained {} steps in {:.1} s ({:.2} M samples/s); test PSNR {} -> {}",
+            trainer.step,
+            trainer.train_seconds,
+            trainer.samples_seen as f64 / trainer.train_seconds.max(1e-9) / 1e6,
+            last.and_then(|c| c.test_psnr).map(|p| format!("{p:.2} dB")).unwrap_or("n/a".into()),
+            out.display()
+        );
+    }
+    Ok(json!({
+        "command": "train",
+        "run": out,
+        "wall_seconds": wall.elapsed().as_secs_f64(),
+        "metrics": metrics,
+    }))
+}
+
+/// Load a run's checkpoint as a renderable model.
+pub fn load_model(run_dir: &Path) -> Result<(train::Model, snerf_trainer::render::WorkspacePool)> {
+    let path = run::checkpoint_path(run_dir);
+    if !path.exists() {
+        bail!("{}: no checkpoint here (expected {}); run `snerf train` first", run_dir.display(), path.display());
+    }
+    let ck = checkpoint::load(&path)?;
+    let pool = snerf_trainer::render::WorkspacePool::new(ck.model.field.params.len());
+    Ok((ck.model, pool))
+}
+
+pub fn eval_cmd(a: &EvalArgs) -> Result<Value> {
+    let data = a.opts.load(&a.data)?;
+    let (model, pool) = load_model(&a.run)?;
+    let views = match a.split.as_str() {
+        "test" => &data.test,
+        "val" => &data.val,
+        "train" => &data.train,
+        s => bail!("--split '{s}': use test, val or train"),
+    };
+    if views.is_empty() {
+        bail!("{}: the {} split is empty", a.data.display(), a.split);
+    }
+    let out = a.out.clone().unwrap_or_else(|| a.run.join("eval"));
+    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let has_alpha = train::views_have_alpha(&data.train);
+    let report = eval::evaluate(&model, &pool, views, has_alpha, Some(&out), true)?;
+    eprintln!(
+        "{} {} views: PSNR {:.2} dB, SSIM {:.4} ({:.1} s); images in {}",
+        a.split,
+        report.views.len(),
+        report.mean_psnr,
+        report.mean_ssim,
+        report.seconds,
+        out.display()
+    );
+    let v = json!({ "command": "eval", "run": a.run, "split": a.split, "report": report, "images": out });
+    checkpoint::write_json_atomic(&out.join("eval.json"), &v)?;
+    Ok(v)
+}
+
+pub fn turntable_cmd(a: &TurntableArgs) -> Result<Value> {
+    let data = a.opts.load(&a.data)?;
+    let (model, pool) = load_model(&a.run)?;
+    let frames = turntable(&model, &pool, &data, a.frames, &a.out)?;
+    Ok(json!({ "command": "turntable", "frames": frames, "out": a.out }))
+}
+
+/// Render `n` frames on an orbit into `out/frame_NNN.png`; returns the file names.
+pub fn turntable(
+    model: &train::Model,
+    pool: &snerf_trainer::render::WorkspacePool,
+    data: &Dataset,
+    n: usize,
+    out: &Path,
+) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let cams = snerf_trainer::camera_path::orbit(&model.space, &data.train, n.max(1));
+    let k = data.test.first().unwrap_or(&data.train[0]).intrinsics;
+    let bg = eval::eval_background(train::views_have_alpha(&data.train));
+    let pb = bar(cams.len() as u64, "{spinner} turntable {bar:30} {pos}/{len} [{elapsed}]");
+    let mut files = Vec::new();
+    for (i, c2w) in cams.iter().enumerate() {
+        // dynamic scenes play their time once around the orbit
+        let time = data.dynamic.then(|| i as f32 / cams.len().max(2) as f32);
+        let r = eval::render_camera(model, pool, c2w, &k, time, bg);
+        let img = eval::side_by_side(&[&r.rgb], r.width, r.height);
+        let f = out.join(format!("frame_{i:03}.png"));
+        checkpoint::write_png_atomic(&f, &img)?;
+        files.push(f);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    Ok(files)
+}

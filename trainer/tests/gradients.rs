@@ -1,0 +1,252 @@
+//! Every hand-written backward pass against central finite differences (in f64 where the
+//! forward allows, else f32 with step sizes chosen for its precision).
+
+use snerf_trainer::composite::{self, V};
+use snerf_trainer::data::SceneKind;
+use snerf_trainer::field::{activate, activate_backward, Field, FieldConfig, Rng, OUT};
+use snerf_trainer::occupancy::Occupancy;
+use snerf_trainer::render::{train_chunk, RayTask, Workspace};
+use snerf_trainer::space::{SceneSpace, Vec3};
+use snerf_trainer::view_mlp::{ViewLayout, VIN, VOUT};
+
+fn assert_close(name: &str, analytic: f64, numeric: f64, rel: f64, abs: f64) {
+    let err = (analytic - numeric).abs();
+    assert!(
+        err <= abs + rel * numeric.abs().max(analytic.abs()),
+        "{name}: analytic {analytic:.6e} vs finite difference {numeric:.6e} (err {err:.3e})"
+    );
+}
+
+fn small_field(dynamic: bool) -> Field {
+    let cfg = FieldConfig {
+        resolutions: vec![4, 8],
+        time_resolutions: if dynamic { vec![3, 5] } else { vec![] },
+        hidden: 8,
+    };
+    let mut f = Field::new(cfg, 7).unwrap();
+    // Perturb so nothing sits at a symmetric or zero point.
+    let mut rng = Rng::new(3);
+    for p in f.params.iter_mut() {
+        *p += 0.05 * (rng.uniform() - 0.5);
+    }
+    f
+}
+
+#[test]
+fn compositing_backward_matches_finite_differences() {
+    let mut rng = Rng::new(11);
+    let n = 12;
+    let sigma: Vec<f32> = (0..n).map(|i| if i == 5 { 40.0 } else { 3.0 * rng.uniform() }).collect();
+    let delta: Vec<f32> = (0..n).map(|_| 0.05 + 0.05 * rng.uniform()).collect();
+    let v: Vec<[f32; V]> = (0..n).map(|_| [0; V].map(|_| rng.uniform())).collect();
+    let g: [f32; V] = [0; V].map(|_| rng.uniform() - 0.5);
+    let g_t = 0.7f32;
+    let loss = |sigma: &[f32], v: &[[f32; V]]| -> f64 {
+        let c = composite::forward(sigma, &delta, v);
+        (0..V).map(|k| (g[k] * c.value[k]) as f64).sum::<f64>() + (g_t * c.t_final) as f64
+    };
+    let mut ds = vec![0.0; n];
+    let mut dv = vec![[0.0; V]; n];
+    composite::backward(&sigma, &delta, &v, &g, g_t, &mut ds, &mut dv, &mut Vec::new());
+    for k in 0..n {
+        let h = 1e-2 * sigma[k].max(0.1);
+        let (mut a, mut b) = (sigma.clone(), sigma.clone());
+        a[k] += h;
+        b[k] -= h;
+        let num = (loss(&a, &v) - loss(&b, &v)) / (2.0 * h as f64);
+        assert_close(&format!("dσ[{k}]"), ds[k] as f64, num, 2e-2, 1e-5);
+        for c in [0, 3, 7] {
+            let (mut a, mut b) = (v.clone(), v.clone());
+            a[k][c] += 1e-2;
+            b[k][c] -= 1e-2;
+            let num = (loss(&sigma, &a) - loss(&sigma, &b)) / 2e-2;
+            assert_close(&format!("dv[{k}][{c}]"), dv[k][c] as f64, num, 1e-2, 1e-5);
+        }
+    }
+}
+
+#[test]
+fn encoding_backward_matches_finite_differences_static_and_dynamic() {
+    for dynamic in [false, true] {
+        let f = small_field(dynamic);
+        let g: Vec3 = [0.31, -0.47, 0.73];
+        let t = 0.37;
+        let inp = f.layout.input;
+        let mut rng = Rng::new(5);
+        let w: Vec<f32> = (0..inp).map(|_| rng.uniform() - 0.5).collect();
+        let loss = |f: &Field| -> f64 {
+            let mut feat = vec![0.0; inp];
+            f.encode(&g, t, &mut feat);
+            feat.iter().zip(&w).map(|(a, b)| (a * b) as f64).sum()
+        };
+        let mut grad = vec![0.0f32; f.params.len()];
+        f.encode_backward(&g, t, &w, &mut grad);
+        let touched: Vec<usize> = (0..f.layout.plane_end).filter(|&i| grad[i] != 0.0).collect();
+        // 2 levels x planes x 4 corners x C channels
+        assert_eq!(touched.len(), 2 * f.cfg.planes() * 4 * 8, "dynamic={dynamic}");
+        for &i in touched.iter().step_by(7) {
+            let mut fa = f.clone();
+            fa.params[i] += 1e-2;
+            let mut fb = f.clone();
+            fb.params[i] -= 1e-2;
+            let num = (loss(&fa) - loss(&fb)) / 2e-2;
+            assert_close(&format!("plane param {i} (dynamic={dynamic})"), grad[i] as f64, num, 1e-2, 1e-6);
+        }
+    }
+}
+
+#[test]
+fn decoder_and_activation_backward_match_finite_differences() {
+    let f = small_field(false);
+    let (inp, h) = (f.layout.input, f.layout.hidden);
+    let n = 5;
+    let mut rng = Rng::new(9);
+    let feat: Vec<f32> = (0..n * inp).map(|_| rng.uniform()).collect();
+    let wo: Vec<f32> = (0..n * 8).map(|_| rng.uniform() - 0.5).collect();
+    // loss = Σ wo · activate(decode(feat))
+    let loss = |f: &Field, feat: &[f32]| -> f64 {
+        let mut hid = vec![0.0; n * h];
+        let mut out = vec![0.0; n * OUT];
+        f.decode_forward(n, feat, &mut hid, &mut out);
+        let mut s = 0.0f64;
+        for r in 0..n {
+            let (sg, v) = activate(&out[r * OUT..(r + 1) * OUT]);
+            s += (wo[r * 8] * sg) as f64;
+            for c in 0..7 {
+                s += (wo[r * 8 + 1 + c] * v[c]) as f64;
+            }
+        }
+        s
+    };
+    let mut hid = vec![0.0; n * h];
+    let mut out = vec![0.0; n * OUT];
+    f.decode_forward(n, &feat, &mut hid, &mut out);
+    let mut d_out = vec![0.0; n * OUT];
+    for r in 0..n {
+        let o = &out[r * OUT..(r + 1) * OUT];
+        let (sg, v) = activate(o);
+        activate_backward(o, sg, &v, wo[r * 8], &wo[r * 8 + 1..r * 8 + 8], &mut d_out[r * OUT..(r + 1) * OUT]);
+    }
+    let mut grad = vec![0.0f32; f.params.len()];
+    let mut d_hid = vec![0.0; n * h];
+    let mut d_feat = vec![0.0; n * inp];
+    f.decode_backward(n, &feat, &hid, &d_out, &mut d_hid, &mut d_feat, &mut grad);
+    let l = &f.layout;
+    for i in (l.w1..l.view.w1).step_by(5) {
+        let mut fa = f.clone();
+        fa.params[i] += 1e-3;
+        let mut fb = f.clone();
+        fb.params[i] -= 1e-3;
+        let num = (loss(&fa, &feat) - loss(&fb, &feat)) / 2e-3;
+        assert_close(&format!("decoder param {i}"), grad[i] as f64, num, 2e-2, 2e-4);
+    }
+    for i in (0..n * inp).step_by(3) {
+        let (mut a, mut b) = (feat.clone(), feat.clone());
+        a[i] += 1e-3;
+        b[i] -= 1e-3;
+        let num = (loss(&f, &a) - loss(&f, &b)) / 2e-3;
+        assert_close(&format!("d feature {i}"), d_feat[i] as f64, num, 2e-2, 2e-4);
+    }
+}
+
+#[test]
+fn view_mlp_backward_matches_finite_differences() {
+    let mut f = small_field(false);
+    let view = f.layout.view;
+    let mut rng = Rng::new(2);
+    // non-zero last layer so every weight matters
+    for p in &mut f.params[view.w3..view.end] {
+        *p = rng.uniform() - 0.5;
+    }
+    let mut df = [0.0f32; 8];
+    for x in df.iter_mut() {
+        *x = rng.uniform();
+    }
+    let dir = [0.48, -0.6, 0.64];
+    let wo = [0.3f32, -0.8, 0.5];
+    let loss = |p: &[f32], df: &[f32; 8]| -> f64 {
+        let (o, _) = view.forward(p, ViewLayout::input(df, &dir));
+        (0..VOUT).map(|k| (wo[k] * o[k]) as f64).sum()
+    };
+    let (_, cache) = view.forward(&f.params, ViewLayout::input(&df, &dir));
+    let mut grad = vec![0.0f32; f.params.len()];
+    let d_in = view.backward(&f.params, &cache, &wo, &mut grad);
+    assert_eq!(cache.x.len(), VIN);
+    for i in (view.w1..view.end).step_by(3) {
+        let mut a = f.params.clone();
+        a[i] += 1e-3;
+        let mut b = f.params.clone();
+        b[i] -= 1e-3;
+        let num = (loss(&a, &df) - loss(&b, &df)) / 2e-3;
+        assert_close(&format!("view param {i}"), grad[i] as f64, num, 2e-2, 2e-4);
+    }
+    for c in 0..7 {
+        let (mut a, mut b) = (df, df);
+        a[c] += 1e-3;
+        b[c] -= 1e-3;
+        let num = (loss(&f.params, &a) - loss(&f.params, &b)) / 2e-3;
+        assert_close(&format!("view input {c}"), d_in[c] as f64, num, 2e-2, 2e-4);
+    }
+}
+
+/// The whole fused training chunk: its gradient of the loss against finite differences of
+/// the loss it reports, for parameters in every group.
+#[test]
+fn fused_training_chunk_gradient_matches_finite_differences() {
+    for dynamic in [false, true] {
+        let mut field = small_field(dynamic);
+        // moderate densities so rays neither terminate early nor stay empty
+        field.params[field.layout.b2] = 1.0;
+        let space = SceneSpace {
+            kind: SceneKind::Object,
+            dynamic,
+            center: [0.0; 3],
+            rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            scale: 1.0,
+            ndc: None,
+            time_range: (0.0, 1.0),
+        };
+        let occ = Occupancy::new(8, 24);
+        let mut rng = Rng::new(13);
+        let tasks: Vec<RayTask> = (0..6)
+            .map(|i| {
+                let o = [3.0 * (i as f32 * 0.7).cos(), 0.4 * i as f32 - 1.0, 3.0 * (i as f32 * 0.7).sin()];
+                let d = snerf_trainer::space::normalize([-o[0] + 0.1, -o[1] * 0.5, -o[2]]);
+                RayTask {
+                    ray: space.world_ray(o, d, Some(i as f32 / 6.0)),
+                    bg: [rng.uniform(), rng.uniform(), rng.uniform()],
+                    target: [rng.uniform(), rng.uniform(), rng.uniform()],
+                    jitter: 0.3,
+                }
+            })
+            .collect();
+        assert!(tasks.iter().all(|t| t.ray.is_some()));
+        let loss_of = |f: &Field| -> f64 {
+            let mut ws = Workspace::new(f.params.len());
+            train_chunk(f, &space, &occ, &tasks, &mut ws, 1.0).loss_sum
+        };
+        let mut ws = Workspace::new(field.params.len());
+        // with loss_scale 1 the gradient is of Σ (rgb - target)², the reported loss_sum
+        let stats = train_chunk(&field, &space, &occ, &tasks, &mut ws, 1.0);
+        assert!(stats.samples > 50, "rays must cross the field ({} samples)", stats.samples);
+        let grad = ws.grad.clone();
+        let l = &field.layout;
+        let plane_touched: Vec<usize> = (0..l.plane_end).filter(|&i| grad[i].abs() > 1e-4).collect();
+        assert!(!plane_touched.is_empty());
+        let mut checks: Vec<usize> = plane_touched.iter().step_by((plane_touched.len() / 12).max(1)).cloned().collect();
+        checks.extend((l.w1..l.b2 + 8).step_by(17));
+        checks.extend((l.view.w1..l.view.end).step_by(37));
+        let mut checked = 0;
+        for i in checks {
+            let h = 2e-3f32;
+            let mut fa = field.clone();
+            fa.params[i] += h;
+            let mut fb = field.clone();
+            fb.params[i] -= h;
+            let num = (loss_of(&fa) - loss_of(&fb)) / (2.0 * h as f64);
+            assert_close(&format!("param {i} (dynamic={dynamic})"), grad[i] as f64, num, 5e-2, 5e-4);
+            checked += 1;
+        }
+        assert!(checked > 20);
+    }
+}
