@@ -1,0 +1,268 @@
+//! Writing a dataset: render all views in parallel, write PNGs and the transforms_*.json
+//! files into a temporary sibling directory, then move it into place only on success.
+
+use crate::camera::{layout_for, poses, times, Layout, View};
+use crate::math::{v3, Rng};
+use crate::procedural::{Built, Content};
+use crate::raster::{render, Camera};
+use crate::{build_scene, SceneKind, SceneSpec, Source};
+use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// True when `dir` holds a dataset written by this crate (or is empty), so it may be replaced.
+fn replaceable(dir: &Path) -> Result<bool> {
+    if !dir.exists() {
+        return Ok(true);
+    }
+    if !dir.is_dir() {
+        return Ok(false);
+    }
+    let mut entries =
+        std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?;
+    if entries.next().is_none() {
+        return Ok(true);
+    }
+    Ok(dir.join("transforms_train.json").is_file())
+}
+
+fn sibling(out: &Path, tag: &str) -> PathBuf {
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_else(|| "dataset".into());
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    parent.join(format!(".{name}.{tag}-{}", std::process::id()))
+}
+
+struct Job {
+    split: &'static str,
+    index: usize,
+    view: View,
+}
+
+pub fn write(spec: &SceneSpec, out_dir: &Path, progress: &dyn Fn(usize, usize)) -> Result<Value> {
+    let t0 = Instant::now();
+    if spec.width == 0 || spec.height == 0 || spec.width > 16384 || spec.height > 16384 {
+        bail!(
+            "image size {}x{} is out of range (1..=16384)",
+            spec.width,
+            spec.height
+        );
+    }
+    if spec.train_views == 0 {
+        bail!("at least one train view is needed");
+    }
+    if spec.supersample == 0 || spec.supersample > 16 {
+        bail!("supersample must be in 1..=16 (got {})", spec.supersample);
+    }
+    if !replaceable(out_dir)? {
+        bail!(
+            "{} exists and is not an empty directory or a snerf dataset (no transforms_train.json); \
+             refusing to overwrite it",
+            out_dir.display()
+        );
+    }
+    let built = build_scene(&spec.source, spec.seed)?;
+    let dynamic = built.is_dynamic();
+
+    // Cameras and times.
+    let mut rng = Rng::new(spec.seed);
+    let layout = match (&spec.source, built.kind) {
+        (Source::Avatar, _) => Layout::Around {
+            radius: 4.0,
+            target: v3(0.0, 0.0, 0.0),
+            front_only: true,
+        },
+        (_, k) => layout_for(k, false),
+    };
+    let (train_p, test_p) = poses(
+        layout,
+        spec.path,
+        spec.train_views,
+        spec.test_views,
+        &mut rng,
+    );
+    let (train_t, test_t) = if dynamic {
+        let (a, b) = times(spec.train_views, spec.test_views, &mut rng);
+        (
+            a.into_iter().map(Some).collect(),
+            b.into_iter().map(Some).collect(),
+        )
+    } else {
+        (vec![None; spec.train_views], vec![None; spec.test_views])
+    };
+    let mut jobs = Vec::new();
+    for (i, (c2w, time)) in train_p.into_iter().zip(train_t).enumerate() {
+        jobs.push(Job {
+            split: "train",
+            index: i,
+            view: View { c2w, time },
+        });
+    }
+    for (i, (c2w, time)) in test_p.into_iter().zip(test_t).enumerate() {
+        jobs.push(Job {
+            split: "test",
+            index: i,
+            view: View { c2w, time },
+        });
+    }
+
+    // Temporary directory.
+    let tmp = sibling(out_dir, "snerf-tmp");
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).with_context(|| format!("cannot clear {}", tmp.display()))?;
+    }
+    let result = write_into(&tmp, spec, &built, &jobs, progress);
+    if let Err(e) = result {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+
+    // Move into place: old dataset aside, new one in, old one removed.
+    let old = sibling(out_dir, "snerf-old");
+    if out_dir.exists() {
+        if old.exists() {
+            std::fs::remove_dir_all(&old).ok();
+        }
+        std::fs::rename(out_dir, &old)
+            .with_context(|| format!("cannot move the old {} aside", out_dir.display()))?;
+    }
+    if let Err(e) = std::fs::rename(&tmp, out_dir) {
+        if old.exists() {
+            let _ = std::fs::rename(&old, out_dir);
+        }
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e)
+            .with_context(|| format!("cannot move the new dataset to {}", out_dir.display()));
+    }
+    if old.exists() {
+        std::fs::remove_dir_all(&old).ok();
+    }
+
+    let triangles = match &built.content {
+        Content::Static(g) => g.tris.len(),
+        Content::Dynamic(f) => f(0.0).map(|g| g.tris.len()).unwrap_or(0),
+    };
+    let mut summary = json!({
+        "scene": spec.source.name(),
+        "kind": built.kind.as_str(),
+        "dynamic": dynamic,
+        "train_views": spec.train_views,
+        "test_views": spec.test_views,
+        "val_views": spec.test_views,
+        "width": spec.width,
+        "height": spec.height,
+        "supersample": spec.supersample,
+        "camera_angle_x": built.fov_x,
+        "triangles": triangles,
+        "seconds": t0.elapsed().as_secs_f64(),
+        "out_dir": out_dir.display().to_string(),
+        "warnings": built.warnings,
+    });
+    for (k, v) in &built.info {
+        summary[k.as_str()] = v.clone();
+    }
+    Ok(summary)
+}
+
+fn write_into(
+    tmp: &Path,
+    spec: &SceneSpec,
+    built: &Built,
+    jobs: &[Job],
+    progress: &dyn Fn(usize, usize),
+) -> Result<()> {
+    for d in ["train", "test"] {
+        std::fs::create_dir_all(tmp.join(d))
+            .with_context(|| format!("cannot create {}", tmp.join(d).display()))?;
+    }
+    let (w, h) = (spec.width, spec.height);
+    let total = jobs.len();
+    progress(0, total);
+    let (tx, rx) = std::sync::mpsc::channel::<()>();
+    let res: Result<()> = std::thread::scope(|s| {
+        let worker = s.spawn(move || {
+            jobs.par_iter()
+                .try_for_each_with(tx, |tx, job| -> Result<()> {
+                    let cam = Camera::new(job.view.c2w, w, h, built.fov_x);
+                    let frame = match &built.content {
+                        Content::Static(g) => render(&built.look, g, &cam, spec.supersample),
+                        Content::Dynamic(f) => {
+                            let g = f(job.view.time.unwrap_or(0.0))?;
+                            render(&built.look, &g, &cam, spec.supersample)
+                        }
+                    };
+                    let path = tmp.join(job.split).join(format!("r_{:03}.png", job.index));
+                    image::save_buffer(&path, &frame.rgba, w, h, image::ExtendedColorType::Rgba8)
+                        .with_context(|| format!("cannot write {}", path.display()))?;
+                    let _ = tx.send(());
+                    Ok(())
+                })
+        });
+        let mut done = 0;
+        while rx.recv().is_ok() {
+            done += 1;
+            progress(done, total);
+        }
+        worker
+            .join()
+            .map_err(|_| anyhow::anyhow!("a render worker panicked"))?
+    });
+    res?;
+
+    let fov = built.fov_x;
+    let fl = 0.5 * w as f32 / (0.5 * fov).tan();
+    let frames = |split: &str| -> Vec<Value> {
+        jobs.iter()
+            .filter(|j| j.split == split)
+            .map(|j| {
+                let mut f = json!({
+                    "file_path": format!("{}/r_{:03}.png", j.split, j.index),
+                    "transform_matrix": j.view.c2w.rows(),
+                });
+                if let Some(t) = j.view.time {
+                    f["time"] = json!(t);
+                }
+                f
+            })
+            .collect()
+    };
+    for (file, split) in [
+        ("transforms_train.json", "train"),
+        ("transforms_val.json", "test"),
+        ("transforms_test.json", "test"),
+    ] {
+        let doc = json!({
+            "camera_angle_x": fov,
+            "fl_x": fl,
+            "fl_y": fl,
+            "cx": w as f32 * 0.5,
+            "cy": h as f32 * 0.5,
+            "w": w,
+            "h": h,
+            "scene_kind": built.kind.as_str(),
+            "aabb": [built.aabb[0].arr(), built.aabb[1].arr()],
+            "frames": frames(split),
+        });
+        let path = tmp.join(file);
+        std::fs::write(&path, serde_json::to_string_pretty(&doc)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(())
+}
+
+impl SceneKind {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            SceneKind::Object => "object",
+            SceneKind::Forward => "forward",
+            SceneKind::Unbounded => "unbounded",
+        }
+    }
+}
