@@ -44,6 +44,9 @@ pub enum Cmd {
     Turntable(TurntableArgs),
     /// The whole path on built-in data: scene -> train -> eval -> turntable + contact sheet.
     Demo(crate::demo::DemoArgs),
+    /// Benchmarks that print numbers (see BENCH.md).
+    #[command(subcommand)]
+    Bench(crate::bench::BenchCmd),
 }
 
 #[derive(Args, Debug)]
@@ -144,6 +147,19 @@ pub struct TrainArgs {
     pub curve_views: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Learning rate of the feature planes (Adam).
+    #[arg(long)]
+    pub lr_planes: Option<f32>,
+    /// Learning rate of the decoder and view MLP (Adam).
+    #[arg(long)]
+    pub lr_mlp: Option<f32>,
+    /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
+    #[arg(long)]
+    pub resolution: Option<u32>,
+    /// Write a checkpoint at least every this many seconds of training (a killed run loses
+    /// at most this much).
+    #[arg(long, default_value_t = 30.0)]
+    pub checkpoint_every: f64,
     #[command(flatten)]
     pub opts: DataOpts,
 }
@@ -194,6 +210,7 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::Eval(a) => eval_cmd(&a)?,
         Cmd::Turntable(a) => turntable_cmd(&a)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
+        Cmd::Bench(b) => crate::bench::run(&b)?,
     };
     if cli.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
@@ -255,6 +272,15 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     if let Some(b) = a.batch {
         cfg.batch_rays = b.clamp(64, 1 << 20);
     }
+    if let Some(lr) = a.lr_planes {
+        cfg.lr_planes = lr;
+    }
+    if let Some(lr) = a.lr_mlp {
+        cfg.lr_mlp = lr;
+    }
+    if let Some(r) = a.resolution {
+        cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r].into_iter().map(|x| x.max(2)).collect();
+    }
     let seconds = match (a.steps, a.minutes) {
         (None, None) => Some(300.0),
         (_, m) => m.map(|m| m * 60.0),
@@ -262,24 +288,21 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     if let Some(s) = seconds {
         anyhow::ensure!(s.is_finite() && s > 0.0, "--minutes must be positive");
     }
-    train_run(&data, cfg, &a.out, a.resume, a.steps, seconds, a.curve_views, quiet)
+    let opts = run::RunOptions {
+        dir: a.out.clone(),
+        steps: a.steps,
+        seconds,
+        curve_views: a.curve_views,
+        checkpoint_every: a.checkpoint_every.max(0.0),
+    };
+    train_run(&data, cfg, &opts, a.resume, quiet)
 }
 
 /// Train (or resume) with a progress bar; returns the run summary.
-#[allow(clippy::too_many_arguments)]
-pub fn train_run(
-    data: &Dataset,
-    cfg: train::TrainConfig,
-    out: &Path,
-    resume: bool,
-    steps: Option<u64>,
-    seconds: Option<f64>,
-    curve_views: usize,
-    quiet: bool,
-) -> Result<Value> {
+pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions, resume: bool, quiet: bool) -> Result<Value> {
     let wall = Instant::now();
+    let out = &opts.dir;
     let mut trainer = run::open(data, cfg, out, resume)?;
-    let opts = run::RunOptions { dir: out.to_path_buf(), steps, seconds, curve_views, checkpoint_every: 30.0 };
     if !quiet {
         eprintln!(
             "training {} ({:?}{}, {} train views, {} parameters, {:.1}% of space occupied after carving)",
@@ -293,7 +316,7 @@ pub fn train_run(
     }
     let pb = bar(1000, "{spinner} {bar:30} {percent:>3}% [{elapsed}<{eta}] {msg}");
     let mut ema: Option<(f64, f64)> = None;
-    run::run(&mut trainer, data, &opts, &mut |t, s, p| {
+    run::run(&mut trainer, data, opts, &mut |t, s, p| {
         let sps = s.samples as f64 / s.seconds.max(1e-9);
         let e = ema.map(|(l, r)| (0.9 * l + 0.1 * s.loss, 0.9 * r + 0.1 * sps)).unwrap_or((s.loss, sps));
         ema = Some(e);

@@ -74,7 +74,14 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let data = snerf_trainer::data::load(&data_dir, &LoadOptions::default())?;
     eprintln!("[2/4] training for {:.1} minutes", a.minutes);
     let cfg = train::TrainConfig::for_dataset(&data);
-    let trained = cli::train_run(&data, cfg, &run_dir, false, None, Some(a.minutes * 60.0), 8, quiet)?;
+    let opts = snerf_trainer::run::RunOptions {
+        dir: run_dir.clone(),
+        steps: None,
+        seconds: Some(a.minutes * 60.0),
+        curve_views: 8,
+        checkpoint_every: 30.0,
+    };
+    let trained = cli::train_run(&data, cfg, &opts, false, quiet)?;
     eprintln!("[3/4] evaluating on {} held-out views", data.test.len());
     let (model, pool) = cli::load_model(&run_dir)?;
     let has_alpha = train::views_have_alpha(&data.train);

@@ -1,5 +1,6 @@
 //! The `snerf` command: subcommands only; the work lives in the crates.
 
+mod bench;
 mod cli;
 mod demo;
 

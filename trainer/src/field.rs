@@ -239,6 +239,32 @@ impl Field {
         Ok(Field { cfg, layout, params })
     }
 
+    /// Prefetch the plane cells a point will read (and, with `grad`, the gradient cells it
+    /// will write). Plane lookups are cache misses by nature (random rays over megabytes of
+    /// planes); issuing all of a point's misses at once lets them overlap.
+    #[inline]
+    pub fn prefetch(&self, g: &[f32; 3], t: f32, grad: Option<&[f32]>) {
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            for level in &self.layout.planes {
+                for p in level {
+                    let (iu, _) = plane_coord(g, t, p.axes.0, p.ru);
+                    let (iv, _) = plane_coord(g, t, p.axes.1, p.rv);
+                    let base = p.offset + (iv * p.ru + iu) * C;
+                    for off in [base, base + C, base + p.ru * C, base + p.ru * C + C] {
+                        _mm_prefetch::<_MM_HINT_T0>(self.params.as_ptr().add(off) as *const i8);
+                        if let Some(gr) = grad {
+                            _mm_prefetch::<_MM_HINT_T0>(gr.as_ptr().add(off) as *const i8);
+                        }
+                    }
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (g, t, grad);
+    }
+
     /// Encode one point: writes `input_dim` features into `out`.
     #[inline]
     pub fn encode(&self, g: &[f32; 3], t: f32, out: &mut [f32]) {
@@ -256,7 +282,8 @@ impl Field {
 
     /// Backward of [`encode`]: scatters dL/d(features) into the plane gradients.
     #[inline]
-    pub fn encode_backward(&self, g: &[f32; 3], t: f32, d_feat: &[f32], grad: &mut [f32]) {
+    /// `touched[cell]` is set for every plane cell (C floats) that receives gradient.
+    pub fn encode_backward(&self, g: &[f32; 3], t: f32, d_feat: &[f32], grad: &mut [f32], touched: &mut [u8]) {
         let mut vals = [[0.0f32; C]; 6];
         let mut idxs = [[0usize; 4]; 6];
         let mut wts = [[0.0f32; 4]; 6];
@@ -282,6 +309,7 @@ impl Field {
                 }
                 for j in 0..4 {
                     let w = wts[k][j];
+                    touched[idxs[k][j] / C] = 1;
                     let dst = &mut grad[idxs[k][j]..idxs[k][j] + C];
                     for c in 0..C {
                         dst[c] += w * d[c];

@@ -65,6 +65,8 @@ pub struct Workspace {
     c_scratch: Vec<f32>,
     /// Parameter gradient accumulated by this thread.
     pub grad: Vec<f32>,
+    /// One flag per plane cell (C floats) whose gradient this thread touched.
+    pub touched: Vec<u8>,
 }
 
 /// Statistics of one processed chunk.
@@ -73,12 +75,35 @@ pub struct ChunkStats {
     pub loss_sum: f64,
     pub samples: u64,
     pub rays: u64,
+    /// Nanoseconds per phase (see [`PHASES`]), summed over threads.
+    pub ns: [u64; 6],
+}
+
+/// Names of the timed phases in [`ChunkStats::ns`].
+pub const PHASES: [&str; 6] = ["march", "encode", "decode", "composite+view", "decode backward", "encode backward"];
+
+impl ChunkStats {
+    pub fn merge(self, b: ChunkStats) -> ChunkStats {
+        let mut ns = self.ns;
+        for i in 0..6 {
+            ns[i] += b.ns[i];
+        }
+        ChunkStats { loss_sum: self.loss_sum + b.loss_sum, samples: self.samples + b.samples, rays: self.rays + b.rays, ns }
+    }
+}
+
+#[inline]
+fn lap(t: &mut std::time::Instant) -> u64 {
+    let now = std::time::Instant::now();
+    let d = now.duration_since(*t).as_nanos() as u64;
+    *t = now;
+    d
 }
 
 impl Workspace {
     /// A workspace whose gradient buffer fits `params` parameters.
     pub fn new(params: usize) -> Workspace {
-        Workspace { grad: vec![0.0; params], ..Default::default() }
+        Workspace { grad: vec![0.0; params], touched: vec![0; params / crate::field::C], ..Default::default() }
     }
 
     fn reset(&mut self, n_rays: usize) {
@@ -99,7 +124,8 @@ impl Workspace {
     }
 
     /// March and evaluate the field on all rays of the chunk (forward only), wave by wave.
-    fn forward_field(&mut self, field: &Field, space: &SceneSpace, occ: &Occupancy, tasks: &[RayTask]) {
+    fn forward_field(&mut self, field: &Field, space: &SceneSpace, occ: &Occupancy, tasks: &[RayTask], ns: &mut [u64; 6]) {
+        let mut clock = std::time::Instant::now();
         self.reset(tasks.len());
         for (i, task) in tasks.iter().enumerate() {
             match task.ray {
@@ -126,6 +152,7 @@ impl Workspace {
                 }
             }
             let end = self.samples.len();
+            ns[0] += lap(&mut clock);
             if end == start {
                 break;
             }
@@ -133,9 +160,17 @@ impl Workspace {
             self.feat.resize(end * inp, 0.0);
             self.hid.resize(end * h, 0.0);
             self.out.resize(end * OUT, 0.0);
+            const AHEAD: usize = 6;
+            for k in start..(start + AHEAD).min(end) {
+                field.prefetch(&self.samples[k].g, self.sample_time[k], None);
+            }
             for k in start..end {
+                if k + AHEAD < end {
+                    field.prefetch(&self.samples[k + AHEAD].g, self.sample_time[k + AHEAD], None);
+                }
                 field.encode(&self.samples[k].g, self.sample_time[k], &mut self.feat[k * inp..(k + 1) * inp]);
             }
+            ns[1] += lap(&mut clock);
             field.decode_forward(
                 n,
                 &self.feat[start * inp..end * inp],
@@ -150,6 +185,7 @@ impl Workspace {
             }
             let (states, depth_sum) = (&self.states, &self.depth_sum);
             self.live.retain(|&ri| !states[ri as usize].done && depth_sum[ri as usize] < log_terminate);
+            ns[2] += lap(&mut clock);
         }
     }
 
@@ -186,7 +222,7 @@ pub fn render_chunk(
     ws: &mut Workspace,
     results: &mut [RayResult],
 ) {
-    ws.forward_field(field, space, occ, tasks);
+    ws.forward_field(field, space, occ, tasks, &mut [0; 6]);
     let view: &ViewLayout = &field.layout.view;
     for (ri, task) in tasks.iter().enumerate() {
         let Some(ray) = task.ray else {
@@ -222,13 +258,15 @@ pub fn train_chunk(
     ws: &mut Workspace,
     loss_scale: f32,
 ) -> ChunkStats {
-    ws.forward_field(field, space, occ, tasks);
+    let mut stats = ChunkStats { rays: tasks.len() as u64, ..Default::default() };
+    ws.forward_field(field, space, occ, tasks, &mut stats.ns);
+    let mut clock = std::time::Instant::now();
     let n = ws.samples.len();
+    stats.samples = n as u64;
     let (inp, h) = (field.layout.input, field.layout.hidden);
     ws.d_out.clear();
     ws.d_out.resize(n * OUT, 0.0);
     let view = field.layout.view;
-    let mut stats = ChunkStats { samples: n as u64, rays: tasks.len() as u64, ..Default::default() };
     for (ri, task) in tasks.iter().enumerate() {
         let Some(ray) = task.ray else {
             let e: f32 = (0..3).map(|c| (task.bg[c] - task.target[c]).powi(2)).sum();
@@ -277,13 +315,26 @@ pub fn train_chunk(
             activate_backward(o, ws.c_sigma[j], &v[..7], ws.c_dsigma[j], &ws.c_dv[j][..7], &mut ws.d_out[k * OUT..(k + 1) * OUT]);
         }
     }
+    stats.ns[3] += lap(&mut clock);
     if n > 0 {
         ws.d_hid.resize(n * h, 0.0);
         ws.d_feat.resize(n * inp, 0.0);
         field.decode_backward(n, &ws.feat[..n * inp], &ws.hid[..n * h], &ws.d_out, &mut ws.d_hid, &mut ws.d_feat, &mut ws.grad);
+        stats.ns[4] += lap(&mut clock);
+        const AHEAD: usize = 6;
         for k in 0..n {
-            field.encode_backward(&ws.samples[k].g, ws.sample_time[k], &ws.d_feat[k * inp..(k + 1) * inp], &mut ws.grad);
+            if k + AHEAD < n {
+                field.prefetch(&ws.samples[k + AHEAD].g, ws.sample_time[k + AHEAD], Some(&ws.grad));
+            }
+            field.encode_backward(
+                &ws.samples[k].g,
+                ws.sample_time[k],
+                &ws.d_feat[k * inp..(k + 1) * inp],
+                &mut ws.grad,
+                &mut ws.touched,
+            );
         }
+        stats.ns[5] += lap(&mut clock);
     }
     stats
 }
@@ -329,7 +380,14 @@ impl WorkspacePool {
         f(&mut ws)
     }
 
-    pub fn grads(&mut self) -> Vec<&mut Vec<f32>> {
-        self.slots.iter_mut().map(|m| &mut m.get_mut().unwrap_or_else(|e| e.into_inner()).grad).collect()
+    /// Every thread's gradient buffer and touched-cell flags.
+    pub fn grads(&mut self) -> (Vec<&mut Vec<f32>>, Vec<&mut Vec<u8>>) {
+        self.slots
+            .iter_mut()
+            .map(|m| {
+                let ws = m.get_mut().unwrap_or_else(|e| e.into_inner());
+                (&mut ws.grad, &mut ws.touched)
+            })
+            .unzip()
     }
 }

@@ -273,15 +273,14 @@ impl SceneSpace {
 /// MERF's L∞ contraction: identity in the unit cube, everything else into [-2,2]³.
 #[inline]
 pub fn contract(p: Vec3) -> Vec3 {
+    // A NaN coordinate (from a degenerate camera) is treated as 0, never propagated.
+    let p = p.map(|x| if x.is_nan() { 0.0 } else { x });
     let m = p[0].abs().max(p[1].abs()).max(p[2].abs());
-    if m.is_nan() {
-        return [0.0; 3];
-    }
     if m <= 1.0 {
         return p;
     }
     if !m.is_finite() {
-        // Points at infinity land on the outer shell; NaN coordinates at its centre.
+        // Points at infinity land on the outer shell.
         return p.map(|x| if x.is_infinite() { 2.0 * x.signum() } else { 0.0 });
     }
     let mut out = [0.0f32; 3];

@@ -105,6 +105,10 @@ pub struct StepStats {
     pub loss: f64,
     pub samples: u64,
     pub seconds: f64,
+    /// Wall time of the parallel ray work, of the optimizer, and per-phase thread time.
+    pub chunk_seconds: f64,
+    pub adam_seconds: f64,
+    pub phase_ns: [u64; 6],
 }
 
 impl StepStats {
@@ -262,18 +266,17 @@ impl Trainer {
         let stats = tasks
             .par_chunks(self.cfg.chunk_rays)
             .map(|chunk| pool.with(|ws| train_chunk(&model.field, &model.space, &model.occ, chunk, ws, loss_scale)))
-            .reduce(ChunkStats::default, |a, b| ChunkStats {
-                loss_sum: a.loss_sum + b.loss_sum,
-                samples: a.samples + b.samples,
-                rays: a.rays + b.rays,
-            });
+            .reduce(ChunkStats::default, ChunkStats::merge);
+        let t_chunks = t0.elapsed().as_secs_f64();
         let s = self.lr_scale(progress);
-        let ranges = [
-            (self.model.field.layout.plane_end, self.cfg.lr_planes * s),
-            (self.model.field.params.len(), self.cfg.lr_mlp * s),
-        ];
-        let mut grads = self.pool.grads();
-        self.adam.update(&mut self.model.field.params, &mut grads, &ranges);
+        let (mut grads, mut flags) = self.pool.grads();
+        let params = &mut self.model.field.params;
+        let plane_end = self.model.field.layout.plane_end;
+        self.adam.begin_step();
+        self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, self.cfg.lr_planes * s);
+        let total = params.len();
+        self.adam.update_dense(params, &mut grads, plane_end..total, self.cfg.lr_mlp * s);
+        let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
         if self.step % self.cfg.occupancy_every == 0 || self.step < 64 && self.step % 4 == 0 {
             self.update_occupancy();
@@ -281,7 +284,14 @@ impl Trainer {
         let secs = t0.elapsed().as_secs_f64();
         self.train_seconds += secs;
         self.samples_seen += stats.samples;
-        StepStats { loss: stats.loss_sum / (3.0 * stats.rays.max(1) as f64), samples: stats.samples, seconds: secs }
+        StepStats {
+            loss: stats.loss_sum / (3.0 * stats.rays.max(1) as f64),
+            samples: stats.samples,
+            seconds: secs,
+            chunk_seconds: t_chunks,
+            adam_seconds: t_adam,
+            phase_ns: stats.ns,
+        }
     }
 
     /// Re-measure density in a rotating quarter of the cells (all of them while warming up)

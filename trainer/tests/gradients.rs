@@ -80,7 +80,7 @@ fn encoding_backward_matches_finite_differences_static_and_dynamic() {
             feat.iter().zip(&w).map(|(a, b)| (a * b) as f64).sum()
         };
         let mut grad = vec![0.0f32; f.params.len()];
-        f.encode_backward(&g, t, &w, &mut grad);
+        f.encode_backward(&g, t, &w, &mut grad, &mut vec![0u8; f.params.len() / 8]);
         let touched: Vec<usize> = (0..f.layout.plane_end).filter(|&i| grad[i] != 0.0).collect();
         // 2 levels x planes x 4 corners x C channels
         assert_eq!(touched.len(), 2 * f.cfg.planes() * 4 * 8, "dynamic={dynamic}");

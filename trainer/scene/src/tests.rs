@@ -963,14 +963,22 @@ fn assimp_bad_files_give_errors() {
     }
 }
 
+/// Where `.ci/run` installs the npm package `@webxr-input-profiles/assets`
+/// (override with SNERF_WEBXR_DIR).
+fn webxr_profiles() -> PathBuf {
+    let root = std::env::var("SNERF_WEBXR_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../target/test-assets/webxr")));
+    root.join("node_modules/@webxr-input-profiles/assets/dist/profiles")
+}
+
 #[test]
 fn webxr_controller_glb() {
-    let dir = Path::new("/tmp/webxr/node_modules/@webxr-input-profiles/assets/dist/profiles");
-    let p = dir.join("generic-trigger-squeeze/left.glb");
+    let p = webxr_profiles().join("generic-trigger-squeeze/left.glb");
     let p = if p.exists() {
         p
     } else {
-        println!("note: {} not installed; skipping (cd /tmp/webxr && npm install @webxr-input-profiles/assets)", p.display());
+        println!("note: {} not installed; skipping (bash .ci/run installs it)", p.display());
         return;
     };
     let (b, f) = render_model(&p);
@@ -1009,9 +1017,9 @@ fn previews() {
             sources.push(Source::Gltf(p));
         }
     }
-    let xr = Path::new("/tmp/webxr/node_modules/@webxr-input-profiles/assets/dist/profiles/generic-trigger-squeeze/left.glb");
+    let xr = webxr_profiles().join("generic-trigger-squeeze/left.glb");
     if xr.exists() {
-        sources.push(Source::Gltf(xr.into()));
+        sources.push(Source::Gltf(xr));
     }
     for (k, src) in sources.into_iter().enumerate() {
         let out = dir.join(format!("ds{k}"));

@@ -1,0 +1,125 @@
+//! `snerf bench`: benchmarks that print numbers (recorded in BENCH.md).
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Args, Subcommand};
+use serde_json::{json, Value};
+use snerf_trainer::data::LoadOptions;
+use snerf_trainer::field::{C, OUT};
+use snerf_trainer::render::PHASES;
+use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCmd {
+    /// End-to-end training throughput (gradient-carrying samples per second) and where the
+    /// time goes, after a warm-up so the occupancy grid has settled.
+    Train(BenchTrainArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchTrainArgs {
+    pub data: PathBuf,
+    /// Steps before measuring (the first steps march through unpruned space).
+    #[arg(long, default_value_t = 150)]
+    pub warmup: u64,
+    /// Steps measured.
+    #[arg(long, default_value_t = 50)]
+    pub steps: u64,
+    /// CPU peak in GFLOP/s used for the utilization figure (default: 2 cores x 2.6 GHz x
+    /// 32 f32 FLOP per cycle — two 256-bit FMA pipes, as on this machine's Zen 4 cores).
+    #[arg(long, default_value_t = 166.4)]
+    pub peak_gflops: f64,
+}
+
+pub fn run(cmd: &BenchCmd) -> Result<Value> {
+    match cmd {
+        BenchCmd::Train(a) => train(a),
+    }
+}
+
+/// FLOPs per sample of the field (encode, decoder, both directions), counting an FMA as 2.
+fn field_flops_per_sample(cfg: &snerf_trainer::field::FieldConfig) -> (f64, f64) {
+    let planes = cfg.planes() as f64;
+    let levels = cfg.levels() as f64;
+    let (inp, h, out) = ((cfg.levels() * C) as f64, cfg.hidden as f64, OUT as f64);
+    let c = C as f64;
+    // bilinear: 4 corners x C FMAs; product over planes: C mults
+    let enc = levels * planes * (4.0 * c * 2.0 + c);
+    let dec = 2.0 * (inp * h + h * out);
+    // backward: decoder dW and dX (2x forward), encoder scatter (same as forward + products)
+    let fwd = enc + dec;
+    let bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
+    (fwd, bwd)
+}
+
+fn train(a: &BenchTrainArgs) -> Result<Value> {
+    let data = snerf_trainer::data::load(&a.data, &LoadOptions::default())?;
+    let cfg = TrainConfig::for_dataset(&data);
+    let mut t = Trainer::new(&data, cfg)?;
+    eprintln!("warming up for {} steps ...", a.warmup);
+    for _ in 0..a.warmup {
+        t.step(0.0);
+    }
+    let mut sum = StepStats::default();
+    for _ in 0..a.steps {
+        let s = t.step(0.0);
+        sum.samples += s.samples;
+        sum.seconds += s.seconds;
+        sum.chunk_seconds += s.chunk_seconds;
+        sum.adam_seconds += s.adam_seconds;
+        for i in 0..6 {
+            sum.phase_ns[i] += s.phase_ns[i];
+        }
+        sum.loss += s.loss / a.steps as f64;
+    }
+    let sps = sum.samples as f64 / sum.seconds;
+    let thread_ns: u64 = sum.phase_ns.iter().sum();
+    let (fwd, bwd) = field_flops_per_sample(&t.model.field.cfg);
+    let field_ns: u64 = sum.phase_ns[1] + sum.phase_ns[2] + sum.phase_ns[4] + sum.phase_ns[5];
+    let threads = rayon::current_num_threads() as f64;
+    let field_gflops = sum.samples as f64 * (fwd + bwd) / (field_ns as f64 * 1e-9 / threads);
+    let phases: Vec<Value> = PHASES
+        .iter()
+        .zip(sum.phase_ns)
+        .map(|(n, ns)| json!({ "phase": n, "share": ns as f64 / thread_ns.max(1) as f64 }))
+        .collect();
+    eprintln!(
+        "{:.3} M gradient-carrying samples/s end to end ({} steps x {} rays, {:.1} samples/ray, {:.1} ms/step)",
+        sps / 1e6,
+        a.steps,
+        t.cfg.batch_rays,
+        sum.samples as f64 / (a.steps * t.cfg.batch_rays as u64) as f64,
+        1e3 * sum.seconds / a.steps as f64
+    );
+    eprintln!(
+        "step time: ray work {:.1}%, optimizer {:.1}%, occupancy+sampling {:.1}%",
+        100.0 * sum.chunk_seconds / sum.seconds,
+        100.0 * sum.adam_seconds / sum.seconds,
+        100.0 * (sum.seconds - sum.chunk_seconds - sum.adam_seconds) / sum.seconds
+    );
+    for p in &phases {
+        eprintln!("  {:<16} {:5.1}% of thread time", p["phase"].as_str().unwrap(), 100.0 * p["share"].as_f64().unwrap());
+    }
+    eprintln!(
+        "field: {:.0} FLOP/sample forward+backward, {:.1} GFLOP/s while in field phases = {:.1}% of {:.0} GFLOP/s peak",
+        fwd + bwd,
+        field_gflops / 1e9,
+        100.0 * field_gflops / 1e9 / a.peak_gflops,
+        a.peak_gflops
+    );
+    Ok(json!({
+        "command": "bench train",
+        "samples_per_second": sps,
+        "steps": a.steps,
+        "batch_rays": t.cfg.batch_rays,
+        "ms_per_step": 1e3 * sum.seconds / a.steps as f64,
+        "optimizer_share": sum.adam_seconds / sum.seconds,
+        "phases": phases,
+        "field_flops_per_sample": fwd + bwd,
+        "field_gflops": field_gflops / 1e9,
+        "peak_fraction": field_gflops / 1e9 / a.peak_gflops,
+        "threads": threads,
+        "train_psnr": snerf_trainer::train::mse_to_psnr(sum.loss),
+    }))
+}

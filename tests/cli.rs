@@ -1,0 +1,214 @@
+//! End-to-end tests of the `snerf` command: scene -> train -> eval -> resume -> demo, and
+//! what bad input gets (a clear error naming the file, a non-zero exit, nothing lost).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn snerf() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
+    c.env("RAYON_NUM_THREADS", "2");
+    c
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("snerf-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn ok(out: Output) -> serde_json::Value {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "command failed: {stderr}");
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+}
+
+fn fails(out: Output, needles: &[&str]) -> String {
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(!out.status.success(), "expected failure, got success: {stderr}");
+    assert!(!stderr.contains("panicked"), "must not panic: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "error should mention {n:?}: {stderr}");
+    }
+    stderr
+}
+
+fn scene(name: &str, dir: &Path, views: usize, size: &str) -> serde_json::Value {
+    ok(snerf()
+        .args(["--json", "scene", name, "--out"])
+        .arg(dir)
+        .args(["--views", &views.to_string(), "--test-views", "4", "--size", size, "--supersample", "2"])
+        .output()
+        .unwrap())
+}
+
+fn metrics(run: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(run.join("metrics.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn scene_train_eval_resume_on_the_object_scene() {
+    let d = tmp("object");
+    let data = d.join("data");
+    let s = scene("object", &data, 30, "48x48");
+    assert_eq!(s["kind"], "object");
+    let info = ok(snerf().args(["--json", "data"]).arg(&data).output().unwrap());
+    assert_eq!(info["kind"], "object");
+    assert_eq!(info["counts"]["train"], 30);
+
+    let run = d.join("run");
+    let t = ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "60"]).output().unwrap());
+    assert_eq!(t["metrics"]["step"], 60);
+    let m = metrics(&run);
+    let curve = m["curve"].as_array().unwrap();
+    let last = curve.last().unwrap()["test_psnr"].as_f64().unwrap();
+    assert!(last > 16.0, "60 steps should reach a recognisable image, got {last:.2} dB");
+
+    // an existing run is never silently overwritten
+    fails(
+        snerf().arg("train").arg(&data).arg("--out").arg(&run).args(["--steps", "5"]).output().unwrap(),
+        &["already exists", "--resume"],
+    );
+    // resume continues the same run to a larger step budget and keeps improving
+    let t2 =
+        ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "120", "--resume"]).output().unwrap());
+    assert_eq!(t2["metrics"]["step"], 120);
+    let later = metrics(&run)["curve"].as_array().unwrap().last().unwrap()["test_psnr"].as_f64().unwrap();
+    assert!(later > last, "resumed training improves: {last:.2} -> {later:.2}");
+
+    let e = ok(snerf().args(["--json", "eval"]).arg(&run).arg(&data).output().unwrap());
+    let psnr = e["report"]["mean_psnr"].as_f64().unwrap();
+    let ssim = e["report"]["mean_ssim"].as_f64().unwrap();
+    assert!(psnr > 18.0 && ssim > 0.5 && ssim <= 1.0, "psnr {psnr} ssim {ssim}");
+    assert_eq!(e["report"]["views"].as_array().unwrap().len(), 4);
+    let img = image::open(run.join("eval/r_000.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (48 * 3, 48), "prediction | truth | depth");
+}
+
+#[test]
+fn killed_training_resumes_from_its_last_checkpoint() {
+    let d = tmp("kill");
+    let data = d.join("data");
+    scene("object", &data, 20, "32x32");
+    let run = d.join("run");
+    let mut child = snerf()
+        .arg("train")
+        .arg(&data)
+        .arg("--out")
+        .arg(&run)
+        .args(["--minutes", "10", "--checkpoint-every", "0.5"])
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let ck = run.join("checkpoint.snerfck");
+    let t0 = std::time::Instant::now();
+    while !ck.exists() && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    child.kill().unwrap(); // SIGKILL: no chance to clean up
+    child.wait().unwrap();
+    assert!(ck.exists(), "a checkpoint was written before the kill");
+    let step_at_kill = metrics(&run)["step"].as_u64().unwrap();
+    assert!(step_at_kill > 0);
+    // no temp files are left looking like results
+    for e in std::fs::read_dir(&run).unwrap() {
+        let name = e.unwrap().file_name().to_string_lossy().to_string();
+        assert!(!name.ends_with(".snerfck") || name == "checkpoint.snerfck", "{name}");
+    }
+    let target = step_at_kill + 20;
+    let t = ok(snerf()
+        .args(["--json", "train"])
+        .arg(&data)
+        .arg("--out")
+        .arg(&run)
+        .args(["--resume", "--steps", &target.to_string()])
+        .output()
+        .unwrap());
+    assert!(t["metrics"]["step"].as_u64().unwrap() >= target);
+}
+
+#[test]
+fn every_scene_kind_is_detected_and_trains() {
+    for (name, kind, dynamic) in [("room", "forward", false), ("outdoor", "unbounded", false), ("avatar", "object", true)] {
+        let d = tmp(name);
+        let data = d.join("data");
+        scene(name, &data, 16, "40x32");
+        let info = ok(snerf().args(["--json", "data"]).arg(&data).output().unwrap());
+        assert_eq!(info["kind"], kind, "{name}");
+        assert_eq!(info["dynamic"], dynamic, "{name}");
+        let run = d.join("run");
+        let t = ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "30"]).output().unwrap());
+        let curve = t["metrics"]["curve"].as_array().unwrap();
+        let first = curve.first().unwrap()["test_psnr"].as_f64().unwrap();
+        let last = curve.last().unwrap()["test_psnr"].as_f64().unwrap();
+        assert!(last.is_finite() && last > first, "{name}: {first:.2} -> {last:.2} dB");
+        let config: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap()).unwrap();
+        let has_time_planes = !config["train"]["field"]["time_resolutions"].as_array().unwrap().is_empty();
+        assert_eq!(has_time_planes, dynamic, "{name}: time inputs only for dynamic scenes");
+    }
+}
+
+#[test]
+fn demo_writes_pictures_and_a_summary() {
+    let d = tmp("demo");
+    let out = d.join("demo");
+    let s = ok(snerf()
+        .args(["--json", "demo", "--out"])
+        .arg(&out)
+        .args(["--minutes", "0.15", "--views", "20", "--size", "32x32", "--frames", "4"])
+        .output()
+        .unwrap());
+    assert!(s["eval"]["mean_psnr"].as_f64().unwrap() > 12.0);
+    assert!(out.join("contact_sheet.png").exists());
+    assert!(out.join("turntable/frame_003.png").exists());
+    assert!(out.join("summary.json").exists());
+    // running it again over its own output works; over someone else's directory it refuses
+    let other = d.join("not-a-demo");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::write(other.join("precious.txt"), "keep me").unwrap();
+    fails(snerf().args(["demo", "--out"]).arg(&other).args(["--minutes", "0.05"]).output().unwrap(), &["not-a-demo"]);
+    assert!(other.join("precious.txt").exists());
+}
+
+#[test]
+fn bad_input_gets_a_clear_error_naming_the_file() {
+    let d = tmp("bad");
+    // a dataset directory that does not exist
+    fails(snerf().arg("train").arg(d.join("nope")).arg("--out").arg(d.join("r")).output().unwrap(), &["nope"]);
+    // an image missing from a dataset
+    let data = d.join("data");
+    scene("object", &data, 8, "24x24");
+    std::fs::remove_file(data.join("train/r_003.png")).unwrap();
+    fails(snerf().arg("train").arg(&data).arg("--out").arg(d.join("r")).output().unwrap(), &["r_003.png"]);
+    assert!(!d.join("r/checkpoint.snerfck").exists(), "no partial run left looking complete");
+    // a NaN in a pose
+    scene("object", &data, 8, "24x24");
+    let tf = data.join("transforms_train.json");
+    let text = std::fs::read_to_string(&tf).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["frames"][2]["transform_matrix"][0][3] = serde_json::Value::String("NaN".into());
+    std::fs::write(&tf, serde_json::to_string(&json).unwrap()).unwrap();
+    fails(snerf().arg("data").arg(&data).output().unwrap(), &["transforms_train.json"]);
+    std::fs::write(&tf, text).unwrap();
+    // a corrupt checkpoint, and one from another version
+    let run = d.join("run");
+    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "3"]).output().unwrap());
+    let ck = run.join("checkpoint.snerfck");
+    let mut bytes = std::fs::read(&ck).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x40;
+    std::fs::write(&ck, &bytes).unwrap();
+    fails(snerf().arg("eval").arg(&run).arg(&data).output().unwrap(), &["checkpoint.snerfck", "corrupt"]);
+    bytes[mid] ^= 0x40;
+    bytes[8] = 99; // version field
+    std::fs::write(&ck, &bytes).unwrap();
+    fails(snerf().arg("eval").arg(&run).arg(&data).output().unwrap(), &["checkpoint.snerfck", "version 99"]);
+    // a truncated checkpoint
+    std::fs::write(&ck, &bytes[..100]).unwrap();
+    fails(snerf().arg("eval").arg(&run).arg(&data).output().unwrap(), &["checkpoint.snerfck"]);
+    // unknown scene, bad size, unknown kind
+    fails(snerf().args(["scene", "castle", "--out"]).arg(d.join("c")).output().unwrap(), &["castle", "object"]);
+    fails(snerf().args(["scene", "object", "--size", "12by12", "--out"]).arg(d.join("c")).output().unwrap(), &["12by12"]);
+    fails(snerf().arg("data").arg(&data).args(["--kind", "planet"]).output().unwrap(), &["planet"]);
+}
