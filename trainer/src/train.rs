@@ -52,8 +52,8 @@ impl TrainConfig {
         TrainConfig {
             batch_rays: 4096,
             chunk_rays: 64,
-            lr_planes: 0.02,
-            lr_mlp: 0.005,
+            lr_planes: 0.04,
+            lr_mlp: 0.01,
             lr_final: 0.1,
             occupancy_res: 64,
             steps_per_diagonal: 512,
