@@ -62,7 +62,9 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
         t.step(0.0);
     }
     let mut sum = StepStats::default();
+    let mut rays = 0u64;
     for _ in 0..a.steps {
+        rays += t.rays_next as u64;
         let s = t.step(0.0);
         sum.samples += s.samples;
         sum.seconds += s.seconds;
@@ -85,11 +87,11 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
         .map(|(n, ns)| json!({ "phase": n, "share": ns as f64 / thread_ns.max(1) as f64 }))
         .collect();
     eprintln!(
-        "{:.3} M gradient-carrying samples/s end to end ({} steps x {} rays, {:.1} samples/ray, {:.1} ms/step)",
+        "{:.3} M gradient-carrying samples/s end to end ({} steps, {:.0} rays/step, {:.1} samples/ray, {:.1} ms/step)",
         sps / 1e6,
         a.steps,
-        t.cfg.batch_rays,
-        sum.samples as f64 / (a.steps * t.cfg.batch_rays as u64) as f64,
+        rays as f64 / a.steps as f64,
+        sum.samples as f64 / rays as f64,
         1e3 * sum.seconds / a.steps as f64
     );
     eprintln!(
@@ -112,7 +114,7 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
         "command": "bench train",
         "samples_per_second": sps,
         "steps": a.steps,
-        "batch_rays": t.cfg.batch_rays,
+        "rays_per_step": rays as f64 / a.steps as f64,
         "ms_per_step": 1e3 * sum.seconds / a.steps as f64,
         "optimizer_share": sum.adam_seconds / sum.seconds,
         "phases": phases,

@@ -139,12 +139,15 @@ pub struct TrainArgs {
     /// Continue the run in --out from its last checkpoint.
     #[arg(long)]
     pub resume: bool,
-    /// Rays per step.
+    /// Fixed rays per step (default: adapt the ray count to --batch-samples).
     #[arg(long)]
     pub batch: Option<usize>,
-    /// Held-out views used for the PSNR-vs-time curve.
-    #[arg(long, default_value_t = 8)]
-    pub curve_views: usize,
+    /// Samples per step the ray count adapts to.
+    #[arg(long)]
+    pub batch_samples: Option<usize>,
+    /// Held-out pixels (random, fixed) scored for the PSNR-vs-time curve in metrics.json.
+    #[arg(long, default_value_t = 16384)]
+    pub curve_pixels: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Learning rate of the feature planes (Adam).
@@ -153,6 +156,9 @@ pub struct TrainArgs {
     /// Learning rate of the decoder and view MLP (Adam).
     #[arg(long)]
     pub lr_mlp: Option<f32>,
+    /// Weight of the distortion loss (default 0.01 for forward/unbounded scenes, 0 for objects).
+    #[arg(long)]
+    pub distortion: Option<f32>,
     /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
     #[arg(long)]
     pub resolution: Option<u32>,
@@ -271,12 +277,19 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     cfg.seed = a.seed;
     if let Some(b) = a.batch {
         cfg.batch_rays = b.clamp(64, 1 << 20);
+        cfg.batch_samples = 0;
+    }
+    if let Some(b) = a.batch_samples {
+        cfg.batch_samples = b.clamp(1024, 1 << 24);
     }
     if let Some(lr) = a.lr_planes {
         cfg.lr_planes = lr;
     }
     if let Some(lr) = a.lr_mlp {
         cfg.lr_mlp = lr;
+    }
+    if let Some(d) = a.distortion {
+        cfg.distortion = d.max(0.0);
     }
     if let Some(r) = a.resolution {
         cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r].into_iter().map(|x| x.max(2)).collect();
@@ -292,7 +305,7 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         dir: a.out.clone(),
         steps: a.steps,
         seconds,
-        curve_views: a.curve_views,
+        curve_pixels: a.curve_pixels,
         checkpoint_every: a.checkpoint_every.max(0.0),
     };
     train_run(&data, cfg, &opts, a.resume, quiet)

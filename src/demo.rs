@@ -78,7 +78,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         dir: run_dir.clone(),
         steps: None,
         seconds: Some(a.minutes * 60.0),
-        curve_views: 8,
+        curve_pixels: 16384,
         checkpoint_every: 30.0,
     };
     let trained = cli::train_run(&data, cfg, &opts, false, quiet)?;

@@ -160,3 +160,58 @@ pub fn side_by_side(images: &[&[f32]], w: usize, h: usize) -> image::RgbImage {
 pub fn to_u8(v: f32) -> u8 {
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
+
+/// A fixed random sample of held-out pixels: (view index, x, y).
+pub fn sample_pixels(views: &[View], n: usize, seed: u64) -> Vec<(usize, u32, u32)> {
+    let total: usize = views.iter().map(|v| (v.intrinsics.width * v.intrinsics.height) as usize).sum();
+    if total == 0 {
+        return Vec::new();
+    }
+    let mut rng = crate::field::Rng::new(seed);
+    (0..n.min(total))
+        .map(|_| {
+            let vi = rng.below(views.len());
+            let k = &views[vi].intrinsics;
+            (vi, rng.below(k.width as usize) as u32, rng.below(k.height as usize) as u32)
+        })
+        .collect()
+}
+
+/// PSNR of the pooled squared error over a sample of held-out pixels: an unbiased estimate
+/// of the held-out MSE at a small fraction of the cost of rendering whole views (used for
+/// the error-against-time curve; `evaluate` scores whole images).
+pub fn sampled_psnr(model: &Model, pool: &WorkspacePool, views: &[View], has_alpha: bool, pixels: &[(usize, u32, u32)]) -> f64 {
+    let bg = eval_background(has_alpha);
+    const CHUNK: usize = 256;
+    let se: f64 = pixels
+        .par_chunks(CHUNK)
+        .map(|chunk| {
+            let tasks: Vec<RayTask> = chunk
+                .iter()
+                .map(|&(vi, x, y)| {
+                    let v = &views[vi];
+                    let ray = model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time);
+                    RayTask { ray, bg, target: [0.0; 3], jitter: 0.5 }
+                })
+                .collect();
+            let mut out = vec![RayResult::default(); chunk.len()];
+            pool.with(|ws| render_chunk(&model.field, &model.space, &model.occ, &tasks, ws, &mut out));
+            chunk
+                .iter()
+                .zip(&out)
+                .map(|(&(vi, x, y), r)| {
+                    let v = &views[vi];
+                    let i = ((y * v.intrinsics.width + x) * 4) as usize;
+                    let a = v.rgba[i + 3] as f32 / 255.0;
+                    (0..3)
+                        .map(|c| {
+                            let gt = v.rgba[i + c] as f32 / 255.0 * a + bg[c] * (1.0 - a);
+                            ((r.rgb[c] - gt) as f64).powi(2)
+                        })
+                        .sum::<f64>()
+                })
+                .sum::<f64>()
+        })
+        .sum();
+    crate::train::mse_to_psnr(se / (3 * pixels.len().max(1)) as f64)
+}

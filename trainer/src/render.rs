@@ -63,6 +63,10 @@ pub struct Workspace {
     c_dsigma: Vec<f32>,
     c_dv: Vec<[f32; V]>,
     c_scratch: Vec<f32>,
+    c_w: Vec<f32>,
+    c_gw: Vec<f32>,
+    c_mid: Vec<f32>,
+    c_len: Vec<f32>,
     /// Parameter gradient accumulated by this thread.
     pub grad: Vec<f32>,
     /// One flag per plane cell (C floats) whose gradient this thread touched.
@@ -73,6 +77,7 @@ pub struct Workspace {
 #[derive(Clone, Copy, Debug, Default)]
 pub struct ChunkStats {
     pub loss_sum: f64,
+    pub distortion_sum: f64,
     pub samples: u64,
     pub rays: u64,
     /// Nanoseconds per phase (see [`PHASES`]), summed over threads.
@@ -88,7 +93,13 @@ impl ChunkStats {
         for i in 0..6 {
             ns[i] += b.ns[i];
         }
-        ChunkStats { loss_sum: self.loss_sum + b.loss_sum, samples: self.samples + b.samples, rays: self.rays + b.rays, ns }
+        ChunkStats {
+            loss_sum: self.loss_sum + b.loss_sum,
+            distortion_sum: self.distortion_sum + b.distortion_sum,
+            samples: self.samples + b.samples,
+            rays: self.rays + b.rays,
+            ns,
+        }
     }
 }
 
@@ -250,6 +261,8 @@ pub fn render_chunk(
 
 /// One training chunk: forward, mean-squared-error loss against the targets, and the full
 /// backward into `ws.grad`. `loss_scale` multiplies dL/dcolour (1 / (3 * batch rays)).
+/// `distortion` > 0 adds that weight times the distortion loss of every ray (normalized
+/// grid-space distances), which clears fog in forward-facing and unbounded scenes.
 pub fn train_chunk(
     field: &Field,
     space: &SceneSpace,
@@ -257,6 +270,7 @@ pub fn train_chunk(
     tasks: &[RayTask],
     ws: &mut Workspace,
     loss_scale: f32,
+    distortion: f32,
 ) -> ChunkStats {
     let mut stats = ChunkStats { rays: tasks.len() as u64, ..Default::default() };
     ws.forward_field(field, space, occ, tasks, &mut stats.ns);
@@ -298,12 +312,37 @@ pub fn train_chunk(
         let m = ws.c_sigma.len();
         ws.c_dsigma.resize(m, 0.0);
         ws.c_dv.resize(m, [0.0; V]);
+        ws.c_gw.clear();
+        if distortion > 0.0 && m > 1 {
+            // positions along the ray in grid units / grid diagonal (so s ∈ [0, ~1])
+            let norm = 1.0 / (2.0 * 3f32.sqrt());
+            ws.c_mid.clear();
+            ws.c_len.clear();
+            let mut s_acc = 0.0f32;
+            let mut prev = ws.samples[ws.ray_samples[ri][0] as usize].g;
+            for &k in &ws.ray_samples[ri] {
+                let g = ws.samples[k as usize].g;
+                s_acc += crate::space::norm(crate::space::sub(g, prev)) * norm;
+                prev = g;
+                ws.c_mid.push(s_acc);
+                ws.c_len.push(occ.step * norm);
+            }
+            composite::weights(&ws.c_sigma, &ws.c_delta, &mut ws.c_w, &mut ws.c_scratch);
+            ws.c_gw.resize(m, 0.0);
+            let l = composite::distortion(&ws.c_w, &ws.c_mid, &ws.c_len, &mut ws.c_gw);
+            stats.distortion_sum += l as f64;
+            let scale = distortion * 3.0 * loss_scale;
+            for gw in ws.c_gw.iter_mut() {
+                *gw *= scale;
+            }
+        }
         composite::backward(
             &ws.c_sigma,
             &ws.c_delta,
             &ws.c_v,
             &g,
             g_t,
+            &ws.c_gw,
             &mut ws.c_dsigma,
             &mut ws.c_dv,
             &mut ws.c_scratch,

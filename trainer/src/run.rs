@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use serde_json::json;
-use snerf_data::{Dataset, View};
+use snerf_data::Dataset;
 
 use crate::checkpoint;
-use crate::eval::evaluate;
+use crate::eval::sampled_psnr;
 use crate::train::{CurvePoint, StepStats, TrainConfig, Trainer};
 
 /// When to measure test PSNR (training seconds); after the last, every 60 s.
@@ -21,8 +21,9 @@ pub struct RunOptions {
     pub dir: PathBuf,
     pub steps: Option<u64>,
     pub seconds: Option<f64>,
-    /// Held-out views used for the curve (a few, evenly spaced; `snerf eval` scores all).
-    pub curve_views: usize,
+    /// Held-out pixels (a fixed random sample across the test views) scored for the curve;
+    /// `snerf eval` scores whole images.
+    pub curve_pixels: usize,
     /// Also write a checkpoint at least this often (seconds of training).
     pub checkpoint_every: f64,
 }
@@ -61,14 +62,6 @@ pub fn open(data: &Dataset, cfg: TrainConfig, dir: &Path, resume: bool) -> Resul
     Trainer::new(data, cfg)
 }
 
-/// Evenly spaced subset of views.
-pub fn spread(views: &[View], n: usize) -> Vec<View> {
-    if views.len() <= n {
-        return views.to_vec();
-    }
-    (0..n).map(|i| views[i * views.len() / n].clone()).collect()
-}
-
 fn progress(t: &Trainer, o: &RunOptions) -> f64 {
     let a = o.steps.map(|s| t.step as f64 / s.max(1) as f64).unwrap_or(0.0);
     let b = o.seconds.map(|s| t.train_seconds / s.max(1e-9)).unwrap_or(0.0);
@@ -83,17 +76,14 @@ pub fn run(
     on_step: &mut dyn FnMut(&Trainer, &StepStats, f64),
 ) -> Result<()> {
     std::fs::create_dir_all(&opts.dir).with_context(|| format!("{}: cannot create run directory", opts.dir.display()))?;
-    let curve_views = spread(&data.test, opts.curve_views);
+    let pixels = crate::eval::sample_pixels(&data.test, opts.curve_pixels, 0x7e57);
     let has_alpha = t.has_alpha();
     let mut next_eval = next_eval_after(t.train_seconds);
     let mut last_ckpt = t.train_seconds;
     let mut recent = StepStats::default();
     let measure = |t: &mut Trainer, last: &StepStats| -> Result<()> {
-        let test_psnr = if curve_views.is_empty() {
-            None
-        } else {
-            Some(evaluate(&t.model, &t.pool, &curve_views, has_alpha, None, false)?.mean_psnr)
-        };
+        let test_psnr =
+            (!pixels.is_empty()).then(|| sampled_psnr(&t.model, &t.pool, &data.test, has_alpha, &pixels));
         t.curve.push(CurvePoint {
             step: t.step,
             train_seconds: t.train_seconds,

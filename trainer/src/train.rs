@@ -18,7 +18,12 @@ use crate::space::SceneSpace;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrainConfig {
+    /// Rays in the first step; later steps adapt the ray count so that a step carries about
+    /// `batch_samples` samples (as Instant-NGP does): early steps through unpruned space are
+    /// then as quick as later ones, and the occupancy grid prunes sooner in wall time.
     pub batch_rays: usize,
+    pub batch_samples: usize,
+    pub max_batch_rays: usize,
     pub chunk_rays: usize,
     pub lr_planes: f32,
     pub lr_mlp: f32,
@@ -28,6 +33,8 @@ pub struct TrainConfig {
     pub steps_per_diagonal: usize,
     /// Refresh the occupancy grid every this many steps.
     pub occupancy_every: u64,
+    /// Weight of the distortion loss (0 = off; on for forward-facing and unbounded scenes).
+    pub distortion: f32,
     pub seed: u64,
     pub field: FieldConfig,
 }
@@ -37,11 +44,11 @@ impl TrainConfig {
     /// only for dynamic scenes.
     pub fn for_dataset(data: &Dataset) -> TrainConfig {
         let max_dim = data.train.iter().map(|v| v.intrinsics.width.max(v.intrinsics.height)).max().unwrap_or(128);
-        let finest = (2 * max_dim).next_power_of_two().clamp(128, 512);
-        let resolutions: Vec<u32> = match data.kind {
-            SceneKind::Object => vec![finest / 8, finest / 4, finest / 2, finest],
-            _ => vec![finest / 8, finest / 4, finest / 2, finest],
-        };
+        // About two plane cells per pixel across the object / the contracted inner cube;
+        // forward-facing NDC spans exactly the image, so one cell per pixel.
+        let per_pixel = if data.kind == SceneKind::Forward { 1 } else { 2 };
+        let finest = (per_pixel * max_dim).next_power_of_two().clamp(128, 512);
+        let resolutions = vec![finest / 8, finest / 4, finest / 2, finest];
         let time_resolutions = if data.dynamic {
             let frames = data.train.len().clamp(8, 400) as u32;
             let tmax = (frames / 3).clamp(8, 64);
@@ -51,6 +58,8 @@ impl TrainConfig {
         };
         TrainConfig {
             batch_rays: 4096,
+            batch_samples: 1 << 16,
+            max_batch_rays: 16384,
             chunk_rays: 64,
             lr_planes: 0.04,
             lr_mlp: 0.01,
@@ -58,6 +67,7 @@ impl TrainConfig {
             occupancy_res: 64,
             steps_per_diagonal: 512,
             occupancy_every: 16,
+            distortion: if data.kind == SceneKind::Object { 0.0 } else { 0.01 },
             seed: 0,
             field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
         }
@@ -92,6 +102,8 @@ pub struct Trainer {
     pub samples_seen: u64,
     pub curve: Vec<CurvePoint>,
     pub pool: WorkspacePool,
+    /// Rays in the next step (adapted to `batch_samples`).
+    pub rays_next: usize,
     rng: Rng,
     views: Vec<View>,
     has_alpha: bool,
@@ -153,6 +165,7 @@ impl Trainer {
         let pool = WorkspacePool::new(model.field.params.len());
         Ok(Trainer {
             rng: Rng::new(cfg.seed ^ 0x5eed),
+            rays_next: cfg.batch_rays.max(1),
             cfg,
             model,
             adam,
@@ -259,13 +272,16 @@ impl Trainer {
     /// One optimization step.
     pub fn step(&mut self, progress: f64) -> StepStats {
         let t0 = Instant::now();
-        let tasks = self.sample_tasks(self.cfg.batch_rays);
+        let tasks = self.sample_tasks(self.rays_next);
         let loss_scale = 1.0 / (3.0 * tasks.len() as f32);
         let model = &self.model;
         let pool = &self.pool;
+        let distortion = self.cfg.distortion;
         let stats = tasks
             .par_chunks(self.cfg.chunk_rays)
-            .map(|chunk| pool.with(|ws| train_chunk(&model.field, &model.space, &model.occ, chunk, ws, loss_scale)))
+            .map(|chunk| {
+                pool.with(|ws| train_chunk(&model.field, &model.space, &model.occ, chunk, ws, loss_scale, distortion))
+            })
             .reduce(ChunkStats::default, ChunkStats::merge);
         let t_chunks = t0.elapsed().as_secs_f64();
         let s = self.lr_scale(progress);
@@ -284,6 +300,11 @@ impl Trainer {
         let secs = t0.elapsed().as_secs_f64();
         self.train_seconds += secs;
         self.samples_seen += stats.samples;
+        if self.cfg.batch_samples > 0 {
+            let per_ray = stats.samples as f64 / stats.rays.max(1) as f64;
+            let want = (self.cfg.batch_samples as f64 / per_ray.max(1.0)) as usize;
+            self.rays_next = want.clamp(256, self.cfg.max_batch_rays.max(256));
+        }
         StepStats {
             loss: stats.loss_sum / (3.0 * stats.rays.max(1) as f64),
             samples: stats.samples,

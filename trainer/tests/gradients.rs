@@ -47,7 +47,7 @@ fn compositing_backward_matches_finite_differences() {
     };
     let mut ds = vec![0.0; n];
     let mut dv = vec![[0.0; V]; n];
-    composite::backward(&sigma, &delta, &v, &g, g_t, &mut ds, &mut dv, &mut Vec::new());
+    composite::backward(&sigma, &delta, &v, &g, g_t, &[], &mut ds, &mut dv, &mut Vec::new());
     for k in 0..n {
         let h = 1e-2 * sigma[k].max(0.1);
         let (mut a, mut b) = (sigma.clone(), sigma.clone());
@@ -221,13 +221,16 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
             })
             .collect();
         assert!(tasks.iter().all(|t| t.ray.is_some()));
+        // with loss_scale 1 the gradient is of Σ (rgb - target)² + 3 λ Σ distortion
+        let lambda = if dynamic { 0.0 } else { 0.05 };
         let loss_of = |f: &Field| -> f64 {
             let mut ws = Workspace::new(f.params.len());
-            train_chunk(f, &space, &occ, &tasks, &mut ws, 1.0).loss_sum
+            let s = train_chunk(f, &space, &occ, &tasks, &mut ws, 1.0, lambda);
+            s.loss_sum + 3.0 * lambda as f64 * s.distortion_sum
         };
         let mut ws = Workspace::new(field.params.len());
-        // with loss_scale 1 the gradient is of Σ (rgb - target)², the reported loss_sum
-        let stats = train_chunk(&field, &space, &occ, &tasks, &mut ws, 1.0);
+        let stats = train_chunk(&field, &space, &occ, &tasks, &mut ws, 1.0, lambda);
+        assert!(lambda == 0.0 || stats.distortion_sum > 0.0);
         assert!(stats.samples > 50, "rays must cross the field ({} samples)", stats.samples);
         let grad = ws.grad.clone();
         let l = &field.layout;
@@ -248,5 +251,42 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
             checked += 1;
         }
         assert!(checked > 20);
+    }
+}
+
+#[test]
+fn distortion_loss_gradient_matches_finite_differences() {
+    let mut rng = Rng::new(21);
+    let n = 9;
+    let w: Vec<f32> = (0..n).map(|_| 0.1 * rng.uniform()).collect();
+    let mut mid = Vec::new();
+    let mut s = 0.0;
+    for _ in 0..n {
+        s += 0.01 + 0.05 * rng.uniform();
+        mid.push(s);
+    }
+    let len: Vec<f32> = (0..n).map(|_| 0.02).collect();
+    let mut g = vec![0.0; n];
+    let l0 = composite::distortion(&w, &mid, &len, &mut g);
+    // brute-force definition
+    let brute = |w: &[f32]| -> f64 {
+        let mut l = 0.0f64;
+        for i in 0..n {
+            for j in 0..n {
+                l += (w[i] * w[j] * (mid[i] - mid[j]).abs()) as f64;
+            }
+            l += (w[i] * w[i] * len[i]) as f64 / 3.0;
+        }
+        l
+    };
+    assert_close("distortion value", l0 as f64, brute(&w), 1e-4, 1e-7);
+    let mut scratch = vec![0.0; n];
+    for k in 0..n {
+        let (mut a, mut b) = (w.clone(), w.clone());
+        a[k] += 1e-3;
+        b[k] -= 1e-3;
+        let num = (brute(&a) - brute(&b)) / 2e-3;
+        assert_close(&format!("d distortion / dw[{k}]"), g[k] as f64, num, 1e-2, 1e-6);
+        scratch[k] = g[k];
     }
 }

@@ -23,7 +23,7 @@ fn run_ray(sigma: &[f32], delta: &[f32]) -> (composite::RayComposite, Vec<f32>, 
     let t_final = composite::weights(sigma, delta, &mut w, &mut t);
     let mut ds = vec![0.0; n];
     let mut dv = vec![[0.0; V]; n];
-    composite::backward(sigma, delta, &v, &[1.0; V], 0.5, &mut ds, &mut dv, &mut Vec::new());
+    composite::backward(sigma, delta, &v, &[1.0; V], 0.5, &[], &mut ds, &mut dv, &mut Vec::new());
     assert!(all_finite(&c.value) && c.t_final.is_finite(), "forward not finite: {c:?}");
     assert!(all_finite(&w) && all_finite(&t) && t_final.is_finite());
     assert!(all_finite(&ds), "dσ not finite: {ds:?}");
@@ -147,7 +147,7 @@ fn render_one(field: &Field, space: &SceneSpace, task: RayTask) -> RayResult {
     let mut ws = Workspace::new(field.params.len());
     let mut out = [RayResult::default()];
     render_chunk(field, space, &occ, &[task], &mut ws, &mut out);
-    let loss = train_chunk(field, space, &occ, &[task], &mut ws, 1.0);
+    let loss = train_chunk(field, space, &occ, &[task], &mut ws, 1.0, 0.01);
     assert!(loss.loss_sum.is_finite());
     assert!(all_finite(&ws.grad), "gradient not finite");
     out[0]
