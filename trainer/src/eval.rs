@@ -111,7 +111,8 @@ pub fn evaluate(
         let s = if with_ssim { ssim(&r.rgb, &gt, r.width, r.height) } else { f64::NAN };
         let name = v.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| format!("view_{i:03}"));
         if let Some(dir) = out_dir {
-            let img = side_by_side(&[&r.rgb, &gt, &depth_image(&r)], r.width, r.height);
+            let disparity = model.space.kind == snerf_data::SceneKind::Unbounded;
+            let img = side_by_side(&[&r.rgb, &gt, &depth_image(&r, disparity)], r.width, r.height);
             crate::checkpoint::write_png_atomic(&dir.join(format!("{name}.png")), &img)
                 .with_context(|| format!("writing evaluation image for {name}"))?;
         }
@@ -127,8 +128,11 @@ pub fn evaluate(
 }
 
 /// Depth as a grey image: near = bright, normalized over the pixels the field covers.
-pub fn depth_image(r: &Rendered) -> Vec<f32> {
-    let covered: Vec<f32> = r.depth.iter().zip(&r.opacity).filter(|(_, &a)| a > 0.5).map(|(&d, _)| d).collect();
+/// With `disparity` (unbounded scenes, whose depths run to the far contraction shell) the
+/// grey level follows 1/depth, so near structure stays visible.
+pub fn depth_image(r: &Rendered, disparity: bool) -> Vec<f32> {
+    let map = |d: f32| if disparity { -1.0 / d.max(1e-3) } else { d };
+    let covered: Vec<f32> = r.depth.iter().zip(&r.opacity).filter(|(_, &a)| a > 0.5).map(|(&d, _)| map(d)).collect();
     let lo = covered.iter().cloned().fold(f32::INFINITY, f32::min);
     let hi = covered.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
     let span = if hi > lo { hi - lo } else { 1.0 };
@@ -136,7 +140,7 @@ pub fn depth_image(r: &Rendered) -> Vec<f32> {
         .iter()
         .zip(&r.opacity)
         .flat_map(|(&d, &a)| {
-            let v = if a > 0.05 && lo.is_finite() { (1.0 - (d - lo) / span).clamp(0.0, 1.0) * a } else { 0.0 };
+            let v = if a > 0.05 && lo.is_finite() { (1.0 - (map(d) - lo) / span).clamp(0.0, 1.0) * a } else { 0.0 };
             [v; 3]
         })
         .collect()

@@ -171,6 +171,16 @@ fn bilerp(params: &[f32], p: &PlaneRef, g: &[f32; 3], t: f32) -> ([f32; C], [usi
     (out, idx, wts)
 }
 
+/// One recorded plane lookup: lower corner index, row stride to the next corner row,
+/// bilinear weights of the 4 corners and the interpolated value.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PlaneHit {
+    pub idx: u32,
+    pub row: u32,
+    pub wts: [f32; 4],
+    pub val: [f32; C],
+}
+
 #[derive(Clone, Debug)]
 pub struct Field {
     pub cfg: FieldConfig,
@@ -239,11 +249,11 @@ impl Field {
         Ok(Field { cfg, layout, params })
     }
 
-    /// Prefetch the plane cells a point will read (and, with `grad`, the gradient cells it
-    /// will write). Plane lookups are cache misses by nature (random rays over megabytes of
-    /// planes); issuing all of a point's misses at once lets them overlap.
+    /// Prefetch the plane cells a point will read. Plane lookups are cache misses by nature
+    /// (random rays over megabytes of planes); issuing a point's misses ahead of its math
+    /// lets them overlap.
     #[inline]
-    pub fn prefetch(&self, g: &[f32; 3], t: f32, grad: Option<&[f32]>) {
+    pub fn prefetch(&self, g: &[f32; 3], t: f32) {
         #[cfg(target_arch = "x86_64")]
         unsafe {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
@@ -254,15 +264,12 @@ impl Field {
                     let base = p.offset + (iv * p.ru + iu) * C;
                     for off in [base, base + C, base + p.ru * C, base + p.ru * C + C] {
                         _mm_prefetch::<_MM_HINT_T0>(self.params.as_ptr().add(off) as *const i8);
-                        if let Some(gr) = grad {
-                            _mm_prefetch::<_MM_HINT_T0>(gr.as_ptr().add(off) as *const i8);
-                        }
                     }
                 }
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = (g, t, grad);
+        let _ = (g, t);
     }
 
     /// Encode one point: writes `input_dim` features into `out`.
@@ -280,37 +287,68 @@ impl Field {
         }
     }
 
-    /// Backward of [`encode`]: scatters dL/d(features) into the plane gradients.
+    /// Number of plane lookups per point (levels x planes): the length of one point's
+    /// [`PlaneHit`] record.
+    pub fn hits_per_point(&self) -> usize {
+        self.cfg.levels() * self.cfg.planes()
+    }
+
+    /// [`encode`] that also records each plane lookup (corners, weights, value), so the
+    /// backward pass scatters gradients without reading the planes again: the planes are
+    /// megabytes and every lookup is a cache miss, the record is read back sequentially.
     #[inline]
+    pub fn encode_recorded(&self, g: &[f32; 3], t: f32, out: &mut [f32], hits: &mut [PlaneHit]) {
+        let mut h = 0;
+        for (l, level) in self.layout.planes.iter().enumerate() {
+            let mut acc = [1.0f32; C];
+            for p in level {
+                let (v, idx, wts) = bilerp(&self.params, p, g, t);
+                for c in 0..C {
+                    acc[c] *= v[c];
+                }
+                hits[h] = PlaneHit { idx: idx[0] as u32, row: (idx[2] - idx[0]) as u32, wts, val: v };
+                h += 1;
+            }
+            out[l * C..(l + 1) * C].copy_from_slice(&acc);
+        }
+    }
+
+    /// Backward of [`encode`]: scatters dL/d(features) into the plane gradients;
     /// `touched[cell]` is set for every plane cell (C floats) that receives gradient.
     pub fn encode_backward(&self, g: &[f32; 3], t: f32, d_feat: &[f32], grad: &mut [f32], touched: &mut [u8]) {
-        let mut vals = [[0.0f32; C]; 6];
-        let mut idxs = [[0usize; 4]; 6];
-        let mut wts = [[0.0f32; 4]; 6];
-        for (l, level) in self.layout.planes.iter().enumerate() {
-            let np = level.len();
-            for (k, p) in level.iter().enumerate() {
-                (vals[k], idxs[k], wts[k]) = bilerp(&self.params, p, g, t);
-            }
+        let mut hits = [PlaneHit::default(); 6 * 16];
+        let n = self.hits_per_point();
+        let mut feat = vec![0.0; self.layout.input];
+        self.encode_recorded(g, t, &mut feat, &mut hits[..n]);
+        self.encode_backward_recorded(&hits[..n], d_feat, grad, touched);
+    }
+
+    /// Backward of [`encode_recorded`] from its record.
+    #[inline]
+    pub fn encode_backward_recorded(&self, hits: &[PlaneHit], d_feat: &[f32], grad: &mut [f32], touched: &mut [u8]) {
+        let np = self.cfg.planes();
+        for (l, level_hits) in hits.chunks_exact(np).enumerate() {
             let df = &d_feat[l * C..(l + 1) * C];
             // d plane_k = df ⊙ Π_{q≠k} val_q, via prefix and suffix products.
             let mut prefix = [1.0f32; C];
             let mut suffix = [[1.0f32; C]; 7];
             for k in (0..np).rev() {
                 for c in 0..C {
-                    suffix[k][c] = suffix[k + 1][c] * vals[k][c];
+                    suffix[k][c] = suffix[k + 1][c] * level_hits[k].val[c];
                 }
             }
-            for k in 0..np {
+            for (k, hit) in level_hits.iter().enumerate() {
                 let mut d = [0.0f32; C];
                 for c in 0..C {
                     d[c] = df[c] * prefix[c] * suffix[k + 1][c];
-                    prefix[c] *= vals[k][c];
+                    prefix[c] *= hit.val[c];
                 }
-                for j in 0..4 {
-                    let w = wts[k][j];
-                    touched[idxs[k][j] / C] = 1;
-                    let dst = &mut grad[idxs[k][j]..idxs[k][j] + C];
+                let base = hit.idx as usize;
+                let row = hit.row as usize;
+                for (j, off) in [0, C, row, row + C].into_iter().enumerate() {
+                    let w = hit.wts[j];
+                    touched[(base + off) / C] = 1;
+                    let dst = &mut grad[base + off..base + off + C];
                     for c in 0..C {
                         dst[c] += w * d[c];
                     }
@@ -329,14 +367,8 @@ impl Field {
             hid[r * h..(r + 1) * h].copy_from_slice(b1);
         }
         // hid (n x h) += feat (n x inp) * W1^T (inp x h); W1 is stored h x inp.
-        unsafe {
-            matrixmultiply::sgemm(
-                n, inp, h, 1.0,
-                feat.as_ptr(), inp as isize, 1,
-                p[self.layout.w1..].as_ptr(), 1, inp as isize,
-                1.0, hid.as_mut_ptr(), h as isize, 1,
-            );
-        }
+        let w1 = &p[self.layout.w1..self.layout.b1];
+        gemm(1.0, Mat(feat, n, inp, inp, 1), Mat(w1, inp, h, 1, inp), 1.0, hid, (h, 1));
         for x in &mut hid[..n * h] {
             *x = x.max(0.0);
         }
@@ -344,14 +376,8 @@ impl Field {
         for r in 0..n {
             out[r * OUT..(r + 1) * OUT].copy_from_slice(b2);
         }
-        unsafe {
-            matrixmultiply::sgemm(
-                n, h, OUT, 1.0,
-                hid.as_ptr(), h as isize, 1,
-                p[self.layout.w2..].as_ptr(), 1, h as isize,
-                1.0, out.as_mut_ptr(), OUT as isize, 1,
-            );
-        }
+        let w2 = &p[self.layout.w2..self.layout.b2];
+        gemm(1.0, Mat(hid, n, h, h, 1), Mat(w2, h, OUT, 1, h), 1.0, out, (OUT, 1));
     }
 
     /// Decoder backward on `n` samples. `d_out` (n x OUT) is dL/d(raw outputs); `d_hid` is
@@ -371,57 +397,59 @@ impl Field {
         let (inp, h) = (self.layout.input, self.layout.hidden);
         let p = &self.params;
         let l = &self.layout;
+        let (w1, w2) = (&p[l.w1..l.b1], &p[l.w2..l.b2]);
         // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
-        unsafe {
-            matrixmultiply::sgemm(
-                OUT, n, h, 1.0,
-                d_out.as_ptr(), 1, OUT as isize,
-                hid.as_ptr(), h as isize, 1,
-                1.0, grad[l.w2..].as_mut_ptr(), h as isize, 1,
-            );
-        }
+        gemm(1.0, Mat(d_out, OUT, n, 1, OUT), Mat(hid, n, h, h, 1), 1.0, &mut grad[l.w2..l.b2], (h, 1));
         for r in 0..n {
             for k in 0..OUT {
                 grad[l.b2 + k] += d_out[r * OUT + k];
             }
         }
         // d_hid (n x h) = d_out (n x OUT) * W2 (OUT x h), masked by ReLU.
-        unsafe {
-            matrixmultiply::sgemm(
-                n, OUT, h, 1.0,
-                d_out.as_ptr(), OUT as isize, 1,
-                p[l.w2..].as_ptr(), h as isize, 1,
-                0.0, d_hid.as_mut_ptr(), h as isize, 1,
-            );
-        }
+        gemm(1.0, Mat(d_out, n, OUT, OUT, 1), Mat(w2, OUT, h, h, 1), 0.0, d_hid, (h, 1));
         for (d, &x) in d_hid[..n * h].iter_mut().zip(&hid[..n * h]) {
             if x <= 0.0 {
                 *d = 0.0;
             }
         }
         // dW1 (h x inp) += d_hid^T (h x n) * feat (n x inp)
-        unsafe {
-            matrixmultiply::sgemm(
-                h, n, inp, 1.0,
-                d_hid.as_ptr(), 1, h as isize,
-                feat.as_ptr(), inp as isize, 1,
-                1.0, grad[l.w1..].as_mut_ptr(), inp as isize, 1,
-            );
-        }
+        gemm(1.0, Mat(d_hid, h, n, 1, h), Mat(feat, n, inp, inp, 1), 1.0, &mut grad[l.w1..l.b1], (inp, 1));
         for r in 0..n {
             for j in 0..h {
                 grad[l.b1 + j] += d_hid[r * h + j];
             }
         }
         // d_feat (n x inp) = d_hid (n x h) * W1 (h x inp)
-        unsafe {
-            matrixmultiply::sgemm(
-                n, h, inp, 1.0,
-                d_hid.as_ptr(), h as isize, 1,
-                p[l.w1..].as_ptr(), inp as isize, 1,
-                0.0, d_feat.as_mut_ptr(), inp as isize, 1,
-            );
+        gemm(1.0, Mat(d_hid, n, h, h, 1), Mat(w1, h, inp, inp, 1), 0.0, d_feat, (inp, 1));
+    }
+}
+
+/// A strided matrix view for [`gemm`]: data, rows, columns, row stride, column stride.
+struct Mat<'a>(&'a [f32], usize, usize, usize, usize);
+
+/// c (m x n) = alpha * a (m x k) * b (k x n) + beta * c, all strided, via `matrixmultiply`.
+/// Checks every extent against its slice first, so the one `unsafe` call cannot read or
+/// write out of bounds.
+fn gemm(alpha: f32, a: Mat, b: Mat, beta: f32, c: &mut [f32], (rsc, csc): (usize, usize)) {
+    let (m, k, n) = (a.1, a.2, b.2);
+    assert_eq!(b.1, k, "inner dimensions differ");
+    let last = |rows: usize, cols: usize, rs: usize, cs: usize| {
+        if rows == 0 || cols == 0 {
+            0
+        } else {
+            (rows - 1) * rs + (cols - 1) * cs + 1
         }
+    };
+    assert!(last(m, k, a.3, a.4) <= a.0.len() && last(k, n, b.3, b.4) <= b.0.len());
+    assert!(last(m, n, rsc, csc) <= c.len());
+    // SAFETY: extents checked above; a, b and c are distinct borrows.
+    unsafe {
+        matrixmultiply::sgemm(
+            m, k, n, alpha,
+            a.0.as_ptr(), a.3 as isize, a.4 as isize,
+            b.0.as_ptr(), b.3 as isize, b.4 as isize,
+            beta, c.as_mut_ptr(), rsc as isize, csc as isize,
+        );
     }
 }
 

@@ -46,6 +46,10 @@ pub struct Workspace {
     sample_time: Vec<f32>,
     sample_ray: Vec<u32>,
     sigma: Vec<f32>,
+    /// Activated rgb + features per sample (computed once in the forward pass).
+    vals: Vec<[f32; 7]>,
+    /// Plane lookups per sample, recorded for the backward pass (training only).
+    hits: Vec<crate::field::PlaneHit>,
     feat: Vec<f32>,
     hid: Vec<f32>,
     out: Vec<f32>,
@@ -122,6 +126,7 @@ impl Workspace {
         self.sample_time.clear();
         self.sample_ray.clear();
         self.sigma.clear();
+        self.vals.clear();
         if self.ray_samples.len() < n_rays {
             self.ray_samples.resize_with(n_rays, Vec::new);
         }
@@ -135,7 +140,16 @@ impl Workspace {
     }
 
     /// March and evaluate the field on all rays of the chunk (forward only), wave by wave.
-    fn forward_field(&mut self, field: &Field, space: &SceneSpace, occ: &Occupancy, tasks: &[RayTask], ns: &mut [u64; 6]) {
+    fn forward_field(
+        &mut self,
+        field: &Field,
+        space: &SceneSpace,
+        occ: &Occupancy,
+        tasks: &[RayTask],
+        record: bool,
+        ns: &mut [u64; 6],
+    ) {
+        let nh = field.hits_per_point();
         let mut clock = std::time::Instant::now();
         self.reset(tasks.len());
         for (i, task) in tasks.iter().enumerate() {
@@ -173,13 +187,22 @@ impl Workspace {
             self.out.resize(end * OUT, 0.0);
             const AHEAD: usize = 6;
             for k in start..(start + AHEAD).min(end) {
-                field.prefetch(&self.samples[k].g, self.sample_time[k], None);
+                field.prefetch(&self.samples[k].g, self.sample_time[k]);
+            }
+            if record {
+                self.hits.resize(end * nh, Default::default());
             }
             for k in start..end {
                 if k + AHEAD < end {
-                    field.prefetch(&self.samples[k + AHEAD].g, self.sample_time[k + AHEAD], None);
+                    field.prefetch(&self.samples[k + AHEAD].g, self.sample_time[k + AHEAD]);
                 }
-                field.encode(&self.samples[k].g, self.sample_time[k], &mut self.feat[k * inp..(k + 1) * inp]);
+                let (g, t) = (&self.samples[k].g, self.sample_time[k]);
+                let feat = &mut self.feat[k * inp..(k + 1) * inp];
+                if record {
+                    field.encode_recorded(g, t, feat, &mut self.hits[k * nh..(k + 1) * nh]);
+                } else {
+                    field.encode(g, t, feat);
+                }
             }
             ns[1] += lap(&mut clock);
             field.decode_forward(
@@ -189,8 +212,9 @@ impl Workspace {
                 &mut self.out[start * OUT..end * OUT],
             );
             for k in start..end {
-                let (sg, _) = activate(&self.out[k * OUT..(k + 1) * OUT]);
+                let (sg, v) = activate(&self.out[k * OUT..(k + 1) * OUT]);
                 self.sigma.push(sg);
+                self.vals.push(v);
                 let ri = self.sample_ray[k] as usize;
                 self.depth_sum[ri] += composite::optical_depth(sg, self.samples[k].delta);
             }
@@ -207,11 +231,10 @@ impl Workspace {
         self.c_v.clear();
         for &k in &self.ray_samples[ri] {
             let k = k as usize;
-            let (sg, v7) = activate(&self.out[k * OUT..(k + 1) * OUT]);
-            self.c_sigma.push(sg);
+            self.c_sigma.push(self.sigma[k]);
             self.c_delta.push(self.samples[k].delta);
             let mut v = [1.0f32; V];
-            v[..7].copy_from_slice(&v7);
+            v[..7].copy_from_slice(&self.vals[k]);
             self.c_v.push(v);
         }
     }
@@ -233,7 +256,7 @@ pub fn render_chunk(
     ws: &mut Workspace,
     results: &mut [RayResult],
 ) {
-    ws.forward_field(field, space, occ, tasks, &mut [0; 6]);
+    ws.forward_field(field, space, occ, tasks, false, &mut [0; 6]);
     let view: &ViewLayout = &field.layout.view;
     for (ri, task) in tasks.iter().enumerate() {
         let Some(ray) = task.ray else {
@@ -273,7 +296,7 @@ pub fn train_chunk(
     distortion: f32,
 ) -> ChunkStats {
     let mut stats = ChunkStats { rays: tasks.len() as u64, ..Default::default() };
-    ws.forward_field(field, space, occ, tasks, &mut stats.ns);
+    ws.forward_field(field, space, occ, tasks, true, &mut stats.ns);
     let mut clock = std::time::Instant::now();
     let n = ws.samples.len();
     stats.samples = n as u64;
@@ -360,14 +383,14 @@ pub fn train_chunk(
         ws.d_feat.resize(n * inp, 0.0);
         field.decode_backward(n, &ws.feat[..n * inp], &ws.hid[..n * h], &ws.d_out, &mut ws.d_hid, &mut ws.d_feat, &mut ws.grad);
         stats.ns[4] += lap(&mut clock);
-        const AHEAD: usize = 6;
+        let nh = field.hits_per_point();
+        const AHEAD: usize = 4;
         for k in 0..n {
             if k + AHEAD < n {
-                field.prefetch(&ws.samples[k + AHEAD].g, ws.sample_time[k + AHEAD], Some(&ws.grad));
+                prefetch_grad(&ws.hits[(k + AHEAD) * nh..(k + AHEAD + 1) * nh], &ws.grad);
             }
-            field.encode_backward(
-                &ws.samples[k].g,
-                ws.sample_time[k],
+            field.encode_backward_recorded(
+                &ws.hits[k * nh..(k + 1) * nh],
                 &ws.d_feat[k * inp..(k + 1) * inp],
                 &mut ws.grad,
                 &mut ws.touched,
@@ -397,24 +420,46 @@ pub fn density_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut
     }
 }
 
+/// Prefetch the gradient cells a recorded point will scatter into.
+#[inline]
+fn prefetch_grad(hits: &[crate::field::PlaneHit], grad: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    for h in hits {
+        let base = h.idx as usize;
+        for off in [base, base + h.row as usize] {
+            if off < grad.len() {
+                // SAFETY: prefetch of an in-bounds address; it has no architectural effect.
+                unsafe {
+                    std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                        grad.as_ptr().add(off) as *const i8,
+                    )
+                };
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (hits, grad);
+}
+
 /// One workspace per rayon worker thread; a task locks the one of the thread it runs on,
-/// so locks are never contended and gradient buffers are per thread.
+/// so locks are never contended and gradient buffers are per thread. (A caller outside the
+/// pool shares slot 0: correct, merely serialized.)
 pub struct WorkspacePool {
     pub slots: Vec<std::sync::Mutex<Workspace>>,
 }
 
 impl WorkspacePool {
     pub fn new(grad_len: usize) -> WorkspacePool {
-        let n = rayon::current_num_threads().max(1) + 1;
+        let n = rayon::current_num_threads().max(1);
         let slots = (0..n)
             .map(|_| std::sync::Mutex::new(Workspace::new(grad_len)))
             .collect();
         WorkspacePool { slots }
     }
 
-    /// The calling thread's workspace (the last slot serves threads outside the pool).
+    /// The calling thread's workspace.
     pub fn with<R>(&self, f: impl FnOnce(&mut Workspace) -> R) -> R {
-        let i = rayon::current_thread_index().unwrap_or(self.slots.len() - 1).min(self.slots.len() - 1);
+        let i = rayon::current_thread_index().unwrap_or(0).min(self.slots.len() - 1);
         let mut ws = self.slots[i].lock().unwrap_or_else(|e| e.into_inner());
         f(&mut ws)
     }
