@@ -159,6 +159,9 @@ pub struct TrainArgs {
     /// Weight of the distortion loss (default 0.01 for forward/unbounded scenes, 0 for objects).
     #[arg(long)]
     pub distortion: Option<f32>,
+    /// Weight of the total-variation loss on the feature planes (default 1e-3 for objects, 0 otherwise).
+    #[arg(long)]
+    pub tv: Option<f32>,
     /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
     #[arg(long)]
     pub resolution: Option<u32>,
@@ -290,6 +293,9 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     }
     if let Some(d) = a.distortion {
         cfg.distortion = d.max(0.0);
+    }
+    if let Some(t) = a.tv {
+        cfg.tv = t.max(0.0);
     }
     if let Some(r) = a.resolution {
         cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r].into_iter().map(|x| x.max(2)).collect();

@@ -357,6 +357,41 @@ impl Field {
         }
     }
 
+    /// Total-variation regularizer on the spatial planes (as in K-Planes): the mean squared
+    /// difference between neighbouring cells, times `weight`, added to `grad` (every cell is
+    /// marked in `touched`). Smooth planes generalize to novel views instead of memorizing
+    /// the training views. Returns the loss.
+    pub fn tv_backward(&self, weight: f32, grad: &mut [f32], touched: &mut [u8]) -> f32 {
+        let mut loss = 0.0f64;
+        for level in &self.layout.planes {
+            for p in level.iter().filter(|p| p.axes.1 != 3) {
+                let (ru, rv) = (p.ru, p.rv);
+                let count = ((ru - 1) * rv + ru * (rv - 1)) * C;
+                let w = weight / count as f32;
+                let at = |u: usize, v: usize| p.offset + (v * ru + u) * C;
+                for v in 0..rv {
+                    for u in 0..ru {
+                        let i = at(u, v);
+                        for (du, dv) in [(1, 0), (0, 1)] {
+                            if u + du >= ru || v + dv >= rv {
+                                continue;
+                            }
+                            let j = at(u + du, v + dv);
+                            for c in 0..C {
+                                let d = self.params[j + c] - self.params[i + c];
+                                loss += (w * d * d) as f64;
+                                grad[j + c] += 2.0 * w * d;
+                                grad[i + c] -= 2.0 * w * d;
+                            }
+                        }
+                    }
+                }
+                touched[p.offset / C..(p.offset + ru * rv * C) / C].fill(1);
+            }
+        }
+        loss as f32
+    }
+
     /// Decoder forward on `n` samples: `feat` is n x input (row per sample); writes the
     /// post-ReLU hidden layer `hid` (n x hidden) and the raw outputs `out` (n x OUT).
     pub fn decode_forward(&self, n: usize, feat: &[f32], hid: &mut [f32], out: &mut [f32]) {

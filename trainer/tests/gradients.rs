@@ -290,3 +290,28 @@ fn distortion_loss_gradient_matches_finite_differences() {
         scratch[k] = g[k];
     }
 }
+
+#[test]
+fn total_variation_gradient_matches_finite_differences() {
+    let f = small_field(true);
+    let mut grad = vec![0.0f32; f.params.len()];
+    let mut touched = vec![0u8; f.params.len() / 8];
+    let l0 = f.tv_backward(0.5, &mut grad, &mut touched);
+    assert!(l0 > 0.0);
+    let loss = |f: &Field| -> f64 {
+        let mut g = vec![0.0f32; f.params.len()];
+        let mut t = vec![0u8; f.params.len() / 8];
+        f.tv_backward(0.5, &mut g, &mut t) as f64
+    };
+    // time planes are not regularized here
+    let time_plane = &f.layout.planes[0][3];
+    assert!(grad[time_plane.offset..time_plane.offset + 8].iter().all(|&g| g == 0.0));
+    for i in (0..f.layout.plane_end).step_by(13) {
+        let mut a = f.clone();
+        a.params[i] += 1e-2;
+        let mut b = f.clone();
+        b.params[i] -= 1e-2;
+        let num = (loss(&a) - loss(&b)) / 2e-2;
+        assert_close(&format!("tv param {i}"), grad[i] as f64, num, 2e-2, 1e-6);
+    }
+}
