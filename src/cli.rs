@@ -159,7 +159,7 @@ pub struct TrainArgs {
     /// Weight of the distortion loss (default 0.01 for forward/unbounded scenes, 0 for objects).
     #[arg(long)]
     pub distortion: Option<f32>,
-    /// Weight of the total-variation loss on the feature planes (default 1e-3 for objects, 0 otherwise).
+    /// Weight of the total-variation loss on the feature planes (default 1e-3 for static objects, 0 otherwise).
     #[arg(long)]
     pub tv: Option<f32>,
     /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
