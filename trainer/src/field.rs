@@ -71,7 +71,7 @@ impl FieldConfig {
             self.time_resolutions.iter().all(|&r| (2..=1024).contains(&r)),
             "time resolutions must be in 2..=1024"
         );
-        anyhow::ensure!(self.hidden >= 4 && self.hidden % 4 == 0, "hidden width must be a multiple of 4");
+        anyhow::ensure!(self.hidden >= 4 && self.hidden.is_multiple_of(4), "hidden width must be a multiple of 4");
         Ok(())
     }
 }

@@ -157,6 +157,20 @@ impl SceneSpace {
         Ok(SceneSpace { kind: data.kind, dynamic: data.dynamic, center, rot, scale, ndc, time_range })
     }
 
+    /// The identity mapping: world = model, with `kind`'s grid mapping (a unit box for
+    /// objects, the contraction for unbounded scenes). For tests and synthetic setups.
+    pub fn identity(kind: SceneKind, dynamic: bool) -> SceneSpace {
+        SceneSpace {
+            kind,
+            dynamic,
+            center: [0.0; 3],
+            rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            scale: 1.0,
+            ndc: None,
+            time_range: (0.0, 1.0),
+        }
+    }
+
     /// World point to model point.
     #[inline]
     pub fn to_model(&self, p: Vec3) -> Vec3 {

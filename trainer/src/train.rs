@@ -304,7 +304,7 @@ impl Trainer {
         self.adam.update_dense(params, &mut grads, plane_end..total, self.cfg.lr_mlp * s);
         let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
-        if self.step % self.cfg.occupancy_every == 0 || self.step < 64 && self.step % 4 == 0 {
+        if self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4)) {
             self.update_occupancy();
         }
         let secs = t0.elapsed().as_secs_f64();

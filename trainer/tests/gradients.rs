@@ -197,15 +197,7 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
         let mut field = small_field(dynamic);
         // moderate densities so rays neither terminate early nor stay empty
         field.params[field.layout.b2] = 1.0;
-        let space = SceneSpace {
-            kind: SceneKind::Object,
-            dynamic,
-            center: [0.0; 3],
-            rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            scale: 1.0,
-            ndc: None,
-            time_range: (0.0, 1.0),
-        };
+        let space = SceneSpace::identity(SceneKind::Object, dynamic);
         let occ = Occupancy::new(8, 24);
         let mut rng = Rng::new(13);
         let tasks: Vec<RayTask> = (0..6)

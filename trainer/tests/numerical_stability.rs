@@ -124,15 +124,7 @@ fn weights_sum_to_at_most_one_on_random_rays() {
 }
 
 fn object_space(dynamic: bool) -> SceneSpace {
-    SceneSpace {
-        kind: SceneKind::Object,
-        dynamic,
-        center: [0.0; 3],
-        rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        scale: 1.0,
-        ndc: None,
-        time_range: (0.0, 1.0),
-    }
+    SceneSpace::identity(SceneKind::Object, dynamic)
 }
 
 fn dense_field(dynamic: bool, sigma_bias: f32) -> Field {
@@ -185,7 +177,7 @@ fn ray_through_empty_field_is_background_and_finite() {
 }
 
 fn unbounded_space() -> SceneSpace {
-    SceneSpace { kind: SceneKind::Unbounded, ..object_space(false) }
+    SceneSpace::identity(SceneKind::Unbounded, false)
 }
 
 #[test]
