@@ -358,35 +358,62 @@ impl Field {
     }
 
     /// Total-variation regularizer on the spatial planes (as in K-Planes): the mean squared
-    /// difference between neighbouring cells, times `weight`, added to `grad` (every cell is
-    /// marked in `touched`). Smooth planes generalize to novel views instead of memorizing
-    /// the training views. Returns the loss.
+    /// difference between neighbouring cells, times `weight`; its gradient is added to
+    /// `grad` and every cell is marked in `touched`. Smooth planes generalize to novel views
+    /// instead of memorizing the training views. Returns the loss.
+    ///
+    /// (Regularizing only the cells a step touched keeps Adam lazy, but measured 0.3 dB
+    /// worse on 2CylinderEngine at 2000 steps and no faster end to end, so it is not done.)
     pub fn tv_backward(&self, weight: f32, grad: &mut [f32], touched: &mut [u8]) -> f32 {
+        use rayon::prelude::*;
         let mut loss = 0.0f64;
         for level in &self.layout.planes {
             for p in level.iter().filter(|p| p.axes.1 != 3) {
                 let (ru, rv) = (p.ru, p.rv);
-                let count = ((ru - 1) * rv + ru * (rv - 1)) * C;
-                let w = weight / count as f32;
-                let at = |u: usize, v: usize| p.offset + (v * ru + u) * C;
-                for v in 0..rv {
-                    for u in 0..ru {
-                        let i = at(u, v);
-                        for (du, dv) in [(1, 0), (0, 1)] {
-                            if u + du >= ru || v + dv >= rv {
-                                continue;
+                let w = weight / (((ru - 1) * rv + ru * (rv - 1)) * C) as f32;
+                let plane = &self.params[p.offset..p.offset + ru * rv * C];
+                let cell = |u: usize, v: usize| -> &[f32] { &plane[(v * ru + u) * C..(v * ru + u + 1) * C] };
+                // Each cell's gradient depends only on its 4 neighbours, so rows are
+                // independent: one parallel task per row, each writing only its own row.
+                loss += grad[p.offset..p.offset + ru * rv * C]
+                    .par_chunks_mut(ru * C)
+                    .enumerate()
+                    .map(|(v, g_row)| {
+                        let mut row_loss = 0.0f32;
+                        for u in 0..ru {
+                            let x = cell(u, v);
+                            let mut g = [0.0f32; C];
+                            let mut diff = |other: &[f32], counts: bool| {
+                                for c in 0..C {
+                                    let d = x[c] - other[c];
+                                    g[c] += d;
+                                    if counts {
+                                        row_loss += d * d;
+                                    }
+                                }
+                            };
+                            // right and down pairs carry the loss; left and up only gradient
+                            if u + 1 < ru {
+                                diff(cell(u + 1, v), true);
                             }
-                            let j = at(u + du, v + dv);
+                            if v + 1 < rv {
+                                diff(cell(u, v + 1), true);
+                            }
+                            if u > 0 {
+                                diff(cell(u - 1, v), false);
+                            }
+                            if v > 0 {
+                                diff(cell(u, v - 1), false);
+                            }
+                            let dst = &mut g_row[u * C..(u + 1) * C];
                             for c in 0..C {
-                                let d = self.params[j + c] - self.params[i + c];
-                                loss += (w * d * d) as f64;
-                                grad[j + c] += 2.0 * w * d;
-                                grad[i + c] -= 2.0 * w * d;
+                                dst[c] += 2.0 * w * g[c];
                             }
                         }
-                    }
-                }
-                touched[p.offset / C..(p.offset + ru * rv * C) / C].fill(1);
+                        (w * row_loss) as f64
+                    })
+                    .sum::<f64>();
+                touched[p.offset / C..p.offset / C + ru * rv].fill(1);
             }
         }
         loss as f32

@@ -291,11 +291,10 @@ impl Trainer {
             .reduce(ChunkStats::default, ChunkStats::merge);
         let t_chunks = t0.elapsed().as_secs_f64();
         let s = self.lr_scale(progress);
-        if self.cfg.tv > 0.0 {
-            let ws = self.pool.slots[0].get_mut().unwrap_or_else(|e| e.into_inner());
-            self.model.field.tv_backward(self.cfg.tv, &mut ws.grad, &mut ws.touched);
-        }
         let (mut grads, mut flags) = self.pool.grads();
+        if self.cfg.tv > 0.0 {
+            self.model.field.tv_backward(self.cfg.tv, grads[0], flags[0]);
+        }
         let params = &mut self.model.field.params;
         let plane_end = self.model.field.layout.plane_end;
         self.adam.begin_step();

@@ -290,6 +290,8 @@ fn total_variation_gradient_matches_finite_differences() {
     let mut touched = vec![0u8; f.params.len() / 8];
     let l0 = f.tv_backward(0.5, &mut grad, &mut touched);
     assert!(l0 > 0.0);
+    let plane0 = &f.layout.planes[0][0];
+    assert!(touched[..plane0.ru * plane0.rv].iter().all(|&t| t == 1), "spatial cells are marked for the optimizer");
     let loss = |f: &Field| -> f64 {
         let mut g = vec![0.0f32; f.params.len()];
         let mut t = vec![0u8; f.params.len() / 8];
