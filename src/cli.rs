@@ -397,7 +397,7 @@ pub fn eval_cmd(a: &EvalArgs) -> Result<Value> {
     let out = a.out.clone().unwrap_or_else(|| a.run.join("eval"));
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     let has_alpha = train::views_have_alpha(&data.train);
-    let report = eval::evaluate(&model, &pool, views, has_alpha, Some(&out), true)?;
+    let report = eval::evaluate(&model, &pool, views, has_alpha, Some(&out))?;
     eprintln!(
         "{} {} views: PSNR {:.2} dB, SSIM {:.4} ({:.1} s); images in {}",
         a.split,

@@ -87,7 +87,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let has_alpha = train::views_have_alpha(&data.train);
     let eval_dir = run_dir.join("eval");
     std::fs::create_dir_all(&eval_dir)?;
-    let report = eval::evaluate(&model, &pool, &data.test, has_alpha, Some(&eval_dir), true)?;
+    let report = eval::evaluate(&model, &pool, &data.test, has_alpha, Some(&eval_dir))?;
     eprintln!("      test PSNR {:.2} dB, SSIM {:.4}", report.mean_psnr, report.mean_ssim);
     eprintln!("[4/4] rendering a {}-frame turntable", a.frames);
     let frames = cli::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;

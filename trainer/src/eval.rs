@@ -99,7 +99,6 @@ pub fn evaluate(
     views: &[View],
     has_alpha: bool,
     out_dir: Option<&Path>,
-    with_ssim: bool,
 ) -> Result<EvalReport> {
     let t0 = std::time::Instant::now();
     let bg = eval_background(has_alpha);
@@ -108,7 +107,7 @@ pub fn evaluate(
         let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
         let gt = ground_truth(v, bg);
         let p = psnr(&r.rgb, &gt);
-        let s = if with_ssim { ssim(&r.rgb, &gt, r.width, r.height) } else { f64::NAN };
+        let s = ssim(&r.rgb, &gt, r.width, r.height);
         let name = v.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| format!("view_{i:03}"));
         if let Some(dir) = out_dir {
             let disparity = model.space.kind == snerf_data::SceneKind::Unbounded;

@@ -81,7 +81,7 @@ pub fn run(
     let mut next_eval = next_eval_after(t.train_seconds);
     let mut last_ckpt = t.train_seconds;
     let mut recent = StepStats::default();
-    let measure = |t: &mut Trainer, last: &StepStats| -> Result<()> {
+    let measure = |t: &mut Trainer, last: &StepStats| {
         let test_psnr =
             (!pixels.is_empty()).then(|| sampled_psnr(&t.model, &t.pool, &data.test, has_alpha, &pixels));
         t.curve.push(CurvePoint {
@@ -91,7 +91,6 @@ pub fn run(
             test_psnr,
             samples_per_second: last.samples as f64 / last.seconds.max(1e-9),
         });
-        Ok(())
     };
     loop {
         let p = progress(t, opts);
@@ -102,7 +101,7 @@ pub fn run(
         recent = s;
         on_step(t, &s, progress(t, opts));
         if t.train_seconds >= next_eval {
-            measure(t, &s)?;
+            measure(t, &s);
             next_eval = next_eval_after(t.train_seconds);
         }
         if t.train_seconds - last_ckpt >= opts.checkpoint_every {
@@ -111,7 +110,7 @@ pub fn run(
         }
     }
     if t.curve.last().map(|c| c.step) != Some(t.step) {
-        measure(t, &recent)?;
+        measure(t, &recent);
     }
     save(t, data, opts)
 }
