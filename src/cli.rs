@@ -42,6 +42,18 @@ pub enum Cmd {
     Eval(EvalArgs),
     /// Render a turntable of a trained run.
     Turntable(TurntableArgs),
+    /// Stylize one image with a stylizer (arbitrary, preset:N, onnx:FILE, gatys, color).
+    StylizeImage(crate::stylize_cmd::StylizeImageArgs),
+    /// SNeRF: alternate render -> stylize -> train on a trained run, for a given number of rounds.
+    Stylize(crate::stylize_cmd::StylizeArgs),
+    /// The paper's cross-view consistency of a stylized run against per-frame stylization.
+    Consistency(crate::stylize_cmd::ConsistencyArgs),
+    /// Bake a run into a sparse-grid asset file (.snerf) for real-time viewing and streaming.
+    Bake(crate::bake_cmd::BakeArgs),
+    /// Say what is inside a baked asset file: sizes per part, occupancy, frames.
+    Inspect(crate::bake_cmd::InspectArgs),
+    /// Render a baked asset along a camera path to PNG frames (CPU reference renderer).
+    Render(crate::bake_cmd::RenderArgs),
     /// The whole path on built-in data: scene -> train -> eval -> turntable + contact sheet.
     Demo(crate::demo::DemoArgs),
     /// Benchmarks that print numbers (see BENCH.md).
@@ -218,6 +230,12 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::Train(a) => train_cmd(&a, cli.json)?,
         Cmd::Eval(a) => eval_cmd(&a)?,
         Cmd::Turntable(a) => turntable_cmd(&a)?,
+        Cmd::StylizeImage(a) => crate::stylize_cmd::stylize_image_cmd(&a)?,
+        Cmd::Stylize(a) => crate::stylize_cmd::stylize_cmd(&a, cli.json)?,
+        Cmd::Consistency(a) => crate::stylize_cmd::consistency_cmd(&a, cli.json)?,
+        Cmd::Bake(a) => crate::bake_cmd::bake_cmd(&a)?,
+        Cmd::Inspect(a) => crate::bake_cmd::inspect_cmd(&a, cli.json)?,
+        Cmd::Render(a) => crate::bake_cmd::render_cmd(&a)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
         Cmd::Bench(b) => crate::bench::run(&b)?,
     };

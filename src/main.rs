@@ -1,8 +1,10 @@
 //! The `snerf` command: subcommands only; the work lives in the crates.
 
+mod bake_cmd;
 mod bench;
 mod cli;
 mod demo;
+mod stylize_cmd;
 
 use std::process::ExitCode;
 

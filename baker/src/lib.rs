@@ -1,5 +1,12 @@
 //! snerf-baker: turns a trained field into a baked asset (sparse grid + view MLP) and glTF.
 //!
-//! Data flow (planned, issue 4): trainer checkpoint -> dense evaluation on a fine grid in the
-//! (contracted) scene box -> keep occupied, visible blocks -> quantize -> `snerf-asset` file.
-//! Nothing is implemented here yet; the `snerf` command has no bake subcommand until it is.
+//! Data flow: trainer checkpoint -> `bake`: candidate blocks from the occupancy grid ->
+//! dense evaluation of each block (+ apron) -> drop transparent and never-seen blocks ->
+//! 8-bit quantization -> `snerf_asset::Asset` (written by the asset crate). `faithfulness`
+//! scores the baked asset against the field it came from. `marching_cubes` + `gltf_export`
+//! turn the baked density and colour into a mesh for engines.
+
+pub mod bake;
+pub mod faithfulness;
+pub mod gltf_export;
+pub mod marching_cubes;

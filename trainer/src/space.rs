@@ -284,6 +284,29 @@ impl SceneSpace {
     }
 }
 
+impl SceneSpace {
+    /// The world point at march parameter `t` along `ray` (e.g. a rendered expected depth):
+    /// undoes the NDC projection for forward-facing scenes.
+    pub fn march_to_world(&self, ray: &Ray, t: f32) -> Vec3 {
+        self.march_point_to_world(add(ray.o, scale(ray.d, t)))
+    }
+
+    /// A march-space point (model space, or NDC for forward-facing scenes) in world space.
+    pub fn march_point_to_world(&self, p: Vec3) -> Vec3 {
+        let m = match (self.kind, self.ndc.as_ref()) {
+            (SceneKind::Forward, Some(n)) => {
+                let ax = -n.fx / (n.width * 0.5);
+                let ay = -n.fy / (n.height * 0.5);
+                // NDC z = 1 + 2 near / z  =>  z = 2 near / (z_ndc - 1); z_ndc -> 1 is infinity.
+                let z = 2.0 * n.near / (p[2] - 1.0).min(-1e-6);
+                [p[0] * z / ax, p[1] * z / ay, z]
+            }
+            _ => p,
+        };
+        self.to_world(m)
+    }
+}
+
 /// MERF's L∞ contraction: identity in the unit cube, everything else into [-2,2]³.
 #[inline]
 pub fn contract(p: Vec3) -> Vec3 {

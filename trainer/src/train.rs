@@ -40,6 +40,11 @@ pub struct TrainConfig {
     /// +1.4 dB held-out PSNR on 2CylinderEngine at 2000 steps, see BENCH.md).
     #[serde(default)]
     pub tv: f32,
+    /// Keep the geometry fixed: the planes, the decoder's shared hidden layer and its density
+    /// output do not move; only the colour/feature outputs and the view MLP learn (SNeRF's
+    /// "appearance only" ablation).
+    #[serde(default)]
+    pub freeze_geometry: bool,
     pub seed: u64,
     pub field: FieldConfig,
 }
@@ -74,6 +79,7 @@ impl TrainConfig {
             occupancy_every: 16,
             distortion: if data.kind == SceneKind::Object { 0.0 } else { 0.01 },
             tv: if data.kind == SceneKind::Object && !data.dynamic { 1e-3 } else { 0.0 },
+            freeze_geometry: false,
             seed: 0,
             field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
         }
@@ -190,6 +196,23 @@ impl Trainer {
         self.has_alpha
     }
 
+    /// Replace the training targets (same cameras or new ones), e.g. with stylized renders:
+    /// the model and optimizer state carry on.
+    pub fn set_views(&mut self, views: Vec<View>) -> Result<()> {
+        anyhow::ensure!(!views.is_empty(), "no training views");
+        let mut total = 0usize;
+        self.cum_pixels = views
+            .iter()
+            .map(|v| {
+                total += (v.intrinsics.width * v.intrinsics.height) as usize;
+                total
+            })
+            .collect();
+        self.has_alpha = views_have_alpha(&views);
+        self.views = views;
+        Ok(())
+    }
+
     /// Silhouette carving: a cell whose projection falls on transparent background (alpha 0
     /// in a window covering the cell) in any training view is empty for good. Dynamic scenes
     /// use a wider window, since a silhouette can grow at another time.
@@ -298,9 +321,22 @@ impl Trainer {
         let params = &mut self.model.field.params;
         let plane_end = self.model.field.layout.plane_end;
         self.adam.begin_step();
-        self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, self.cfg.lr_planes * s);
         let total = params.len();
-        self.adam.update_dense(params, &mut grads, plane_end..total, self.cfg.lr_mlp * s);
+        if self.cfg.freeze_geometry {
+            // A zero learning rate leaves a parameter exactly where it is, and the optimizer
+            // still consumes (and clears) its gradient buffers.
+            let l = &self.model.field.layout;
+            let (sigma_row_end, b2) = (l.w2 + l.hidden, l.b2);
+            let lr = self.cfg.lr_mlp * s;
+            self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, 0.0);
+            self.adam.update_dense(params, &mut grads, plane_end..sigma_row_end, 0.0);
+            self.adam.update_dense(params, &mut grads, sigma_row_end..b2, lr);
+            self.adam.update_dense(params, &mut grads, b2..b2 + 1, 0.0);
+            self.adam.update_dense(params, &mut grads, b2 + 1..total, lr);
+        } else {
+            self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, self.cfg.lr_planes * s);
+            self.adam.update_dense(params, &mut grads, plane_end..total, self.cfg.lr_mlp * s);
+        }
         let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
         if self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4)) {

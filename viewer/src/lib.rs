@@ -1,4 +1,28 @@
 //! snerf-viewer: renders baked assets in real time (wgpu/winit) and streams them over QUIC.
 //!
 //! Uses only `snerf-asset`, never the trainer, so a headset client stays small.
-//! The renderer lands with issue 5 and streaming with issue 6; nothing here yet.
+//!
+//! Data flow: an `AssetSource` (a file, or a streaming client) yields an `Asset` and later
+//! block updates -> `GpuRenderer` uploads the atlas into two 3D textures of
+//! (block+2)^3-voxel blocks, the indirection grids and the view MLP into storage buffers ->
+//! per frame, `shaders/march.wgsl` (built for the scene's kind and static/dynamic only)
+//! ray-marches each pixel exactly like `snerf_asset::render` (the CPU reference) into a
+//! float buffer -> the window presents it (`shaders/present.wgsl`), headless callers read
+//! it back as a `snerf_asset::Frame`. `bench_view` times the GPU path against the CPU
+//! reference renderer in the same run.
+
+pub mod bench;
+pub mod camera;
+pub mod gpu;
+pub mod headless;
+pub mod window;
+
+pub use bench::{bench_view, bench_view_with, BenchOptions, BenchView, StereoBench};
+pub use camera::{camera_from_c2w, initial_camera, load_poses, stereo_pair, Controller, PoseSample};
+pub use gpu::{
+    gpu_available, shader_source, AtlasLayout, DeviceLostError, GpuContext, GpuOptions, GpuRenderer, LimitError,
+    NoAdapterError, View,
+};
+pub use headless::{render_frames, render_frames_or_cpu, render_frames_with, RenderedBy};
+pub use wgpu;
+pub use window::{keys_help, run_window, AssetSource, AssetUpdate, FileSource, ViewOptions};

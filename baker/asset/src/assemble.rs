@@ -1,0 +1,251 @@
+//! Chunk semantics: turns checked chunks into an `Asset`, one chunk at a time, in any order
+//! after `HEAD`. A streaming client feeds it what arrives and renders the partial asset;
+//! `Asset::from_bytes` feeds it a whole file in strict mode (duplicates, END position and
+//! the END count are errors there, and sizes are checked against the bytes actually left).
+
+use anyhow::{anyhow, bail, ensure, Result};
+
+use crate::asset::{Asset, EMPTY};
+use crate::chunk::{
+    check_preamble, le_u32, parse_chunk_at, tag_name, ChunkIter, MAX_HEAD_LEN, PREAMBLE_LEN, TAG_BLKS, TAG_END,
+    TAG_GRID, TAG_HEAD, TAG_VMLP,
+};
+use crate::header::Header;
+use crate::mlp::{ViewMlp, MLP_FLOATS};
+
+pub struct Assembler {
+    asset: Asset,
+    have_mlp: bool,
+    have_grid: Vec<bool>,
+    missing: usize,
+    /// Chunks accepted so far, HEAD included (names chunks in error messages).
+    seen: usize,
+    end: Option<u32>,
+    /// File mode: the chunk sequence is the file's, so order and duplicates are checked.
+    strict: bool,
+}
+
+/// Parse and validate a `HEAD` payload.
+pub fn parse_head(payload: &[u8]) -> Result<Header> {
+    ensure!(payload.len() <= MAX_HEAD_LEN, "HEAD is {} bytes (max {})", payload.len(), MAX_HEAD_LEN);
+    let text = std::str::from_utf8(payload).map_err(|e| anyhow!("HEAD is not UTF-8: {}", e))?;
+    let h: Header = serde_json::from_str(text).map_err(|e| anyhow!("HEAD is not a valid header: {}", e))?;
+    h.validate()?;
+    Ok(h)
+}
+
+impl Assembler {
+    /// Start from the first bytes of a stream: the 16-byte preamble and the HEAD chunk,
+    /// optionally followed by further whole chunks (all of which are pushed).
+    pub fn new(bytes: &[u8]) -> Result<Assembler> {
+        check_preamble(bytes)?;
+        let head = parse_chunk_at(bytes, PREAMBLE_LEN, 0)?;
+        ensure!(head.tag == TAG_HEAD, "chunk 0 is {}, expected HEAD", tag_name(&head.tag));
+        let header = parse_head(&bytes[head.payload.clone()])?;
+        let mut asm = Assembler::with_header(header, false)?;
+        for c in ChunkIter::new(bytes, head.range.end, 1) {
+            let c = c?;
+            asm.push(c.tag, &bytes[c.payload])?;
+        }
+        Ok(asm)
+    }
+
+    /// Strict whole-file decode (used by `Asset::from_bytes`).
+    pub(crate) fn from_file_bytes(bytes: &[u8]) -> Result<Assembler> {
+        check_preamble(bytes)?;
+        let mut iter = ChunkIter::new(bytes, PREAMBLE_LEN, 0);
+        let head = match iter.next() {
+            None => bail!("file has no chunks after the preamble (truncated?)"),
+            Some(c) => c?,
+        };
+        ensure!(head.tag == TAG_HEAD, "chunk 0 is {}, expected HEAD", tag_name(&head.tag));
+        let header = parse_head(&bytes[head.payload.clone()])?;
+        // Before allocating from the header: could the rest of the file even hold what it
+        // claims? Every block and grid entry needs its bytes on disk.
+        let remaining = (bytes.len() - head.range.end) as u64;
+        let g = header.grid_dim() as u64;
+        let atlas = header.atlas_blocks as u64 * header.block_bytes() as u64;
+        let grids = header.num_frames() as u64 * 4 * g * g * g;
+        ensure!(
+            atlas + grids <= remaining,
+            "header claims {} atlas blocks and {} frames of {}^3 cells ({} bytes) but only {} bytes follow",
+            header.atlas_blocks,
+            header.num_frames(),
+            g,
+            atlas + grids,
+            remaining
+        );
+        let mut asm = Assembler::with_header(header, true)?;
+        for c in iter {
+            let c = c?;
+            ensure!(asm.end.is_none(), "chunk {} ({}) follows the END chunk", c.index, tag_name(&c.tag));
+            asm.push(c.tag, &bytes[c.payload])?;
+        }
+        ensure!(asm.end.is_some(), "file ends without an END chunk (truncated?)");
+        Ok(asm)
+    }
+
+    fn with_header(header: Header, strict: bool) -> Result<Assembler> {
+        header.validate()?;
+        let n = header.atlas_blocks as usize;
+        let frames = header.num_frames();
+        let atlas = vec![0u8; n * header.block_bytes()];
+        let asset =
+            Asset { mlp: ViewMlp::zeros(), grids: vec![Vec::new(); frames], atlas, present: vec![false; n], header };
+        Ok(Assembler { asset, have_mlp: false, have_grid: vec![false; frames], missing: n, seen: 1, end: None, strict })
+    }
+
+    /// Accept one whole encoded chunk (checks its framing and CRC).
+    pub fn push_chunk(&mut self, encoded: &[u8]) -> Result<()> {
+        let c = parse_chunk_at(encoded, 0, self.seen)?;
+        ensure!(
+            c.range.end == encoded.len(),
+            "chunk {} ({}) has {} trailing bytes",
+            self.seen,
+            tag_name(&c.tag),
+            encoded.len() - c.range.end
+        );
+        self.push(c.tag, &encoded[c.payload])
+    }
+
+    /// Accept one chunk's payload whose integrity the caller has already checked.
+    pub fn push(&mut self, tag: [u8; 4], payload: &[u8]) -> Result<()> {
+        let index = self.seen;
+        let name = tag_name(&tag);
+        let r = match tag {
+            TAG_HEAD => Err(anyhow!("duplicate HEAD")),
+            TAG_VMLP => self.push_mlp(payload),
+            TAG_GRID => self.push_grid(payload),
+            TAG_BLKS => self.push_blocks(payload),
+            TAG_END => self.push_end(payload, index),
+            _ => Err(anyhow!("unknown chunk tag")),
+        };
+        r.map_err(|e| anyhow!("chunk {} ({}): {:#}", index, name, e))?;
+        self.seen += 1;
+        Ok(())
+    }
+
+    fn push_mlp(&mut self, p: &[u8]) -> Result<()> {
+        ensure!(!self.have_mlp, "duplicate VMLP");
+        ensure!(
+            p.len() == MLP_FLOATS * 4,
+            "VMLP has {} bytes, expected {} ({} f32)",
+            p.len(),
+            MLP_FLOATS * 4,
+            MLP_FLOATS
+        );
+        let floats: Vec<f32> = p.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        self.asset.mlp = ViewMlp::from_flat(&floats)?;
+        self.have_mlp = true;
+        Ok(())
+    }
+
+    fn push_grid(&mut self, p: &[u8]) -> Result<()> {
+        let g = self.asset.grid_dim();
+        let cells = g * g * g;
+        ensure!(
+            p.len() == 4 + 4 * cells,
+            "GRID has {} bytes, expected {} (frame index + {}^3 entries)",
+            p.len(),
+            4 + 4 * cells,
+            g
+        );
+        let frame = le_u32(&p[..4]) as usize;
+        let frames = self.asset.num_frames();
+        ensure!(frame < frames, "GRID for frame {} but the asset has {} frames", frame, frames);
+        ensure!(!self.have_grid[frame], "duplicate GRID for frame {}", frame);
+        let n = self.asset.header.atlas_blocks;
+        let mut grid = Vec::with_capacity(cells);
+        for (c, b) in p[4..].chunks_exact(4).enumerate() {
+            let e = le_u32(b);
+            ensure!(e == EMPTY || e < n, "frame {} cell {} points at block {} (atlas has {})", frame, c, e, n);
+            grid.push(e);
+        }
+        self.asset.grids[frame] = grid;
+        self.have_grid[frame] = true;
+        Ok(())
+    }
+
+    fn push_blocks(&mut self, p: &[u8]) -> Result<()> {
+        ensure!(p.len() >= 8, "BLKS has {} bytes, needs at least 8", p.len());
+        let first = le_u32(&p[..4]) as u64;
+        let count = le_u32(&p[4..8]) as u64;
+        let n = self.asset.header.atlas_blocks as u64;
+        ensure!(count >= 1, "BLKS with count 0");
+        ensure!(first + count <= n, "BLKS blocks {}..{} out of range (atlas has {})", first, first + count, n);
+        let bb = self.asset.block_bytes() as u64;
+        ensure!(
+            (p.len() - 8) as u64 == count * bb,
+            "BLKS has {} data bytes, expected {} ({} blocks of {})",
+            p.len() - 8,
+            count * bb,
+            count,
+            bb
+        );
+        let (first, count, bb) = (first as usize, count as usize, bb as usize);
+        if self.strict {
+            if let Some(i) = (first..first + count).find(|&i| self.asset.present[i]) {
+                bail!("duplicate block {}", i);
+            }
+        }
+        self.asset.atlas[first * bb..(first + count) * bb].copy_from_slice(&p[8..]);
+        for i in first..first + count {
+            if !self.asset.present[i] {
+                self.asset.present[i] = true;
+                self.missing -= 1;
+            }
+        }
+        Ok(())
+    }
+
+    fn push_end(&mut self, p: &[u8], index: usize) -> Result<()> {
+        ensure!(p.len() == 4, "END has {} bytes, expected 4", p.len());
+        let count = le_u32(p);
+        ensure!(self.end.is_none(), "duplicate END");
+        if self.strict {
+            ensure!(
+                count as usize == index,
+                "END says {} chunks precede it but there are {} (chunks lost?)",
+                count,
+                index
+            );
+        }
+        self.end = Some(count);
+        Ok(())
+    }
+
+    /// The asset as far as it has arrived (missing blocks/grids render as empty).
+    pub fn asset(&self) -> &Asset {
+        &self.asset
+    }
+    pub fn header(&self) -> &Header {
+        &self.asset.header
+    }
+    pub fn take_asset(&mut self) -> Asset {
+        let h = self.asset.header.clone();
+        std::mem::replace(
+            &mut self.asset,
+            Asset { header: h, mlp: ViewMlp::zeros(), grids: Vec::new(), atlas: Vec::new(), present: Vec::new() },
+        )
+    }
+    pub fn into_asset(self) -> Asset {
+        self.asset
+    }
+    pub fn has_mlp(&self) -> bool {
+        self.have_mlp
+    }
+    /// Everything has arrived: the MLP, every frame's grid and every block.
+    pub fn is_complete(&self) -> bool {
+        self.have_mlp && self.missing == 0 && self.have_grid.iter().all(|&g| g)
+    }
+    pub fn missing_blocks(&self) -> Vec<u32> {
+        self.asset.present.iter().enumerate().filter(|(_, &p)| !p).map(|(i, _)| i as u32).collect()
+    }
+    pub fn missing_frames(&self) -> Vec<usize> {
+        self.have_grid.iter().enumerate().filter(|(_, &g)| !g).map(|(i, _)| i).collect()
+    }
+    /// Whether the END chunk has arrived (the stream's sender says it is done).
+    pub fn saw_end(&self) -> bool {
+        self.end.is_some()
+    }
+}

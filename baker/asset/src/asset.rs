@@ -1,0 +1,155 @@
+//! The in-memory asset and its whole-file encode/decode. Decoding goes through the same
+//! `Assembler` a streaming client uses, in strict file mode, so there is one validator.
+
+use anyhow::{anyhow, ensure, Result};
+use std::path::Path;
+
+use crate::assemble::Assembler;
+use crate::atomic::write_atomic;
+use crate::chunk::{encode_chunk, preamble, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
+use crate::header::Header;
+use crate::mlp::ViewMlp;
+
+/// Indirection-grid entry of an empty cell.
+pub const EMPTY: u32 = 0xFFFF_FFFF;
+
+/// A baked scene. Fields are public so the baker may also build one directly (see
+/// `AssetBuilder` for the checked way); `validate` says whether it is writable.
+///
+/// Invariants of a complete asset: `grids.len() == num_frames()`, each grid has
+/// `grid_dim()^3` entries, `atlas.len() == atlas_blocks * block_bytes()`,
+/// `present.len() == atlas_blocks`. While streaming, a frame whose `GRID` has not arrived
+/// has an empty grid and a block not yet arrived has `present == false`; both render empty.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Asset {
+    pub header: Header,
+    pub mlp: ViewMlp,
+    pub grids: Vec<Vec<u32>>,
+    pub atlas: Vec<u8>,
+    pub present: Vec<bool>,
+}
+
+impl Asset {
+    pub fn block_bytes(&self) -> usize {
+        self.header.block_bytes()
+    }
+    pub fn grid_dim(&self) -> usize {
+        self.header.grid_dim()
+    }
+    pub fn num_frames(&self) -> usize {
+        self.header.num_frames()
+    }
+    pub fn is_dynamic(&self) -> bool {
+        self.header.is_dynamic()
+    }
+
+    /// Stored bytes of block `i` (None if out of range or not yet arrived).
+    pub fn block(&self, i: u32) -> Option<&[u8]> {
+        if !*self.present.get(i as usize)? {
+            return None;
+        }
+        let n = self.block_bytes();
+        self.atlas.get(i as usize * n..(i as usize + 1) * n)
+    }
+
+    /// Read and fully validate a file; errors name the file.
+    pub fn read(path: impl AsRef<Path>) -> Result<Asset> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
+        Asset::from_bytes(&bytes).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
+    }
+
+    /// Decode a whole file. Requires every frame's grid, every block and the END chunk.
+    pub fn from_bytes(bytes: &[u8]) -> Result<Asset> {
+        let mut asm = Assembler::from_file_bytes(bytes)?;
+        let missing = asm.missing_blocks();
+        let frames = asm.missing_frames();
+        ensure!(asm.has_mlp(), "file has no VMLP chunk");
+        ensure!(frames.is_empty(), "file has no GRID chunk for frame {}", frames[0]);
+        ensure!(missing.is_empty(), "file lacks {} atlas blocks (first: block {})", missing.len(), missing[0]);
+        Ok(asm.take_asset())
+    }
+
+    /// Encode: preamble, HEAD, VMLP, one GRID per frame, one BLKS per block, END. Blocks not
+    /// present and grids not arrived are left out (such a file reads back as incomplete).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out =
+            Vec::with_capacity(64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>());
+        out.extend_from_slice(&preamble());
+        let mut n = 0u32;
+        let mut put = |out: &mut Vec<u8>, tag, payload: &[u8]| {
+            out.extend_from_slice(&encode_chunk(tag, payload));
+            n += 1;
+        };
+        let head = serde_json::to_vec(&self.header).expect("header serializes");
+        put(&mut out, TAG_HEAD, &head);
+        let mlp: Vec<u8> = self.mlp.to_flat().iter().flat_map(|x| x.to_le_bytes()).collect();
+        put(&mut out, TAG_VMLP, &mlp);
+        for (f, grid) in self.grids.iter().enumerate() {
+            if grid.is_empty() {
+                continue;
+            }
+            let mut p = Vec::with_capacity(4 + 4 * grid.len());
+            p.extend_from_slice(&(f as u32).to_le_bytes());
+            for e in grid {
+                p.extend_from_slice(&e.to_le_bytes());
+            }
+            put(&mut out, TAG_GRID, &p);
+        }
+        let bb = self.block_bytes();
+        for (i, block) in self.atlas.chunks_exact(bb).enumerate() {
+            if !self.present.get(i).copied().unwrap_or(false) {
+                continue;
+            }
+            let mut p = Vec::with_capacity(8 + bb);
+            p.extend_from_slice(&(i as u32).to_le_bytes());
+            p.extend_from_slice(&1u32.to_le_bytes());
+            p.extend_from_slice(block);
+            put(&mut out, TAG_BLKS, &p);
+        }
+        let count = n;
+        out.extend_from_slice(&encode_chunk(TAG_END, &count.to_le_bytes()));
+        out
+    }
+
+    /// Validate, then write atomically (temp file in the same directory, fsync, rename), so
+    /// a crash never leaves a torn asset where a good one was.
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        self.validate().map_err(|e| anyhow!("{}: refusing to write an invalid asset: {:#}", path.display(), e))?;
+        write_atomic(path, &self.to_bytes())
+    }
+
+    /// Everything a reader would check, on an in-memory asset (e.g. one built by hand).
+    pub fn validate(&self) -> Result<()> {
+        let h = &self.header;
+        h.validate()?;
+        self.mlp.validate()?;
+        let bb = self.block_bytes();
+        ensure!(
+            self.atlas.len() as u64 == h.atlas_blocks as u64 * bb as u64,
+            "atlas has {} bytes, header claims {} blocks of {} bytes",
+            self.atlas.len(),
+            h.atlas_blocks,
+            bb
+        );
+        ensure!(
+            self.present.len() == h.atlas_blocks as usize,
+            "present has {} flags for {} blocks",
+            self.present.len(),
+            h.atlas_blocks
+        );
+        if let Some(i) = self.present.iter().position(|p| !p) {
+            anyhow::bail!("atlas block {} is missing", i);
+        }
+        ensure!(self.grids.len() == self.num_frames(), "{} grids for {} frames", self.grids.len(), self.num_frames());
+        let g = self.grid_dim();
+        for (f, grid) in self.grids.iter().enumerate() {
+            ensure!(grid.len() == g * g * g, "frame {} grid has {} entries, expected {}", f, grid.len(), g * g * g);
+            if let Some((c, e)) = grid.iter().enumerate().find(|(_, &e)| e != EMPTY && e >= h.atlas_blocks) {
+                anyhow::bail!("frame {} cell {} points at block {} (atlas has {})", f, c, e, h.atlas_blocks);
+            }
+        }
+        Ok(())
+    }
+}

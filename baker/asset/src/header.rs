@@ -1,0 +1,273 @@
+//! The JSON header (`HEAD` chunk): everything a reader needs to size and interpret the rest
+//! of the file, and the limits every header must pass *before* anything is allocated from it.
+
+use anyhow::{bail, ensure, Result};
+use serde::{Deserialize, Serialize};
+
+/// The `format` field's only valid value (guards against feeding some other JSON file).
+pub const FORMAT_NAME: &str = "snerf-asset";
+/// Largest voxel resolution per axis a reader accepts.
+pub const MAX_RES: u32 = 2048;
+/// Block edge length limits (voxels, without apron).
+pub const MIN_BLOCK: u32 = 4;
+pub const MAX_BLOCK: u32 = 64;
+/// Largest indirection grid (cells) per frame: 2^24 cells = 64 MiB of u32 entries.
+pub const MAX_GRID_CELLS: u64 = 1 << 24;
+/// Largest number of keyframes.
+pub const MAX_FRAMES: usize = 4096;
+/// Largest atlas a reader (or streaming client) will allocate, whatever the header says.
+pub const MAX_ATLAS_BYTES: u64 = 4 << 30;
+/// Smallest march step (grid units): bounds the samples per ray (2√3/step ≈ 35k).
+pub const MIN_STEP: f32 = 1.0e-4;
+/// |logit| bound so that exp(logit) stays finite in f32 (exp(88.7) overflows).
+pub const MAX_ABS_LOGIT: f32 = 80.0;
+
+/// How march-space points map onto the grid (see `render` for the exact formulas).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kind {
+    /// Bounded object: grid = model box [-1,1]^3.
+    Object,
+    /// Forward-facing: grid = NDC of the reference camera (x,y divided by `xy_extent`).
+    Forward,
+    /// Unbounded 360°: grid = MERF L∞ contraction / 2.
+    Unbounded,
+}
+
+/// NDC parameters of the forward-facing reference camera (from the trainer, not the viewer's camera).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ndc {
+    pub fx: f32,
+    pub fy: f32,
+    pub width: f32,
+    pub height: f32,
+    pub near: f32,
+    pub xy_extent: f32,
+}
+
+/// World -> model mapping: model = scale * rot * (world - center).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Space {
+    pub center: [f32; 3],
+    /// Row-major, orthonormal.
+    pub rot: [[f32; 3]; 3],
+    pub scale: f32,
+    /// Present exactly for `Kind::Forward`.
+    pub ndc: Option<Ndc>,
+}
+
+impl Space {
+    pub fn identity() -> Space {
+        Space { center: [0.0; 3], rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], scale: 1.0, ndc: None }
+    }
+}
+
+/// Density quantization range: code c in 0..=255 means logit = min + c/255 * (max - min).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DensityRange {
+    pub logit_min: f32,
+    pub logit_max: f32,
+}
+
+/// Ray-march parameters the renderer (CPU and GPU) must use to match the trainer.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct March {
+    /// Step length in grid units.
+    pub step: f32,
+    /// Stop a ray once its transmittance falls below this.
+    pub t_terminate: f32,
+}
+
+/// Shape of the view MLP. Version 1 supports exactly 34 -> 16 -> 16 -> 3 with 4 octaves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct MlpShape {
+    pub inputs: u32,
+    pub hidden: u32,
+    pub outputs: u32,
+    pub octaves: u32,
+}
+
+impl Default for MlpShape {
+    fn default() -> Self {
+        MlpShape { inputs: 34, hidden: 16, outputs: 3, octaves: 4 }
+    }
+}
+
+/// One keyframe of a dynamic asset.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Keyframe {
+    pub time: f32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    pub format: String,
+    pub kind: Kind,
+    pub space: Space,
+    pub res: u32,
+    pub block: u32,
+    pub atlas_blocks: u32,
+    pub density: DensityRange,
+    pub march: March,
+    pub background: [f32; 3],
+    pub view_mlp: MlpShape,
+    /// Dynamic assets only; a static asset's JSON has no such key at all.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_range: Option<[f32; 2]>,
+    /// Dynamic assets only: keyframe times, sorted. Static assets have one implicit frame 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<Vec<Keyframe>>,
+}
+
+impl Header {
+    /// A static header with sensible defaults (the builder and tests start from this).
+    pub fn new(kind: Kind, res: u32, block: u32) -> Header {
+        Header {
+            format: FORMAT_NAME.to_string(),
+            kind,
+            space: Space::identity(),
+            res,
+            block,
+            atlas_blocks: 0,
+            density: DensityRange { logit_min: -10.0, logit_max: 10.0 },
+            march: March { step: 2.0 / res.max(1) as f32, t_terminate: 1.0e-4 },
+            background: [1.0, 1.0, 1.0],
+            view_mlp: MlpShape::default(),
+            time_range: None,
+            frames: None,
+        }
+    }
+
+    pub fn is_dynamic(&self) -> bool {
+        self.frames.is_some()
+    }
+
+    pub fn num_frames(&self) -> usize {
+        self.frames.as_ref().map_or(1, |f| f.len())
+    }
+
+    /// Indirection grid cells per axis.
+    pub fn grid_dim(&self) -> usize {
+        (self.res / self.block.max(1)) as usize
+    }
+
+    /// Bytes of one stored block: (block+2)^3 voxels x 8 channels.
+    pub fn block_bytes(&self) -> usize {
+        // Saturating: callers may ask before `validate` has bounded `block`.
+        let e = (self.block as usize).saturating_add(2);
+        e.saturating_mul(e).saturating_mul(e).saturating_mul(8)
+    }
+
+    /// Keyframe time of frame `i` (0 for static assets).
+    pub fn frame_time(&self, i: usize) -> f32 {
+        self.frames.as_ref().and_then(|f| f.get(i)).map_or(0.0, |k| k.time)
+    }
+
+    /// Check every field; sizes first, so later code may allocate from them.
+    pub fn validate(&self) -> Result<()> {
+        ensure!(self.format == FORMAT_NAME, "header format is {:?}, expected {:?}", self.format, FORMAT_NAME);
+        ensure!(self.res >= 1 && self.res <= MAX_RES, "header claims res {} (max {})", self.res, MAX_RES);
+        ensure!(
+            (MIN_BLOCK..=MAX_BLOCK).contains(&self.block),
+            "header claims block {} (must be {}..={})",
+            self.block,
+            MIN_BLOCK,
+            MAX_BLOCK
+        );
+        ensure!(self.res % self.block == 0, "header res {} is not a multiple of block {}", self.res, self.block);
+        let g = self.grid_dim() as u64;
+        ensure!(g * g * g <= MAX_GRID_CELLS, "header grid has {}^3 cells (max {})", g, MAX_GRID_CELLS);
+        let atlas_bytes = self.atlas_blocks as u64 * self.block_bytes() as u64;
+        ensure!(
+            atlas_bytes <= MAX_ATLAS_BYTES,
+            "header claims {} atlas blocks = {} bytes (max {} bytes)",
+            self.atlas_blocks,
+            atlas_bytes,
+            MAX_ATLAS_BYTES
+        );
+        ensure!(
+            self.view_mlp == MlpShape::default(),
+            "header view_mlp {:?} is not supported (version 1 needs inputs 34, hidden 16, outputs 3, octaves 4)",
+            self.view_mlp
+        );
+        let d = self.density;
+        ensure!(
+            d.logit_min.is_finite()
+                && d.logit_max.is_finite()
+                && d.logit_min < d.logit_max
+                && d.logit_min.abs() <= MAX_ABS_LOGIT
+                && d.logit_max.abs() <= MAX_ABS_LOGIT,
+            "header density range [{}, {}] must be finite, increasing and within ±{}",
+            d.logit_min,
+            d.logit_max,
+            MAX_ABS_LOGIT
+        );
+        let m = self.march;
+        ensure!(
+            m.step.is_finite() && m.step >= MIN_STEP && m.step <= 2.0,
+            "header march step {} must be in [{}, 2]",
+            m.step,
+            MIN_STEP
+        );
+        ensure!(
+            m.t_terminate.is_finite() && (0.0..1.0).contains(&m.t_terminate),
+            "header t_terminate {} must be in [0, 1)",
+            m.t_terminate
+        );
+        ensure!(self.background.iter().all(|x| x.is_finite()), "header background is not finite");
+        self.validate_space()?;
+        match (&self.time_range, &self.frames) {
+            (None, None) => {}
+            (Some(r), Some(frames)) => {
+                ensure!(
+                    r[0].is_finite() && r[1].is_finite() && r[0] <= r[1],
+                    "header time_range [{}, {}] is not a finite interval",
+                    r[0],
+                    r[1]
+                );
+                ensure!(
+                    !frames.is_empty() && frames.len() <= MAX_FRAMES,
+                    "header has {} frames (must be 1..={})",
+                    frames.len(),
+                    MAX_FRAMES
+                );
+                for (i, w) in frames.windows(2).enumerate() {
+                    ensure!(w[0].time <= w[1].time, "header frame times not sorted at frame {}", i + 1);
+                }
+                ensure!(frames.iter().all(|f| f.time.is_finite()), "header has a non-finite frame time");
+            }
+            _ => bail!("header must have both time_range and frames (dynamic) or neither (static)"),
+        }
+        Ok(())
+    }
+
+    fn validate_space(&self) -> Result<()> {
+        let s = &self.space;
+        ensure!(
+            s.center.iter().all(|x| x.is_finite()) && s.scale.is_finite() && s.scale > 0.0,
+            "header space center/scale must be finite with scale > 0"
+        );
+        // Orthonormal rows: the renderer inverts `rot` by transposing it.
+        for i in 0..3 {
+            for j in 0..3 {
+                let dot: f32 = (0..3).map(|k| s.rot[i][k] * s.rot[j][k]).sum();
+                let want = if i == j { 1.0 } else { 0.0 };
+                ensure!((dot - want).abs() < 1e-3, "header space rot is not orthonormal (rows {} and {})", i, j);
+            }
+        }
+        match (self.kind, &s.ndc) {
+            (Kind::Forward, None) => bail!("header kind forward needs space.ndc"),
+            (Kind::Forward, Some(n)) => {
+                let v = [n.fx, n.fy, n.width, n.height, n.near, n.xy_extent];
+                ensure!(
+                    v.iter().all(|x| x.is_finite() && *x > 0.0),
+                    "header space.ndc fields must be finite and positive: {:?}",
+                    n
+                );
+            }
+            (_, Some(_)) => bail!("header space.ndc is only allowed for kind forward"),
+            (_, None) => {}
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,116 @@
+//! The deferred view-dependence MLP (SNeRG): runs once per pixel on the composited diffuse
+//! colour + 4 features + view direction and returns a specular RGB residual. Same layout and
+//! arithmetic as the trainer's `view_mlp`, so baked weights mean the same thing here.
+
+use anyhow::{ensure, Result};
+
+pub const MLP_IN: usize = 34;
+pub const MLP_HIDDEN: usize = 16;
+pub const MLP_OUT: usize = 3;
+pub const MLP_OCTAVES: usize = 4;
+/// Total f32 count in the `VMLP` chunk.
+pub const MLP_FLOATS: usize =
+    MLP_HIDDEN * MLP_IN + MLP_HIDDEN + MLP_HIDDEN * MLP_HIDDEN + MLP_HIDDEN + MLP_OUT * MLP_HIDDEN + MLP_OUT;
+
+/// Weights are output-major (row j of w1 = the 34 weights feeding hidden unit j).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewMlp {
+    pub w1: Vec<f32>,
+    pub b1: Vec<f32>,
+    pub w2: Vec<f32>,
+    pub b2: Vec<f32>,
+    pub w3: Vec<f32>,
+    pub b3: Vec<f32>,
+}
+
+impl ViewMlp {
+    /// All-zero weights: a purely diffuse asset.
+    pub fn zeros() -> ViewMlp {
+        ViewMlp {
+            w1: vec![0.0; MLP_HIDDEN * MLP_IN],
+            b1: vec![0.0; MLP_HIDDEN],
+            w2: vec![0.0; MLP_HIDDEN * MLP_HIDDEN],
+            b2: vec![0.0; MLP_HIDDEN],
+            w3: vec![0.0; MLP_OUT * MLP_HIDDEN],
+            b3: vec![0.0; MLP_OUT],
+        }
+    }
+
+    /// From the flat order of the `VMLP` chunk (w1, b1, w2, b2, w3, b3).
+    pub fn from_flat(v: &[f32]) -> Result<ViewMlp> {
+        ensure!(v.len() == MLP_FLOATS, "view MLP has {} floats, expected {}", v.len(), MLP_FLOATS);
+        ensure!(v.iter().all(|x| x.is_finite()), "view MLP has non-finite weights");
+        let mut rest = v;
+        let mut take = |n: usize| {
+            let (a, b) = rest.split_at(n);
+            rest = b;
+            a.to_vec()
+        };
+        Ok(ViewMlp {
+            w1: take(MLP_HIDDEN * MLP_IN),
+            b1: take(MLP_HIDDEN),
+            w2: take(MLP_HIDDEN * MLP_HIDDEN),
+            b2: take(MLP_HIDDEN),
+            w3: take(MLP_OUT * MLP_HIDDEN),
+            b3: take(MLP_OUT),
+        })
+    }
+
+    pub fn to_flat(&self) -> Vec<f32> {
+        [&self.w1, &self.b1, &self.w2, &self.b2, &self.w3, &self.b3].iter().flat_map(|v| v.iter().copied()).collect()
+    }
+
+    /// Sizes and finiteness (public fields can be set to anything by a caller).
+    pub fn validate(&self) -> Result<()> {
+        ViewMlp::from_flat(&self.to_flat()).map(|_| ())
+    }
+
+    /// Input vector: composited diffuse rgb + 4 features, unit world direction, then
+    /// sin/cos of each direction component at frequencies 2^o·π, o = 0..4.
+    pub fn input(diffuse_feat: &[f32; 7], dir: [f32; 3]) -> [f32; MLP_IN] {
+        let mut x = [0.0f32; MLP_IN];
+        x[..7].copy_from_slice(diffuse_feat);
+        x[7..10].copy_from_slice(&dir);
+        let mut k = 10;
+        for o in 0..MLP_OCTAVES {
+            let f = (1u32 << o) as f32 * std::f32::consts::PI;
+            for d in dir {
+                let (s, c) = (f * d).sin_cos();
+                x[k] = s;
+                x[k + 1] = c;
+                k += 2;
+            }
+        }
+        x
+    }
+
+    /// relu(W1 x + b1) -> relu(W2 h + b2) -> W3 h + b3. Written with zips so a malformed
+    /// (wrong-length) weight vector gives a wrong answer, never a panic.
+    pub fn forward(&self, x: &[f32; MLP_IN]) -> [f32; MLP_OUT] {
+        let mut h1 = [0.0f32; MLP_HIDDEN];
+        for ((h, w), b) in h1.iter_mut().zip(self.w1.chunks_exact(MLP_IN)).zip(&self.b1) {
+            let mut a = *b;
+            for (wi, xi) in w.iter().zip(x) {
+                a += wi * xi;
+            }
+            *h = a.max(0.0);
+        }
+        let mut h2 = [0.0f32; MLP_HIDDEN];
+        for ((h, w), b) in h2.iter_mut().zip(self.w2.chunks_exact(MLP_HIDDEN)).zip(&self.b2) {
+            let mut a = *b;
+            for (wi, xi) in w.iter().zip(&h1) {
+                a += wi * xi;
+            }
+            *h = a.max(0.0);
+        }
+        let mut out = [0.0f32; MLP_OUT];
+        for ((o, w), b) in out.iter_mut().zip(self.w3.chunks_exact(MLP_HIDDEN)).zip(&self.b3) {
+            let mut a = *b;
+            for (wi, xi) in w.iter().zip(&h2) {
+                a += wi * xi;
+            }
+            *o = a;
+        }
+        out
+    }
+}

@@ -1,0 +1,467 @@
+//! CPU reference renderer: the ground truth the GPU shader is checked against, written to
+//! march exactly like the trainer (same model/NDC/contraction mapping, same sample lattice
+//! t0 + (i+0.5)·dt, same stable compositing), only reading baked voxels instead of the field.
+//!
+//! Per ray: world ray -> model ray -> march space (object: model; forward: NDC; unbounded:
+//! model with growing steps) -> grid point per sample -> trilinear voxel values ->
+//! front-to-back compositing with T = exp(-Σσδ) -> view MLP once on the composited values.
+
+use anyhow::{anyhow, ensure, Result};
+use rayon::prelude::*;
+use std::path::Path;
+
+use crate::asset::Asset;
+use crate::atomic::write_atomic;
+use crate::header::{Header, Kind};
+use crate::mlp::ViewMlp;
+use crate::quantize::quantize_unit;
+use crate::sample::TimeSlot;
+
+/// Optical depth per sample is clamped here: exp(-80) is ~1e-35, fully opaque for f32, and
+/// the clamp keeps σδ finite for huge σ (and keeps a shader's exp() in range).
+pub const MAX_OPTICAL_DEPTH: f32 = 80.0;
+/// Unbounded rays: march from here to `UNBOUNDED_FAR` in model units (as the trainer).
+pub const UNBOUNDED_NEAR: f32 = 0.02;
+pub const UNBOUNDED_FAR: f32 = 1.0e3;
+/// Forward rays pointing this little towards -z never reach the NDC volume.
+pub const NDC_MIN_DZ: f32 = 1.0e-6;
+/// Loop guard: a valid header bounds samples per ray far below this (step >= 1e-4).
+const MAX_ITERS: usize = 1 << 20;
+
+/// A pinhole camera. c2w is camera-to-world (OpenGL: x right, y up, looking down -z),
+/// rows of [R | t].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub c2w: [[f32; 4]; 3],
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// A rendered image: rgb is row-major H x W x 3; depth (march-space ray parameter,
+/// opacity-normalized, 0 where empty) and opacity are H x W.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: Vec<f32>,
+    pub depth: Vec<f32>,
+    pub opacity: Vec<f32>,
+}
+
+/// One ray's result.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelResult {
+    pub rgb: [f32; 3],
+    pub depth: f32,
+    pub opacity: f32,
+    /// Non-empty samples composited (for tests and performance counters).
+    pub samples: u32,
+}
+
+type V3 = [f32; 3];
+
+#[inline]
+fn dot(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+#[inline]
+fn norm(a: V3) -> f32 {
+    dot(a, a).sqrt()
+}
+#[inline]
+fn normalize(a: V3) -> V3 {
+    let n = norm(a);
+    if n > 0.0 {
+        [a[0] / n, a[1] / n, a[2] / n]
+    } else {
+        [0.0, 0.0, -1.0]
+    }
+}
+#[inline]
+fn cross(a: V3, b: V3) -> V3 {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+#[inline]
+fn mat_vec(m: &[[f32; 3]; 3], v: V3) -> V3 {
+    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
+}
+/// rot^T * v (rot is orthonormal, so this is the inverse rotation).
+#[inline]
+fn mat_t_vec(m: &[[f32; 3]; 3], v: V3) -> V3 {
+    [
+        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
+    ]
+}
+
+/// World origin and unit world direction of pixel (px, py), through the pixel centre.
+pub fn camera_ray(cam: &Camera, px: u32, py: u32) -> (V3, V3) {
+    let dc = [(px as f32 + 0.5 - cam.cx) / cam.fx, -(py as f32 + 0.5 - cam.cy) / cam.fy, -1.0];
+    let m = &cam.c2w;
+    let dw = normalize([
+        m[0][0] * dc[0] + m[0][1] * dc[1] + m[0][2] * dc[2],
+        m[1][0] * dc[0] + m[1][1] * dc[1] + m[1][2] * dc[2],
+        m[2][0] * dc[0] + m[2][1] * dc[1] + m[2][2] * dc[2],
+    ]);
+    ([m[0][3], m[1][3], m[2][3]], dw)
+}
+
+/// Slab test against [-1,1]^3; (t_enter, t_exit) with t_exit > max(t_enter, 0).
+pub fn box_hit(o: V3, d: V3) -> Option<(f32, f32)> {
+    let mut t0 = f32::NEG_INFINITY;
+    let mut t1 = f32::INFINITY;
+    for i in 0..3 {
+        let inv = 1.0 / d[i];
+        let (a, b) = ((-1.0 - o[i]) * inv, (1.0 - o[i]) * inv);
+        let (a, b) = if a < b { (a, b) } else { (b, a) };
+        if a.is_nan() || b.is_nan() {
+            // d[i] == 0: inside the slab for all t, or never
+            if !(o[i].abs() <= 1.0) {
+                return None;
+            }
+            continue;
+        }
+        t0 = t0.max(a);
+        t1 = t1.min(b);
+    }
+    if t1 > t0.max(0.0) {
+        Some((t0, t1))
+    } else {
+        None
+    }
+}
+
+/// MERF's L∞ contraction (identity in the unit cube, (2 - 1/m) on the shell of size m).
+#[inline]
+pub fn contract(p: V3) -> V3 {
+    let p = p.map(|x| if x.is_nan() { 0.0 } else { x });
+    let m = p[0].abs().max(p[1].abs()).max(p[2].abs());
+    if m <= 1.0 {
+        return p;
+    }
+    if !m.is_finite() {
+        return p.map(|x| if x.is_infinite() { 2.0 * x.signum() } else { 0.0 });
+    }
+    let mut c = [0.0f32; 3];
+    for i in 0..3 {
+        c[i] = if p[i].abs() == m { (2.0 - 1.0 / m) * p[i].signum() } else { p[i] / m };
+    }
+    c
+}
+
+/// Unbounded step: constant in contracted space, so it grows with |p|∞² outside the cube.
+#[inline]
+pub fn unbounded_dt(step: f32, p: V3) -> f32 {
+    let m = p[0].abs().max(p[1].abs()).max(p[2].abs()).max(1.0);
+    (2.0 * step * m * m).min(UNBOUNDED_FAR)
+}
+
+/// Front-to-back compositing state.
+struct Accum {
+    /// Σ w · (rgb, feat)
+    vals: [f32; 7],
+    acc: f32,
+    depth: f32,
+    optical: f32,
+    trans: f32,
+    samples: u32,
+}
+
+impl Accum {
+    fn new() -> Accum {
+        Accum { vals: [0.0; 7], acc: 0.0, depth: 0.0, optical: 0.0, trans: 1.0, samples: 0 }
+    }
+    /// Add one sample; returns true when the ray should stop (T below t_terminate).
+    #[inline]
+    fn add(&mut self, v: &[f32; 8], delta: f32, t: f32, t_terminate: f32) -> bool {
+        let sigma = v[0].exp();
+        // max/min (not clamp) so NaN becomes 0 rather than propagating.
+        let sd = (sigma * delta).max(0.0).min(MAX_OPTICAL_DEPTH);
+        let alpha = -(-sd).exp_m1();
+        let w = self.trans * alpha;
+        for c in 0..7 {
+            self.vals[c] += w * v[c + 1];
+        }
+        self.acc += w;
+        self.depth += w * t;
+        self.optical += sd;
+        self.trans = (-self.optical).exp();
+        self.samples += 1;
+        self.trans < t_terminate
+    }
+}
+
+/// Ray-parameter distance from grid point `g` to the exit of its indirection cell along
+/// grid-space direction `gd` (0 if already on the boundary).
+#[inline]
+fn cell_exit(g: V3, gd: V3, cells: usize) -> f32 {
+    let r = cells as f32;
+    let mut best = f32::INFINITY;
+    for a in 0..3 {
+        if gd[a] == 0.0 {
+            continue;
+        }
+        let u = (g[a] + 1.0) * 0.5 * r;
+        let k = u.floor().clamp(0.0, r - 1.0);
+        let bound = if gd[a] > 0.0 { k + 1.0 } else { k };
+        let s = (bound / r * 2.0 - 1.0 - g[a]) / gd[a];
+        if s < best {
+            best = s;
+        }
+    }
+    best.max(0.0)
+}
+
+/// March a ray that is a straight line in grid space (object, forward): grid point at t is
+/// go + t·gd; samples at t_i = t_base + (i+0.5)·dt while t_i < t_end, starting at lattice
+/// index `i_start`. Empty cells are jumped over to the last lattice point before their exit,
+/// so exactly the same non-empty positions are sampled as by a plain step-by-step march.
+#[allow(clippy::too_many_arguments)]
+fn march_affine(
+    asset: &Asset,
+    slot: &TimeSlot,
+    go: V3,
+    gd: V3,
+    t_base: f32,
+    t_end: f32,
+    dt: f32,
+    delta: f32,
+    i_start: usize,
+    acc: &mut Accum,
+) {
+    let t_term = asset.header.march.t_terminate;
+    let cells = asset.grid_dim();
+    let mut i = i_start;
+    for _ in 0..MAX_ITERS {
+        let t = t_base + (i as f32 + 0.5) * dt;
+        if !(t < t_end) {
+            break;
+        }
+        let g = [go[0] + t * gd[0], go[1] + t * gd[1], go[2] + t * gd[2]];
+        let Some(loc) = asset.locate(g) else {
+            i += 1;
+            continue;
+        };
+        match asset.sample_slot(slot, &loc) {
+            Some(v) => {
+                if acc.add(&v, delta, t, t_term) {
+                    break;
+                }
+                i += 1;
+            }
+            None => {
+                let exit = t + cell_exit(g, gd, cells);
+                let j = ((exit - t_base) / dt - 0.5).floor();
+                // `as usize` saturates (inf -> MAX, NaN -> 0); max() guarantees progress.
+                i = (j as usize).max(i + 1);
+            }
+        }
+    }
+}
+
+/// Unbounded: step length re-evaluated at every sample (t += dt(p)), first sample at
+/// t0 + dt(t0)/2; grid point = contract(p)/2.
+fn march_unbounded(asset: &Asset, slot: &TimeSlot, o: V3, d: V3, acc: &mut Accum) {
+    let step = asset.header.march.step;
+    let t_term = asset.header.march.t_terminate;
+    let at = |t: f32| [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
+    let mut t = UNBOUNDED_NEAR + 0.5 * unbounded_dt(step, at(UNBOUNDED_NEAR));
+    for _ in 0..MAX_ITERS {
+        if !(t < UNBOUNDED_FAR) {
+            break;
+        }
+        let p = at(t);
+        let dt = unbounded_dt(step, p);
+        let c = contract(p);
+        if let Some(loc) = asset.locate([c[0] * 0.5, c[1] * 0.5, c[2] * 0.5]) {
+            if let Some(v) = asset.sample_slot(slot, &loc) {
+                if acc.add(&v, dt, t, t_term) {
+                    break;
+                }
+            }
+        }
+        t += dt;
+    }
+}
+
+/// Render one world-space ray (origin `ow`, direction `dw`, normalized here) at `time`.
+pub fn render_ray(asset: &Asset, ow: V3, dw: V3, time: f32) -> PixelResult {
+    let h = &asset.header;
+    let dw = normalize(dw);
+    let mut acc = Accum::new();
+    if ow.iter().chain(dw.iter()).all(|x| x.is_finite()) {
+        let slot = asset.time_slot(time);
+        let s = &h.space;
+        let rel = [ow[0] - s.center[0], ow[1] - s.center[1], ow[2] - s.center[2]];
+        let o = mat_vec(&s.rot, rel).map(|x| x * s.scale);
+        let d = normalize(mat_vec(&s.rot, dw));
+        let step = h.march.step;
+        match h.kind {
+            Kind::Object => {
+                if let Some((t0, t1)) = box_hit(o, d) {
+                    march_affine(asset, &slot, o, d, t0.max(0.0), t1, step, step, 0, &mut acc);
+                }
+            }
+            Kind::Forward => {
+                if let Some(n) = s.ndc {
+                    march_forward(asset, &slot, o, d, &n, &mut acc);
+                }
+            }
+            Kind::Unbounded => march_unbounded(asset, &slot, o, d, &mut acc),
+        }
+    }
+    shade(asset, &acc, dw)
+}
+
+/// Forward-facing: NeRF's ndc_rays on the model ray, then an affine march over t in [0,1]
+/// restricted to where the grid ray is inside [-1,1]^3 (outside samples contribute nothing).
+fn march_forward(asset: &Asset, slot: &TimeSlot, o: V3, d: V3, n: &crate::header::Ndc, acc: &mut Accum) {
+    if d[2] >= -NDC_MIN_DZ {
+        return;
+    }
+    let t = -(n.near + o[2]) / d[2];
+    let o = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
+    let ax = -n.fx / (n.width * 0.5);
+    let ay = -n.fy / (n.height * 0.5);
+    let o_ndc = [ax * o[0] / o[2], ay * o[1] / o[2], 1.0 + 2.0 * n.near / o[2]];
+    let d_ndc = [ax * (d[0] / d[2] - o[0] / o[2]), ay * (d[1] / d[2] - o[1] / o[2]), -2.0 * n.near / o[2]];
+    let e = n.xy_extent;
+    let go = [o_ndc[0] / e, o_ndc[1] / e, o_ndc[2]];
+    let gd = [d_ndc[0] / e, d_ndc[1] / e, d_ndc[2]];
+    if !go.iter().chain(gd.iter()).all(|x| x.is_finite()) {
+        return;
+    }
+    let speed = norm(gd);
+    let dt = asset.header.march.step / speed;
+    let delta = dt * norm(d_ndc);
+    if !(dt > 0.0 && dt.is_finite() && delta.is_finite()) {
+        return;
+    }
+    let Some((tb0, tb1)) = box_hit(go, gd) else { return };
+    // First lattice index at or just before the box entry (outside points are skipped).
+    let i_start = ((tb0.max(0.0) / dt - 0.5).floor().max(0.0)) as usize;
+    march_affine(asset, slot, go, gd, 0.0, tb1.min(1.0), dt, delta, i_start, acc);
+}
+
+/// Final pixel colour: diffuse + opacity·specular + T·background, clamped to [0,1].
+fn shade(asset: &Asset, acc: &Accum, dw: V3) -> PixelResult {
+    let bg = asset.header.background;
+    let spec = if acc.acc > 0.0 { asset.mlp.forward(&ViewMlp::input(&acc.vals, dw)) } else { [0.0; 3] };
+    let rgb = [0, 1, 2].map(|c| (acc.vals[c] + acc.acc * spec[c] + acc.trans * bg[c]).max(0.0).min(1.0));
+    let depth = if acc.acc > 1e-6 { acc.depth / acc.acc } else { 0.0 };
+    PixelResult { rgb, depth, opacity: acc.acc, samples: acc.samples }
+}
+
+/// One pixel (centre at px+0.5, py+0.5).
+pub fn render_pixel(asset: &Asset, cam: &Camera, px: u32, py: u32, time: f32) -> PixelResult {
+    let (o, d) = camera_ray(cam, px, py);
+    render_ray(asset, o, d, time)
+}
+
+/// A whole image, rows in parallel.
+pub fn render(asset: &Asset, cam: &Camera, time: f32) -> Frame {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let rows: Vec<Vec<PixelResult>> = (0..cam.height)
+        .into_par_iter()
+        .map(|y| (0..cam.width).map(|x| render_pixel(asset, cam, x, y, time)).collect())
+        .collect();
+    let mut f = Frame {
+        width: cam.width,
+        height: cam.height,
+        rgb: Vec::with_capacity(w * h * 3),
+        depth: Vec::with_capacity(w * h),
+        opacity: Vec::with_capacity(w * h),
+    };
+    for p in rows.iter().flatten() {
+        f.rgb.extend_from_slice(&p.rgb);
+        f.depth.push(p.depth);
+        f.opacity.push(p.opacity);
+    }
+    f
+}
+
+fn to_png_bytes(img: image::RgbImage) -> Result<Vec<u8>> {
+    let mut buf = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut buf, image::ImageFormat::Png).map_err(|e| anyhow!("PNG encoding failed: {}", e))?;
+    Ok(buf.into_inner())
+}
+
+fn frame_image(frame: &Frame) -> Result<image::RgbImage> {
+    let n = frame.width as usize * frame.height as usize * 3;
+    ensure!(frame.rgb.len() == n, "frame has {} rgb values for {}x{}", frame.rgb.len(), frame.width, frame.height);
+    let data: Vec<u8> = frame.rgb.iter().map(|&v| quantize_unit(v)).collect();
+    image::RgbImage::from_raw(frame.width, frame.height, data).ok_or_else(|| anyhow!("bad frame size"))
+}
+
+/// Save a frame's colour as PNG (atomically).
+pub fn write_png(frame: &Frame, path: impl AsRef<Path>) -> Result<()> {
+    let path = path.as_ref();
+    let img = frame_image(frame).map_err(|e| anyhow!("{}: {:#}", path.display(), e))?;
+    write_atomic(path, &to_png_bytes(img)?)
+}
+
+/// Up to 8 frames side by side in one PNG: a cheap animated-preview stand-in.
+pub fn contact_strip(frames: &[Frame], path: impl AsRef<Path>) -> Result<()> {
+    let path = path.as_ref();
+    let frames = &frames[..frames.len().min(8)];
+    ensure!(!frames.is_empty(), "{}: no frames for the contact strip", path.display());
+    let w: u32 = frames.iter().map(|f| f.width).sum();
+    let h = frames.iter().map(|f| f.height).max().unwrap_or(0);
+    let mut canvas = image::RgbImage::new(w, h);
+    let mut x0 = 0;
+    for f in frames {
+        let img = frame_image(f).map_err(|e| anyhow!("{}: {:#}", path.display(), e))?;
+        image::imageops::replace(&mut canvas, &img, x0 as i64, 0);
+        x0 += f.width;
+    }
+    write_atomic(path, &to_png_bytes(canvas)?)
+}
+
+/// Model point -> world point (inverse of model = scale·rot·(world - center)).
+pub fn model_to_world(h: &Header, m: V3) -> V3 {
+    let s = &h.space;
+    let w = mat_t_vec(&s.rot, m.map(|x| x / s.scale));
+    [w[0] + s.center[0], w[1] + s.center[1], w[2] + s.center[2]]
+}
+
+/// Camera `i` of `n` on a preview path. Object/unbounded: a circle of radius 3 model units
+/// at 30° elevation in the model's xz-plane (model +y up), looking at the model origin.
+/// Forward: a circle of radius 0.1/scale world units around the reference camera (model
+/// origin, looking down model -z), keeping its orientation, as LLFF spiral paths do.
+/// `fov_y` is the vertical field of view in degrees.
+pub fn orbit(h: &Header, n: usize, i: usize, width: u32, height: u32, fov_y: f32) -> Camera {
+    let a = 2.0 * std::f32::consts::PI * i as f32 / n.max(1) as f32;
+    let f = 0.5 * height as f32 / (0.5 * fov_y.to_radians()).tan();
+    let rot = &h.space.rot;
+    let (pos_m, right_m, up_m, back_m) = match h.kind {
+        Kind::Forward => {
+            let r = 0.1; // model units: 0.1/scale in world units
+            ([r * a.cos(), r * a.sin(), 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
+        }
+        Kind::Object | Kind::Unbounded => {
+            let el = 30f32.to_radians();
+            let p = [3.0 * el.cos() * a.sin(), 3.0 * el.sin(), 3.0 * el.cos() * a.cos()];
+            let back = normalize(p); // camera looks down -z = towards the origin
+            let right = normalize(cross([0.0, 1.0, 0.0], back));
+            let up = cross(back, right);
+            (p, right, up, back)
+        }
+    };
+    // Directions map to world by rot^T (no scale); positions by the full inverse transform.
+    let pos = model_to_world(h, pos_m);
+    let (x, y, z) = (mat_t_vec(rot, right_m), mat_t_vec(rot, up_m), mat_t_vec(rot, back_m));
+    Camera {
+        c2w: [[x[0], y[0], z[0], pos[0]], [x[1], y[1], z[1], pos[1]], [x[2], y[2], z[2], pos[2]]],
+        fx: f,
+        fy: f,
+        cx: 0.5 * width as f32,
+        cy: 0.5 * height as f32,
+        width,
+        height,
+    }
+}

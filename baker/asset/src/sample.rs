@@ -1,0 +1,168 @@
+//! Point queries: grid point -> (cell, block-local coordinate) -> trilinear voxel values,
+//! and blending between keyframes for dynamic assets. The renderer uses the split pieces
+//! (`locate`, `TimeSlot`) so it can tell "empty" from "outside" and skip cheaply.
+
+use crate::asset::{Asset, EMPTY};
+use crate::quantize::CHANNELS;
+
+/// Where a grid point falls: its cell and its continuous coordinate inside that cell's
+/// stored (apron-padded) block, in voxel units with voxel centres at integers.
+#[derive(Clone, Copy, Debug)]
+pub struct Loc {
+    pub cell: usize,
+    pub local: [f32; 3],
+}
+
+/// Which keyframes a time falls between, and how far: value = (1-w)*k0 + w*k1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TimeSlot {
+    pub k0: usize,
+    pub k1: usize,
+    pub w: f32,
+}
+
+impl Asset {
+    /// Cell and block-local coordinate of grid point `g`; None outside [-1,1]^3 (or NaN).
+    #[inline]
+    pub fn locate(&self, g: [f32; 3]) -> Option<Loc> {
+        let res = self.header.res as usize;
+        let b = self.header.block as usize;
+        let gd = self.grid_dim();
+        let mut cell = [0usize; 3];
+        let mut local = [0.0f32; 3];
+        for a in 0..3 {
+            if !(g[a] >= -1.0 && g[a] <= 1.0) {
+                return None;
+            }
+            // v: voxel-space position, voxel i spans [i, i+1) with its centre at i + 0.5.
+            let v = (g[a] + 1.0) * 0.5 * res as f32;
+            let vi = (v as usize).min(res - 1);
+            let c = (vi / b).min(gd - 1);
+            cell[a] = c;
+            // Stored block starts at global voxel c*b - 1 (the apron); centre-aligned coords.
+            local[a] = v - 0.5 - (c * b) as f32 + 1.0;
+        }
+        Some(Loc { cell: (cell[2] * gd + cell[1]) * gd + cell[0], local })
+    }
+
+    /// Atlas block of `cell` in `frame`; None if empty, not arrived, or out of range.
+    #[inline]
+    pub fn block_at(&self, frame: usize, cell: usize) -> Option<u32> {
+        let e = *self.grids.get(frame)?.get(cell)?;
+        if e == EMPTY || !*self.present.get(e as usize)? {
+            return None;
+        }
+        Some(e)
+    }
+
+    /// Trilinear interpolation inside one stored block. Interpolates the 8-bit codes and
+    /// decodes once: decoding is affine, so this equals interpolating decoded values.
+    #[inline]
+    pub fn interpolate(&self, block: u32, local: [f32; 3]) -> [f32; CHANNELS] {
+        let b = self.header.block as usize;
+        let e = b + 2;
+        let bb = self.block_bytes();
+        let Some(data) = self.atlas.get(block as usize * bb..(block as usize + 1) * bb) else {
+            return self.empty_values();
+        };
+        let mut i0 = [0usize; 3];
+        let mut w = [0.0f32; 3];
+        for a in 0..3 {
+            let f = local[a].floor().clamp(0.0, b as f32);
+            i0[a] = f as usize;
+            w[a] = (local[a] - f).clamp(0.0, 1.0);
+        }
+        let mut acc = [0.0f32; CHANNELS];
+        for corner in 0..8 {
+            let (dx, dy, dz) = (corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+            let wt = (if dx == 1 { w[0] } else { 1.0 - w[0] })
+                * (if dy == 1 { w[1] } else { 1.0 - w[1] })
+                * (if dz == 1 { w[2] } else { 1.0 - w[2] });
+            let off = (((i0[2] + dz) * e + (i0[1] + dy)) * e + (i0[0] + dx)) * CHANNELS;
+            let v = &data[off..off + CHANNELS];
+            for c in 0..CHANNELS {
+                acc[c] += wt * v[c] as f32;
+            }
+        }
+        let d = self.header.density;
+        let mut out = [0.0f32; CHANNELS];
+        out[0] = d.logit_min + acc[0] / 255.0 * (d.logit_max - d.logit_min);
+        for c in 1..CHANNELS {
+            out[c] = acc[c] / 255.0;
+        }
+        out
+    }
+
+    /// What an empty cell counts as when blending keyframes: lowest density, zero colour.
+    pub fn empty_values(&self) -> [f32; CHANNELS] {
+        let mut v = [0.0f32; CHANNELS];
+        v[0] = self.header.density.logit_min;
+        v
+    }
+
+    /// (logit, r, g, b, f0..f3) at grid point `g` of `frame`; None outside the grid or in an
+    /// empty / not-yet-arrived cell.
+    pub fn sample(&self, frame: usize, g: [f32; 3]) -> Option<[f32; CHANNELS]> {
+        let loc = self.locate(g)?;
+        let b = self.block_at(frame, loc.cell)?;
+        Some(self.interpolate(b, loc.local))
+    }
+
+    /// The keyframes around time `t` (clamped at both ends; static assets: frame 0).
+    pub fn time_slot(&self, t: f32) -> TimeSlot {
+        let frames = match &self.header.frames {
+            Some(f) if !f.is_empty() => f,
+            _ => return TimeSlot { k0: 0, k1: 0, w: 0.0 },
+        };
+        let last = frames.len() - 1;
+        if !(t > frames[0].time) {
+            return TimeSlot { k0: 0, k1: 0, w: 0.0 }; // also NaN
+        }
+        if t >= frames[last].time {
+            return TimeSlot { k0: last, k1: last, w: 0.0 };
+        }
+        // first frame with time > t; t > frames[0] so k >= 1, and t < frames[last] so k <= last
+        let k = frames.partition_point(|f| f.time <= t);
+        let (a, b) = (frames[k - 1].time, frames[k].time);
+        let w = if b > a { ((t - a) / (b - a)).clamp(0.0, 1.0) } else { 0.0 };
+        TimeSlot { k0: k - 1, k1: k, w }
+    }
+
+    /// Values at a located point for a time slot; None when every side involved is empty.
+    #[inline]
+    pub fn sample_slot(&self, slot: &TimeSlot, loc: &Loc) -> Option<[f32; CHANNELS]> {
+        let a = self.block_at(slot.k0, loc.cell);
+        if slot.w == 0.0 || slot.k0 == slot.k1 {
+            return a.map(|b| self.interpolate(b, loc.local));
+        }
+        let b = self.block_at(slot.k1, loc.cell);
+        if a.is_none() && b.is_none() {
+            return None;
+        }
+        // Same block on both sides (shared, unchanged): no blend needed.
+        if a == b {
+            return a.map(|x| self.interpolate(x, loc.local));
+        }
+        let va = a.map_or_else(|| self.empty_values(), |x| self.interpolate(x, loc.local));
+        let vb = b.map_or_else(|| self.empty_values(), |x| self.interpolate(x, loc.local));
+        let w = slot.w;
+        let mut out = [0.0f32; CHANNELS];
+        for c in 0..CHANNELS {
+            out[c] = (1.0 - w) * va[c] + w * vb[c];
+        }
+        Some(out)
+    }
+
+    /// Like `sample`, at time `t` for dynamic assets: lerp of the two keyframes around t.
+    pub fn sample_at_time(&self, t: f32, g: [f32; 3]) -> Option<[f32; CHANNELS]> {
+        let loc = self.locate(g)?;
+        self.sample_slot(&self.time_slot(t), &loc)
+    }
+
+    /// Is `cell` empty at this time slot (no block on any side that contributes)?
+    #[inline]
+    pub fn cell_empty(&self, slot: &TimeSlot, cell: usize) -> bool {
+        self.block_at(slot.k0, cell).is_none()
+            && (slot.w == 0.0 || slot.k0 == slot.k1 || self.block_at(slot.k1, cell).is_none())
+    }
+}

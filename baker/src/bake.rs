@@ -1,0 +1,396 @@
+//! Field -> baked asset, SNeRG style.
+//!
+//! 1. Candidates: coarse blocks that overlap an occupied cell of the trainer's occupancy grid
+//!    (dilated by one cell, so thin surfaces on a cell border are not lost).
+//! 2. Evaluate the field on every voxel of each candidate block plus its one-voxel apron
+//!    (the apron is evaluated, not copied, so neighbouring blocks interpolate seamlessly), and
+//!    keep the block if some voxel is opaque enough to matter at the march step.
+//! 3. Visibility: a kept block must be in front of (or at) the surface some training camera
+//!    sees: its corners are depth-tested against the field's depth in (a subset of) the
+//!    training views. Blocks buried inside objects are dropped.
+//! 4. Quantize to 8 bits (density as a logit over a range fitted to the march step).
+//!
+//! Dynamic scenes: one keyframe grid per time; a block that did not change (within a small
+//! code tolerance) since the previous keyframe is shared instead of stored again.
+
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use rayon::prelude::*;
+use serde::Serialize;
+use snerf_asset::header::{DensityRange, Header, Keyframe, Kind, March, Ndc, Space};
+use snerf_asset::mlp::ViewMlp;
+use snerf_asset::quantize::{decode_voxel, encode_voxel};
+use snerf_asset::Asset;
+use snerf_data::{SceneKind, View};
+use snerf_trainer::eval::render_camera;
+use snerf_trainer::occupancy::unbounded_dt;
+use snerf_trainer::render::{values_batch, WorkspacePool};
+use snerf_trainer::space::{dot, norm, sub, Vec3};
+use snerf_trainer::train::Model;
+
+/// Sentinel of an empty indirection cell (the asset format's).
+const EMPTY: u32 = u32::MAX;
+
+#[derive(Clone, Debug)]
+pub struct BakeOptions {
+    /// Voxels per axis of the fine grid.
+    pub res: u32,
+    /// Voxels per block edge (without the apron).
+    pub block: u32,
+    /// Keyframes for dynamic scenes (ignored for static ones).
+    pub keyframes: usize,
+    /// A block is kept when some voxel's opacity over one march step reaches this.
+    pub min_alpha: f32,
+    /// Training views used for the visibility test (0: skip the test).
+    pub visibility_views: usize,
+    /// Dynamic scenes: a block is shared with the previous keyframe when no voxel's opacity
+    /// over one step moved by more than this, and no colour or feature moved by more than
+    /// this times the voxel's opacity (colour where nothing is opaque is never seen).
+    pub reuse_tolerance: f32,
+}
+
+impl Default for BakeOptions {
+    fn default() -> Self {
+        BakeOptions { res: 256, block: 8, keyframes: 12, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.03 }
+    }
+}
+
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct BakeReport {
+    pub res: u32,
+    pub block: u32,
+    pub frames: usize,
+    /// Blocks overlapping occupied space (per frame, summed).
+    pub candidate_blocks: usize,
+    /// Candidates with no voxel above `min_alpha`.
+    pub dropped_transparent: usize,
+    /// Candidates no training camera can see.
+    pub dropped_invisible: usize,
+    /// Cells that reuse the previous keyframe's block.
+    pub shared_blocks: usize,
+    pub atlas_blocks: usize,
+    pub density_range: [f32; 2],
+    pub seconds_visibility: f64,
+    pub seconds_evaluate: f64,
+    pub seconds_total: f64,
+}
+
+/// Bake a model. `views` are the training views (cameras for the visibility test); `bg` is
+/// the background colour the asset is shown over.
+pub fn bake(
+    model: &Model,
+    pool: &WorkspacePool,
+    views: &[View],
+    bg: [f32; 3],
+    opts: &BakeOptions,
+    progress: &(dyn Fn(&str, u64, u64) + Sync),
+) -> Result<(Asset, BakeReport)> {
+    let t_all = Instant::now();
+    let (res, b) = (opts.res, opts.block);
+    if !(4..=64).contains(&b) || res % b != 0 || res < b || res > 2048 {
+        bail!("--resolution {res} with --block {b}: the resolution must be a multiple of the block (4..=64), at most 2048");
+    }
+    let g = (res / b) as usize;
+    let space = &model.space;
+    let step = model.occ.step;
+    // Density range: the smallest code must be negligible over a whole ray of steps; the
+    // largest is where a single step is already opaque.
+    let logit_min = (1.0e-5f32 / step).ln();
+    let logit_max = (30.0f32 / step).ln().min(snerf_trainer::field::SIGMA_LOGIT_MAX);
+    let range = DensityRange { logit_min, logit_max };
+    let dynamic = space.dynamic;
+    let frames = if dynamic { opts.keyframes.max(2) } else { 1 };
+    let field_times: Vec<f32> = (0..frames).map(|f| if dynamic { f as f32 / (frames - 1) as f32 } else { 0.0 }).collect();
+
+    let mut report = BakeReport { res, block: b, frames, ..Default::default() };
+    report.density_range = [logit_min, logit_max];
+
+    let candidates = candidate_cells(model, g);
+    let t0 = Instant::now();
+    let visible = if opts.visibility_views > 0 {
+        visible_cells(model, pool, views, bg, opts.visibility_views, g, &candidates, progress)
+    } else {
+        candidates.clone()
+    };
+    report.seconds_visibility = t0.elapsed().as_secs_f64();
+
+    let bb = (b + 2) as usize;
+    let block_voxels = bb * bb * bb;
+    let mut atlas: Vec<u8> = Vec::new();
+    let mut grids: Vec<Vec<u32>> = Vec::with_capacity(frames);
+    let cells: Vec<usize> = (0..g * g * g).filter(|&c| candidates[c]).collect();
+    let t0 = Instant::now();
+    for (f, &tau) in field_times.iter().enumerate() {
+        report.candidate_blocks += cells.len();
+        // Evaluate candidate blocks in parallel.
+        let done = std::sync::atomic::AtomicU64::new(0);
+        let blocks: Vec<Evaluated> = cells
+            .par_iter()
+            .map(|&c| {
+                let r = pool.with(|ws| {
+                    let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+                    let mut pts = Vec::with_capacity(block_voxels);
+                    for z in 0..bb {
+                        for y in 0..bb {
+                            for x in 0..bb {
+                                let idx = [cx * b as usize + x, cy * b as usize + y, cz * b as usize + z];
+                                pts.push(idx.map(|i| -1.0 + (i as f32 - 0.5) * 2.0 / res as f32));
+                            }
+                        }
+                    }
+                    let times = vec![tau; pts.len()];
+                    let mut vals = vec![[0.0f32; 8]; pts.len()];
+                    values_batch(&model.field, &pts, &times, ws, &mut vals);
+                    // The trainer never samples cells its occupancy grid marks empty, so
+                    // whatever density the field holds there was never seen (or corrected)
+                    // by training: bake it as empty, or it shows up as floaters.
+                    for (p, v) in pts.iter().zip(vals.iter_mut()) {
+                        if model.occ.cell(p).is_some_and(|i| model.occ.occ[i] == 0) {
+                            v[0] = snerf_trainer::field::SIGMA_LOGIT_MIN;
+                        }
+                    }
+                    // keep if some interior voxel is opaque enough over one march step
+                    let mut max_alpha = 0.0f32;
+                    for z in 1..bb - 1 {
+                        for y in 1..bb - 1 {
+                            for x in 1..bb - 1 {
+                                let k = (z * bb + y) * bb + x;
+                                let delta = march_delta(space.kind, step, &pts[k], space);
+                                max_alpha = max_alpha.max(1.0 - (-vals[k][0].exp() * delta).exp());
+                            }
+                        }
+                    }
+                    if max_alpha < opts.min_alpha {
+                        return Evaluated::Transparent;
+                    }
+                    if !visible[c] {
+                        return Evaluated::Hidden;
+                    }
+                    let mut bytes = Vec::with_capacity(block_voxels * 8);
+                    for v in &vals {
+                        bytes.extend_from_slice(&encode_voxel(v[0], [v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]], &range));
+                    }
+                    Evaluated::Kept(bytes)
+                });
+                let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                if n % 64 == 0 {
+                    progress(&format!("bake frame {}/{frames}", f + 1), n, cells.len() as u64);
+                }
+                r
+            })
+            .collect();
+        let mut grid = vec![EMPTY; g * g * g];
+        let prev = grids.last();
+        for (&c, blk) in cells.iter().zip(blocks) {
+            match blk {
+                Evaluated::Transparent => report.dropped_transparent += 1,
+                Evaluated::Hidden => report.dropped_invisible += 1,
+                Evaluated::Kept(bytes) => {
+                    // share with the previous keyframe when nothing moved visibly
+                    if let Some(p) = prev.map(|p| p[c]).filter(|&p| p != EMPTY) {
+                        let old = &atlas[p as usize * bytes.len()..(p as usize + 1) * bytes.len()];
+                        let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+                        let centre = [cx, cy, cz].map(|k| -1.0 + (k as f32 + 0.5) * 2.0 / g as f32);
+                        let delta = march_delta(space.kind, step, &centre, space);
+                        if visibly_same(old, &bytes, &range, delta, opts.reuse_tolerance) {
+                            grid[c] = p;
+                            report.shared_blocks += 1;
+                            continue;
+                        }
+                    }
+                    grid[c] = (atlas.len() / bytes.len()) as u32;
+                    atlas.extend_from_slice(&bytes);
+                }
+            }
+        }
+        grids.push(grid);
+    }
+    report.seconds_evaluate = t0.elapsed().as_secs_f64();
+    let atlas_blocks = atlas.len() / (block_voxels * 8);
+    if atlas_blocks == 0 {
+        bail!("nothing to bake: no block of the field is both opaque (alpha >= {}) and visible", opts.min_alpha);
+    }
+    report.atlas_blocks = atlas_blocks;
+
+    let mut header = Header::new(kind_of(space.kind), res, b);
+    header.space = Space {
+        center: space.center,
+        rot: space.rot,
+        scale: space.scale,
+        ndc: space.ndc.map(|n| Ndc { fx: n.fx, fy: n.fy, width: n.width, height: n.height, near: n.near, xy_extent: n.xy_extent }),
+    };
+    header.atlas_blocks = atlas_blocks as u32;
+    header.density = range;
+    header.march = March { step, t_terminate: snerf_trainer::render::T_TERMINATE };
+    header.background = bg;
+    if dynamic {
+        let (lo, hi) = space.time_range;
+        header.time_range = Some([lo, hi]);
+        header.frames = Some(field_times.iter().map(|&u| Keyframe { time: lo + u * (hi - lo) }).collect());
+    }
+    let view = &model.field.layout.view;
+    let mlp = ViewMlp::from_flat(&model.field.params[view.w1..view.end])?;
+    let asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
+    asset.validate()?;
+    report.seconds_total = t_all.elapsed().as_secs_f64();
+    Ok((asset, report))
+}
+
+/// Whether two quantized blocks look the same: opacity over one step `delta` within `tol`
+/// everywhere, colours and features within `tol` wherever they are seen.
+fn visibly_same(a: &[u8], b: &[u8], range: &DensityRange, delta: f32, tol: f32) -> bool {
+    a.chunks_exact(8).zip(b.chunks_exact(8)).all(|(va, vb)| {
+        let va: &[u8; 8] = va.try_into().expect("8 channels");
+        let vb: &[u8; 8] = vb.try_into().expect("8 channels");
+        let (da, db) = (decode_voxel(va, range), decode_voxel(vb, range));
+        let alpha = |logit: f32| 1.0 - (-logit.exp() * delta).exp();
+        let (aa, ab) = (alpha(da[0]), alpha(db[0]));
+        let seen = aa.max(ab);
+        (aa - ab).abs() <= tol && (1..8).all(|c| (da[c] - db[c]).abs() * seen <= tol)
+    })
+}
+
+/// What became of one candidate block.
+enum Evaluated {
+    Transparent,
+    Hidden,
+    Kept(Vec<u8>),
+}
+
+fn kind_of(k: SceneKind) -> Kind {
+    match k {
+        SceneKind::Object => Kind::Object,
+        SceneKind::Forward => Kind::Forward,
+        SceneKind::Unbounded => Kind::Unbounded,
+    }
+}
+
+/// The march-space step length at a grid point (what σ multiplies there).
+fn march_delta(kind: SceneKind, step: f32, g: &Vec3, space: &snerf_trainer::space::SceneSpace) -> f32 {
+    match kind {
+        SceneKind::Unbounded => unbounded_dt(step, &space.grid_to_march(*g)),
+        _ => step,
+    }
+}
+
+/// Coarse cells (index (z*g + y)*g + x) overlapping an occupied occupancy cell, dilated by
+/// one occupancy cell.
+fn candidate_cells(model: &Model, g: usize) -> Vec<bool> {
+    let occ = &model.occ;
+    let r = occ.res;
+    let mut out = vec![false; g * g * g];
+    for i in 0..r * r * r {
+        if occ.occ[i] == 0 {
+            continue;
+        }
+        // occupancy index is (x*r + y)*r + z
+        let (x, y, z) = (i / (r * r), (i / r) % r, i % r);
+        let span = |k: usize| {
+            // grid extent of the dilated cell, as coarse-cell indices
+            let lo = ((k as f32 - 1.0) / r as f32 * g as f32).floor().max(0.0) as usize;
+            let hi = (((k + 2) as f32 / r as f32 * g as f32).ceil() as usize).min(g);
+            lo..hi
+        };
+        for cz in span(z) {
+            for cy in span(y) {
+                for cx in span(x) {
+                    out[(cz * g + cy) * g + cx] = true;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Candidate cells some training camera sees: a cell is visible when one of its corners or
+/// its centre projects into a view no farther from the camera than the surface the field
+/// shows there (plus half a cell), or onto a pixel the field leaves uncovered.
+#[allow(clippy::too_many_arguments)]
+fn visible_cells(
+    model: &Model,
+    pool: &WorkspacePool,
+    views: &[View],
+    bg: [f32; 3],
+    max_views: usize,
+    g: usize,
+    candidates: &[bool],
+    progress: &(dyn Fn(&str, u64, u64) + Sync),
+) -> Vec<bool> {
+    let space = &model.space;
+    let picked: Vec<&View> = if views.len() <= max_views {
+        views.iter().collect()
+    } else {
+        (0..max_views).map(|i| &views[i * views.len() / max_views]).collect()
+    };
+    let cells: Vec<usize> = (0..g * g * g).filter(|&c| candidates[c]).collect();
+    // world-space probe points of each cell: 8 corners and the centre
+    let probes: Vec<[Vec3; 9]> = cells
+        .iter()
+        .map(|&c| {
+            let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+            let at = |fx: f32, fy: f32, fz: f32| {
+                let gp = [cx as f32 + fx, cy as f32 + fy, cz as f32 + fz].map(|u| -1.0 + u * 2.0 / g as f32);
+                space.march_point_to_world(space.grid_to_march(gp))
+            };
+            let mut p = [[0.0f32; 3]; 9];
+            for k in 0..8 {
+                p[k] = at((k & 1) as f32, ((k >> 1) & 1) as f32, ((k >> 2) & 1) as f32);
+            }
+            p[8] = at(0.5, 0.5, 0.5);
+            p
+        })
+        .collect();
+    let mut seen = vec![false; cells.len()];
+    for (vi, v) in picked.iter().enumerate() {
+        progress("visibility", vi as u64, picked.len() as u64);
+        let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
+        let (w, h) = (r.width, r.height);
+        let k = &v.intrinsics;
+        let m = &v.c2w;
+        let o = [m[0][3], m[1][3], m[2][3]];
+        // distance to the surface per pixel (infinite where the field leaves it uncovered)
+        let surf: Vec<f32> = (0..w * h)
+            .into_par_iter()
+            .map(|p| {
+                if r.opacity[p] < 0.5 {
+                    return f32::INFINITY;
+                }
+                let (x, y) = (p % w, p / w);
+                match space.ray(m, k, x as f32 + 0.5, y as f32 + 0.5, v.time) {
+                    Some(ray) => norm(sub(space.march_to_world(&ray, r.depth[p]), o)),
+                    None => f32::INFINITY,
+                }
+            })
+            .collect();
+        seen.par_iter_mut().zip(&probes).for_each(|(s, pr)| {
+            if *s {
+                return;
+            }
+            let half = norm(sub(pr[0], pr[7])) * 0.5;
+            for p in pr {
+                let d = sub(*p, o);
+                let xc = dot(d, [m[0][0], m[1][0], m[2][0]]);
+                let yc = dot(d, [m[0][1], m[1][1], m[2][1]]);
+                let zc = dot(d, [m[0][2], m[1][2], m[2][2]]);
+                if zc >= -1e-6 {
+                    continue;
+                }
+                let (u, vv) = (k.cx + k.fx * xc / -zc, k.cy + k.fy * yc / zc);
+                if !(u >= 0.0 && vv >= 0.0 && u < w as f32 && vv < h as f32) {
+                    continue;
+                }
+                let px = vv as usize * w + u as usize;
+                if norm(d) <= surf[px] + half {
+                    *s = true;
+                    return;
+                }
+            }
+        });
+    }
+    let mut out = vec![false; g * g * g];
+    for (&c, s) in cells.iter().zip(seen) {
+        out[c] = s;
+    }
+    out
+}

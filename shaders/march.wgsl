@@ -1,0 +1,482 @@
+// Ray march of a baked snerf asset, one invocation per pixel. A transcription of
+// baker/asset/src/render.rs (the CPU reference renderer): same camera ray, same
+// world -> model -> march-space mapping, same sample lattice and empty-cell jumps, same
+// trilinear decode, same compositing, then the view MLP once per pixel (deferred).
+//
+// The viewer prepends the variant constants (only the variant a scene needs is built):
+//   const KIND: u32        0 object, 1 forward (NDC), 2 unbounded (MERF contraction)
+//   const DYNAMIC: bool    blend two keyframes (4D assets)
+//   const BLOCK: u32       voxels per block edge (without apron)
+//   const WG: u32          workgroup edge
+// and one atlas access snippet (atlas_load.wgsl or atlas_filter.wgsl) that defines
+//   fn atlas_interp(origin: vec3<u32>, l: vec3<f32>) -> Vals   (codes/255, not decoded)
+
+struct Params {
+    // camera: rows of c2w = [R | t]; intrinsics fx, fy, cx, cy
+    c2w0: vec4<f32>,
+    c2w1: vec4<f32>,
+    c2w2: vec4<f32>,
+    intr: vec4<f32>,
+    // width, height, x offset of this view in the output, output row stride (pixels)
+    view: vec4<u32>,
+    // model = scale * rot * (world - center)
+    rot0: vec4<f32>,
+    rot1: vec4<f32>,
+    rot2: vec4<f32>,
+    center_scale: vec4<f32>,
+    // forward only: ndc fx, fy, width, height
+    ndc0: vec4<f32>,
+    // ndc near, ndc xy_extent, march step, t_terminate
+    march: vec4<f32>,
+    // logit_min, logit_max, keyframe blend weight w, unused
+    dens: vec4<f32>,
+    background: vec4<f32>,
+    // res, grid cells per axis, atlas blocks per row (x), atlas blocks per column (y)
+    grid: vec4<u32>,
+    // grid offset of keyframe k0, of keyframe k1 (in entries), k0 == k1, unused
+    frames: vec4<u32>,
+    // 1 / atlas texture size (hardware filtering only)
+    inv_tex: vec4<f32>,
+}
+
+struct Vals {
+    a: vec4<f32>, // density, r, g, b
+    b: vec4<f32>, // features 0..3
+}
+
+struct Sample {
+    ok: bool,
+    v: Vals,
+}
+
+@group(0) @binding(0) var<uniform> P: Params;
+@group(0) @binding(1) var<storage, read> grid: array<u32>;
+@group(0) @binding(2) var<storage, read> mlp: array<f32>;
+@group(0) @binding(3) var<storage, read_write> out_rgba: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> out_depth: array<f32>;
+// bindings 5.. (atlas textures, sampler) come with the atlas snippet
+
+const EMPTY: u32 = 0xffffffffu;
+const MAX_OPTICAL_DEPTH: f32 = 80.0;
+const UNBOUNDED_NEAR: f32 = 0.02;
+const UNBOUNDED_FAR: f32 = 1000.0;
+const NDC_MIN_DZ: f32 = 1.0e-6;
+const MAX_ITERS: u32 = 1048576u;
+const PI: f32 = 3.14159265358979;
+
+// ---- compositing state (render.rs `Accum`) ----
+var<private> acc_vals: array<f32, 7>;
+var<private> acc_w: f32;
+var<private> acc_depth: f32;
+var<private> acc_optical: f32;
+var<private> acc_trans: f32;
+
+fn accum_reset() {
+    for (var c = 0u; c < 7u; c++) {
+        acc_vals[c] = 0.0;
+    }
+    acc_w = 0.0;
+    acc_depth = 0.0;
+    acc_optical = 0.0;
+    acc_trans = 1.0;
+}
+
+// -expm1(-s) for s >= 0 without cancellation for tiny s.
+fn one_minus_exp_neg(s: f32) -> f32 {
+    if (s < 1.0e-3) {
+        return s * (1.0 - s * (0.5 - s * (1.0 / 6.0)));
+    }
+    return 1.0 - exp(-s);
+}
+
+// Add one sample; true when the ray should stop.
+fn accum_add(v: Vals, delta: f32, t: f32) -> bool {
+    let sigma = exp(v.a.x);
+    let sd = min(max(sigma * delta, 0.0), MAX_OPTICAL_DEPTH);
+    let alpha = one_minus_exp_neg(sd);
+    let w = acc_trans * alpha;
+    acc_vals[0] += w * v.a.y;
+    acc_vals[1] += w * v.a.z;
+    acc_vals[2] += w * v.a.w;
+    acc_vals[3] += w * v.b.x;
+    acc_vals[4] += w * v.b.y;
+    acc_vals[5] += w * v.b.z;
+    acc_vals[6] += w * v.b.w;
+    acc_w += w;
+    acc_depth += w * t;
+    acc_optical += sd;
+    acc_trans = exp(-acc_optical);
+    return acc_trans < P.march.w;
+}
+
+// ---- atlas ----
+fn block_origin(blk: u32) -> vec3<u32> {
+    let nx = P.grid.z;
+    let ny = P.grid.w;
+    let e = BLOCK + 2u;
+    return vec3<u32>(blk % nx, (blk / nx) % ny, blk / (nx * ny)) * e;
+}
+
+// Trilinear values of one stored block, decoded (density as logit).
+fn interpolate(blk: u32, l: vec3<f32>) -> Vals {
+    let raw = atlas_interp(block_origin(blk), l);
+    var o: Vals;
+    o.a = raw.a;
+    o.a.x = P.dens.x + raw.a.x * (P.dens.y - P.dens.x);
+    o.b = raw.b;
+    return o;
+}
+
+fn empty_vals() -> Vals {
+    var o: Vals;
+    o.a = vec4<f32>(P.dens.x, 0.0, 0.0, 0.0);
+    o.b = vec4<f32>(0.0);
+    return o;
+}
+
+// sample.rs `sample_slot`: None when every side involved is empty.
+fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
+    var s: Sample;
+    let a = grid[P.frames.x + cell];
+    let w = P.dens.z;
+    if (!DYNAMIC || w == 0.0 || P.frames.z != 0u) {
+        s.ok = a != EMPTY;
+        if (s.ok) {
+            s.v = interpolate(a, l);
+        }
+        return s;
+    }
+    let b = grid[P.frames.y + cell];
+    if (a == EMPTY && b == EMPTY) {
+        s.ok = false;
+        return s;
+    }
+    s.ok = true;
+    if (a == b) {
+        s.v = interpolate(a, l);
+        return s;
+    }
+    var va = empty_vals();
+    var vb = empty_vals();
+    if (a != EMPTY) {
+        va = interpolate(a, l);
+    }
+    if (b != EMPTY) {
+        vb = interpolate(b, l);
+    }
+    s.v.a = (1.0 - w) * va.a + w * vb.a;
+    s.v.b = (1.0 - w) * va.b + w * vb.b;
+    return s;
+}
+
+struct Loc {
+    ok: bool,
+    cell: u32,
+    l: vec3<f32>,
+}
+
+// sample.rs `locate`: cell and block-local coordinate of grid point g.
+fn locate(g: vec3<f32>) -> Loc {
+    var r: Loc;
+    r.ok = false;
+    if (!(g.x >= -1.0 && g.x <= 1.0 && g.y >= -1.0 && g.y <= 1.0 && g.z >= -1.0 && g.z <= 1.0)) {
+        return r;
+    }
+    let res = P.grid.x;
+    let gd = P.grid.y;
+    let v = (g + vec3<f32>(1.0)) * 0.5 * f32(res);
+    let vi = min(vec3<u32>(v), vec3<u32>(res - 1u));
+    let c = min(vi / BLOCK, vec3<u32>(gd - 1u));
+    r.ok = true;
+    r.cell = (c.z * gd + c.y) * gd + c.x;
+    r.l = v - 0.5 - vec3<f32>(c * BLOCK) + 1.0;
+    return r;
+}
+
+// ---- geometry ----
+// NaN and ±inf both fail (no isfinite in WGSL).
+fn finite3(a: vec3<f32>) -> bool {
+    return all(abs(a) < vec3<f32>(3.0e38));
+}
+
+fn norm3(a: vec3<f32>) -> f32 {
+    return sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
+}
+
+fn normalize3(a: vec3<f32>) -> vec3<f32> {
+    let n = norm3(a);
+    if (n > 0.0) {
+        return a / n;
+    }
+    return vec3<f32>(0.0, 0.0, -1.0);
+}
+
+fn rot_vec(v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(
+        P.rot0.x * v.x + P.rot0.y * v.y + P.rot0.z * v.z,
+        P.rot1.x * v.x + P.rot1.y * v.y + P.rot1.z * v.z,
+        P.rot2.x * v.x + P.rot2.y * v.y + P.rot2.z * v.z,
+    );
+}
+
+struct Hit {
+    ok: bool,
+    t0: f32,
+    t1: f32,
+}
+
+// Slab test against [-1,1]^3 (render.rs `box_hit`, including its d == 0 handling).
+fn box_hit(o: vec3<f32>, d: vec3<f32>) -> Hit {
+    var h: Hit;
+    h.ok = false;
+    var t0 = -3.0e38;
+    var t1 = 3.0e38;
+    for (var i = 0; i < 3; i++) {
+        if (d[i] == 0.0) {
+            if (!(abs(o[i]) <= 1.0)) {
+                return h;
+            }
+            continue;
+        }
+        let inv = 1.0 / d[i];
+        let a0 = (-1.0 - o[i]) * inv;
+        let b0 = (1.0 - o[i]) * inv;
+        t0 = max(t0, min(a0, b0));
+        t1 = min(t1, max(a0, b0));
+    }
+    h.ok = t1 > max(t0, 0.0);
+    h.t0 = t0;
+    h.t1 = t1;
+    return h;
+}
+
+// Distance along the ray from grid point g to the exit of its indirection cell.
+fn cell_exit(g: vec3<f32>, gdir: vec3<f32>) -> f32 {
+    let r = f32(P.grid.y);
+    var best = 3.0e38;
+    for (var a = 0; a < 3; a++) {
+        if (gdir[a] == 0.0) {
+            continue;
+        }
+        let u = (g[a] + 1.0) * 0.5 * r;
+        let k = clamp(floor(u), 0.0, r - 1.0);
+        var bound = k;
+        if (gdir[a] > 0.0) {
+            bound = k + 1.0;
+        }
+        let s = (bound / r * 2.0 - 1.0 - g[a]) / gdir[a];
+        best = min(best, s);
+    }
+    return max(best, 0.0);
+}
+
+// Straight-line march (object, forward): samples at t_base + (i + 0.5) dt, empty cells
+// jumped to the last lattice point before their exit.
+fn march_affine(go: vec3<f32>, gdir: vec3<f32>, t_base: f32, t_end: f32, dt: f32, delta: f32, i_start: u32) {
+    var i = i_start;
+    for (var it = 0u; it < MAX_ITERS; it++) {
+        let t = t_base + (f32(i) + 0.5) * dt;
+        if (!(t < t_end)) {
+            break;
+        }
+        let g = go + t * gdir;
+        let loc = locate(g);
+        if (!loc.ok) {
+            i += 1u;
+            continue;
+        }
+        let s = sample_cell(loc.cell, loc.l);
+        if (s.ok) {
+            if (accum_add(s.v, delta, t)) {
+                break;
+            }
+            i += 1u;
+        } else {
+            let exit = t + cell_exit(g, gdir);
+            let j = floor((exit - t_base) / dt - 0.5);
+            if (j >= 4.0e9) {
+                break;
+            }
+            if (j > f32(i + 1u)) {
+                i = u32(j);
+            } else {
+                i = i + 1u;
+            }
+        }
+    }
+}
+
+fn contract(p: vec3<f32>) -> vec3<f32> {
+    let m = max(abs(p.x), max(abs(p.y), abs(p.z)));
+    if (m <= 1.0) {
+        return p;
+    }
+    var c = p / m;
+    let s = 2.0 - 1.0 / m;
+    for (var i = 0; i < 3; i++) {
+        if (abs(p[i]) == m) {
+            c[i] = s * sign(p[i]);
+        }
+    }
+    return c;
+}
+
+fn unbounded_dt(p: vec3<f32>) -> f32 {
+    let m = max(max(abs(p.x), max(abs(p.y), abs(p.z))), 1.0);
+    return min(2.0 * P.march.z * m * m, UNBOUNDED_FAR);
+}
+
+fn march_unbounded(o: vec3<f32>, d: vec3<f32>) {
+    var t = UNBOUNDED_NEAR + 0.5 * unbounded_dt(o + UNBOUNDED_NEAR * d);
+    for (var it = 0u; it < MAX_ITERS; it++) {
+        if (!(t < UNBOUNDED_FAR)) {
+            break;
+        }
+        let p = o + t * d;
+        let dt = unbounded_dt(p);
+        let c = contract(p);
+        let loc = locate(c * 0.5);
+        if (loc.ok) {
+            let s = sample_cell(loc.cell, loc.l);
+            if (s.ok) {
+                if (accum_add(s.v, dt, t)) {
+                    break;
+                }
+            }
+        }
+        t += dt;
+    }
+}
+
+fn march_forward(o_in: vec3<f32>, d: vec3<f32>) {
+    if (d.z >= -NDC_MIN_DZ) {
+        return;
+    }
+    let near = P.march.x;
+    let t = -(near + o_in.z) / d.z;
+    let o = o_in + t * d;
+    let ax = -P.ndc0.x / (P.ndc0.z * 0.5);
+    let ay = -P.ndc0.y / (P.ndc0.w * 0.5);
+    let o_ndc = vec3<f32>(ax * o.x / o.z, ay * o.y / o.z, 1.0 + 2.0 * near / o.z);
+    let d_ndc = vec3<f32>(ax * (d.x / d.z - o.x / o.z), ay * (d.y / d.z - o.y / o.z), -2.0 * near / o.z);
+    let e = P.march.y;
+    let go = vec3<f32>(o_ndc.x / e, o_ndc.y / e, o_ndc.z);
+    let gdir = vec3<f32>(d_ndc.x / e, d_ndc.y / e, d_ndc.z);
+    if (!(finite3(go) && finite3(gdir))) {
+        return;
+    }
+    let speed = norm3(gdir);
+    let dt = P.march.z / speed;
+    let delta = dt * norm3(d_ndc);
+    if (!(dt > 0.0 && dt < 3.0e38 && delta < 3.0e38)) {
+        return;
+    }
+    let h = box_hit(go, gdir);
+    if (!h.ok) {
+        return;
+    }
+    let i_start = u32(max(floor(max(h.t0, 0.0) / dt - 0.5), 0.0));
+    march_affine(go, gdir, 0.0, min(h.t1, 1.0), dt, delta, i_start);
+}
+
+// ---- deferred view MLP (mlp.rs): 34 -> 16 -> 16 -> 3, relu, relu, linear ----
+const W1: u32 = 0u;
+const B1: u32 = 544u;
+const W2: u32 = 560u;
+const B2: u32 = 816u;
+const W3: u32 = 832u;
+const B3: u32 = 880u;
+
+fn view_mlp(dir: vec3<f32>) -> vec3<f32> {
+    var x: array<f32, 34>;
+    for (var c = 0u; c < 7u; c++) {
+        x[c] = acc_vals[c];
+    }
+    x[7] = dir.x;
+    x[8] = dir.y;
+    x[9] = dir.z;
+    var k = 10u;
+    for (var o = 0u; o < 4u; o++) {
+        let f = f32(1u << o) * PI;
+        for (var a = 0; a < 3; a++) {
+            let arg = f * dir[a];
+            x[k] = sin(arg);
+            x[k + 1u] = cos(arg);
+            k += 2u;
+        }
+    }
+    var h1: array<f32, 16>;
+    for (var j = 0u; j < 16u; j++) {
+        var s = mlp[B1 + j];
+        for (var i = 0u; i < 34u; i++) {
+            s += mlp[W1 + j * 34u + i] * x[i];
+        }
+        h1[j] = max(s, 0.0);
+    }
+    var h2: array<f32, 16>;
+    for (var j = 0u; j < 16u; j++) {
+        var s = mlp[B2 + j];
+        for (var i = 0u; i < 16u; i++) {
+            s += mlp[W2 + j * 16u + i] * h1[i];
+        }
+        h2[j] = max(s, 0.0);
+    }
+    var out: vec3<f32>;
+    for (var j = 0u; j < 3u; j++) {
+        var s = mlp[B3 + j];
+        for (var i = 0u; i < 16u; i++) {
+            s += mlp[W3 + j * 16u + i] * h2[i];
+        }
+        out[j] = s;
+    }
+    return out;
+}
+
+@compute @workgroup_size(WG, WG, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = P.view.x;
+    let height = P.view.y;
+    if (gid.x >= width || gid.y >= height) {
+        return;
+    }
+    accum_reset();
+    // render.rs `camera_ray`
+    let dc = vec3<f32>(
+        (f32(gid.x) + 0.5 - P.intr.z) / P.intr.x,
+        -(f32(gid.y) + 0.5 - P.intr.w) / P.intr.y,
+        -1.0,
+    );
+    let ow = vec3<f32>(P.c2w0.w, P.c2w1.w, P.c2w2.w);
+    let dw = normalize3(normalize3(vec3<f32>(
+        P.c2w0.x * dc.x + P.c2w0.y * dc.y + P.c2w0.z * dc.z,
+        P.c2w1.x * dc.x + P.c2w1.y * dc.y + P.c2w1.z * dc.z,
+        P.c2w2.x * dc.x + P.c2w2.y * dc.y + P.c2w2.z * dc.z,
+    )));
+    // render.rs `render_ray`
+    let o = rot_vec(ow - P.center_scale.xyz) * P.center_scale.w;
+    let d = normalize3(rot_vec(dw));
+    if (KIND == 0u) {
+        let h = box_hit(o, d);
+        if (h.ok) {
+            march_affine(o, d, max(h.t0, 0.0), h.t1, P.march.z, P.march.z, 0u);
+        }
+    } else if (KIND == 1u) {
+        march_forward(o, d);
+    } else {
+        march_unbounded(o, d);
+    }
+    // render.rs `shade`
+    var spec = vec3<f32>(0.0);
+    if (acc_w > 0.0) {
+        spec = view_mlp(dw);
+    }
+    let diffuse = vec3<f32>(acc_vals[0], acc_vals[1], acc_vals[2]);
+    let rgb = clamp(diffuse + acc_w * spec + acc_trans * P.background.xyz, vec3<f32>(0.0), vec3<f32>(1.0));
+    var depth = 0.0;
+    if (acc_w > 1.0e-6) {
+        depth = acc_depth / acc_w;
+    }
+    let idx = gid.y * P.view.w + P.view.z + gid.x;
+    out_rgba[idx] = vec4<f32>(rgb, acc_w);
+    out_depth[idx] = depth;
+}

@@ -1,0 +1,356 @@
+//! `snerf stylize-image`, `snerf stylize`, `snerf consistency`: image stylizers alone, the
+//! SNeRF loop on a trained run, and the paper's consistency evaluation.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::ProgressBar;
+use serde_json::{json, Value};
+use snerf_stylize::consistency::{self, MethodScores, PathGeometry};
+use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
+use snerf_stylize::stylizer::{self, Image, StyleEmbedder, Stylizer, StylizerOptions};
+use snerf_trainer::{checkpoint, run};
+
+use crate::bake_cmd::run_dataset;
+use crate::cli::{bar, load_model, DataOpts};
+
+const STYLIZER_HELP: &str = "Stylizer: arbitrary (default; Magenta arbitrary stylization, any picture is a style), \
+preset:N (one of 26 built-in styles, N in 0..26; no style image needed), onnx:FILE (any image-to-image ONNX \
+model), gatys (the paper's VGG-16 optimization; needs --gatys-weights), color (colour-statistics transfer, no \
+model). The pretrained models come from `bash scripts/setup-models.sh` into $SNERF_MODELS.";
+
+#[derive(Args, Debug, Clone)]
+pub struct StylizerArgs {
+    #[arg(long, default_value = "arbitrary", help = STYLIZER_HELP)]
+    pub stylizer: String,
+    /// Style strength in [0,1] (arbitrary: blends the style embedding with the content's own).
+    #[arg(long, default_value_t = 1.0)]
+    pub strength: f32,
+    /// Gatys: VGG-16 weights as safetensors in torchvision's layout (features.N.weight/bias).
+    /// Get them in Python: torchvision.models.vgg16(weights="IMAGENET1K_V1").features.state_dict(),
+    /// saved with safetensors.torch.save_file.
+    #[arg(long)]
+    pub gatys_weights: Option<PathBuf>,
+    /// Gatys: optimization steps per image.
+    #[arg(long, default_value_t = 100)]
+    pub gatys_steps: usize,
+    /// Model directory (default $SNERF_MODELS or ~/.cache/snerf/models).
+    #[arg(long)]
+    pub models: Option<PathBuf>,
+}
+
+impl StylizerArgs {
+    pub fn options(&self) -> StylizerOptions {
+        StylizerOptions {
+            strength: self.strength.clamp(0.0, 1.0),
+            models_dir: self.models.clone(),
+            gatys_weights: self.gatys_weights.clone(),
+            gatys_steps: self.gatys_steps,
+            ..StylizerOptions::default()
+        }
+    }
+
+    /// The stylizer, with its style image (None for presets).
+    pub fn build(&self, style: Option<&Path>) -> Result<Box<dyn Stylizer>> {
+        let needs_style = !self.stylizer.starts_with("preset:") && !self.stylizer.starts_with("onnx:");
+        if needs_style && style.is_none() {
+            bail!("--stylizer {} needs --style IMAGE", self.stylizer);
+        }
+        stylizer::from_spec(&self.stylizer, style, &self.options())
+    }
+
+    /// The style-embedding model, when installed (style distances need it).
+    pub fn embedder(&self) -> Option<StyleEmbedder> {
+        StyleEmbedder::new(&self.options()).ok()
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct StylizeImageArgs {
+    /// The content image (PNG or JPEG).
+    pub content: PathBuf,
+    /// The style image.
+    #[arg(long)]
+    pub style: Option<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub s: StylizerArgs,
+}
+
+pub fn read_image(path: &Path) -> Result<Image> {
+    let img = image::open(path).with_context(|| format!("{}: cannot read image", path.display()))?.to_rgb32f();
+    Ok(Image { width: img.width() as usize, height: img.height() as usize, data: img.into_raw() })
+}
+
+pub fn to_rgb8(img: &Image) -> image::RgbImage {
+    let bytes = img.data.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
+    image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).expect("image size")
+}
+
+pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
+    let content = read_image(&a.content)?;
+    let t0 = Instant::now();
+    let s = a.s.build(a.style.as_deref())?;
+    let load = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let out = snerf_loop::stylize_at(s.as_ref(), &content, 0)?;
+    let secs = t1.elapsed().as_secs_f64();
+    checkpoint::write_png_atomic(&a.out, &to_rgb8(&out))?;
+    eprintln!("{} -> {} with {} ({:.2} s; model load {:.2} s)", a.content.display(), a.out.display(), s.name(), secs, load);
+    Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": a.out, "seconds": secs, "load_seconds": load }))
+}
+
+#[derive(Args, Debug)]
+pub struct StylizeArgs {
+    /// A trained (realistic) run directory.
+    pub run: PathBuf,
+    /// The style image.
+    #[arg(long)]
+    pub style: Option<PathBuf>,
+    /// The stylized run directory (resumes when it holds a run with the same options).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// The run's dataset (default: the one recorded in RUN/config.json).
+    #[arg(long)]
+    pub data: Option<PathBuf>,
+    /// Rounds of render -> stylize -> train (the paper uses 5; 1 is the one-shot baseline).
+    #[arg(long, default_value_t = 5)]
+    pub rounds: usize,
+    /// Training steps per round.
+    #[arg(long, default_value_t = 300)]
+    pub steps_per_round: u64,
+    /// Longer side of the images handed to the stylizer (0: the training resolution).
+    #[arg(long, default_value_t = 0)]
+    pub style_res: usize,
+    /// Use this many training views, evenly spaced (0: all).
+    #[arg(long, default_value_t = 0)]
+    pub views: usize,
+    /// Freeze density and the shared layers; stylize colour only (the paper's ablation).
+    #[arg(long)]
+    pub appearance_only: bool,
+    /// Frames of the novel path for the per-round consistency measurement (0: skip).
+    #[arg(long, default_value_t = 16)]
+    pub consistency_frames: usize,
+    #[command(flatten)]
+    pub s: StylizerArgs,
+    #[command(flatten)]
+    pub opts: DataOpts,
+}
+
+/// Progress bars for the rounds.
+struct Bars {
+    pb: ProgressBar,
+    quiet: bool,
+}
+
+impl Progress for Bars {
+    fn phase(&mut self, round: usize, rounds: usize, phase: &str, total: u64) {
+        self.pb.set_length(total);
+        self.pb.set_position(0);
+        self.pb.set_prefix(format!("round {round}/{rounds} {phase:<8}"));
+    }
+    fn tick(&mut self, done: u64, message: &str) {
+        self.pb.set_position(done);
+        if !message.is_empty() {
+            self.pb.set_message(message.to_string());
+        }
+    }
+    fn round_done(&mut self, r: &RoundRecord) {
+        if !self.quiet {
+            self.pb.println(format!(
+                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {}, consistency short {} long {}",
+                r.round,
+                r.wall_seconds,
+                r.render_seconds,
+                r.stylize_seconds,
+                r.train_seconds,
+                r.fit_psnr,
+                fmt_opt(r.style_distance, 3),
+                fmt_opt(r.short_range, 5),
+                fmt_opt(r.long_range, 5)
+            ));
+        }
+    }
+}
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    v.map(|x| format!("{x:.digits$}")).unwrap_or_else(|| "n/a".into())
+}
+
+pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
+    let data_path = match &a.data {
+        Some(d) => d.clone(),
+        None => run_dataset(&a.run)?,
+    };
+    let data = a.opts.load(&data_path)?;
+    let ck_path = run::checkpoint_path(&a.run);
+    if !ck_path.exists() {
+        bail!("{}: no checkpoint here; run `snerf train` first", a.run.display());
+    }
+    let source = checkpoint::load(&ck_path)?;
+    let stylizer = a.s.build(a.style.as_deref())?;
+    let style_img = match &a.style {
+        Some(p) => stylizer::load_style_image(p)?,
+        None => Image { width: 1, height: 1, data: vec![0.5; 3] },
+    };
+    let embedder = a.style.as_ref().and_then(|_| a.s.embedder());
+    let opts = StylizeOptions {
+        source_run: absolute(&a.run),
+        data: absolute(&data_path),
+        style: a.style.as_deref().map(absolute).unwrap_or_default(),
+        stylizer: a.s.stylizer.clone(),
+        strength: a.s.strength,
+        rounds: a.rounds.max(1),
+        steps_per_round: a.steps_per_round.max(1),
+        style_res: a.style_res,
+        views: a.views,
+        appearance_only: a.appearance_only,
+        consistency_frames: a.consistency_frames,
+    };
+    let wall = Instant::now();
+    let mut bars = Bars { pb: bar(1, "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}"), quiet };
+    let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), embedder.as_ref(), &style_img, &a.out, &mut bars)?;
+    bars.pb.finish_and_clear();
+    if !quiet {
+        eprintln!("stylized run in {} ({} rounds, {:.0} s); per-round images in {}", a.out.display(), state.rounds_done, wall.elapsed().as_secs_f64(), a.out.join("rounds").display());
+    }
+    Ok(json!({ "command": "stylize", "out": a.out, "state": state, "wall_seconds": wall.elapsed().as_secs_f64() }))
+}
+
+fn absolute(p: &Path) -> PathBuf {
+    std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+#[derive(Args, Debug)]
+pub struct ConsistencyArgs {
+    /// A stylized run (from `snerf stylize`).
+    pub srun: PathBuf,
+    /// The dataset (default: the stylized run's).
+    pub data: Option<PathBuf>,
+    /// A one-round stylized run to compare against (`snerf stylize --rounds 1`).
+    #[arg(long)]
+    pub one_round: Option<PathBuf>,
+    /// Frames of the novel path.
+    #[arg(long, default_value_t = 24)]
+    pub frames: usize,
+    /// Where to write consistency.json, consistency.md and consistency.png (default: SRUN).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    #[command(flatten)]
+    pub opts: DataOpts,
+}
+
+pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
+    let t0 = Instant::now();
+    let st_path = snerf_loop::state_path(&a.srun);
+    let state: snerf_loop::StylizeState = serde_json::from_slice(
+        &std::fs::read(&st_path).with_context(|| format!("{}: not a stylized run (no {})", a.srun.display(), snerf_loop::STATE_FILE))?,
+    )
+    .with_context(|| format!("{}: unreadable", st_path.display()))?;
+    let o = &state.options;
+    let data = a.opts.load(a.data.as_ref().unwrap_or(&o.data))?;
+    let (realistic, pool) = load_model(&o.source_run)?;
+    let (stylized, spool) = load_model(&a.srun)?;
+    let sargs = StylizerArgs {
+        stylizer: o.stylizer.clone(),
+        strength: o.strength,
+        gatys_weights: None,
+        gatys_steps: 100,
+        models: None,
+    };
+    let has_style = !o.style.as_os_str().is_empty();
+    let style_path = has_style.then_some(o.style.as_path());
+    let stylizer = sargs.build(style_path)?;
+    let embedder = if has_style { sargs.embedder() } else { None };
+    let style_img = style_path.map(stylizer::load_style_image).transpose()?;
+    let style_emb = match (&embedder, &style_img) {
+        (Some(e), Some(s)) => Some(e.embed(s)?),
+        _ => None,
+    };
+    let style_ref = embedder.as_ref().zip(style_emb.as_deref());
+
+    let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
+    pb.set_message("realistic geometry");
+    let path = PathGeometry::new(&realistic, &pool, &data, a.frames)?;
+    pb.inc(1);
+    pb.set_message("per-frame baseline");
+    let mut per_frame = Vec::with_capacity(path.realistic.len());
+    for f in &path.realistic {
+        per_frame.push(snerf_loop::stylize_at(stylizer.as_ref(), f, o.style_res)?);
+    }
+    pb.inc(1);
+    pb.set_message("SNeRF");
+    let snerf_frames = path.render(&stylized, &spool);
+    pb.inc(1);
+    let mut methods = vec![
+        MethodScores::of("Per-frame image stylization", &path, &per_frame, style_ref)?,
+    ];
+    let mut one_round_frames = None;
+    if let Some(r1) = &a.one_round {
+        let (m1, p1) = load_model(r1)?;
+        let frames = path.render(&m1, &p1);
+        methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, style_ref)?);
+        one_round_frames = Some(frames);
+    }
+    methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, style_ref)?);
+    pb.inc(1);
+    pb.finish_and_clear();
+
+    let out = a.out.clone().unwrap_or_else(|| a.srun.clone());
+    std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let table = consistency::markdown_table(&methods);
+    let pf = &methods[0];
+    let sn = methods.last().unwrap();
+    let ratios = json!({
+        "short_range": sn.short_range / pf.short_range,
+        "long_range": sn.long_range / pf.long_range,
+        "style_distance": sn.style_distance.zip(pf.style_distance).map(|(a, b)| a / b),
+    });
+    // contact sheet: style | realistic | per-frame | (1 round) | SNeRF, for two frames far apart
+    let far = (a.frames - 1).min(7.max(a.frames / 2));
+    let blank = Image { width: 1, height: 1, data: vec![1.0; 3] };
+    let style_tile = style_img.as_ref().unwrap_or(&blank);
+    let mut rows = Vec::new();
+    for &i in &[0usize, far] {
+        let mut row: Vec<&Image> = vec![style_tile, &path.realistic[i], &per_frame[i]];
+        if let Some(f) = &one_round_frames {
+            row.push(&f[i]);
+        }
+        row.push(&snerf_frames[i]);
+        rows.push(row);
+    }
+    checkpoint::write_png_atomic(&out.join("consistency.png"), &consistency::grid_image(&rows))?;
+    let md = format!(
+        "# Cross-view consistency\n\nStylizer `{}`, style `{}`; {}; warped-frame MSE (RGB in [0,1]) over covered, \
+         non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
+         SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×.\n\nContact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
+        o.stylizer,
+        o.style.display(),
+        consistency::path_description(data.kind, a.frames),
+        100.0 * path.coverage(),
+        table,
+        sn.short_range / pf.short_range,
+        sn.long_range / pf.long_range,
+        if one_round_frames.is_some() { " | 1 round" } else { "" },
+    );
+    std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
+    let v = json!({
+        "command": "consistency",
+        "srun": a.srun,
+        "frames": a.frames,
+        "coverage": path.coverage(),
+        "methods": methods,
+        "snerf_over_per_frame": ratios,
+        "rounds": state.records,
+        "seconds": t0.elapsed().as_secs_f64(),
+        "table": table,
+    });
+    checkpoint::write_json_atomic(&out.join("consistency.json"), &v)?;
+    if !quiet {
+        eprintln!("{md}");
+    }
+    Ok(v)
+}

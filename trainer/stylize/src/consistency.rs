@@ -1,0 +1,242 @@
+//! Cross-view consistency as the SNeRF paper measures it (Sec. 5, Tables 1–2): render a novel
+//! camera path; for frame pairs (i, i+1) (short range) and (i, i+7) (long range) warp
+//! stylized frame i into frame j with the correspondence obtained by reprojecting the
+//! *realistic* field's depth, drop occluded and uncovered pixels, and report the mean squared
+//! RGB error (colours in [0,1]) over what is left. The same geometry scores every method, so
+//! the numbers compare stylizations, not depth estimates.
+//!
+//! Consistency alone can be bought by washing the style out, so a style distance comes with
+//! it: the distance between Magenta style embeddings of the frames and of the style image.
+
+use anyhow::Result;
+use serde::Serialize;
+use snerf_data::{Dataset, Intrinsics, SceneKind};
+use snerf_trainer::camera_path::orbit;
+use snerf_trainer::eval::{eval_background, render_camera};
+use snerf_trainer::render::WorkspacePool;
+use snerf_trainer::space::{dot, norm, sub, Vec3};
+use snerf_trainer::train::{views_have_alpha, Model};
+
+use crate::stylizer::{Image, StyleEmbedder};
+
+/// Cameras per full circle of the novel path: 5° apart on an orbit, so (i, i+1) is a small
+/// motion and (i, i+7) a large one, as in the paper's test trajectories.
+pub const PATH_STEPS_PER_TURN: usize = 72;
+/// A pixel counts as covered by the scene above this realistic opacity.
+const COVERED: f32 = 0.5;
+/// Relative depth tolerance of the occlusion test.
+const OCCLUSION_TOL: f32 = 0.03;
+
+/// The novel path and the realistic field's geometry along it.
+pub struct PathGeometry {
+    pub cams: Vec<[[f32; 4]; 3]>,
+    pub intr: Intrinsics,
+    pub time: Option<f32>,
+    pub bg: Vec3,
+    /// Realistic renders of the path (the per-frame baseline stylizes these).
+    pub realistic: Vec<Image>,
+    /// World point seen at each pixel (None where the scene does not cover the pixel).
+    points: Vec<Vec<Option<Vec3>>>,
+}
+
+impl PathGeometry {
+    pub fn new(realistic: &Model, pool: &WorkspacePool, data: &Dataset, frames: usize) -> Result<PathGeometry> {
+        anyhow::ensure!(frames >= 2, "a consistency path needs at least 2 frames");
+        let turn = PATH_STEPS_PER_TURN.max(frames);
+        let cams: Vec<_> = orbit(&realistic.space, &data.train, turn).into_iter().take(frames).collect();
+        let mut intr = data.test.first().unwrap_or(&data.train[0]).intrinsics;
+        intr.distortion = [0.0; 4];
+        // Dynamic scenes: the path holds time still (mid-sequence), so reprojection is exact.
+        let time = data.dynamic.then_some(0.5);
+        let bg = eval_background(views_have_alpha(&data.train));
+        let mut images = Vec::with_capacity(frames);
+        let mut points = Vec::with_capacity(frames);
+        for c2w in &cams {
+            let r = render_camera(realistic, pool, c2w, &intr, time, bg);
+            let (w, h) = (r.width, r.height);
+            let mut pts = vec![None; w * h];
+            for (p, slot) in pts.iter_mut().enumerate() {
+                if r.opacity[p] <= COVERED {
+                    continue;
+                }
+                let (x, y) = (p % w, p / w);
+                if let Some(ray) = realistic.space.ray(c2w, &intr, x as f32 + 0.5, y as f32 + 0.5, time) {
+                    let wp = realistic.space.march_to_world(&ray, r.depth[p]);
+                    if wp.iter().all(|v| v.is_finite()) {
+                        *slot = Some(wp);
+                    }
+                }
+            }
+            images.push(Image { width: w, height: h, data: r.rgb });
+            points.push(pts);
+        }
+        Ok(PathGeometry { cams, intr, time, bg, realistic: images, points })
+    }
+
+    /// Render the path from another (e.g. stylized) model.
+    pub fn render(&self, model: &Model, pool: &WorkspacePool) -> Vec<Image> {
+        self.cams
+            .iter()
+            .map(|c2w| {
+                let r = render_camera(model, pool, c2w, &self.intr, self.time, self.bg);
+                Image { width: r.width, height: r.height, data: r.rgb }
+            })
+            .collect()
+    }
+
+    /// Project a world point into camera `i`: continuous pixel coordinates (pixel x spans
+    /// [x, x+1)) and the distance from the camera centre; None behind the camera.
+    fn project(&self, i: usize, p: Vec3) -> Option<(f32, f32, f32)> {
+        let m = &self.cams[i];
+        let o = [m[0][3], m[1][3], m[2][3]];
+        let d = sub(p, o);
+        // camera axes are the columns of the rotation
+        let xc = dot(d, [m[0][0], m[1][0], m[2][0]]);
+        let yc = dot(d, [m[0][1], m[1][1], m[2][1]]);
+        let zc = dot(d, [m[0][2], m[1][2], m[2][2]]);
+        if zc >= -1e-6 {
+            return None;
+        }
+        let k = &self.intr;
+        Some((k.cx + k.fx * xc / -zc, k.cy + k.fy * -yc / -zc, norm(d)))
+    }
+
+    /// Mean squared error between frame j = i + gap and frame i warped into it, over all
+    /// pairs and all covered, non-occluded pixels. NaN if no pixel qualifies.
+    pub fn warp_error(&self, frames: &[Image], gap: usize) -> f64 {
+        let (w, h) = (self.intr.width as usize, self.intr.height as usize);
+        let (mut sum, mut count) = (0.0f64, 0u64);
+        for i in 0..frames.len().saturating_sub(gap) {
+            let j = i + gap;
+            let o_i = [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]];
+            for (p, pt) in self.points[j].iter().enumerate() {
+                let Some(x) = pt else { continue };
+                let Some((u, v, dist)) = self.project(i, *x) else { continue };
+                if !(u >= 0.5 && v >= 0.5 && u <= w as f32 - 0.5 && v <= h as f32 - 0.5) {
+                    continue;
+                }
+                // occlusion: frame i must see (about) the same point at that pixel
+                let q = (v as usize).min(h - 1) * w + (u as usize).min(w - 1);
+                let Some(seen) = self.points[i][q] else { continue };
+                if (norm(sub(seen, o_i)) - dist).abs() > OCCLUSION_TOL * dist {
+                    continue;
+                }
+                let warped = bilinear(&frames[i], u - 0.5, v - 0.5);
+                let target = &frames[j].data[p * 3..p * 3 + 3];
+                sum += (0..3).map(|c| ((warped[c] - target[c]) as f64).powi(2)).sum::<f64>() / 3.0;
+                count += 1;
+            }
+        }
+        if count == 0 {
+            f64::NAN
+        } else {
+            sum / count as f64
+        }
+    }
+
+    /// Fraction of pixels of frame j that had a valid correspondence (for the report).
+    pub fn coverage(&self) -> f64 {
+        let covered: usize = self.points.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
+        covered as f64 / self.points.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
+    }
+}
+
+/// Bilinear sample at continuous index coordinates (pixel centres at integers).
+fn bilinear(img: &Image, x: f32, y: f32) -> [f32; 3] {
+    let x0 = (x.floor() as usize).min(img.width - 1);
+    let y0 = (y.floor() as usize).min(img.height - 1);
+    let x1 = (x0 + 1).min(img.width - 1);
+    let y1 = (y0 + 1).min(img.height - 1);
+    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+    let px = |xx: usize, yy: usize| &img.data[(yy * img.width + xx) * 3..(yy * img.width + xx) * 3 + 3];
+    [0, 1, 2].map(|c| {
+        let a = px(x0, y0)[c] * (1.0 - fx) + px(x1, y0)[c] * fx;
+        let b = px(x0, y1)[c] * (1.0 - fx) + px(x1, y1)[c] * fx;
+        a * (1.0 - fy) + b * fy
+    })
+}
+
+pub fn embedding_distance(a: &[f32], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>().sqrt()
+}
+
+/// Mean style distance of up to 4 evenly spaced frames.
+pub fn style_distance_frames(embedder: &StyleEmbedder, frames: &[Image], style_embedding: &[f32]) -> Result<f64> {
+    let n = frames.len().min(4);
+    let mut sum = 0.0;
+    for k in 0..n {
+        let f = &frames[k * frames.len() / n];
+        sum += embedding_distance(&embedder.embed(f)?, style_embedding);
+    }
+    Ok(sum / n.max(1) as f64)
+}
+
+/// The scores of one method.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodScores {
+    pub method: String,
+    pub short_range: f64,
+    pub long_range: f64,
+    pub style_distance: Option<f64>,
+}
+
+impl MethodScores {
+    pub fn of(method: &str, path: &PathGeometry, frames: &[Image], style: Option<(&StyleEmbedder, &[f32])>) -> Result<MethodScores> {
+        Ok(MethodScores {
+            method: method.to_string(),
+            short_range: path.warp_error(frames, 1),
+            long_range: path.warp_error(frames, 7),
+            style_distance: style.map(|(e, s)| style_distance_frames(e, frames, s)).transpose()?,
+        })
+    }
+}
+
+/// Markdown table in the layout of the paper's Tables 1 and 2.
+pub fn markdown_table(methods: &[MethodScores]) -> String {
+    let mut s = String::from("| Method | Short-range error ↓ | Long-range error ↓ | Style distance ↓ |\n|---|---:|---:|---:|\n");
+    for m in methods {
+        s += &format!(
+            "| {} | {:.5} | {:.5} | {} |\n",
+            m.method,
+            m.short_range,
+            m.long_range,
+            m.style_distance.map(|d| format!("{d:.3}")).unwrap_or_else(|| "n/a".into())
+        );
+    }
+    s
+}
+
+/// Tile images into rows (each resized to the first image's size).
+pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
+    let first = rows.iter().flat_map(|r| r.first()).next();
+    let (tw, th) = first.map(|i| (i.width, i.height)).unwrap_or((1, 1));
+    let cols = rows.iter().map(|r| r.len()).max().unwrap_or(1).max(1);
+    let mut out = image::RgbImage::from_pixel((tw * cols) as u32, (th * rows.len().max(1)) as u32, image::Rgb([255, 255, 255]));
+    for (ri, row) in rows.iter().enumerate() {
+        for (ci, img) in row.iter().enumerate() {
+            let tile = if img.width == tw && img.height == th {
+                (*img).clone()
+            } else {
+                crate::snerf_loop::resize(img, tw, th)
+            };
+            for y in 0..th {
+                for x in 0..tw {
+                    let p = &tile.data[(y * tw + x) * 3..(y * tw + x) * 3 + 3];
+                    let px = image::Rgb(
+                        [0, 1, 2].map(|c| (p[c].clamp(0.0, 1.0) * 255.0).round() as u8),
+                    );
+                    out.put_pixel((ci * tw + x) as u32, (ri * th + y) as u32, px);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Paths that suit a scene kind need nothing special today; kept as a hook for the report.
+pub fn path_description(kind: SceneKind, frames: usize) -> String {
+    match kind {
+        SceneKind::Forward => format!("{frames} frames on a circle in front of the mean camera, 5° steps"),
+        _ => format!("{frames} frames on an orbit around the scene, 5° apart"),
+    }
+}

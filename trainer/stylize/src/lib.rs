@@ -1,0 +1,15 @@
+//! snerf-stylize: image stylizers behind one trait, and the SNeRF loop that uses them.
+//!
+//! - `stylizer`: `Stylizer::stylize(content) -> stylized` for `arbitrary`, `preset:N`,
+//!   `onnx:FILE`, `gatys`, `color`; model files, style images, style embeddings.
+//! - `snerf_loop`: Algorithm 1 of SNeRF — render the training views from the field, stylize
+//!   each, train the field on random rays across them, repeat; every round checkpointed.
+//! - `consistency`: the paper's cross-view consistency (warped-frame error, short and long
+//!   range) and style distance, for SNeRF and the per-frame baseline.
+//!
+//! The stylizer and the field never hold the machine at once: a round renders, then
+//! stylizes, then trains, each phase with every core.
+
+pub mod consistency;
+pub mod snerf_loop;
+pub mod stylizer;

@@ -1,0 +1,323 @@
+//! Algorithm 1 of SNeRF: starting from a field trained on realistic views, repeat T rounds of
+//! (1) render every training view from the current field, (2) stylize each render on its own
+//! with an image stylizer, (3) train the field on random rays across the stylized views.
+//! Because each render comes from a field that was already pulled towards one consistent
+//! style, the stylized views agree with one another more every round.
+//!
+//! A stylization run lives in its own directory (`SRUN`): `checkpoint.snerfck` (the field,
+//! loadable by every command that takes a run), `stylize.json` (options, the source run, and
+//! one record per finished round: wall time, fit, style distance, consistency) and
+//! `rounds/round_N.png` (renders beside their stylized targets). Both files are replaced
+//! atomically after each round, so a killed run resumes at its last finished round.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+use snerf_data::{Dataset, View};
+use snerf_trainer::checkpoint;
+use snerf_trainer::eval::{eval_background, render_camera};
+use snerf_trainer::render::WorkspacePool;
+use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
+
+use crate::consistency::{self, PathGeometry};
+use crate::stylizer::{Image, StyleEmbedder, Stylizer};
+
+pub const STATE_FILE: &str = "stylize.json";
+
+/// What a stylization run was asked to do (fixed for the life of the run directory).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StylizeOptions {
+    /// The realistic run this one starts from.
+    pub source_run: PathBuf,
+    pub data: PathBuf,
+    pub style: PathBuf,
+    pub stylizer: String,
+    pub strength: f32,
+    pub rounds: usize,
+    pub steps_per_round: u64,
+    /// Longer side of the image handed to the stylizer (0: the training resolution).
+    pub style_res: usize,
+    /// Train on this many training views, evenly spaced (0: all of them).
+    pub views: usize,
+    pub appearance_only: bool,
+    /// Frames of the novel path used for the per-round consistency measurement (0: skip).
+    pub consistency_frames: usize,
+}
+
+/// One finished round: the users' "error against run time".
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct RoundRecord {
+    pub round: usize,
+    /// Wall seconds since the run started (summed over resumes).
+    pub wall_seconds: f64,
+    pub render_seconds: f64,
+    pub stylize_seconds: f64,
+    pub train_seconds: f64,
+    /// PSNR of the field against this round's stylized targets (training rays).
+    pub fit_psnr: f64,
+    /// Distance of the field's renders to the style (Magenta style embeddings); lower = more
+    /// stylized. None when the embedding model is not installed.
+    pub style_distance: Option<f64>,
+    /// Warped-frame MSE along the novel path, frames (i, i+1) and (i, i+7).
+    pub short_range: Option<f64>,
+    pub long_range: Option<f64>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct StylizeState {
+    pub options: StylizeOptions,
+    pub rounds_done: usize,
+    pub records: Vec<RoundRecord>,
+}
+
+pub fn state_path(dir: &Path) -> PathBuf {
+    dir.join(STATE_FILE)
+}
+
+/// Progress callbacks, so the command line can draw bars without this crate knowing how.
+pub trait Progress {
+    fn phase(&mut self, round: usize, rounds: usize, phase: &str, total: u64);
+    fn tick(&mut self, done: u64, message: &str);
+    fn round_done(&mut self, record: &RoundRecord);
+}
+
+/// A progress sink that says nothing (tests).
+pub struct Quiet;
+impl Progress for Quiet {
+    fn phase(&mut self, _: usize, _: usize, _: &str, _: u64) {}
+    fn tick(&mut self, _: u64, _: &str) {}
+    fn round_done(&mut self, _: &RoundRecord) {}
+}
+
+/// Training views the rounds use: all, or `n` evenly spaced.
+pub fn pick_views(views: &[View], n: usize) -> Vec<View> {
+    if n == 0 || n >= views.len() {
+        return views.to_vec();
+    }
+    (0..n).map(|i| views[i * views.len() / n].clone()).collect()
+}
+
+/// Start or resume a stylization run in `out`. `source` is the realistic model.
+#[allow(clippy::too_many_arguments)]
+pub fn run(
+    opts: &StylizeOptions,
+    data: &Dataset,
+    source: &snerf_trainer::checkpoint::Checkpoint,
+    stylizer: &dyn Stylizer,
+    embedder: Option<&StyleEmbedder>,
+    style: &Image,
+    out: &Path,
+    progress: &mut dyn Progress,
+) -> Result<StylizeState> {
+    std::fs::create_dir_all(out.join("rounds")).with_context(|| format!("{}: cannot create", out.display()))?;
+    let ck_path = out.join(checkpoint::FILE_NAME);
+    // Resume when the directory holds a run with the same options.
+    let (mut state, mut trainer) = match std::fs::read(state_path(out)) {
+        Ok(bytes) => {
+            let state: StylizeState = serde_json::from_slice(&bytes)
+                .with_context(|| format!("{}: not a stylization state file", state_path(out).display()))?;
+            if state.options != *opts {
+                bail!(
+                    "{}: holds a stylization run with other options (style {}, stylizer {}, {} rounds); \
+                     choose another --out or repeat the same options to resume",
+                    out.display(),
+                    state.options.style.display(),
+                    state.options.stylizer,
+                    state.options.rounds
+                );
+            }
+            let ck = if state.rounds_done > 0 { checkpoint::load(&ck_path)? } else { source.clone() };
+            let t = trainer_from(ck, data, opts)?;
+            (state, t)
+        }
+        Err(_) => {
+            let state = StylizeState { options: opts.clone(), rounds_done: 0, records: Vec::new() };
+            (state, trainer_from(source.clone(), data, opts)?)
+        }
+    };
+    let realistic = Model { space: source.model.space.clone(), field: source.model.field.clone(), occ: source.model.occ.clone() };
+    let realistic_pool = WorkspacePool::new(realistic.field.params.len());
+    let views = pick_views(&data.train, opts.views);
+    let has_alpha = views_have_alpha(&data.train);
+    let bg = eval_background(has_alpha);
+    let style_embedding = embedder.map(|e| e.embed(style)).transpose()?;
+    // The geometry of the novel path comes from the realistic field, once.
+    let path = if opts.consistency_frames > 1 {
+        Some(PathGeometry::new(&realistic, &realistic_pool, data, opts.consistency_frames)?)
+    } else {
+        None
+    };
+    let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
+    for round in state.rounds_done..opts.rounds {
+        let t_round = Instant::now();
+        // (1) render the training views from the current field
+        progress.phase(round + 1, opts.rounds, "render", views.len() as u64);
+        let t0 = Instant::now();
+        let mut renders = Vec::with_capacity(views.len());
+        for (i, v) in views.iter().enumerate() {
+            let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
+            renders.push(Image { width: r.width, height: r.height, data: r.rgb });
+            progress.tick(i as u64 + 1, "");
+        }
+        let render_seconds = t0.elapsed().as_secs_f64();
+        // (2) stylize each render independently
+        progress.phase(round + 1, opts.rounds, "stylize", views.len() as u64);
+        let t0 = Instant::now();
+        let mut stylized = Vec::with_capacity(views.len());
+        for (i, r) in renders.iter().enumerate() {
+            let s = stylize_at(stylizer, r, opts.style_res)
+                .with_context(|| format!("round {}: stylizing training view {}", round + 1, views[i].path.display()))?;
+            stylized.push(s);
+            progress.tick(i as u64 + 1, "");
+        }
+        let stylize_seconds = t0.elapsed().as_secs_f64();
+        write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized)?;
+        // (3) train on random rays across the stylized views
+        let targets: Vec<View> = views.iter().zip(&stylized).map(|(v, s)| stylized_view(v, s)).collect();
+        trainer.set_views(targets)?;
+        progress.phase(round + 1, opts.rounds, "train", opts.steps_per_round);
+        let t0 = Instant::now();
+        let mut loss_ema: Option<f64> = None;
+        for s in 0..opts.steps_per_round {
+            let st = trainer.step(s as f64 / opts.steps_per_round.max(1) as f64);
+            let l = loss_ema.map(|l| 0.9 * l + 0.1 * st.loss).unwrap_or(st.loss);
+            loss_ema = Some(l);
+            if s % 5 == 0 || s + 1 == opts.steps_per_round {
+                progress.tick(s + 1, &format!("fit {:.2} dB", mse_to_psnr(l)));
+            }
+        }
+        let train_seconds = t0.elapsed().as_secs_f64();
+        // measure (not counted as round time)
+        wall += t_round.elapsed().as_secs_f64();
+        progress.phase(round + 1, opts.rounds, "measure", 1);
+        let style = embedder.zip(style_embedding.as_deref());
+        let (style_distance, short_range, long_range) = match &path {
+            Some(p) => {
+                let frames = p.render(&trainer.model, &trainer.pool);
+                let d = style.map(|(e, s)| consistency::style_distance_frames(e, &frames, s)).transpose()?;
+                (d, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)))
+            }
+            None => {
+                let d = style.map(|(e, s)| style_distance_of(&trainer.model, &trainer.pool, data, bg, e, s)).transpose()?;
+                (d, None, None)
+            }
+        };
+        let record = RoundRecord {
+            round: round + 1,
+            wall_seconds: wall,
+            render_seconds,
+            stylize_seconds,
+            train_seconds,
+            fit_psnr: mse_to_psnr(loss_ema.unwrap_or(1.0)),
+            style_distance,
+            short_range,
+            long_range,
+        };
+        progress.round_done(&record);
+        state.records.push(record);
+        state.rounds_done = round + 1;
+        // The checkpoint goes first: a kill between the two writes leaves the state one round
+        // behind a newer field, and the resumed run repeats that round from it (harmless);
+        // the other order could claim a round whose field was never saved.
+        checkpoint::save(&trainer, &ck_path)?;
+        checkpoint::write_json_atomic(&state_path(out), &state)?;
+    }
+    Ok(state)
+}
+
+/// A trainer on the source field with the rounds' settings; the optimizer starts afresh
+/// (its moments belong to the realistic targets).
+fn trainer_from(ck: snerf_trainer::checkpoint::Checkpoint, data: &Dataset, opts: &StylizeOptions) -> Result<Trainer> {
+    let mut cfg = ck.cfg.clone();
+    cfg.freeze_geometry = opts.appearance_only;
+    let adam = snerf_trainer::adam::Adam::new(ck.model.field.params.len());
+    let mut t = Trainer::from_parts(data, cfg, ck.model, adam)?;
+    t.step = ck.step;
+    t.train_seconds = ck.train_seconds;
+    t.samples_seen = ck.samples_seen;
+    t.curve = ck.curve;
+    Ok(t)
+}
+
+/// Stylize at a chosen resolution: resize so the longer side is `res`, stylize, resize back.
+pub fn stylize_at(stylizer: &dyn Stylizer, img: &Image, res: usize) -> Result<Image> {
+    let long = img.width.max(img.height);
+    if res == 0 || res == long {
+        return check_output(stylizer, img, stylizer.stylize(img)?);
+    }
+    let s = res as f32 / long as f32;
+    let (w, h) = (((img.width as f32 * s).round() as usize).max(1), ((img.height as f32 * s).round() as usize).max(1));
+    let up = resize(img, w, h);
+    let out = check_output(stylizer, &up, stylizer.stylize(&up)?)?;
+    Ok(resize(&out, img.width, img.height))
+}
+
+fn check_output(stylizer: &dyn Stylizer, input: &Image, out: Image) -> Result<Image> {
+    if out.width != input.width || out.height != input.height || out.data.len() != out.width * out.height * 3 {
+        bail!(
+            "stylizer {} returned a {}x{} image for a {}x{} view",
+            stylizer.name(),
+            out.width,
+            out.height,
+            input.width,
+            input.height
+        );
+    }
+    if out.data.iter().any(|x| !x.is_finite()) {
+        bail!("stylizer {} returned NaN or Inf for a {}x{} view", stylizer.name(), input.width, input.height);
+    }
+    Ok(out)
+}
+
+/// Bilinear resize of an RGB float image.
+pub fn resize(img: &Image, w: usize, h: usize) -> Image {
+    let buf: image::ImageBuffer<image::Rgb<f32>, Vec<f32>> =
+        image::ImageBuffer::from_raw(img.width as u32, img.height as u32, img.data.clone()).expect("image size");
+    let out = image::imageops::resize(&buf, w as u32, h as u32, image::imageops::FilterType::Triangle);
+    Image { width: w, height: h, data: out.into_raw() }
+}
+
+/// The training view with its colours replaced by the stylized image; alpha is kept, so a
+/// bounded object keeps its silhouette (its inside geometry is still free to change).
+fn stylized_view(v: &View, s: &Image) -> View {
+    let mut out = v.clone();
+    for (px, rgb) in out.rgba.chunks_exact_mut(4).zip(s.data.chunks_exact(3)) {
+        for c in 0..3 {
+            px[c] = (rgb[c].clamp(0.0, 1.0) * 255.0).round() as u8;
+        }
+    }
+    out
+}
+
+/// Style distance of the model's renders of (up to) 4 held-out views, averaged.
+pub fn style_distance_of(
+    model: &Model,
+    pool: &WorkspacePool,
+    data: &Dataset,
+    bg: [f32; 3],
+    embedder: &StyleEmbedder,
+    style_embedding: &[f32],
+) -> Result<f64> {
+    let views = if data.test.is_empty() { &data.train } else { &data.test };
+    let picked = pick_views(views, 4);
+    let mut sum = 0.0;
+    for v in &picked {
+        let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
+        let img = Image { width: r.width, height: r.height, data: r.rgb };
+        sum += consistency::embedding_distance(&embedder.embed(&img)?, style_embedding);
+    }
+    Ok(sum / picked.len().max(1) as f64)
+}
+
+/// `rounds/round_N.png`: up to 4 views, render above stylized target.
+fn write_round_sheet(path: &Path, renders: &[Image], stylized: &[Image]) -> Result<()> {
+    let n = renders.len().min(4);
+    let picked: Vec<usize> = (0..n).map(|i| i * renders.len() / n.max(1)).collect();
+    let rows: Vec<Vec<&Image>> = vec![
+        picked.iter().map(|&i| &renders[i]).collect(),
+        picked.iter().map(|&i| &stylized[i]).collect(),
+    ];
+    checkpoint::write_png_atomic(path, &consistency::grid_image(&rows))
+}

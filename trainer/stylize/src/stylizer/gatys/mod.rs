@@ -1,0 +1,159 @@
+//! `gatys`: the SNeRF paper's own image stylizer (Gatys et al. 2016): optimise the view's
+//! pixels so its VGG-16 features keep the content (relu4_1) and its Gram matrices match the
+//! style's (relu1_1 .. relu4_1). VGG features, losses and their backward passes are written
+//! here in Rust; pixels are updated with Adam, starting from the content, and kept in [0, 1].
+//!
+//! Weights come from a user-supplied safetensors file (see `GATYS_HELP`); none can be
+//! downloaded here, so the tests use narrow random networks.
+
+mod gemm;
+mod layers;
+mod objective;
+mod vgg;
+mod weights;
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+
+pub use layers::{Conv3x3, Planes};
+pub use objective::{gram, style_grams, Objective};
+pub use vgg::{Vgg, IMAGENET_MEAN, IMAGENET_STD, TAPS};
+pub use weights::{VggWeights, CONV_INDICES, CONV_NAMES, VGG16_WIDTHS};
+
+use super::image_ops::{fit_longer_side, resize};
+use super::{Image, Stylizer, StylizerOptions};
+
+/// How a user gets VGG-16 weights for `gatys` (for `--help` texts and error messages).
+pub const GATYS_HELP: &str = "\
+The gatys stylizer needs ImageNet-trained VGG-16 convolution weights in a safetensors file,
+in torchvision's layout (features.0.weight [64,3,3,3], features.0.bias [64], ... up to
+features.17 = conv4_1; keys without the `features.` prefix work too). To make one (Python,
+once, with network access):
+
+    pip install torch torchvision safetensors
+    python -c \"import torchvision, safetensors.torch as st; \\
+      f = torchvision.models.vgg16(weights='IMAGENET1K_V1').features.state_dict(); \\
+      st.save_file({k: v.float().contiguous() for k, v in f.items() if int(k.split('.')[0]) <= 17}, 'vgg16_features.safetensors')\"
+
+then pass the file with --gatys-weights vgg16_features.safetensors (about 7 MB for the
+layers used). Float32, float16 and bfloat16 tensors are accepted.";
+
+/// Content and style weights of the objective (both losses are relative errors; see
+/// `objective`). Untuned on real VGG weights, which cannot be fetched here.
+pub const CONTENT_WEIGHT: f64 = 1.0;
+pub const STYLE_WEIGHT: f64 = 5.0;
+/// Adam step size in pixel units ([0, 1] range).
+pub const LEARNING_RATE: f32 = 0.02;
+
+/// HWC image -> planar `[3, h, w]`.
+pub fn planes_from_image(img: &Image) -> Planes {
+    Planes { c: 3, h: img.height, w: img.width, data: super::image_ops::to_chw(img) }
+}
+
+/// Planar `[3, h, w]` -> HWC image.
+pub fn image_from_planes(p: &Planes) -> Image {
+    super::image_ops::from_chw(&p.data, p.w, p.h)
+}
+
+/// Adam on the pixels of `start`, projected to [0, 1] after each step. Returns the result
+/// and the loss before each step.
+pub fn optimize(objective: &Objective, start: &Planes, steps: usize, lr: f32) -> (Planes, Vec<f64>) {
+    let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
+    let mut x = start.clone();
+    let mut m = vec![0.0f32; x.data.len()];
+    let mut v = vec![0.0f32; x.data.len()];
+    let mut losses = Vec::with_capacity(steps);
+    for step in 1..=steps {
+        let (loss, g) = objective.loss_and_grad(&x);
+        losses.push(loss);
+        let (c1, c2) = (1.0 - b1.powi(step as i32), 1.0 - b2.powi(step as i32));
+        for i in 0..x.data.len() {
+            m[i] = b1 * m[i] + (1.0 - b1) * g.data[i];
+            v[i] = b2 * v[i] + (1.0 - b2) * g.data[i] * g.data[i];
+            let update = lr * (m[i] / c1) / ((v[i] / c2).sqrt() + eps);
+            x.data[i] = (x.data[i] - update).clamp(0.0, 1.0);
+        }
+    }
+    (x, losses)
+}
+
+/// `gatys` for one style image.
+pub struct GatysStylizer {
+    vgg: Arc<Vgg>,
+    grams: [Vec<f32>; TAPS],
+    strength: f32,
+    steps: usize,
+    content_size: usize,
+}
+
+impl GatysStylizer {
+    /// Loads the weights file (errors name it and the problem) and prepares the style.
+    pub fn from_file(weights: &Path, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
+        Self::new(VggWeights::load(weights)?, style, opts)
+    }
+
+    pub fn new(weights: VggWeights, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
+        opts.validate()?;
+        if opts.gatys_steps == 0 {
+            bail!("stylizer gatys needs at least one optimisation step");
+        }
+        let vgg = Arc::new(Vgg::new(weights));
+        let style = fit_longer_side(style, opts.style_size);
+        check_size(&style, "style image")?;
+        let grams = style_grams(&vgg, &planes_from_image(&style));
+        Ok(GatysStylizer { vgg, grams, strength: opts.strength, steps: opts.gatys_steps, content_size: opts.content_size })
+    }
+
+    /// Stylizes and also returns the loss before each step (for tests and reports).
+    pub fn stylize_with_losses(&self, content: &Image) -> Result<(Image, Vec<f64>)> {
+        check_size(content, "view")?;
+        if self.strength == 0.0 {
+            return Ok((content.clone(), Vec::new()));
+        }
+        // Optimise at most at content_size on the longer side (never upscaled).
+        let work = if content.width.max(content.height) > self.content_size {
+            fit_longer_side(content, self.content_size)
+        } else {
+            content.clone()
+        };
+        let start = planes_from_image(&work);
+        let objective = Objective::new(&self.vgg, &start, &self.grams, CONTENT_WEIGHT, STYLE_WEIGHT * self.strength as f64);
+        let (out, losses) = optimize(&objective, &start, self.steps, LEARNING_RATE);
+        Ok((resize(&image_from_planes(&out), content.width, content.height), losses))
+    }
+}
+
+impl Stylizer for GatysStylizer {
+    fn name(&self) -> String {
+        "gatys".into()
+    }
+
+    fn stylize(&self, content: &Image) -> Result<Image> {
+        Ok(self.stylize_with_losses(content)?.0)
+    }
+}
+
+/// VGG pools three times before relu4_1, so smaller images leave it empty.
+fn check_size(img: &Image, what: &str) -> Result<()> {
+    if img.width < 16 || img.height < 16 {
+        bail!("stylizer gatys: the {what} is {}, it needs at least 16x16 pixels", img.size_text());
+    }
+    Ok(())
+}
+
+/// Seconds per optimisation step (mean of `steps` after one warm-up) on a `size x size`
+/// view with `weights`; for the benchmark numbers in reports.
+pub fn step_time(weights: VggWeights, size: usize, steps: usize) -> f64 {
+    let vgg = Vgg::new(weights);
+    let img = Planes { c: 3, h: size, w: size, data: (0..3 * size * size).map(|i| (i % 97) as f32 / 97.0).collect() };
+    let style = Planes { c: 3, h: size, w: size, data: (0..3 * size * size).map(|i| (i % 31) as f32 / 31.0).collect() };
+    let grams = style_grams(&vgg, &style);
+    let obj = Objective::new(&vgg, &img, &grams, CONTENT_WEIGHT, STYLE_WEIGHT);
+    let _ = obj.loss_and_grad(&img);
+    let t0 = Instant::now();
+    let _ = optimize(&obj, &img, steps.max(1), LEARNING_RATE);
+    t0.elapsed().as_secs_f64() / steps.max(1) as f64
+}

@@ -1,0 +1,103 @@
+//! `arbitrary` (Magenta via tract) on real models: sizes, style pull, strength.
+
+mod stylizer_support;
+
+use snerf_stylize::stylizer::{from_spec, save_png, style_distance, ArbitraryStylizer, LargeViews, StyleEmbedder, Stylizer, StylizerOptions};
+use stylizer_support::{assert_finite_in_range, content_image, models_or_skip, style_image};
+
+fn style_file(dir: &std::path::Path) -> std::path::PathBuf {
+    let path = dir.join("style.png");
+    save_png(&path, &style_image(300, 240)).unwrap();
+    path
+}
+
+#[test]
+fn stylizes_square_and_non_square_views_toward_the_style() {
+    let Some(opts) = models_or_skip("stylizes_square_and_non_square_views_toward_the_style") else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let style_path = style_file(dir.path());
+    let s = from_spec("arbitrary", Some(&style_path), &opts).unwrap();
+    assert_eq!(s.name(), "arbitrary");
+    let embedder = StyleEmbedder::new(&opts).unwrap();
+    let style_emb = embedder.embed(&snerf_stylize::stylizer::load_style_image(&style_path).unwrap()).unwrap();
+    assert_eq!(style_emb.len(), 100);
+    // 384^2 (the network's own size), non-square smaller, and larger than 384 (native path).
+    for (w, h) in [(384, 384), (200, 120), (96, 160), (520, 400)] {
+        let content = content_image(w, h);
+        let out = s.stylize(&content).unwrap();
+        assert_eq!((out.width, out.height), (w, h));
+        assert_finite_in_range(&out);
+        let changed = out.mean_abs_diff(&content);
+        assert!(changed > 0.05, "{w}x{h}: output barely differs from content ({changed})");
+        let d_content = style_distance(&embedder, &content, &style_emb).unwrap();
+        let d_out = style_distance(&embedder, &out, &style_emb).unwrap();
+        println!("{w}x{h}: style distance content {d_content:.3} -> stylized {d_out:.3}, mean change {changed:.3}");
+        assert!(d_out < 0.8 * d_content, "{w}x{h}: stylized view is not closer to the style ({d_out} vs {d_content})");
+    }
+}
+
+#[test]
+fn strength_moves_monotonically_toward_the_style() {
+    let Some(opts) = models_or_skip("strength_moves_monotonically_toward_the_style") else { return };
+    let style = style_image(256, 256);
+    let content = content_image(240, 180);
+    let embedder = StyleEmbedder::new(&opts).unwrap();
+    let style_emb = embedder.embed(&style).unwrap();
+    let mut outs = Vec::new();
+    let mut dists = Vec::new();
+    for strength in [0.0, 0.5, 1.0] {
+        let s = ArbitraryStylizer::new(&style, &StylizerOptions { strength, ..opts.clone() }).unwrap();
+        let out = s.stylize(&content).unwrap();
+        dists.push(style_distance(&embedder, &out, &style_emb).unwrap());
+        outs.push(out);
+    }
+    let change: Vec<f32> = outs.iter().map(|o| o.mean_abs_diff(&content)).collect();
+    println!("strength 0/0.5/1: style distance {dists:?}, change from content {change:?}");
+    assert!(dists[0] > dists[1] && dists[1] > dists[2], "style distance not decreasing with strength: {dists:?}");
+    assert!(change[0] < change[1] && change[1] < change[2], "change from content not increasing: {change:?}");
+    assert!(outs[0].mean_abs_diff(&outs[2]) > 0.03);
+}
+
+#[test]
+fn resize_and_native_large_views_both_work() {
+    let Some(opts) = models_or_skip("resize_and_native_large_views_both_work") else { return };
+    let style = style_image(256, 256);
+    let content = content_image(600, 400);
+    let s = ArbitraryStylizer::new(&style, &opts).unwrap();
+    let native = s.stylize(&content).unwrap();
+    let s = s.with_large_views(LargeViews::Resize);
+    let resized = s.stylize(&content).unwrap();
+    assert_eq!((native.width, native.height), (600, 400));
+    assert_eq!((resized.width, resized.height), (600, 400));
+    assert_finite_in_range(&native);
+    assert_finite_in_range(&resized);
+    assert!(native.mean_abs_diff(&resized) > 0.01, "the two large-view modes gave the same image");
+}
+
+#[test]
+fn missing_models_give_the_setup_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = StylizerOptions { models_dir: Some(dir.path().to_path_buf()), ..Default::default() };
+    let err = format!("{:#}", ArbitraryStylizer::new(&style_image(64, 64), &opts).err().unwrap());
+    assert!(err.contains("arbitrary_predict.onnx") && err.contains("setup-models.sh"), "{err}");
+    // A file with the right name but wrong contents fails the hash check.
+    std::fs::write(dir.path().join("arbitrary_predict.onnx"), b"not the model").unwrap();
+    let err = format!("{:#}", ArbitraryStylizer::new(&style_image(64, 64), &opts).err().unwrap());
+    assert!(err.contains("SHA-256") && err.contains("arbitrary_predict.onnx"), "{err}");
+}
+
+#[test]
+fn spec_errors() {
+    let opts = StylizerOptions::default();
+    let e = from_spec("arbitrary", None, &opts).err().unwrap().to_string();
+    assert!(e.contains("style image"), "{e}");
+    let e = from_spec("vangogh", None, &opts).err().unwrap().to_string();
+    assert!(e.contains("unknown stylizer") && e.contains("preset:N"), "{e}");
+    let e = from_spec("preset:x", None, &opts).err().unwrap().to_string();
+    assert!(e.contains("preset"), "{e}");
+    let bad = StylizerOptions { strength: 1.5, ..Default::default() };
+    let e = from_spec("color", None, &bad).err().unwrap().to_string();
+    assert!(e.contains("strength"), "{e}");
+    let e = from_spec("gatys", None, &opts).err().unwrap().to_string();
+    assert!(e.contains("safetensors") && e.contains("torchvision"), "{e}");
+}

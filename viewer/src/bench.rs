@@ -1,0 +1,198 @@
+//! `snerf bench view`: median GPU frame time (march + submit + wait, no readback; with
+//! readback reported too) against the CPU reference renderer on the same cameras, same run.
+
+use anyhow::{ensure, Result};
+use serde::Serialize;
+use std::fmt;
+use std::time::Instant;
+
+use crate::camera::stereo_pair;
+use crate::gpu::{GpuOptions, GpuRenderer, View};
+use snerf_asset::{orbit, Asset, Camera};
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub width: u32,
+    pub height: u32,
+    /// GPU frames timed (after 2 warm-up frames), cameras spread over an orbit.
+    pub frames: usize,
+    /// CPU reference frames timed (the first cameras of the same spread; median).
+    pub cpu_frames: usize,
+    /// Also time stereo: two eyes of `stereo_size` side by side.
+    pub stereo: bool,
+    pub stereo_size: (u32, u32),
+    pub ipd: f32,
+    pub fov_y: f32,
+    pub gpu: GpuOptions,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions {
+            width: 1280,
+            height: 720,
+            frames: 30,
+            cpu_frames: 3,
+            stereo: false,
+            stereo_size: (1920, 1080),
+            ipd: 0.064,
+            fov_y: 50.0,
+            gpu: GpuOptions::default(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct StereoBench {
+    pub eye_width: u32,
+    pub eye_height: u32,
+    pub gpu_median_ms: f64,
+    pub cpu_median_ms: f64,
+    pub speedup: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchView {
+    pub adapter: String,
+    pub width: u32,
+    pub height: u32,
+    pub gpu_frames: usize,
+    /// March + submit + wait for the GPU, no readback.
+    pub gpu_median_ms: f64,
+    pub gpu_min_ms: f64,
+    /// The same including reading the image back to the CPU.
+    pub gpu_readback_median_ms: f64,
+    pub cpu_frames: usize,
+    pub cpu_median_ms: f64,
+    /// GPU median over the same cameras the CPU rendered.
+    pub gpu_same_cams_median_ms: f64,
+    /// cpu_median_ms / gpu_median_ms (> 1: GPU faster).
+    pub speedup: f64,
+    pub stereo: Option<StereoBench>,
+}
+
+impl fmt::Display for BenchView {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "adapter: {}", self.adapter)?;
+        writeln!(
+            f,
+            "view {}x{}: GPU median {:.2} ms/frame (min {:.2}, with readback {:.2}) over {} frames",
+            self.width, self.height, self.gpu_median_ms, self.gpu_min_ms, self.gpu_readback_median_ms, self.gpu_frames
+        )?;
+        writeln!(
+            f,
+            "view {}x{}: CPU reference median {:.2} ms/frame over {} frames (GPU on those cameras {:.2} ms)",
+            self.width, self.height, self.cpu_median_ms, self.cpu_frames, self.gpu_same_cams_median_ms
+        )?;
+        write!(f, "view {}x{}: GPU/CPU speedup {:.2}x", self.width, self.height, self.speedup)?;
+        if let Some(s) = &self.stereo {
+            write!(
+                f,
+                "\nstereo 2x({}x{}): GPU median {:.2} ms/frame, CPU reference {:.2} ms/frame, speedup {:.2}x",
+                s.eye_width, s.eye_height, s.gpu_median_ms, s.cpu_median_ms, s.speedup
+            )?;
+        }
+        Ok(())
+    }
+}
+
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+fn ms(d: std::time::Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+/// Bench at `width` x `height` with `frames` GPU frames (defaults otherwise).
+pub fn bench_view(asset: &Asset, width: u32, height: u32, frames: usize) -> Result<BenchView> {
+    bench_view_with(asset, &BenchOptions { width, height, frames, ..Default::default() })
+}
+
+/// Time a dynamic asset mid-way through its time range (keyframe blending included).
+fn bench_time(asset: &Asset) -> f32 {
+    asset.header.time_range.map_or(0.0, |r| 0.5 * (r[0] + r[1]) + 0.013 * (r[1] - r[0]))
+}
+
+pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
+    ensure!(o.width > 0 && o.height > 0 && o.frames > 0, "bench needs a non-empty size and at least one frame");
+    let mut r = GpuRenderer::with_options(asset, o.gpu.clone())?;
+    let time = bench_time(asset);
+    let n = o.frames.max(1);
+    let cams: Vec<Camera> = (0..n).map(|i| orbit(&asset.header, n, i, o.width, o.height, o.fov_y)).collect();
+    let view = |c: &Camera| [View { cam: *c, time, x0: 0 }];
+    for c in cams.iter().take(2) {
+        r.render_wait(o.width, o.height, &view(c))?;
+    }
+    let mut gpu: Vec<f64> = Vec::with_capacity(n);
+    for c in &cams {
+        gpu.push(ms(r.render_wait(o.width, o.height, &view(c))?));
+    }
+    let cpu_n = o.cpu_frames.clamp(1, n);
+    let mut gpu_same: Vec<f64> = gpu[..cpu_n].to_vec();
+    let mut readback = Vec::new();
+    for c in cams.iter().take(cpu_n.max(3).min(n)) {
+        let t0 = Instant::now();
+        r.render(c, time)?;
+        readback.push(ms(t0.elapsed()));
+    }
+    let mut cpu = Vec::with_capacity(cpu_n);
+    for c in cams.iter().take(cpu_n) {
+        let t0 = Instant::now();
+        let f = snerf_asset::render(asset, c, time);
+        cpu.push(ms(t0.elapsed()));
+        std::hint::black_box(f);
+    }
+    let gpu_min = gpu.iter().cloned().fold(f64::INFINITY, f64::min);
+    let gpu_median = median(&mut gpu);
+    let cpu_median = median(&mut cpu);
+    let stereo = if o.stereo {
+        let (ew, eh) = o.stereo_size;
+        let m = o.frames.clamp(1, 10);
+        let pairs: Vec<(Camera, Camera)> = (0..m)
+            .map(|i| {
+                let c = orbit(&asset.header, m, i, ew, eh, o.fov_y);
+                stereo_pair(c.c2w, o.ipd, ew, eh, o.fov_y)
+            })
+            .collect();
+        let sv = |(l, rr): &(Camera, Camera)| [View { cam: *l, time, x0: 0 }, View { cam: *rr, time, x0: ew }];
+        r.render_wait(2 * ew, eh, &sv(&pairs[0]))?;
+        let mut g = Vec::new();
+        for p in &pairs {
+            g.push(ms(r.render_wait(2 * ew, eh, &sv(p))?));
+        }
+        let mut c = Vec::new();
+        for (l, rr) in pairs.iter().take(o.cpu_frames.clamp(1, m)) {
+            let t0 = Instant::now();
+            std::hint::black_box((snerf_asset::render(asset, l, time), snerf_asset::render(asset, rr, time)));
+            c.push(ms(t0.elapsed()));
+        }
+        let (gm, cm) = (median(&mut g), median(&mut c));
+        Some(StereoBench { eye_width: ew, eye_height: eh, gpu_median_ms: gm, cpu_median_ms: cm, speedup: cm / gm })
+    } else {
+        None
+    };
+    Ok(BenchView {
+        adapter: r.adapter_info(),
+        width: o.width,
+        height: o.height,
+        gpu_frames: n,
+        gpu_median_ms: gpu_median,
+        gpu_min_ms: gpu_min,
+        gpu_readback_median_ms: median(&mut readback),
+        cpu_frames: cpu_n,
+        cpu_median_ms: cpu_median,
+        gpu_same_cams_median_ms: median(&mut gpu_same),
+        speedup: cpu_median / gpu_median,
+        stereo,
+    })
+}

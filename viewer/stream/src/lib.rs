@@ -1,0 +1,24 @@
+//! snerf-stream: QUIC streaming of baked snerf assets (protocol `snerf/1`, see PROTOCOL.md).
+//!
+//! - `server`: `serve` / `serve_blocking` / `start` / `spawn` — a quinn endpoint serving a
+//!   directory of `.snerf` files or one file, token-authenticated, self-signed certificate.
+//! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
+//! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
+//! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
+//!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
+//!
+//! Depends on `snerf-asset` only (never on the trainer).
+
+pub mod client;
+pub mod live;
+pub mod plan;
+pub mod proto;
+pub mod server;
+pub mod tls;
+pub mod url;
+
+pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
+pub use live::LiveAsset;
+pub use proto::{Pose, ALPN, DEFAULT_PORT, PROTOCOL_VERSION};
+pub use server::{serve, serve_blocking, spawn, start, Limits, ServeOptions, ServerHandle, ServerStats};
+pub use url::{parse_url, resolve};

@@ -1,0 +1,293 @@
+//! What the server knows about one served file: its bytes (shared by every client), its
+//! chunk table, and for every BLKS chunk where its blocks sit in the world and which
+//! keyframes use them, so the blocks can be ordered for a client's pose.
+
+use anyhow::{anyhow, ensure, Result};
+use bytes::Bytes;
+use sha2::{Digest, Sha256};
+use snerf_asset::chunk::{chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
+use snerf_asset::{Asset, Header, Kind, EMPTY};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use crate::proto::{to_hex, AssetInfo, Pose};
+
+/// Default diagonal field of view when a pose does not say (degrees).
+pub const DEFAULT_FOV_DEG: f32 = 90.0;
+
+#[derive(Clone, Debug)]
+pub struct BlkEntry {
+    /// File chunk index.
+    pub chunk: u32,
+    /// World-space centre of the (first) cell using the block, and a bounding radius.
+    pub centre: [f32; 3],
+    pub radius: f32,
+    /// Keyframes using these blocks, as merged [lo, hi] ranges (inclusive).
+    pub frames: Vec<(u32, u32)>,
+}
+
+pub struct ServedAsset {
+    pub name: String,
+    pub path: PathBuf,
+    /// The whole file; clients get zero-copy slices of it.
+    pub bytes: Bytes,
+    pub sha256: String,
+    pub header: Header,
+    /// Byte range (header + payload) of every chunk, by file chunk index.
+    pub ranges: Vec<Range<usize>>,
+    /// HEAD, VMLP and GRID chunk indices in file order.
+    pub meta: Vec<u32>,
+    pub blks: Vec<BlkEntry>,
+    pub end: u32,
+    /// World-space centre of the grid (priority origin without a pose).
+    pub origin: [f32; 3],
+}
+
+impl ServedAsset {
+    /// Read and fully validate a file (framing, CRCs, semantics), then index it.
+    pub fn load(name: &str, path: &Path) -> Result<ServedAsset> {
+        let raw = std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
+        Self::from_bytes(name, path, raw).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
+    }
+
+    pub fn from_bytes(name: &str, path: &Path, raw: Vec<u8>) -> Result<ServedAsset> {
+        // Full validation once, so no client is ever streamed a broken asset.
+        let asset = Asset::from_bytes(&raw)?;
+        let header = asset.header.clone();
+        let list = chunks(&raw)?;
+        ensure!(list.len() <= u32::MAX as usize, "too many chunks");
+        let sha256 = to_hex(&Sha256::digest(&raw));
+        let g = header.grid_dim();
+        // block -> (first frame, first cell), frames using it
+        let n = header.atlas_blocks as usize;
+        let mut first_cell: Vec<Option<usize>> = vec![None; n];
+        let mut frames: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
+        for (f, grid) in asset.grids.iter().enumerate() {
+            for (c, &e) in grid.iter().enumerate() {
+                if e == EMPTY {
+                    continue;
+                }
+                let b = e as usize;
+                if first_cell[b].is_none() {
+                    first_cell[b] = Some(c);
+                }
+                let fr = &mut frames[b];
+                let f = f as u32;
+                match fr.last_mut() {
+                    Some(last) if last.1 == f || last.1 + 1 == f => last.1 = f,
+                    _ => fr.push((f, f)),
+                }
+            }
+        }
+        drop(asset);
+        let origin = grid_to_world(&header, [0.0, 0.0, 0.0]);
+        let mut meta = Vec::new();
+        let mut blks = Vec::new();
+        let mut ranges = Vec::with_capacity(list.len());
+        let mut end = None;
+        let last_frame = header.num_frames().saturating_sub(1) as u32;
+        for c in &list {
+            let idx = c.index as u32;
+            ranges.push(c.range.clone());
+            match c.tag {
+                TAG_HEAD | TAG_VMLP | TAG_GRID => meta.push(idx),
+                TAG_BLKS => {
+                    let first = le_u32(&raw[c.payload.start..c.payload.start + 4]) as usize;
+                    let (centre, radius) = match first_cell.get(first).copied().flatten() {
+                        Some(cell) => cell_centre_radius(&header, g, cell),
+                        None => (origin, 0.0),
+                    };
+                    let fr = frames.get(first).cloned().filter(|f| !f.is_empty()).unwrap_or(vec![(last_frame, last_frame)]);
+                    blks.push(BlkEntry { chunk: idx, centre, radius, frames: fr });
+                }
+                TAG_END => end = Some(idx),
+                t => anyhow::bail!("unexpected chunk {}", tag_name(&t)),
+            }
+        }
+        let end = end.ok_or_else(|| anyhow!("no END chunk"))?;
+        Ok(ServedAsset {
+            name: name.to_string(),
+            path: path.to_path_buf(),
+            bytes: Bytes::from(raw),
+            sha256,
+            header,
+            ranges,
+            meta,
+            blks,
+            end,
+            origin,
+        })
+    }
+
+    pub fn chunk_count(&self) -> u32 {
+        self.ranges.len() as u32
+    }
+
+    /// Bytes a record of chunk `i` takes on the wire.
+    pub fn record_len(&self, i: u32) -> u64 {
+        let r = &self.ranges[i as usize];
+        (r.end - r.start + 4) as u64
+    }
+
+    pub fn chunk_bytes(&self, i: u32) -> Bytes {
+        self.bytes.slice(self.ranges[i as usize].clone())
+    }
+
+    pub fn info(&self) -> AssetInfo {
+        AssetInfo {
+            name: self.name.clone(),
+            size: self.bytes.len() as u64,
+            chunks: self.chunk_count(),
+            sha256: self.sha256.clone(),
+            preamble: to_hex(&self.bytes[..PREAMBLE_LEN]),
+            atlas_blocks: self.header.atlas_blocks,
+            frames: self.header.num_frames() as u32,
+        }
+    }
+
+    /// Keyframe index a playback time falls in (last keyframe with time <= t).
+    pub fn frame_at(&self, t: f32) -> u32 {
+        match &self.header.frames {
+            None => 0,
+            Some(f) => f.iter().rposition(|k| k.time <= t).unwrap_or(0) as u32,
+        }
+    }
+
+    /// Sort key of a BLKS entry for a pose (smaller = sooner): keyframes ahead of playback
+    /// first (wrapping), then in-frustum, in front, behind; then nearest first.
+    pub fn priority(&self, b: &BlkEntry, view: Option<&View>) -> (u32, u8, f32) {
+        let nf = self.header.num_frames() as u32;
+        let k = view.map_or(0, |v| v.frame);
+        let rank = b
+            .frames
+            .iter()
+            .map(|&(lo, hi)| {
+                if (lo..=hi).contains(&k) {
+                    0
+                } else if lo > k {
+                    lo - k
+                } else {
+                    lo + nf - k
+                }
+            })
+            .min()
+            .unwrap_or(nf);
+        match view {
+            None => (rank, 0, dist(b.centre, self.origin)),
+            Some(v) => {
+                let d = sub(b.centre, v.eye);
+                let len = norm(d);
+                let near = (len - b.radius).max(0.0);
+                if len <= b.radius || len < 1e-9 {
+                    return (rank, 0, 0.0);
+                }
+                let cos = dot(d, v.forward) / len;
+                // Widen the cone by the block's angular radius.
+                let ang = cos.clamp(-1.0, 1.0).acos() - (b.radius / len).min(1.0).asin();
+                let tier = if ang <= v.half_fov {
+                    0
+                } else if cos > 0.0 {
+                    1
+                } else {
+                    2
+                };
+                (rank, tier, near)
+            }
+        }
+    }
+
+    /// Whether a block chunk is in the first tier (in the view cone) for a pose.
+    pub fn in_view(&self, b: &BlkEntry, view: &View) -> bool {
+        self.priority(b, Some(view)).1 == 0
+    }
+}
+
+/// A pose prepared for prioritizing.
+#[derive(Clone, Copy, Debug)]
+pub struct View {
+    pub eye: [f32; 3],
+    pub forward: [f32; 3],
+    pub half_fov: f32,
+    pub frame: u32,
+}
+
+impl View {
+    pub fn new(asset: &ServedAsset, p: &Pose) -> View {
+        let n = norm(p.forward).max(1e-12);
+        let fov = if p.fov_deg > 0.0 { p.fov_deg } else { DEFAULT_FOV_DEG };
+        View {
+            eye: p.eye,
+            forward: p.forward.map(|x| x / n),
+            half_fov: (fov * 0.5).to_radians(),
+            frame: asset.frame_at(p.time),
+        }
+    }
+}
+
+fn cell_centre_radius(h: &Header, g: usize, cell: usize) -> ([f32; 3], f32) {
+    let (x, y, z) = (cell % g, (cell / g) % g, cell / (g * g));
+    let s = 2.0 / g as f32;
+    let lo = [x, y, z].map(|i| -1.0 + i as f32 * s);
+    let c = lo.map(|l| l + 0.5 * s);
+    let wc = grid_to_world(h, c);
+    let mut r: f32 = 0.0;
+    for corner in 0..8 {
+        let p = [0, 1, 2].map(|a| lo[a] + if corner >> a & 1 == 1 { s } else { 0.0 });
+        let d = dist(grid_to_world(h, p), wc);
+        if d.is_finite() {
+            r = r.max(d);
+        }
+    }
+    (wc, r)
+}
+
+/// Grid point -> model -> world: object identity; forward NDC inverse; unbounded inverse
+/// contraction (clamped so points at the far shell stay finite).
+pub fn grid_to_world(h: &Header, g: [f32; 3]) -> [f32; 3] {
+    let m = match h.kind {
+        Kind::Object => g,
+        Kind::Forward => match h.space.ndc {
+            None => g,
+            Some(n) => {
+                let e = n.xy_extent;
+                let (nx, ny, nz) = (g[0] * e, g[1] * e, g[2].min(0.999));
+                // ndc_z = 1 + 2 near / z  =>  z = 2 near / (ndc_z - 1)
+                let z = 2.0 * n.near / (nz - 1.0);
+                let ax = -n.fx / (n.width * 0.5);
+                let ay = -n.fy / (n.height * 0.5);
+                [nx * z / ax, ny * z / ay, z]
+            }
+        },
+        Kind::Unbounded => {
+            let c = g.map(|x| 2.0 * x);
+            let mc = c[0].abs().max(c[1].abs()).max(c[2].abs());
+            if mc <= 1.0 {
+                c
+            } else {
+                let mc = mc.min(1.999);
+                let big = 1.0 / (2.0 - mc);
+                c.map(|x| if x.abs() >= mc { big * x.signum() } else { x * big })
+            }
+        }
+    };
+    snerf_asset::render::model_to_world(h, m)
+}
+
+/// Record bytes of a set of chunks.
+pub fn records_len(a: &ServedAsset, idx: &[u32]) -> u64 {
+    idx.iter().map(|&i| a.record_len(i)).sum::<u64>()
+}
+
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn norm(a: [f32; 3]) -> f32 {
+    dot(a, a).sqrt()
+}
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    norm(sub(a, b))
+}

@@ -1,0 +1,760 @@
+//! The `snerf serve` side: a quinn endpoint that authenticates clients by token and streams
+//! assets chunk by chunk, small parts first, then blocks in priority order for each client's
+//! pose. Each client is its own task; every asset file is held once in memory and shared
+//! (zero-copy `Bytes` slices) by all clients; QUIC flow control plus a per-client send window
+//! bound what a slow client can pin, and a stall timeout drops clients that stop reading.
+
+use anyhow::{anyhow, bail, Context, Result};
+use bytes::Bytes;
+use quinn::{Connection, Endpoint, SendStream, VarInt};
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, SystemTime};
+use tokio::sync::{watch, Semaphore};
+use tokio::task::JoinSet;
+
+use crate::plan::{ServedAsset, View};
+use crate::proto::{
+    code, decode_client_msg, decode_pose, encode_frame, read_frame, valid_asset_name, ClientMsg, FrameError, ListEntry,
+    Pose, ServerMsg, PROTOCOL_VERSION,
+};
+use crate::tls;
+
+/// Server limits (all have CLI flags in `snerf serve`).
+#[derive(Clone, Debug)]
+pub struct Limits {
+    /// Simultaneous clients; more are refused at the QUIC level (CONNECTION_REFUSED).
+    pub max_clients: usize,
+    /// Largest control message accepted (bytes).
+    pub max_message: usize,
+    /// QUIC idle timeout: a peer silent this long is dropped.
+    pub idle_timeout: Duration,
+    /// Time a client has to complete the handshake and send Hello.
+    pub hello_timeout: Duration,
+    /// A client whose streams accept no data for this long is dropped (it stopped reading).
+    pub stall_timeout: Duration,
+    /// Per-client send budget: bytes buffered for one client, unacknowledged (QUIC send window).
+    pub send_budget: u64,
+    /// Unidirectional data streams in flight per client.
+    pub max_streams: usize,
+    /// Target bytes per data stream (several blocks per stream).
+    pub batch_bytes: usize,
+    /// After everything is sent and acknowledged, close the connection if the client has not
+    /// done so within this time.
+    pub linger: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Limits {
+        Limits {
+            max_clients: 64,
+            max_message: 64 * 1024,
+            idle_timeout: Duration::from_secs(30),
+            hello_timeout: Duration::from_secs(10),
+            stall_timeout: Duration::from_secs(30),
+            send_budget: 8 << 20,
+            max_streams: 8,
+            batch_bytes: 256 * 1024,
+            linger: Duration::from_secs(10),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct ServeOptions {
+    /// A directory of `.snerf` files or one file.
+    pub path: PathBuf,
+    pub listen: SocketAddr,
+    /// Where the generated certificate, key and token live (default: see `tls::default_state_dir`).
+    pub state_dir: Option<PathBuf>,
+    pub cert: Option<PathBuf>,
+    pub key: Option<PathBuf>,
+    pub token_file: Option<PathBuf>,
+    pub limits: Limits,
+    /// No per-connection log lines on stderr.
+    pub quiet: bool,
+}
+
+impl ServeOptions {
+    pub fn new(path: impl Into<PathBuf>, listen: SocketAddr) -> ServeOptions {
+        ServeOptions {
+            path: path.into(),
+            listen,
+            state_dir: None,
+            cert: None,
+            key: None,
+            token_file: None,
+            limits: Limits::default(),
+            quiet: false,
+        }
+    }
+}
+
+/// Counters, readable while the server runs.
+#[derive(Debug, Default)]
+pub struct ServerStats {
+    pub connections: AtomicU64,
+    pub refused_busy: AtomicU64,
+    pub unauthorized: AtomicU64,
+    /// Connections closed for a malformed / oversized / out-of-order message or a timeout.
+    pub protocol_errors: AtomicU64,
+    pub streams_started: AtomicU64,
+    pub streams_completed: AtomicU64,
+    /// Record bytes (chunk index + chunk) handed to QUIC, all clients.
+    pub bytes_sent: AtomicU64,
+    pub bad_datagrams: AtomicU64,
+    pub pose_updates: AtomicU64,
+}
+
+/// A running server. `shutdown` stops it; dropping the handle stops it too.
+pub struct ServerHandle {
+    addr: SocketAddr,
+    fingerprint: String,
+    token: String,
+    created: bool,
+    stats: Arc<ServerStats>,
+    stop: watch::Sender<bool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    task: Option<tokio::task::JoinHandle<()>>,
+}
+
+impl ServerHandle {
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+    /// Hex SHA-256 of the certificate (what clients pin).
+    pub fn fingerprint(&self) -> &str {
+        &self.fingerprint
+    }
+    pub fn token(&self) -> &str {
+        &self.token
+    }
+    /// Whether this start created the certificate or token (first run).
+    pub fn created_identity(&self) -> bool {
+        self.created
+    }
+    pub fn stats(&self) -> &Arc<ServerStats> {
+        &self.stats
+    }
+    /// `quic://ADDR/ASSET` for this server.
+    pub fn url(&self, asset: &str) -> String {
+        format!("quic://{}/{}", self.addr, asset)
+    }
+    /// Stop accepting, close every connection (code SHUTDOWN) and, for a `spawn`ed server,
+    /// join its thread.
+    pub fn shutdown(mut self) {
+        let _ = self.stop.send(true);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+    /// Wait until the server stops (after `shutdown` from elsewhere or an accept failure).
+    pub async fn join(mut self) {
+        if let Some(t) = self.task.take() {
+            let _ = t.await;
+        }
+    }
+}
+
+impl Drop for ServerHandle {
+    fn drop(&mut self) {
+        let _ = self.stop.send(true);
+    }
+}
+
+enum Source {
+    Dir(PathBuf),
+    File { name: String, path: PathBuf },
+}
+
+struct Shared {
+    /// Server config for peers on loopback (higher MTU ceiling).
+    loopback_cfg: Arc<quinn::ServerConfig>,
+    limits: Limits,
+    token: String,
+    source: Source,
+    cache: Mutex<HashMap<String, (SystemTime, u64, Arc<ServedAsset>)>>,
+    load_lock: tokio::sync::Mutex<()>,
+    stats: Arc<ServerStats>,
+    quiet: bool,
+}
+
+/// A connection-ending error: QUIC application code + reason sent to the client.
+#[derive(Debug)]
+struct Close(u32, String);
+
+fn log(shared: &Shared, who: SocketAddr, msg: &str) {
+    if !shared.quiet {
+        eprintln!("snerf serve: {}: {}", who, msg);
+    }
+}
+
+/// Name an asset is served under: the file name without `.snerf`.
+pub fn asset_name(path: &Path) -> String {
+    let f = path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+    f.strip_suffix(".snerf").map(str::to_string).unwrap_or(f)
+}
+
+impl Shared {
+    fn list(&self) -> Vec<ListEntry> {
+        match &self.source {
+            Source::File { name, path } => {
+                let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+                vec![ListEntry { name: name.clone(), size }]
+            }
+            Source::Dir(d) => {
+                let mut out = Vec::new();
+                if let Ok(rd) = std::fs::read_dir(d) {
+                    for e in rd.flatten() {
+                        let p = e.path();
+                        let name = asset_name(&p);
+                        if p.extension().is_some_and(|x| x == "snerf") && valid_asset_name(&name) {
+                            if let Ok(m) = e.metadata() {
+                                if m.is_file() {
+                                    out.push(ListEntry { name, size: m.len() });
+                                }
+                            }
+                        }
+                    }
+                }
+                out.sort_by(|a, b| a.name.cmp(&b.name));
+                out
+            }
+        }
+    }
+
+    fn resolve(&self, asked: Option<&str>) -> Result<(String, PathBuf), Close> {
+        let asked = asked.map(|a| a.strip_suffix(".snerf").unwrap_or(a)).filter(|a| !a.is_empty());
+        match (&self.source, asked) {
+            (Source::File { name, path }, None) => Ok((name.clone(), path.clone())),
+            (Source::File { name, path }, Some(a)) if a == name => Ok((name.clone(), path.clone())),
+            (Source::File { name, .. }, Some(a)) => {
+                Err(Close(code::NOT_FOUND, format!("no asset {:?} (this server serves {:?})", a, name)))
+            }
+            (Source::Dir(_), None) => {
+                let l = self.list();
+                match l.len() {
+                    1 => self.resolve(Some(&l[0].name.clone())),
+                    0 => Err(Close(code::NOT_FOUND, "this server has no assets".into())),
+                    _ => Err(Close(
+                        code::NOT_FOUND,
+                        format!(
+                            "name an asset: {}",
+                            l.iter().take(20).map(|e| e.name.as_str()).collect::<Vec<_>>().join(", ")
+                        ),
+                    )),
+                }
+            }
+            (Source::Dir(d), Some(a)) => {
+                if !valid_asset_name(a) {
+                    return Err(Close(code::NOT_FOUND, format!("invalid asset name {:?}", a)));
+                }
+                let p = d.join(format!("{}.snerf", a));
+                if p.is_file() {
+                    Ok((a.to_string(), p))
+                } else {
+                    Err(Close(code::NOT_FOUND, format!("no asset {:?}", a)))
+                }
+            }
+        }
+    }
+
+    async fn load(&self, name: &str, path: &Path) -> Result<Arc<ServedAsset>, Close> {
+        let _g = self.load_lock.lock().await;
+        let meta = std::fs::metadata(path).map_err(|e| Close(code::NOT_FOUND, format!("{}: {}", name, e)))?;
+        let (mtime, len) = (meta.modified().unwrap_or(SystemTime::UNIX_EPOCH), meta.len());
+        if let Some((t, l, a)) = self.cache.lock().unwrap().get(name) {
+            if *t == mtime && *l == len {
+                return Ok(a.clone());
+            }
+        }
+        let (n, p) = (name.to_string(), path.to_path_buf());
+        let a = tokio::task::spawn_blocking(move || ServedAsset::load(&n, &p))
+            .await
+            .map_err(|e| Close(code::INTERNAL, format!("loading {}: {}", name, e)))?
+            .map_err(|e| {
+                if !self.quiet {
+                    eprintln!("snerf serve: cannot serve {}: {:#}", path.display(), e);
+                }
+                Close(code::INTERNAL, format!("asset {:?} cannot be served (invalid file)", name))
+            })?;
+        let a = Arc::new(a);
+        self.cache.lock().unwrap().insert(name.to_string(), (mtime, len, a.clone()));
+        Ok(a)
+    }
+}
+
+fn transport(limits: &Limits, loopback: bool) -> Result<quinn::TransportConfig> {
+    let mut t = quinn::TransportConfig::default();
+    t.mtu_discovery_config(Some(crate::proto::mtu_discovery(loopback)));
+    t.max_concurrent_bidi_streams(VarInt::from_u32(1))
+        .max_concurrent_uni_streams(VarInt::from_u32(0))
+        .stream_receive_window(VarInt::from_u32((limits.max_message as u32).saturating_mul(2).max(64 * 1024)))
+        .receive_window(VarInt::from_u32((limits.max_message as u32).saturating_mul(4).max(256 * 1024)))
+        .send_window(limits.send_budget.max(64 * 1024))
+        .max_idle_timeout(Some(limits.idle_timeout.try_into().map_err(|_| anyhow!("idle timeout too large"))?))
+        .datagram_receive_buffer_size(Some(16 * 1024))
+        .datagram_send_buffer_size(16 * 1024);
+    Ok(t)
+}
+
+/// Bind and start serving on the current tokio runtime; returns once the socket is bound.
+pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
+    let (shared, endpoint, id) = setup(&opts)?;
+    let addr = endpoint.local_addr()?;
+    let (stop, stop_rx) = watch::channel(false);
+    let stats = shared.stats.clone();
+    let task = tokio::spawn(accept_loop(shared, endpoint, stop_rx));
+    Ok(ServerHandle {
+        addr,
+        fingerprint: id.fingerprint,
+        token: id.token,
+        created: id.created,
+        stats,
+        stop,
+        thread: None,
+        task: Some(task),
+    })
+}
+
+/// Start a server on its own background runtime thread (2 worker threads); for tests,
+/// benches and embedding in synchronous programs.
+pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let thread = std::thread::Builder::new()
+        .name("snerf-serve".into())
+        .spawn(move || {
+            let rt = match tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build() {
+                Ok(rt) => rt,
+                Err(e) => {
+                    let _ = tx.send(Err(anyhow!("cannot start the server runtime: {}", e)));
+                    return;
+                }
+            };
+            rt.block_on(async move {
+                match start(opts).await {
+                    Err(e) => {
+                        let _ = tx.send(Err(e));
+                    }
+                    Ok(mut h) => {
+                        let task = h.task.take();
+                        let mut stop = h.stop.subscribe();
+                        let info = (h.addr, h.fingerprint.clone(), h.token.clone(), h.created, h.stats.clone(), h.stop.clone());
+                        // The handle's stop sender moves to the caller; keep this one from
+                        // firing on drop.
+                        std::mem::forget(h);
+                        let _ = tx.send(Ok(info));
+                        let _ = stop.wait_for(|s| *s).await;
+                        if let Some(t) = task {
+                            let _ = t.await;
+                        }
+                    }
+                }
+            });
+        })
+        .context("cannot spawn the server thread")?;
+    let (addr, fingerprint, token, created, stats, stop) =
+        rx.recv().map_err(|_| anyhow!("server thread ended during start"))??;
+    Ok(ServerHandle { addr, fingerprint, token, created, stats, stop, thread: Some(thread), task: None })
+}
+
+/// `snerf serve`: start, print the address, fingerprint and token, serve until Ctrl-C.
+pub async fn serve(opts: ServeOptions) -> Result<()> {
+    let path = opts.path.clone();
+    let h = start(opts).await?;
+    println!("snerf serve: serving {} on quic://{}", path.display(), h.addr());
+    println!("  fingerprint (--pin): {}", h.fingerprint());
+    println!("  token (--token):     {}", h.token());
+    if h.created_identity() {
+        println!("  (certificate/token created on this first run)");
+    }
+    tokio::signal::ctrl_c().await.context("waiting for Ctrl-C")?;
+    println!("snerf serve: shutting down");
+    let _ = h.stop.send(true);
+    h.join().await;
+    Ok(())
+}
+
+/// Blocking `serve` on a fresh multi-threaded runtime.
+pub fn serve_blocking(opts: ServeOptions) -> Result<()> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the tokio runtime")?
+        .block_on(serve(opts))
+}
+
+fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> {
+    let meta = std::fs::metadata(&opts.path).with_context(|| format!("{}: cannot serve", opts.path.display()))?;
+    let source = if meta.is_dir() {
+        Source::Dir(opts.path.clone())
+    } else {
+        let name = asset_name(&opts.path);
+        if !valid_asset_name(&name) {
+            bail!("{}: file name is not a valid asset name (use letters, digits, . _ -)", opts.path.display());
+        }
+        // Validate a single file up front: refusing to start beats failing every client.
+        ServedAsset::load(&name, &opts.path)?;
+        Source::File { name, path: opts.path.clone() }
+    };
+    let state = opts.state_dir.clone().unwrap_or_else(|| tls::default_state_dir(&opts.path));
+    let id = tls::load_or_create_identity(&state, opts.cert.as_deref(), opts.key.as_deref(), opts.token_file.as_deref())?;
+    let crypto = Arc::new(tls::server_crypto(&id)?);
+    let config = |loopback: bool| -> Result<quinn::ServerConfig> {
+        let mut sc = quinn::ServerConfig::with_crypto(crypto.clone());
+        sc.transport_config(Arc::new(transport(&opts.limits, loopback)?));
+        sc.migration(true);
+        Ok(sc)
+    };
+    let (remote_cfg, loopback_cfg) = (config(false)?, Arc::new(config(true)?));
+    let socket = std::net::UdpSocket::bind(opts.listen).with_context(|| format!("cannot listen on UDP {}", opts.listen))?;
+    let runtime = quinn::default_runtime().ok_or_else(|| anyhow!("no async runtime"))?;
+    let endpoint = Endpoint::new(crate::proto::endpoint_config(), Some(remote_cfg), socket, runtime)
+        .with_context(|| format!("cannot listen on UDP {}", opts.listen))?;
+    let shared = Arc::new(Shared {
+        loopback_cfg,
+        limits: opts.limits.clone(),
+        token: id.token.clone(),
+        source,
+        cache: Mutex::new(HashMap::new()),
+        load_lock: tokio::sync::Mutex::new(()),
+        stats: Arc::new(ServerStats::default()),
+        quiet: opts.quiet,
+    });
+    Ok((shared, endpoint, id))
+}
+
+async fn accept_loop(shared: Arc<Shared>, endpoint: Endpoint, mut stop: watch::Receiver<bool>) {
+    let slots = Arc::new(Semaphore::new(shared.limits.max_clients.max(1)));
+    let mut conns = JoinSet::new();
+    loop {
+        let incoming = tokio::select! {
+            i = endpoint.accept() => match i { Some(i) => i, None => break },
+            _ = stop.wait_for(|s| *s) => break,
+        };
+        while conns.try_join_next().is_some() {}
+        let Ok(permit) = slots.clone().try_acquire_owned() else {
+            shared.stats.refused_busy.fetch_add(1, Ordering::Relaxed);
+            log(&shared, incoming.remote_address(), "refused: at the client limit");
+            incoming.refuse();
+            continue;
+        };
+        let shared = shared.clone();
+        conns.spawn(async move {
+            let who = incoming.remote_address();
+            let accepted = if crate::proto::is_loopback(who) { incoming.accept_with(shared.loopback_cfg.clone()) } else { incoming.accept() };
+            let connecting = match accepted {
+                Ok(c) => c,
+                Err(e) => return log(&shared, who, &format!("handshake failed: {}", e)),
+            };
+            let conn = match tokio::time::timeout(shared.limits.hello_timeout, connecting).await {
+                Ok(Ok(c)) => c,
+                Ok(Err(e)) => return log(&shared, who, &format!("handshake failed: {}", e)),
+                Err(_) => return log(&shared, who, "handshake timed out"),
+            };
+            shared.stats.connections.fetch_add(1, Ordering::Relaxed);
+            handle(shared, conn).await;
+            drop(permit);
+        });
+    }
+    endpoint.close(VarInt::from_u32(code::SHUTDOWN), b"server shutting down");
+    conns.abort_all();
+    while conns.join_next().await.is_some() {}
+    endpoint.wait_idle().await;
+}
+
+async fn handle(shared: Arc<Shared>, conn: Connection) {
+    let who = conn.remote_address();
+    let mut tasks = JoinSet::new();
+    let r = session(&shared, &conn, &mut tasks).await;
+    tasks.abort_all();
+    match r {
+        Ok(()) => {}
+        Err(Close(c, reason)) => {
+            match c {
+                code::UNAUTHORIZED => shared.stats.unauthorized.fetch_add(1, Ordering::Relaxed),
+                code::DONE | code::NOT_FOUND | code::SHUTDOWN => 0,
+                _ => shared.stats.protocol_errors.fetch_add(1, Ordering::Relaxed),
+            };
+            log(&shared, who, &format!("closing ({}): {}", code::name(c as u64), reason));
+            conn.close(VarInt::from_u32(c), reason.as_bytes());
+        }
+    }
+    while tasks.join_next().await.is_some() {}
+}
+
+fn frame_close(e: FrameError) -> Close {
+    match e {
+        FrameError::TooLarge(..) => Close(code::TOO_LARGE, e.to_string()),
+        FrameError::Truncated => Close(code::MALFORMED, e.to_string()),
+        FrameError::Io(_) => Close(code::PROTOCOL, e.to_string()),
+    }
+}
+
+async fn send_msg(send: &mut SendStream, m: &ServerMsg) -> Result<(), Close> {
+    send.write_all(&encode_frame(m)).await.map_err(|e| Close(code::PROTOCOL, format!("control stream: {}", e)))
+}
+
+async fn session(shared: &Arc<Shared>, conn: &Connection, tasks: &mut JoinSet<Result<(), Close>>) -> Result<(), Close> {
+    let limits = &shared.limits;
+    let who = conn.remote_address();
+    let (mut send, mut recv) = match tokio::time::timeout(limits.hello_timeout, conn.accept_bi()).await {
+        Err(_) => return Err(Close(code::TIMEOUT, "no control stream opened in time".into())),
+        Ok(Err(_)) => return Ok(()), // connection gone
+        Ok(Ok(s)) => s,
+    };
+    let first = match tokio::time::timeout(limits.hello_timeout, read_frame(&mut recv, limits.max_message)).await {
+        Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
+        Ok(Err(e)) => return Err(frame_close(e)),
+        Ok(Ok(None)) => return Err(Close(code::PROTOCOL, "control stream closed before Hello".into())),
+        Ok(Ok(Some(b))) => b,
+    };
+    let msg = decode_client_msg(&first).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))?;
+    let (asset, have, resume_id, pose) = match msg {
+        ClientMsg::List => return Err(Close(code::PROTOCOL, "List before Hello".into())),
+        ClientMsg::Hello { version, token, asset, have, resume_id, pose } => {
+            if version != PROTOCOL_VERSION {
+                return Err(Close(
+                    code::VERSION,
+                    format!("protocol version {} not supported (server speaks {})", version, PROTOCOL_VERSION),
+                ));
+            }
+            if !tls::token_eq(&token, &shared.token) {
+                return Err(Close(code::UNAUTHORIZED, "invalid access token".into()));
+            }
+            (asset, have, resume_id, pose)
+        }
+    };
+    // Authenticated from here on.
+    let mut asset_task = false;
+    if let Some(name) = asset {
+        let (name, path) = shared.resolve(Some(&name))?;
+        let a = shared.load(&name, &path).await?;
+        let n = a.chunk_count() as usize;
+        let mut skip = vec![false; n];
+        let resumed = resume_id.as_deref() == Some(a.sha256.as_str());
+        if resumed {
+            for r in &have {
+                let (lo, hi) = (r[0] as usize, (r[1] as usize).min(n));
+                for s in skip.iter_mut().take(hi).skip(lo) {
+                    *s = true;
+                }
+            }
+        }
+        let sending: Vec<u32> = (0..n as u32).filter(|&i| !skip[i as usize]).collect();
+        let sending_bytes = crate::plan::records_len(&a, &sending);
+        send_msg(
+            &mut send,
+            &ServerMsg::Welcome {
+                version: PROTOCOL_VERSION,
+                asset: Some(a.info()),
+                resumed,
+                sending_chunks: sending.len() as u32,
+                sending_bytes,
+            },
+        )
+        .await?;
+        log(
+            shared,
+            who,
+            &format!("streaming {} ({} of {} chunks, {} bytes{})", name, sending.len(), n, sending_bytes, if resumed { ", resumed" } else { "" }),
+        );
+        let (view_tx, view_rx) = watch::channel(pose.filter(|p| p.validate().is_ok()));
+        tasks.spawn(read_poses(conn.clone(), view_tx, shared.stats.clone()));
+        tasks.spawn(stream_asset(conn.clone(), a, skip, view_rx, shared.clone()));
+        asset_task = true;
+    } else {
+        send_msg(
+            &mut send,
+            &ServerMsg::Welcome { version: PROTOCOL_VERSION, asset: None, resumed: false, sending_chunks: 0, sending_bytes: 0 },
+        )
+        .await?;
+    }
+    // Control loop: List may follow; anything else is out of order.
+    let mut control_open = true;
+    loop {
+        tokio::select! {
+            f = read_frame(&mut recv, limits.max_message), if control_open => {
+                match f {
+                    Err(e) => return Err(frame_close(e)),
+                    Ok(None) => control_open = false,
+                    Ok(Some(b)) => match decode_client_msg(&b).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))? {
+                        ClientMsg::List => send_msg(&mut send, &ServerMsg::Listing { assets: shared.list() }).await?,
+                        ClientMsg::Hello { .. } => return Err(Close(code::PROTOCOL, "duplicate Hello".into())),
+                    },
+                }
+            }
+            r = tasks.join_next(), if asset_task => {
+                match r {
+                    None => asset_task = false,
+                    Some(Ok(Ok(()))) => {
+                        // Everything sent and acknowledged; give the client a moment to close.
+                        tokio::select! {
+                            _ = conn.closed() => return Ok(()),
+                            _ = tokio::time::sleep(limits.linger) => return Err(Close(code::DONE, "transfer complete".into())),
+                        }
+                    }
+                    Some(Ok(Err(c))) => return Err(c),
+                    Some(Err(_)) => return Ok(()),
+                }
+            }
+            _ = conn.closed() => return Ok(()),
+        }
+    }
+}
+
+async fn read_poses(conn: Connection, tx: watch::Sender<Option<Pose>>, stats: Arc<ServerStats>) -> Result<(), Close> {
+    let mut last: Option<u32> = None;
+    // Ends when the connection does; a pose stream never closes it (datagrams are best effort).
+    while let Ok(d) = conn.read_datagram().await {
+        match decode_pose(&d) {
+            Ok((seq, p)) => {
+                if last.is_none_or(|l| seq > l) {
+                    last = Some(seq);
+                    stats.pose_updates.fetch_add(1, Ordering::Relaxed);
+                    let _ = tx.send(Some(p));
+                }
+            }
+            Err(_) => {
+                stats.bad_datagrams.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+    // Keep the join set from reporting completion as "asset task done".
+    std::future::pending::<()>().await;
+    Ok(())
+}
+
+async fn open_stream(conn: &Connection, stall: Duration) -> Result<SendStream, Close> {
+    match tokio::time::timeout(stall, conn.open_uni()).await {
+        Err(_) => Err(Close(code::TIMEOUT, "client granted no stream credit (stopped reading)".into())),
+        Ok(Err(e)) => Err(Close(code::DONE, format!("connection lost: {}", e))),
+        Ok(Ok(s)) => Ok(s),
+    }
+}
+
+async fn write_batch(mut s: SendStream, asset: Arc<ServedAsset>, idx: Vec<u32>, shared: Arc<Shared>) -> Result<u64, Close> {
+    let mut bufs = Vec::with_capacity(idx.len() * 2);
+    let mut bytes = 0u64;
+    for &i in &idx {
+        bufs.push(Bytes::copy_from_slice(&i.to_le_bytes()));
+        bufs.push(asset.chunk_bytes(i));
+        bytes += asset.record_len(i);
+    }
+    let stall = shared.limits.stall_timeout;
+    shared.stats.streams_started.fetch_add(1, Ordering::Relaxed);
+    match tokio::time::timeout(stall, s.write_all_chunks(&mut bufs)).await {
+        Err(_) => return Err(Close(code::TIMEOUT, "client stopped reading (send stalled)".into())),
+        Ok(Err(e)) => return Err(Close(code::DONE, format!("connection lost: {}", e))),
+        Ok(Ok(())) => {}
+    }
+    let _ = s.finish();
+    shared.stats.bytes_sent.fetch_add(bytes, Ordering::Relaxed);
+    // Done when the client has acknowledged the whole stream: only then does the scheduler
+    // commit more blocks, so what is queued stays ~2 congestion windows and a pose change
+    // takes effect within about one round trip.
+    match tokio::time::timeout(stall, s.stopped()).await {
+        Err(_) => return Err(Close(code::TIMEOUT, "client stopped acknowledging data".into())),
+        Ok(Err(e)) => return Err(Close(code::DONE, format!("connection lost: {}", e))),
+        Ok(Ok(Some(c))) => return Err(Close(code::PROTOCOL, format!("client stopped a data stream (code {})", c))),
+        Ok(Ok(None)) => {}
+    }
+    shared.stats.streams_completed.fetch_add(1, Ordering::Relaxed);
+    Ok(bytes)
+}
+
+/// Smallest amount the scheduler keeps in flight, whatever the congestion window says.
+const MIN_IN_FLIGHT: u64 = 128 * 1024;
+const MIN_BATCH: u64 = 16 * 1024;
+
+/// Stream everything not in `skip`: the meta chunks (HEAD, VMLP, GRIDs) on the first,
+/// highest-priority stream, then BLKS chunks in batches ordered for the latest pose, then END
+/// once every block stream has been acknowledged. Blocks are committed to streams only while
+/// less than ~2 congestion windows are unacknowledged, so the order can follow the pose.
+async fn stream_asset(
+    conn: Connection,
+    asset: Arc<ServedAsset>,
+    skip: Vec<bool>,
+    mut view_rx: watch::Receiver<Option<Pose>>,
+    shared: Arc<Shared>,
+) -> Result<(), Close> {
+    let limits = shared.limits.clone();
+    let max_streams = limits.max_streams.max(1);
+    let mut writers: JoinSet<Result<u64, Close>> = JoinSet::new();
+    let mut outstanding = 0u64;
+    let mut prio = i32::MAX;
+    let joined = |r: Result<Result<u64, Close>, tokio::task::JoinError>| -> Result<u64, Close> {
+        r.map_err(|_| Close(code::INTERNAL, "writer task failed".into()))?
+    };
+    let meta: Vec<u32> = asset.meta.iter().copied().filter(|&i| !skip[i as usize]).collect();
+    if !meta.is_empty() {
+        let s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.set_priority(prio);
+        prio -= 1;
+        outstanding += crate::plan::records_len(&asset, &meta);
+        writers.spawn(write_batch(s, asset.clone(), meta, shared.clone()));
+    }
+    let mut remaining: Vec<u32> =
+        (0..asset.blks.len() as u32).filter(|&b| !skip[asset.blks[b as usize].chunk as usize]).collect();
+    let sort = |remaining: &mut Vec<u32>, pose: Option<Pose>| {
+        let view = pose.map(|p| View::new(&asset, &p));
+        let mut keyed: Vec<((u32, u8, f32), u32)> =
+            remaining.iter().map(|&b| (asset.priority(&asset.blks[b as usize], view.as_ref()), b)).collect();
+        // Descending, so the most urgent block is popped from the end.
+        keyed.sort_by(|a, b| b.0 .0.cmp(&a.0 .0).then(b.0 .1.cmp(&a.0 .1)).then(b.0 .2.total_cmp(&a.0 .2)));
+        remaining.clear();
+        remaining.extend(keyed.into_iter().map(|k| k.1));
+    };
+    let p0 = *view_rx.borrow_and_update();
+    sort(&mut remaining, p0);
+    while !remaining.is_empty() {
+        while let Some(r) = writers.try_join_next() {
+            outstanding -= joined(r)?;
+        }
+        let cwnd = conn.congestion_state().window();
+        let target = cwnd.saturating_mul(2).clamp(MIN_IN_FLIGHT, limits.send_budget.max(MIN_IN_FLIGHT));
+        if outstanding >= target || writers.len() >= max_streams {
+            tokio::select! {
+                Some(r) = writers.join_next() => outstanding -= joined(r)?,
+                _ = conn.closed() => return Ok(()),
+            }
+            continue;
+        }
+        if view_rx.has_changed().unwrap_or(false) {
+            let p = *view_rx.borrow_and_update();
+            sort(&mut remaining, p);
+        }
+        let batch_target = (target / 4).clamp(MIN_BATCH, (limits.batch_bytes as u64).max(MIN_BATCH));
+        let mut batch = Vec::new();
+        let mut bytes = 0u64;
+        while let Some(&b) = remaining.last() {
+            if !batch.is_empty() && bytes >= batch_target {
+                break;
+            }
+            let c = asset.blks[b as usize].chunk;
+            bytes += asset.record_len(c);
+            batch.push(c);
+            remaining.pop();
+        }
+        let s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.set_priority(prio);
+        prio = prio.saturating_sub(1).max(i32::MIN + 1);
+        outstanding += bytes;
+        writers.spawn(write_batch(s, asset.clone(), batch, shared.clone()));
+    }
+    while let Some(r) = writers.join_next().await {
+        joined(r)?;
+    }
+    if !skip[asset.end as usize] {
+        let s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.set_priority(i32::MIN);
+        write_batch(s, asset.clone(), vec![asset.end], shared.clone()).await?;
+    } else {
+        // Nothing more to send; wait for the client to close.
+        std::future::pending::<()>().await;
+    }
+    Ok(())
+}

@@ -1,0 +1,232 @@
+//! GPU render vs the CPU reference renderer (`snerf_asset::render`) on several assets and
+//! cameras: static object, unbounded, forward (NDC), 4D (keyframe blending), stereo.
+//! Bar: mean absolute difference <= 1/255 per channel; max and 99.9th percentile printed
+//! and bounded (documented in the report).
+mod common;
+use common::*;
+use snerf_asset::{Asset, Camera};
+use snerf_viewer::{stereo_pair, GpuOptions, GpuRenderer};
+
+const W: u32 = 160;
+const H: u32 = 120;
+/// Worst single channel anywhere. Measured on lavapipe: < 6e-6 (f32 rounding only). Other
+/// GPUs may flip an isolated sample that lands exactly on a cell or voxel boundary, so the
+/// bound leaves room for that while still catching a wrong march (and p99.9 <= 1/255).
+const MAX_BOUND: f64 = 0.05;
+
+fn check(name: &str, asset: &Asset, r: &mut GpuRenderer, cam: &Camera, time: f32) -> Diff {
+    let gpu = r.render(cam, time).unwrap();
+    let cpu = snerf_asset::render(asset, cam, time);
+    let d = diff(&gpu, &cpu);
+    println!(
+        "{}: mean {:.2e} p99.9 {:.2e} max {:.2e} (x255: mean {:.3} max {:.1}); opacity mean {:.2e} max {:.2e}; coverage {:.2}",
+        name,
+        d.mean,
+        d.p999,
+        d.max,
+        d.mean * 255.0,
+        d.max * 255.0,
+        d.opacity_mean,
+        d.opacity_max,
+        coverage(&cpu)
+    );
+    assert!(d.mean <= 1.0 / 255.0, "{}: mean abs diff {} > 1/255", name, d.mean);
+    assert!(d.max <= MAX_BOUND, "{}: max abs diff {} > {}", name, d.max, MAX_BOUND);
+    assert!(d.p999 <= 1.0 / 255.0, "{}: 99.9th percentile abs diff {} > 1/255", name, d.p999);
+    assert!(d.opacity_mean <= 1.0 / 255.0, "{}: opacity mean diff {}", name, d.opacity_mean);
+    d
+}
+
+#[test]
+fn static_object_matches_cpu() {
+    if !have_gpu("static_object_matches_cpu") {
+        return;
+    }
+    let a = object_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    println!("adapter: {}", r.adapter_info());
+    let mut cov = 0.0;
+    for (i, c) in cams(&a.header, 5, W, H).iter().enumerate() {
+        check(&format!("object cam {}", i), &a, &mut r, c, 0.0);
+        cov += coverage(&snerf_asset::render(&a, c, 0.0));
+    }
+    assert!(cov / 5.0 > 0.1, "test images are mostly empty ({})", cov / 5.0);
+    // Axis-aligned camera (ray direction components exactly 0) and one inside the box.
+    let m = snerf_asset::render::model_to_world(&a.header, [0.0, 0.0, 0.0]);
+    let axis = Camera {
+        c2w: [[1.0, 0.0, 0.0, m[0]], [0.0, 1.0, 0.0, m[1]], [0.0, 0.0, 1.0, m[2] + 3.0]],
+        fx: 100.0,
+        fy: 100.0,
+        cx: 80.0,
+        cy: 60.0,
+        width: W,
+        height: H,
+    };
+    check("object axis-aligned", &a, &mut r, &axis, 0.0);
+    let mut inside = axis;
+    inside.c2w[2][3] = m[2] + 0.2;
+    inside.fx = 60.0;
+    inside.fy = 60.0;
+    check("object inside", &a, &mut r, &inside, 0.0);
+}
+
+#[test]
+fn unbounded_matches_cpu() {
+    if !have_gpu("unbounded_matches_cpu") {
+        return;
+    }
+    let a = unbounded_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    for (i, c) in cams(&a.header, 4, W, H).iter().enumerate() {
+        check(&format!("unbounded cam {}", i), &a, &mut r, c, 0.0);
+    }
+    // From inside the unit cube, looking at the far shell.
+    let mut c = cams(&a.header, 4, W, H)[1];
+    let m = snerf_asset::render::model_to_world(&a.header, [0.6, 0.1, 0.0]);
+    for (row, v) in c.c2w.iter_mut().zip(m) {
+        row[3] = v;
+    }
+    check("unbounded inside", &a, &mut r, &c, 0.0);
+}
+
+#[test]
+fn forward_matches_cpu() {
+    if !have_gpu("forward_matches_cpu") {
+        return;
+    }
+    let a = forward_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    for (i, c) in cams(&a.header, 4, W, H).iter().enumerate() {
+        check(&format!("forward cam {}", i), &a, &mut r, c, 0.0);
+    }
+}
+
+#[test]
+fn dynamic_keyframes_match_cpu() {
+    if !have_gpu("dynamic_keyframes_match_cpu") {
+        return;
+    }
+    let a = dynamic_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    let cs = cams(&a.header, 3, W, H);
+    let mut prev: Option<snerf_asset::Frame> = None;
+    for (i, &t) in [-1.0f32, 0.0, 0.2, 0.5, 0.77, 1.0, 3.0, f32::NAN].iter().enumerate() {
+        let c = &cs[i % cs.len()];
+        check(&format!("dynamic t={} cam {}", t, i % cs.len()), &a, &mut r, c, t);
+        // Time changes the picture (the GPU path really interpolates keyframes).
+        let f = r.render(&cs[0], t).unwrap();
+        if let (Some(p), true) = (&prev, t == 0.2) {
+            assert!(diff(p, &f).mean > 1e-3, "t=0 and t=0.2 render the same");
+        }
+        prev = Some(f);
+    }
+}
+
+#[test]
+fn stereo_pair_matches_cpu() {
+    if !have_gpu("stereo_pair_matches_cpu") {
+        return;
+    }
+    let a = object_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    let c = cams(&a.header, 3, W, H)[1];
+    let (l, rr) = stereo_pair(c.c2w, 0.1, W, H, 50.0);
+    let f = r.render_stereo(&l, &rr, 0.0).unwrap();
+    assert_eq!((f.width, f.height), (2 * W, H));
+    let (cl, cr) = (snerf_asset::render(&a, &l, 0.0), snerf_asset::render(&a, &rr, 0.0));
+    // Split the side-by-side frame into its eyes.
+    let half = |x0: u32| {
+        let mut e = snerf_asset::Frame { width: W, height: H, rgb: vec![], depth: vec![], opacity: vec![] };
+        for y in 0..H {
+            for x in 0..W {
+                let i = (y * 2 * W + x0 + x) as usize;
+                e.rgb.extend_from_slice(&f.rgb[i * 3..i * 3 + 3]);
+                e.depth.push(f.depth[i]);
+                e.opacity.push(f.opacity[i]);
+            }
+        }
+        e
+    };
+    let (gl, gr) = (half(0), half(W));
+    for (name, g, c) in [("stereo left", &gl, &cl), ("stereo right", &gr, &cr)] {
+        let d = diff(g, c);
+        println!("{}: mean {:.2e} p99.9 {:.2e} max {:.2e}", name, d.mean, d.p999, d.max);
+        assert!(d.mean <= 1.0 / 255.0 && d.max <= MAX_BOUND, "{}: {:?}", name, d);
+    }
+    // The eyes really differ (parallax).
+    assert!(diff(&gl, &gr).mean > 1e-3, "left and right eyes are identical");
+}
+
+/// Hardware trilinear filtering (optional path): reported, looser bar, never the default.
+#[test]
+fn hardware_filter_variant_reported() {
+    if !have_gpu("hardware_filter_variant_reported") {
+        return;
+    }
+    let a = object_asset();
+    let mut r = GpuRenderer::with_options(&a, GpuOptions { hardware_filter: true, ..Default::default() }).unwrap();
+    let mut worst = 0.0f64;
+    for (i, c) in cams(&a.header, 3, W, H).iter().enumerate() {
+        let d = diff(&r.render(c, 0.0).unwrap(), &snerf_asset::render(&a, c, 0.0));
+        println!(
+            "hardware filter cam {}: mean {:.2e} (x255 {:.3}) p99.9 {:.2e} max {:.2e}",
+            i,
+            d.mean,
+            d.mean * 255.0,
+            d.p999,
+            d.max
+        );
+        worst = worst.max(d.mean);
+    }
+    assert!(worst < 4.0 / 255.0, "hardware filtering is far off: mean {}", worst);
+}
+
+/// Progressive (streaming) rendering: blocks missing render empty, exactly as the CPU
+/// renderer treats them; update_blocks makes them appear.
+#[test]
+fn progressive_blocks_match_cpu() {
+    if !have_gpu("progressive_blocks_match_cpu") {
+        return;
+    }
+    let full = object_asset();
+    let mut partial = full.clone();
+    let n = partial.present.len();
+    for i in (0..n).filter(|i| i % 3 != 0) {
+        partial.present[i] = false;
+    }
+    let bb = partial.block_bytes();
+    for i in (0..n).filter(|i| i % 3 != 0) {
+        partial.atlas[i * bb..(i + 1) * bb].fill(0);
+    }
+    let c = cams(&full.header, 3, W, H)[0];
+    let mut r = GpuRenderer::new(&partial).unwrap();
+    check("progressive 1/3 of blocks", &partial, &mut r, &c, 0.0);
+    let arrived: Vec<u32> = (0..n as u32).filter(|i| i % 3 == 1).collect();
+    for &i in &arrived {
+        let i = i as usize;
+        partial.atlas[i * bb..(i + 1) * bb].copy_from_slice(&full.atlas[i * bb..(i + 1) * bb]);
+        partial.present[i] = true;
+    }
+    r.update_blocks(&partial, &arrived).unwrap();
+    check("progressive 2/3 of blocks", &partial, &mut r, &c, 0.0);
+    let rest: Vec<u32> = (0..n as u32).filter(|i| i % 3 == 2).collect();
+    r.update_blocks(&full, &rest).unwrap();
+    check("progressive all blocks", &full, &mut r, &c, 0.0);
+}
+
+#[test]
+fn headless_render_frames_and_fallback() {
+    if !have_gpu("headless_render_frames_and_fallback") {
+        return;
+    }
+    let a = dynamic_asset();
+    let cs: Vec<(Camera, f32)> = cams(&a.header, 3, 64, 48).into_iter().zip([0.0, 0.4, 0.9]).collect();
+    let frames = snerf_viewer::render_frames(&a, &cs).unwrap();
+    assert_eq!(frames.len(), 3);
+    for (f, (c, t)) in frames.iter().zip(&cs) {
+        assert!(diff(f, &snerf_asset::render(&a, c, *t)).mean <= 1.0 / 255.0);
+    }
+    let (frames2, by) = snerf_viewer::render_frames_or_cpu(&a, &cs).unwrap();
+    assert!(matches!(by, snerf_viewer::RenderedBy::Gpu(_)), "{:?}", by);
+    assert_eq!(frames2, frames);
+}
