@@ -51,7 +51,8 @@ struct Sample {
 
 @group(0) @binding(0) var<uniform> P: Params;
 @group(0) @binding(1) var<storage, read> grid: array<u32>;
-@group(0) @binding(2) var<storage, read> mlp: array<f32>;
+// view MLP weights transposed to input-major vec4 rows (see gpu.rs `mlp_gpu_layout`)
+@group(0) @binding(2) var<uniform> mlp: array<vec4<f32>, 225>;
 @group(0) @binding(3) var<storage, read_write> out_rgba: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> out_depth: array<f32>;
 // bindings 5.. (atlas textures, sampler) come with the atlas snippet
@@ -65,16 +66,16 @@ const MAX_ITERS: u32 = 1048576u;
 const PI: f32 = 3.14159265358979;
 
 // ---- compositing state (render.rs `Accum`) ----
-var<private> acc_vals: array<f32, 7>;
+var<private> acc_rgb: vec3<f32>;
+var<private> acc_feat: vec4<f32>;
 var<private> acc_w: f32;
 var<private> acc_depth: f32;
 var<private> acc_optical: f32;
 var<private> acc_trans: f32;
 
 fn accum_reset() {
-    for (var c = 0u; c < 7u; c++) {
-        acc_vals[c] = 0.0;
-    }
+    acc_rgb = vec3<f32>(0.0);
+    acc_feat = vec4<f32>(0.0);
     acc_w = 0.0;
     acc_depth = 0.0;
     acc_optical = 0.0;
@@ -95,13 +96,8 @@ fn accum_add(v: Vals, delta: f32, t: f32) -> bool {
     let sd = min(max(sigma * delta, 0.0), MAX_OPTICAL_DEPTH);
     let alpha = one_minus_exp_neg(sd);
     let w = acc_trans * alpha;
-    acc_vals[0] += w * v.a.y;
-    acc_vals[1] += w * v.a.z;
-    acc_vals[2] += w * v.a.w;
-    acc_vals[3] += w * v.b.x;
-    acc_vals[4] += w * v.b.y;
-    acc_vals[5] += w * v.b.z;
-    acc_vals[6] += w * v.b.w;
+    acc_rgb += w * v.a.yzw;
+    acc_feat += w * v.b;
     acc_w += w;
     acc_depth += w * t;
     acc_optical += sd;
@@ -219,54 +215,54 @@ fn rot_vec(v: vec3<f32>) -> vec3<f32> {
     );
 }
 
-struct Hit {
+// One axis of the slab test; d == 0: inside the slab for all t, or never (render.rs).
+struct Span {
     ok: bool,
     t0: f32,
     t1: f32,
 }
 
-// Slab test against [-1,1]^3 (render.rs `box_hit`, including its d == 0 handling).
-fn box_hit(o: vec3<f32>, d: vec3<f32>) -> Hit {
-    var h: Hit;
-    h.ok = false;
-    var t0 = -3.0e38;
-    var t1 = 3.0e38;
-    for (var i = 0; i < 3; i++) {
-        if (d[i] == 0.0) {
-            if (!(abs(o[i]) <= 1.0)) {
-                return h;
-            }
-            continue;
-        }
-        let inv = 1.0 / d[i];
-        let a0 = (-1.0 - o[i]) * inv;
-        let b0 = (1.0 - o[i]) * inv;
-        t0 = max(t0, min(a0, b0));
-        t1 = min(t1, max(a0, b0));
+fn slab(o: f32, d: f32, span: Span) -> Span {
+    var r = span;
+    if (d == 0.0) {
+        r.ok = r.ok && abs(o) <= 1.0;
+        return r;
     }
-    h.ok = t1 > max(t0, 0.0);
-    h.t0 = t0;
-    h.t1 = t1;
-    return h;
+    let inv = 1.0 / d;
+    let a0 = (-1.0 - o) * inv;
+    let b0 = (1.0 - o) * inv;
+    r.t0 = max(r.t0, min(a0, b0));
+    r.t1 = min(r.t1, max(a0, b0));
+    return r;
+}
+
+// Slab test against [-1,1]^3 (render.rs `box_hit`): hit when t1 > max(t0, 0).
+fn box_hit(o: vec3<f32>, d: vec3<f32>) -> Span {
+    var s = Span(true, -3.0e38, 3.0e38);
+    s = slab(o.x, d.x, s);
+    s = slab(o.y, d.y, s);
+    s = slab(o.z, d.z, s);
+    s.ok = s.ok && s.t1 > max(s.t0, 0.0);
+    return s;
+}
+
+fn axis_exit(g: f32, gd: f32, r: f32, best: f32) -> f32 {
+    if (gd == 0.0) {
+        return best;
+    }
+    let u = (g + 1.0) * 0.5 * r;
+    let k = clamp(floor(u), 0.0, r - 1.0);
+    let bound = select(k, k + 1.0, gd > 0.0);
+    return min(best, (bound / r * 2.0 - 1.0 - g) / gd);
 }
 
 // Distance along the ray from grid point g to the exit of its indirection cell.
 fn cell_exit(g: vec3<f32>, gdir: vec3<f32>) -> f32 {
     let r = f32(P.grid.y);
     var best = 3.0e38;
-    for (var a = 0; a < 3; a++) {
-        if (gdir[a] == 0.0) {
-            continue;
-        }
-        let u = (g[a] + 1.0) * 0.5 * r;
-        let k = clamp(floor(u), 0.0, r - 1.0);
-        var bound = k;
-        if (gdir[a] > 0.0) {
-            bound = k + 1.0;
-        }
-        let s = (bound / r * 2.0 - 1.0 - g[a]) / gdir[a];
-        best = min(best, s);
-    }
+    best = axis_exit(g.x, gdir.x, r, best);
+    best = axis_exit(g.y, gdir.y, r, best);
+    best = axis_exit(g.z, gdir.z, r, best);
     return max(best, 0.0);
 }
 
@@ -311,14 +307,9 @@ fn contract(p: vec3<f32>) -> vec3<f32> {
     if (m <= 1.0) {
         return p;
     }
-    var c = p / m;
-    let s = 2.0 - 1.0 / m;
-    for (var i = 0; i < 3; i++) {
-        if (abs(p[i]) == m) {
-            c[i] = s * sign(p[i]);
-        }
-    }
-    return c;
+    let onm = abs(p) == vec3<f32>(m);
+    let edge = (2.0 - 1.0 / m) * sign(p);
+    return select(p / m, edge, onm);
 }
 
 fn unbounded_dt(p: vec3<f32>) -> f32 {
@@ -380,56 +371,89 @@ fn march_forward(o_in: vec3<f32>, d: vec3<f32>) {
 }
 
 // ---- deferred view MLP (mlp.rs): 34 -> 16 -> 16 -> 3, relu, relu, linear ----
-const W1: u32 = 0u;
-const B1: u32 = 544u;
-const W2: u32 = 560u;
-const B2: u32 = 816u;
-const W3: u32 = 832u;
-const B3: u32 = 880u;
+// Weights input-major in vec4 rows: input i of a layer adds x_i * (4 vec4 = 16 units),
+// in the same order as the CPU's per-unit dot products (bias first, then i = 0, 1, ...).
+const M_W1: u32 = 0u;   // 34 inputs x 4 vec4
+const M_B1: u32 = 136u; // 4 vec4
+const M_W2: u32 = 140u; // 16 inputs x 4 vec4
+const M_B2: u32 = 204u; // 4 vec4
+const M_W3: u32 = 208u; // 16 inputs x 1 vec4 (3 outputs + 0)
+const M_B3: u32 = 224u; // 1 vec4
+
+struct Hidden {
+    a: vec4<f32>,
+    b: vec4<f32>,
+    c: vec4<f32>,
+    d: vec4<f32>,
+}
+
+fn hidden_bias(base: u32) -> Hidden {
+    return Hidden(mlp[base], mlp[base + 1u], mlp[base + 2u], mlp[base + 3u]);
+}
+
+// h += x * (weights of input row `row` of a 16-unit layer at `base`)
+fn hidden_add(h: Hidden, x: f32, base: u32, row: u32) -> Hidden {
+    let k = base + row * 4u;
+    return Hidden(h.a + mlp[k] * x, h.b + mlp[k + 1u] * x, h.c + mlp[k + 2u] * x, h.d + mlp[k + 3u] * x);
+}
+
+fn hidden_add4(h: Hidden, x: vec4<f32>, base: u32, row: u32) -> Hidden {
+    var r = hidden_add(h, x.x, base, row);
+    r = hidden_add(r, x.y, base, row + 1u);
+    r = hidden_add(r, x.z, base, row + 2u);
+    r = hidden_add(r, x.w, base, row + 3u);
+    return r;
+}
+
+fn relu(h: Hidden) -> Hidden {
+    let z = vec4<f32>(0.0);
+    return Hidden(max(h.a, z), max(h.b, z), max(h.c, z), max(h.d, z));
+}
+
+fn out_add4(o: vec4<f32>, x: vec4<f32>, row: u32) -> vec4<f32> {
+    let k = M_W3 + row;
+    var r = o + mlp[k] * x.x;
+    r = r + mlp[k + 1u] * x.y;
+    r = r + mlp[k + 2u] * x.z;
+    r = r + mlp[k + 3u] * x.w;
+    return r;
+}
 
 fn view_mlp(dir: vec3<f32>) -> vec3<f32> {
-    var x: array<f32, 34>;
-    for (var c = 0u; c < 7u; c++) {
-        x[c] = acc_vals[c];
-    }
-    x[7] = dir.x;
-    x[8] = dir.y;
-    x[9] = dir.z;
-    var k = 10u;
+    var h = hidden_bias(M_B1);
+    h = hidden_add(h, acc_rgb.x, M_W1, 0u);
+    h = hidden_add(h, acc_rgb.y, M_W1, 1u);
+    h = hidden_add(h, acc_rgb.z, M_W1, 2u);
+    h = hidden_add4(h, acc_feat, M_W1, 3u);
+    h = hidden_add(h, dir.x, M_W1, 7u);
+    h = hidden_add(h, dir.y, M_W1, 8u);
+    h = hidden_add(h, dir.z, M_W1, 9u);
+    var row = 10u;
     for (var o = 0u; o < 4u; o++) {
-        let f = f32(1u << o) * PI;
-        for (var a = 0; a < 3; a++) {
-            let arg = f * dir[a];
-            x[k] = sin(arg);
-            x[k + 1u] = cos(arg);
-            k += 2u;
-        }
+        let arg = f32(1u << o) * PI * dir;
+        let sn = sin(arg);
+        let cs = cos(arg);
+        h = hidden_add(h, sn.x, M_W1, row);
+        h = hidden_add(h, cs.x, M_W1, row + 1u);
+        h = hidden_add(h, sn.y, M_W1, row + 2u);
+        h = hidden_add(h, cs.y, M_W1, row + 3u);
+        h = hidden_add(h, sn.z, M_W1, row + 4u);
+        h = hidden_add(h, cs.z, M_W1, row + 5u);
+        row += 6u;
     }
-    var h1: array<f32, 16>;
-    for (var j = 0u; j < 16u; j++) {
-        var s = mlp[B1 + j];
-        for (var i = 0u; i < 34u; i++) {
-            s += mlp[W1 + j * 34u + i] * x[i];
-        }
-        h1[j] = max(s, 0.0);
-    }
-    var h2: array<f32, 16>;
-    for (var j = 0u; j < 16u; j++) {
-        var s = mlp[B2 + j];
-        for (var i = 0u; i < 16u; i++) {
-            s += mlp[W2 + j * 16u + i] * h1[i];
-        }
-        h2[j] = max(s, 0.0);
-    }
-    var out: vec3<f32>;
-    for (var j = 0u; j < 3u; j++) {
-        var s = mlp[B3 + j];
-        for (var i = 0u; i < 16u; i++) {
-            s += mlp[W3 + j * 16u + i] * h2[i];
-        }
-        out[j] = s;
-    }
-    return out;
+    let h1 = relu(h);
+    var g = hidden_bias(M_B2);
+    g = hidden_add4(g, h1.a, M_W2, 0u);
+    g = hidden_add4(g, h1.b, M_W2, 4u);
+    g = hidden_add4(g, h1.c, M_W2, 8u);
+    g = hidden_add4(g, h1.d, M_W2, 12u);
+    let h2 = relu(g);
+    var o = mlp[M_B3];
+    o = out_add4(o, h2.a, 0u);
+    o = out_add4(o, h2.b, 4u);
+    o = out_add4(o, h2.c, 8u);
+    o = out_add4(o, h2.d, 12u);
+    return o.xyz;
 }
 
 @compute @workgroup_size(WG, WG, 1)
@@ -470,7 +494,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (acc_w > 0.0) {
         spec = view_mlp(dw);
     }
-    let diffuse = vec3<f32>(acc_vals[0], acc_vals[1], acc_vals[2]);
+    let diffuse = acc_rgb;
     let rgb = clamp(diffuse + acc_w * spec + acc_trans * P.background.xyz, vec3<f32>(0.0), vec3<f32>(1.0));
     var depth = 0.0;
     if (acc_w > 1.0e-6) {

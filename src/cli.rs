@@ -54,6 +54,8 @@ pub enum Cmd {
     Inspect(crate::bake_cmd::InspectArgs),
     /// Render a baked asset along a camera path to PNG frames (CPU reference renderer).
     Render(crate::bake_cmd::RenderArgs),
+    /// Export a baked asset as a binary glTF mesh (marching cubes, baked colours, world units).
+    ExportGltf(crate::bake_cmd::ExportGltfArgs),
     /// The whole path on built-in data: scene -> train -> eval -> turntable + contact sheet.
     Demo(crate::demo::DemoArgs),
     /// Benchmarks that print numbers (see BENCH.md).
@@ -87,7 +89,7 @@ pub struct SceneArgs {
     pub path: String,
 }
 
-#[derive(Args, Debug, Clone)]
+#[derive(Args, Debug, Clone, Default)]
 pub struct DataOpts {
     /// Override the detected scene kind: object | forward | unbounded.
     #[arg(long)]
@@ -236,6 +238,7 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::Bake(a) => crate::bake_cmd::bake_cmd(&a)?,
         Cmd::Inspect(a) => crate::bake_cmd::inspect_cmd(&a, cli.json)?,
         Cmd::Render(a) => crate::bake_cmd::render_cmd(&a)?,
+        Cmd::ExportGltf(a) => crate::bake_cmd::export_gltf_cmd(&a)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
         Cmd::Bench(b) => crate::bench::run(&b)?,
     };

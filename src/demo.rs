@@ -32,6 +32,18 @@ pub struct DemoArgs {
     /// Turntable frames.
     #[arg(long, default_value_t = 24)]
     pub frames: usize,
+    /// Stylizer for the SNeRF step (preset:N needs no style image; `color` needs no model).
+    #[arg(long, default_value = "preset:6")]
+    pub stylizer: String,
+    /// Style image for stylizers that take one (arbitrary, color, gatys).
+    #[arg(long)]
+    pub style: Option<PathBuf>,
+    /// SNeRF rounds (render -> stylize -> train).
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
+    /// Training steps per SNeRF round.
+    #[arg(long, default_value_t = 150)]
+    pub steps_per_round: u64,
 }
 
 const MARKER: &str = "snerf-demo.json";
@@ -43,7 +55,7 @@ fn prepare_dir(out: &Path) -> Result<()> {
             bail!("{}: exists and is not a snerf demo directory; choose another --out", out.display());
         }
         // A previous demo: start its run afresh (its data is regenerated below too).
-        for sub in ["run", "data", "turntable"] {
+        for sub in ["run", "data", "turntable", "stylized", "baked_turntable"] {
             let p = out.join(sub);
             if p.exists() {
                 std::fs::remove_dir_all(&p).with_context(|| format!("{}: cannot clear", p.display()))?;
@@ -60,7 +72,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     prepare_dir(&a.out)?;
     let data_dir = a.out.join("data");
     let run_dir = a.out.join("run");
-    eprintln!("[1/4] generating the '{}' scene", a.scene);
+    eprintln!("[1/8] generating the '{}' scene", a.scene);
     let scene = cli::scene(&cli::SceneArgs {
         name: a.scene.clone(),
         out: data_dir.clone(),
@@ -72,7 +84,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         path: "sphere".into(),
     })?;
     let data = snerf_trainer::data::load(&data_dir, &LoadOptions::default())?;
-    eprintln!("[2/4] training for {:.1} minutes", a.minutes);
+    eprintln!("[2/8] training for {:.1} minutes", a.minutes);
     let cfg = train::TrainConfig::for_dataset(&data);
     let opts = snerf_trainer::run::RunOptions {
         dir: run_dir.clone(),
@@ -82,60 +94,184 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         checkpoint_every: 30.0,
     };
     let trained = cli::train_run(&data, cfg, &opts, false, quiet)?;
-    eprintln!("[3/4] evaluating on {} held-out views", data.test.len());
+    eprintln!("[3/8] evaluating on {} held-out views", data.test.len());
     let (model, pool) = cli::load_model(&run_dir)?;
     let has_alpha = train::views_have_alpha(&data.train);
     let eval_dir = run_dir.join("eval");
     std::fs::create_dir_all(&eval_dir)?;
     let report = eval::evaluate(&model, &pool, &data.test, has_alpha, Some(&eval_dir))?;
     eprintln!("      test PSNR {:.2} dB, SSIM {:.4}", report.mean_psnr, report.mean_ssim);
-    eprintln!("[4/4] rendering a {}-frame turntable", a.frames);
+    eprintln!("[4/8] rendering a {}-frame turntable", a.frames);
     let frames = cli::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;
+
+    // SNeRF: stylize the field (the stylizer falls back to colour transfer when the
+    // pretrained models are not installed, and says so)
+    let srun = a.out.join("stylized");
+    let mut stylizer = a.stylizer.clone();
+    let mut style = a.style.clone();
+    let needs_models = stylizer == "arbitrary" || stylizer.starts_with("preset:");
+    if needs_models && snerf_stylize::stylizer::from_spec(&stylizer, style.as_deref(), &Default::default()).is_err() {
+        eprintln!(
+            "      note: the pretrained stylizer models are not installed ({}); using the colour-transfer stylizer",
+            snerf_stylize::stylizer::SETUP_COMMAND
+        );
+        stylizer = "color".into();
+    }
+    if stylizer == "color" && style.is_none() {
+        let p = a.out.join("style.png");
+        checkpoint::write_png_atomic(&p, &demo_style_image())?;
+        style = Some(p);
+    }
+    eprintln!("[5/8] SNeRF: {} rounds of render -> stylize ({stylizer}) -> train", a.rounds);
+    let s_args = |rounds: usize, out: PathBuf| crate::stylize_cmd::StylizeArgs {
+        run: run_dir.clone(),
+        style: style.clone(),
+        out,
+        data: Some(data_dir.clone()),
+        rounds,
+        steps_per_round: a.steps_per_round,
+        style_res: 0,
+        views: 0,
+        appearance_only: false,
+        consistency_frames: 0,
+        s: crate::stylize_cmd::StylizerArgs {
+            stylizer: stylizer.clone(),
+            strength: 1.0,
+            gatys_weights: None,
+            gatys_steps: 100,
+            models: None,
+        },
+        opts: cli::DataOpts::default(),
+    };
+    let stylized = crate::stylize_cmd::stylize_cmd(&s_args(a.rounds, srun.clone()), quiet)?;
+    eprintln!("[6/8] consistency: SNeRF against stylizing each novel view on its own");
+    let consistency = crate::stylize_cmd::consistency_cmd(
+        &crate::stylize_cmd::ConsistencyArgs {
+            srun: srun.clone(),
+            data: Some(data_dir.clone()),
+            one_round: None,
+            frames: 16,
+            out: None,
+            opts: cli::DataOpts::default(),
+        },
+        true,
+    )?;
+    if let Some(t) = consistency.get("table").and_then(|t| t.as_str()) {
+        eprintln!("{t}");
+    }
+    let (smodel, spool) = cli::load_model(&srun)?;
+    let sframes = cli::turntable(&smodel, &spool, &data, a.frames, &srun.join("turntable"))?;
+
+    eprintln!("[7/8] baking the stylized field and rendering the baked asset");
+    let asset_path = a.out.join("stylized.snerf");
+    let baked = crate::bake_cmd::bake_cmd(&crate::bake_cmd::BakeArgs {
+        run: srun.clone(),
+        out: asset_path.clone(),
+        data: Some(data_dir.clone()),
+        resolution: 192,
+        block: 8,
+        keyframes: 12,
+        min_alpha: 0.005,
+        visibility_views: 32,
+        eval_views: 4,
+        opts: cli::DataOpts::default(),
+    })?;
+    let rendered = crate::bake_cmd::render_cmd(&crate::bake_cmd::RenderArgs {
+        file: asset_path.clone(),
+        path: "orbit".into(),
+        frames: 8,
+        size: a.size.clone(),
+        out: a.out.join("baked_turntable"),
+    })?;
+    eprintln!("[8/8] exporting a glTF mesh");
+    let glb = a.out.join("stylized.glb");
+    let exported = crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
+        file: asset_path.clone(),
+        out: glb.clone(),
+        iso: 0.5,
+        check: None,
+        data: None,
+        validate: false,
+        opts: cli::DataOpts::default(),
+    })?;
+
     let sheet = a.out.join("contact_sheet.png");
-    contact_sheet(&eval_dir, &report, &frames, &sheet)?;
+    let consistency_png = srun.join("consistency.png");
+    contact_sheet(&eval_dir, &report, &[&frames, &sframes], &consistency_png, &sheet)?;
     let summary = json!({
         "command": "demo",
         "scene": scene,
         "train": trained,
         "eval": { "mean_psnr": report.mean_psnr, "mean_ssim": report.mean_ssim, "views": report.views.len() },
         "turntable": a.out.join("turntable"),
+        "stylize": stylized,
+        "consistency": consistency,
+        "bake": baked,
+        "baked_render": rendered,
+        "gltf": exported,
         "contact_sheet": sheet,
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
     checkpoint::write_json_atomic(&a.out.join("summary.json"), &summary)?;
     eprintln!(
-        "done in {:.0} s: test PSNR {:.2} dB. Look at {} (top: prediction | truth | depth; below: turntable)",
+        "done in {:.0} s: test PSNR {:.2} dB; stylized, baked ({}) and exported ({}).\n\
+         Look at {} (prediction | truth | depth; the realistic and the stylized turntables; style | realistic | per-frame | SNeRF).\n\
+         View the baked asset: snerf view {}",
         t0.elapsed().as_secs_f64(),
         report.mean_psnr,
-        sheet.display()
+        asset_path.display(),
+        glb.display(),
+        sheet.display(),
+        asset_path.display()
     );
     Ok(summary)
 }
 
-/// Top: three evaluation triptychs (prediction | truth | depth); below: turntable frames.
-fn contact_sheet(eval_dir: &Path, report: &eval::EvalReport, frames: &[PathBuf], out: &Path) -> Result<()> {
+/// A warm, stripy picture to use as the style when no style image is given.
+fn demo_style_image() -> image::RgbImage {
+    image::RgbImage::from_fn(256, 256, |x, y| {
+        let (fx, fy) = (x as f32 / 256.0, y as f32 / 256.0);
+        let w = ((fx * 9.0 + (fy * 7.0).sin() * 1.5).sin() * 0.5 + 0.5) * 0.8 + 0.2 * fy;
+        let c = |a: [f32; 3], b: [f32; 3]| [0, 1, 2].map(|i| ((a[i] * (1.0 - w) + b[i] * w) * 255.0) as u8);
+        image::Rgb(c([0.95, 0.75, 0.2], [0.15, 0.25, 0.6]))
+    })
+}
+
+/// Top: three evaluation triptychs (prediction | truth | depth); below: the turntables
+/// (realistic, then stylized); last: the consistency sheet.
+fn contact_sheet(eval_dir: &Path, report: &eval::EvalReport, turntables: &[&[PathBuf]], consistency: &Path, out: &Path) -> Result<()> {
     let mut rows: Vec<image::RgbImage> = Vec::new();
     let n = report.views.len();
     for i in [0, n / 2, n.saturating_sub(1)].into_iter().take(n.min(3)) {
         let p = eval_dir.join(format!("{}.png", report.views[i].name));
         rows.push(image::open(&p).with_context(|| format!("{}: cannot read", p.display()))?.to_rgb8());
     }
-    let tiles: Vec<image::RgbImage> =
-        frames.iter().map(|f| image::open(f).map(|i| i.to_rgb8())).collect::<Result<_, _>>()?;
     let width = rows.iter().map(|r| r.width()).max().unwrap_or(0);
-    let (tw, th) = tiles.first().map(|t| (t.width(), t.height())).unwrap_or((1, 1));
-    let per_row = (width / tw.max(1)).max(1) as usize;
-    let tile_rows = tiles.len().div_ceil(per_row);
-    let height: u32 = rows.iter().map(|r| r.height()).sum::<u32>() + tile_rows as u32 * th;
-    let mut sheet = image::RgbImage::from_pixel(width.max(tw), height.max(1), image::Rgb([24, 24, 24]));
+    let mut tile_rows: Vec<image::RgbImage> = Vec::new();
+    for frames in turntables {
+        let tiles: Vec<image::RgbImage> =
+            frames.iter().map(|f| image::open(f).map(|i| i.to_rgb8())).collect::<Result<_, _>>()?;
+        let (tw, th) = tiles.first().map(|t| (t.width(), t.height())).unwrap_or((1, 1));
+        let per_row = (width / tw.max(1)).max(1) as usize;
+        let nrows = tiles.len().div_ceil(per_row) as u32;
+        let mut block = image::RgbImage::from_pixel(width.max(tw), (nrows * th).max(1), image::Rgb([24, 24, 24]));
+        for (i, t) in tiles.iter().enumerate() {
+            let (cx, cy) = ((i % per_row) as u32 * tw, (i / per_row) as u32 * th);
+            image::imageops::overlay(&mut block, t, cx as i64, cy as i64);
+        }
+        tile_rows.push(block);
+    }
+    if let Ok(c) = image::open(consistency) {
+        tile_rows.push(c.to_rgb8());
+    }
+    let all: Vec<&image::RgbImage> = rows.iter().chain(tile_rows.iter()).collect();
+    let w = all.iter().map(|r| r.width()).max().unwrap_or(1);
+    let h: u32 = all.iter().map(|r| r.height()).sum();
+    let mut sheet = image::RgbImage::from_pixel(w.max(1), h.max(1), image::Rgb([24, 24, 24]));
     let mut y = 0;
-    for r in &rows {
+    for r in all {
         image::imageops::overlay(&mut sheet, r, 0, y as i64);
         y += r.height();
-    }
-    for (i, t) in tiles.iter().enumerate() {
-        let (cx, cy) = ((i % per_row) as u32 * tw, y + (i / per_row) as u32 * th);
-        image::imageops::overlay(&mut sheet, t, cx as i64, cy as i64);
     }
     checkpoint::write_png_atomic(out, &sheet)
 }

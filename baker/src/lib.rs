@@ -10,3 +10,4 @@ pub mod bake;
 pub mod faithfulness;
 pub mod gltf_export;
 pub mod marching_cubes;
+pub mod mesh_export;

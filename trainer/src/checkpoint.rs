@@ -39,6 +39,7 @@ struct Header {
 }
 
 /// Everything a checkpoint holds.
+#[derive(Clone)]
 pub struct Checkpoint {
     pub cfg: TrainConfig,
     pub model: Model,

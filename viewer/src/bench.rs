@@ -66,8 +66,12 @@ pub struct BenchView {
     pub cpu_median_ms: f64,
     /// GPU median over the same cameras the CPU rendered.
     pub gpu_same_cams_median_ms: f64,
-    /// cpu_median_ms / gpu_median_ms (> 1: GPU faster).
+    /// cpu_median_ms / gpu_same_cams_median_ms (> 1: GPU faster), measured interleaved.
     pub speedup: f64,
+    /// Process CPU seconds per frame (Linux): the GPU path's (lavapipe runs on the CPU;
+    /// near 0 on a real GPU) and the CPU reference's, on the same cameras.
+    pub gpu_process_cpu_s: Option<f64>,
+    pub cpu_process_cpu_s: Option<f64>,
     pub stereo: Option<StereoBench>,
 }
 
@@ -77,14 +81,30 @@ impl fmt::Display for BenchView {
         writeln!(
             f,
             "view {}x{}: GPU median {:.2} ms/frame (min {:.2}, with readback {:.2}) over {} frames",
-            self.width, self.height, self.gpu_median_ms, self.gpu_min_ms, self.gpu_readback_median_ms, self.gpu_frames
+            self.width,
+            self.height,
+            self.gpu_median_ms,
+            self.gpu_min_ms,
+            self.gpu_readback_median_ms,
+            self.gpu_frames
         )?;
         writeln!(
             f,
             "view {}x{}: CPU reference median {:.2} ms/frame over {} frames (GPU on those cameras {:.2} ms)",
             self.width, self.height, self.cpu_median_ms, self.cpu_frames, self.gpu_same_cams_median_ms
         )?;
-        write!(f, "view {}x{}: GPU/CPU speedup {:.2}x", self.width, self.height, self.speedup)?;
+        write!(
+            f,
+            "view {}x{}: GPU/CPU speedup {:.2}x",
+            self.width, self.height, self.speedup
+        )?;
+        if let (Some(g), Some(c)) = (self.gpu_process_cpu_s, self.cpu_process_cpu_s) {
+            write!(
+                f,
+                " (process CPU time per frame: GPU path {:.2} s, CPU reference {:.2} s)",
+                g, c
+            )?;
+        }
         if let Some(s) = &self.stereo {
             write!(
                 f,
@@ -109,27 +129,59 @@ pub fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+/// This process's CPU time (user + system) in seconds, where the OS tells (Linux). On
+/// lavapipe the "GPU" is this process's threads, so CPU seconds per frame compare the work
+/// of both renderers even on a busy machine.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let f: Vec<&str> = s.rsplit(')').next()?.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
 fn ms(d: std::time::Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
 
 /// Bench at `width` x `height` with `frames` GPU frames (defaults otherwise).
 pub fn bench_view(asset: &Asset, width: u32, height: u32, frames: usize) -> Result<BenchView> {
-    bench_view_with(asset, &BenchOptions { width, height, frames, ..Default::default() })
+    bench_view_with(
+        asset,
+        &BenchOptions {
+            width,
+            height,
+            frames,
+            ..Default::default()
+        },
+    )
 }
 
 /// Time a dynamic asset mid-way through its time range (keyframe blending included).
 fn bench_time(asset: &Asset) -> f32 {
-    asset.header.time_range.map_or(0.0, |r| 0.5 * (r[0] + r[1]) + 0.013 * (r[1] - r[0]))
+    asset
+        .header
+        .time_range
+        .map_or(0.0, |r| 0.5 * (r[0] + r[1]) + 0.013 * (r[1] - r[0]))
 }
 
 pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
-    ensure!(o.width > 0 && o.height > 0 && o.frames > 0, "bench needs a non-empty size and at least one frame");
+    ensure!(
+        o.width > 0 && o.height > 0 && o.frames > 0,
+        "bench needs a non-empty size and at least one frame"
+    );
     let mut r = GpuRenderer::with_options(asset, o.gpu.clone())?;
     let time = bench_time(asset);
     let n = o.frames.max(1);
-    let cams: Vec<Camera> = (0..n).map(|i| orbit(&asset.header, n, i, o.width, o.height, o.fov_y)).collect();
-    let view = |c: &Camera| [View { cam: *c, time, x0: 0 }];
+    let cams: Vec<Camera> = (0..n)
+        .map(|i| orbit(&asset.header, n, i, o.width, o.height, o.fov_y))
+        .collect();
+    let view = |c: &Camera| {
+        [View {
+            cam: *c,
+            time,
+            x0: 0,
+        }]
+    };
     for c in cams.iter().take(2) {
         r.render_wait(o.width, o.height, &view(c))?;
     }
@@ -137,34 +189,62 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
     for c in &cams {
         gpu.push(ms(r.render_wait(o.width, o.height, &view(c))?));
     }
+    // CPU reference on the first cameras, each right after the GPU renders the same camera
+    // again, so a busy machine slows both alike.
     let cpu_n = o.cpu_frames.clamp(1, n);
-    let mut gpu_same: Vec<f64> = gpu[..cpu_n].to_vec();
+    let mut gpu_same = Vec::with_capacity(cpu_n);
+    let mut cpu = Vec::with_capacity(cpu_n);
+    let (mut gpu_cs, mut cpu_cs) = (Some(0.0), Some(0.0));
+    let add = |acc: &mut Option<f64>, a: Option<f64>, b: Option<f64>| {
+        *acc = match (*acc, a, b) {
+            (Some(x), Some(a), Some(b)) => Some(x + (b - a)),
+            _ => None,
+        }
+    };
+    for c in cams.iter().take(cpu_n) {
+        let c0 = process_cpu_seconds();
+        gpu_same.push(ms(r.render_wait(o.width, o.height, &view(c))?));
+        let c1 = process_cpu_seconds();
+        let t0 = Instant::now();
+        std::hint::black_box(snerf_asset::render(asset, c, time));
+        cpu.push(ms(t0.elapsed()));
+        let c2 = process_cpu_seconds();
+        add(&mut gpu_cs, c0, c1);
+        add(&mut cpu_cs, c1, c2);
+    }
     let mut readback = Vec::new();
-    for c in cams.iter().take(cpu_n.max(3).min(n)) {
+    for c in cams.iter().take(3) {
         let t0 = Instant::now();
         r.render(c, time)?;
         readback.push(ms(t0.elapsed()));
     }
-    let mut cpu = Vec::with_capacity(cpu_n);
-    for c in cams.iter().take(cpu_n) {
-        let t0 = Instant::now();
-        let f = snerf_asset::render(asset, c, time);
-        cpu.push(ms(t0.elapsed()));
-        std::hint::black_box(f);
-    }
     let gpu_min = gpu.iter().cloned().fold(f64::INFINITY, f64::min);
     let gpu_median = median(&mut gpu);
     let cpu_median = median(&mut cpu);
+    let gpu_same_median = median(&mut gpu_same);
     let stereo = if o.stereo {
         let (ew, eh) = o.stereo_size;
-        let m = o.frames.clamp(1, 10);
+        let m = o.frames.clamp(1, 5);
         let pairs: Vec<(Camera, Camera)> = (0..m)
             .map(|i| {
                 let c = orbit(&asset.header, m, i, ew, eh, o.fov_y);
                 stereo_pair(c.c2w, o.ipd, ew, eh, o.fov_y)
             })
             .collect();
-        let sv = |(l, rr): &(Camera, Camera)| [View { cam: *l, time, x0: 0 }, View { cam: *rr, time, x0: ew }];
+        let sv = |(l, rr): &(Camera, Camera)| {
+            [
+                View {
+                    cam: *l,
+                    time,
+                    x0: 0,
+                },
+                View {
+                    cam: *rr,
+                    time,
+                    x0: ew,
+                },
+            ]
+        };
         r.render_wait(2 * ew, eh, &sv(&pairs[0]))?;
         let mut g = Vec::new();
         for p in &pairs {
@@ -172,12 +252,22 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
         }
         let mut c = Vec::new();
         for (l, rr) in pairs.iter().take(o.cpu_frames.clamp(1, m)) {
+            g.push(ms(r.render_wait(2 * ew, eh, &sv(&(*l, *rr)))?));
             let t0 = Instant::now();
-            std::hint::black_box((snerf_asset::render(asset, l, time), snerf_asset::render(asset, rr, time)));
+            std::hint::black_box((
+                snerf_asset::render(asset, l, time),
+                snerf_asset::render(asset, rr, time),
+            ));
             c.push(ms(t0.elapsed()));
         }
         let (gm, cm) = (median(&mut g), median(&mut c));
-        Some(StereoBench { eye_width: ew, eye_height: eh, gpu_median_ms: gm, cpu_median_ms: cm, speedup: cm / gm })
+        Some(StereoBench {
+            eye_width: ew,
+            eye_height: eh,
+            gpu_median_ms: gm,
+            cpu_median_ms: cm,
+            speedup: cm / gm,
+        })
     } else {
         None
     };
@@ -191,8 +281,10 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
         gpu_readback_median_ms: median(&mut readback),
         cpu_frames: cpu_n,
         cpu_median_ms: cpu_median,
-        gpu_same_cams_median_ms: median(&mut gpu_same),
-        speedup: cpu_median / gpu_median,
+        gpu_same_cams_median_ms: gpu_same_median,
+        speedup: cpu_median / gpu_same_median,
+        gpu_process_cpu_s: gpu_cs.map(|x| x / cpu_n as f64),
+        cpu_process_cpu_s: cpu_cs.map(|x| x / cpu_n as f64),
         stereo,
     })
 }

@@ -23,7 +23,11 @@ fn dot(a: V3, b: V3) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 fn cross(a: V3, b: V3) -> V3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 fn normalize(a: V3) -> V3 {
     let n = dot(a, a).sqrt();
@@ -47,7 +51,15 @@ fn model_dir(h: &Header, v: V3) -> V3 {
 /// degrees, and a camera-to-world matrix.
 pub fn camera_from_c2w(c2w: [[f32; 4]; 3], width: u32, height: u32, fov_y: f32) -> Camera {
     let f = 0.5 * height as f32 / (0.5 * fov_y.to_radians()).tan();
-    Camera { c2w, fx: f, fy: f, cx: 0.5 * width as f32, cy: 0.5 * height as f32, width, height }
+    Camera {
+        c2w,
+        fx: f,
+        fy: f,
+        cx: 0.5 * width as f32,
+        cy: 0.5 * height as f32,
+        width,
+        height,
+    }
 }
 
 /// The viewer's start camera: `snerf_asset::orbit` frame 0 (object/unbounded: 3 model units
@@ -58,7 +70,13 @@ pub fn initial_camera(h: &Header, width: u32, height: u32, fov_y: f32) -> Camera
 
 /// Left/right eye cameras: `c2w` moved by ∓ipd/2 along its right axis (first column);
 /// each eye gets its own `eye_width` x `height` image.
-pub fn stereo_pair(c2w: [[f32; 4]; 3], ipd: f32, eye_width: u32, height: u32, fov_y: f32) -> (Camera, Camera) {
+pub fn stereo_pair(
+    c2w: [[f32; 4]; 3],
+    ipd: f32,
+    eye_width: u32,
+    height: u32,
+    fov_y: f32,
+) -> (Camera, Camera) {
     let right = normalize([c2w[0][0], c2w[1][0], c2w[2][0]]);
     let shift = |s: f32| {
         let mut m = c2w;
@@ -89,10 +107,20 @@ impl PoseSample {
 /// Read a pose file: `[{"c2w": [[..4], [..4], [..4]], "time": 0.5}, ...]`.
 pub fn load_poses(path: impl AsRef<Path>) -> Result<Vec<PoseSample>> {
     let path = path.as_ref();
-    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{}: cannot read pose file: {}", path.display(), e))?;
-    let poses: Vec<PoseSample> =
-        serde_json::from_str(&text).map_err(|e| anyhow!("{}: not a pose file (JSON list of {{c2w, time}}): {}", path.display(), e))?;
-    ensure!(!poses.is_empty(), "{}: pose file has no poses", path.display());
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow!("{}: cannot read pose file: {}", path.display(), e))?;
+    let poses: Vec<PoseSample> = serde_json::from_str(&text).map_err(|e| {
+        anyhow!(
+            "{}: not a pose file (JSON list of {{c2w, time}}): {}",
+            path.display(),
+            e
+        )
+    })?;
+    ensure!(
+        !poses.is_empty(),
+        "{}: pose file has no poses",
+        path.display()
+    );
     for (i, p) in poses.iter().enumerate() {
         ensure!(
             p.c2w.len() == 3 || p.c2w.len() == 4,
@@ -138,15 +166,29 @@ impl Controller {
                 let dist = 1.0 / s;
                 (sub(eye, mul(back0, dist)), dist, 0.0)
             }
-            Kind::Object | Kind::Unbounded => (model_to_world(h, [0.0; 3]), 3.0 / s, 30f32.to_radians()),
+            Kind::Object | Kind::Unbounded => {
+                (model_to_world(h, [0.0; 3]), 3.0 / s, 30f32.to_radians())
+            }
         };
-        Controller { target, dist, yaw: 0.0, pitch, up, back0, right0, home: (target, dist, 0.0, pitch) }
+        Controller {
+            target,
+            dist,
+            yaw: 0.0,
+            pitch,
+            up,
+            back0,
+            right0,
+            home: (target, dist, 0.0, pitch),
+        }
     }
 
     fn dir(&self) -> V3 {
         let (cp, sp) = (self.pitch.cos(), self.pitch.sin());
         let (cy, sy) = (self.yaw.cos(), self.yaw.sin());
-        add(add(mul(self.back0, cp * cy), mul(self.right0, cp * sy)), mul(self.up, sp))
+        add(
+            add(mul(self.back0, cp * cy), mul(self.right0, cp * sy)),
+            mul(self.up, sp),
+        )
     }
 
     pub fn eye(&self) -> V3 {

@@ -71,18 +71,25 @@ pub struct LimitError {
 
 impl fmt::Display for LimitError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{} exceeds the GPU limit {} = {} (needs {})", self.what, self.limit, self.max, self.needed)
+        write!(
+            f,
+            "{} exceeds the GPU limit {} = {} (needs {})",
+            self.what, self.limit, self.max, self.needed
+        )
     }
 }
 impl std::error::Error for LimitError {}
 
 fn backends(opts: &GpuOptions) -> wgpu::Backends {
     opts.backends
-        .or_else(|| wgpu::Backends::from_env())
+        .or_else(wgpu::Backends::from_env)
         .unwrap_or(wgpu::Backends::VULKAN | wgpu::Backends::GL)
 }
 
-pub(crate) fn new_instance(opts: &GpuOptions, display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>) -> wgpu::Instance {
+pub(crate) fn new_instance(
+    opts: &GpuOptions,
+    display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>,
+) -> wgpu::Instance {
     let mut desc = match display {
         Some(d) => wgpu::InstanceDescriptor::new_with_display_handle(d),
         None => wgpu::InstanceDescriptor::new_without_display_handle(),
@@ -126,8 +133,10 @@ impl GpuContext {
             Ok(a) => a,
             Err(e) => {
                 let seen = pollster::block_on(instance.enumerate_adapters(backends(opts)));
-                let names: Vec<String> =
-                    seen.iter().map(|a| format!("{} ({:?})", a.get_info().name, a.get_info().backend)).collect();
+                let names: Vec<String> = seen
+                    .iter()
+                    .map(|a| format!("{} ({:?})", a.get_info().name, a.get_info().backend))
+                    .collect();
                 let detail = if names.is_empty() {
                     format!("backends {:?}: none present; {}", backends(opts), e)
                 } else {
@@ -139,7 +148,11 @@ impl GpuContext {
         let info = adapter.get_info();
         let down = adapter.get_downlevel_capabilities();
         if !down.flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS) {
-            return Err(NoAdapterError(format!("adapter {} ({:?}) has no compute shaders", info.name, info.backend)).into());
+            return Err(NoAdapterError(format!(
+                "adapter {} ({:?}) has no compute shaders",
+                info.name, info.backend
+            ))
+            .into());
         }
         let mut limits = adapter.limits();
         if let Some(m) = opts.max_texture_dimension_3d {
@@ -153,14 +166,25 @@ impl GpuContext {
             memory_hints: wgpu::MemoryHints::Performance,
             trace: wgpu::Trace::Off,
         }))
-        .map_err(|e| anyhow!("{} ({:?}): cannot open the device: {}", info.name, info.backend, e))?;
+        .map_err(|e| {
+            anyhow!(
+                "{} ({:?}): cannot open the device: {}",
+                info.name,
+                info.backend,
+                e
+            )
+        })?;
         let lost = Arc::new(Mutex::new(None));
         let errors = Arc::new(Mutex::new(Vec::new()));
         {
             let lost = lost.clone();
             device.set_device_lost_callback(move |reason, msg| {
                 if let Ok(mut l) = lost.lock() {
-                    *l = Some(format!("{:?}: {}", reason, msg));
+                    *l = Some(if msg.is_empty() {
+                        format!("{:?}", reason)
+                    } else {
+                        format!("{:?}: {}", reason, msg)
+                    });
                 }
             });
             // wgpu's default handler panics; record instead and turn into errors.
@@ -173,13 +197,30 @@ impl GpuContext {
                 }
             }));
         }
-        Ok(GpuContext { instance, adapter, device, queue, info, lost, errors })
+        Ok(GpuContext {
+            instance,
+            adapter,
+            device,
+            queue,
+            info,
+            lost,
+            errors,
+        })
     }
 
     /// "name (backend, driver driver_info)".
     pub fn adapter_info(&self) -> String {
         let i = &self.info;
-        format!("{} ({:?}, {:?}, {} {})", i.name, i.backend, i.device_type, i.driver, i.driver_info)
+        format!(
+            "{} ({:?}, {:?}, {} {})",
+            i.name, i.backend, i.device_type, i.driver, i.driver_info
+        )
+    }
+
+    /// Destroy the device as a driver reset would (tests of the lost-device paths).
+    #[doc(hidden)]
+    pub fn destroy_device_for_test(&self) {
+        self.device.destroy();
     }
 
     pub fn limits(&self) -> wgpu::Limits {
@@ -191,7 +232,11 @@ impl GpuContext {
         if let Some(l) = self.lost.lock().ok().and_then(|l| l.clone()) {
             return Err(DeviceLostError(l).into());
         }
-        let errs: Vec<String> = self.errors.lock().map(|mut v| std::mem::take(&mut *v)).unwrap_or_default();
+        let errs: Vec<String> = self
+            .errors
+            .lock()
+            .map(|mut v| std::mem::take(&mut *v))
+            .unwrap_or_default();
         if !errs.is_empty() {
             bail!("GPU error: {}", errs.join("; "));
         }
@@ -224,7 +269,9 @@ impl GpuContext {
 
 /// Is there a usable adapter? Its description, or None.
 pub fn gpu_available() -> Option<String> {
-    GpuContext::new(&GpuOptions::default()).ok().map(|c| c.adapter_info())
+    GpuContext::new(&GpuOptions::default())
+        .ok()
+        .map(|c| c.adapter_info())
 }
 
 /// How atlas blocks are laid out in the 3D textures: block i sits at
@@ -239,7 +286,11 @@ pub struct AtlasLayout {
 
 impl AtlasLayout {
     /// Fit `blocks` blocks of edge `edge` into a 3D texture no larger than `max_dim` per axis.
-    pub fn plan(blocks: u32, edge: u32, max_dim: u32) -> std::result::Result<AtlasLayout, LimitError> {
+    pub fn plan(
+        blocks: u32,
+        edge: u32,
+        max_dim: u32,
+    ) -> std::result::Result<AtlasLayout, LimitError> {
         let n = blocks.max(1) as u64;
         let cap = (max_dim / edge) as u64;
         let fail = || LimitError {
@@ -257,22 +308,31 @@ impl AtlasLayout {
             return Err(fail());
         }
         let mut nx = ((n as f64).cbrt().ceil() as u64).clamp(1, cap);
-        let mut ny = (((n + nx - 1) / nx) as f64).sqrt().ceil() as u64;
+        let mut ny = (n.div_ceil(nx) as f64).sqrt().ceil() as u64;
         ny = ny.clamp(1, cap);
-        let mut nz = (n + nx * ny - 1) / (nx * ny);
+        let mut nz = n.div_ceil(nx * ny);
         if nz > cap {
             nx = cap;
             ny = cap;
-            nz = (n + cap * cap - 1) / (cap * cap);
+            nz = n.div_ceil(cap * cap);
         }
         if nz > cap {
             return Err(fail());
         }
-        Ok(AtlasLayout { edge, nx: nx as u32, ny: ny as u32, nz: nz as u32 })
+        Ok(AtlasLayout {
+            edge,
+            nx: nx as u32,
+            ny: ny as u32,
+            nz: nz as u32,
+        })
     }
 
     pub fn texels(&self) -> [u32; 3] {
-        [self.nx * self.edge, self.ny * self.edge, self.nz * self.edge]
+        [
+            self.nx * self.edge,
+            self.ny * self.edge,
+            self.nz * self.edge,
+        ]
     }
 
     pub fn origin(&self, block: u32) -> [u32; 3] {
@@ -309,7 +369,8 @@ pub fn time_slot(h: &Header, t: f32) -> (usize, usize, f32) {
         _ => return (0, 0, 0.0),
     };
     let last = frames.len() - 1;
-    if !(t > frames[0].time) {
+    // NaN and t <= first keyframe both give frame 0.
+    if t.partial_cmp(&frames[0].time) != Some(std::cmp::Ordering::Greater) {
         return (0, 0, 0.0);
     }
     if t >= frames[last].time {
@@ -317,7 +378,11 @@ pub fn time_slot(h: &Header, t: f32) -> (usize, usize, f32) {
     }
     let k = frames.partition_point(|f| f.time <= t);
     let (a, b) = (frames[k - 1].time, frames[k].time);
-    let w = if b > a { ((t - a) / (b - a)).clamp(0.0, 1.0) } else { 0.0 };
+    let w = if b > a {
+        ((t - a) / (b - a)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (k - 1, k, w)
 }
 
@@ -376,67 +441,85 @@ impl GpuRenderer {
         h.validate().context("asset header")?;
         check_consistent(asset)?;
         let limits = ctx.device.limits();
-        let layout = AtlasLayout::plan(h.atlas_blocks, h.block + 2, limits.max_texture_dimension_3d)
-            .map_err(anyhow::Error::new)?;
+        let layout =
+            AtlasLayout::plan(h.atlas_blocks, h.block + 2, limits.max_texture_dimension_3d)
+                .map_err(anyhow::Error::new)?;
         let g3 = h.grid_dim().pow(3) as u64;
         let grid_bytes = g3 * h.num_frames() as u64 * 4;
-        for (limit, max) in
-            [("max_storage_buffer_binding_size", limits.max_storage_buffer_binding_size), ("max_buffer_size", limits.max_buffer_size)]
-        {
+        for (limit, max) in [
+            (
+                "max_storage_buffer_binding_size",
+                limits.max_storage_buffer_binding_size,
+            ),
+            ("max_buffer_size", limits.max_buffer_size),
+        ] {
             if grid_bytes > max {
                 return Err(LimitError {
                     limit,
                     needed: grid_bytes,
                     max,
-                    what: format!("the indirection grids ({} frames of {}^3 cells)", h.num_frames(), h.grid_dim()),
+                    what: format!(
+                        "the indirection grids ({} frames of {}^3 cells)",
+                        h.num_frames(),
+                        h.grid_dim()
+                    ),
                 }
                 .into());
             }
         }
         let device = &ctx.device;
         let texels = layout.texels();
-        let fmt = if opts.hardware_filter { wgpu::TextureFormat::Rgba8Unorm } else { wgpu::TextureFormat::Rg32Uint };
-        let (tex, sampler, grid_buf, mlp_buf, pipeline) = ctx.scoped("uploading the asset", || {
-            let mk_tex = |label| {
-                device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d { width: texels[0], height: texels[1], depth_or_array_layers: texels[2] },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D3,
-                    format: fmt,
-                    usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                    view_formats: &[],
-                })
-            };
-            let tex = if opts.hardware_filter {
-                vec![mk_tex("atlas channels 0-3"), mk_tex("atlas channels 4-7")]
-            } else {
-                vec![mk_tex("atlas voxels")]
-            };
-            let sampler = opts.hardware_filter.then(|| {
-                device.create_sampler(&wgpu::SamplerDescriptor {
-                    label: Some("atlas trilinear"),
-                    mag_filter: wgpu::FilterMode::Linear,
-                    min_filter: wgpu::FilterMode::Linear,
-                    ..Default::default()
-                })
-            });
-            let grid_buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("indirection grids"),
-                size: grid_bytes.max(4),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mlp_buf = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("view mlp"),
-                size: (snerf_asset::mlp::MLP_FLOATS * 4) as u64,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let pipeline = build_pipeline(device, &h, opts.hardware_filter);
-            (tex, sampler, grid_buf, mlp_buf, pipeline)
-        })?;
+        let fmt = if opts.hardware_filter {
+            wgpu::TextureFormat::Rgba8Unorm
+        } else {
+            wgpu::TextureFormat::Rg32Uint
+        };
+        let (tex, sampler, grid_buf, mlp_buf, pipeline) =
+            ctx.scoped("uploading the asset", || {
+                let mk_tex = |label| {
+                    device.create_texture(&wgpu::TextureDescriptor {
+                        label: Some(label),
+                        size: wgpu::Extent3d {
+                            width: texels[0],
+                            height: texels[1],
+                            depth_or_array_layers: texels[2],
+                        },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D3,
+                        format: fmt,
+                        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                        view_formats: &[],
+                    })
+                };
+                let tex = if opts.hardware_filter {
+                    vec![mk_tex("atlas channels 0-3"), mk_tex("atlas channels 4-7")]
+                } else {
+                    vec![mk_tex("atlas voxels")]
+                };
+                let sampler = opts.hardware_filter.then(|| {
+                    device.create_sampler(&wgpu::SamplerDescriptor {
+                        label: Some("atlas trilinear"),
+                        mag_filter: wgpu::FilterMode::Linear,
+                        min_filter: wgpu::FilterMode::Linear,
+                        ..Default::default()
+                    })
+                });
+                let grid_buf = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("indirection grids"),
+                    size: grid_bytes.max(4),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                let mlp_buf = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("view mlp"),
+                    size: (MLP_GPU_FLOATS * 4) as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                let pipeline = build_pipeline(device, &h, opts.hardware_filter);
+                (tex, sampler, grid_buf, mlp_buf, pipeline)
+            })?;
         let mut r = GpuRenderer {
             ctx,
             opts,
@@ -483,6 +566,7 @@ impl GpuRenderer {
 
     /// Bytes per texel and channel range per texture: one rg32uint texture holds all 8
     /// channel bytes of a voxel; two rgba8unorm textures hold 4 each.
+    #[allow(clippy::single_range_in_vec_init)]
     fn texel_split(&self) -> Vec<std::ops::Range<usize>> {
         if self.tex.len() == 1 {
             vec![0..8]
@@ -493,7 +577,15 @@ impl GpuRenderer {
 
     /// Copy block `src` (apron-inclusive, 8 bytes per voxel) into per-texture staging
     /// images of `w` x `h` texels per slice at texel (ox, oy, 0).
-    fn scatter_block(&self, src: &[u8], dst: &mut [Vec<u8>], w: usize, h: usize, ox: usize, oy: usize) {
+    fn scatter_block(
+        &self,
+        src: &[u8],
+        dst: &mut [Vec<u8>],
+        w: usize,
+        h: usize,
+        ox: usize,
+        oy: usize,
+    ) {
         let e = self.layout.edge as usize;
         for (range, out) in self.texel_split().into_iter().zip(dst.iter_mut()) {
             let n = range.len();
@@ -503,7 +595,8 @@ impl GpuRenderer {
                     let s = (z * e + y) * e * CHANNELS;
                     for x in 0..e {
                         let v = s + x * CHANNELS;
-                        out[row + x * n..row + (x + 1) * n].copy_from_slice(&src[v + range.start..v + range.end]);
+                        out[row + x * n..row + (x + 1) * n]
+                            .copy_from_slice(&src[v + range.start..v + range.end]);
                     }
                 }
             }
@@ -517,12 +610,24 @@ impl GpuRenderer {
                 wgpu::TexelCopyTextureInfo {
                     texture: t,
                     mip_level: 0,
-                    origin: wgpu::Origin3d { x: origin[0], y: origin[1], z: origin[2] },
+                    origin: wgpu::Origin3d {
+                        x: origin[0],
+                        y: origin[1],
+                        z: origin[2],
+                    },
                     aspect: wgpu::TextureAspect::All,
                 },
                 d,
-                wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(size[0] * n), rows_per_image: Some(size[1]) },
-                wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: size[2] },
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(size[0] * n),
+                    rows_per_image: Some(size[1]),
+                },
+                wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: size[2],
+                },
             );
         }
     }
@@ -530,9 +635,15 @@ impl GpuRenderer {
     fn write_blocks(&self, asset: &Asset, blocks: impl Iterator<Item = u32>) {
         let e = self.layout.edge as usize;
         let bb = asset.block_bytes();
-        let mut data: Vec<Vec<u8>> = self.texel_split().iter().map(|r| vec![0u8; e * e * e * r.len()]).collect();
+        let mut data: Vec<Vec<u8>> = self
+            .texel_split()
+            .iter()
+            .map(|r| vec![0u8; e * e * e * r.len()])
+            .collect();
         for i in blocks {
-            let Some(src) = asset.atlas.get(i as usize * bb..(i as usize + 1) * bb) else { continue };
+            let Some(src) = asset.atlas.get(i as usize * bb..(i as usize + 1) * bb) else {
+                continue;
+            };
             self.scatter_block(src, &mut data, e, e, 0, 0);
             self.write_region(&data, self.layout.origin(i), [e as u32; 3]);
         }
@@ -551,16 +662,33 @@ impl GpuRenderer {
             if first >= n {
                 break;
             }
-            let mut data: Vec<Vec<u8>> = self.texel_split().iter().map(|r| vec![0u8; w * hgt * e * r.len()]).collect();
+            let mut data: Vec<Vec<u8>> = self
+                .texel_split()
+                .iter()
+                .map(|r| vec![0u8; w * hgt * e * r.len()])
+                .collect();
             for i in first..(first + per_layer).min(n) {
                 if !asset.present.get(i).copied().unwrap_or(false) {
                     continue;
                 }
-                let Some(src) = asset.atlas.get(i * bb..(i + 1) * bb) else { continue };
+                let Some(src) = asset.atlas.get(i * bb..(i + 1) * bb) else {
+                    continue;
+                };
                 let k = i - first;
-                self.scatter_block(src, &mut data, w, hgt, (k % l.nx as usize) * e, (k / l.nx as usize) * e);
+                self.scatter_block(
+                    src,
+                    &mut data,
+                    w,
+                    hgt,
+                    (k % l.nx as usize) * e,
+                    (k / l.nx as usize) * e,
+                );
             }
-            self.write_region(&data, [0, 0, (bz * e) as u32], [w as u32, hgt as u32, e as u32]);
+            self.write_region(
+                &data,
+                [0, 0, (bz * e) as u32],
+                [w as u32, hgt as u32, e as u32],
+            );
             // Keep staging memory bounded on big atlases.
             self.ctx.queue.submit([]);
         }
@@ -598,7 +726,9 @@ impl GpuRenderer {
             }
         }
         if host != self.grid_host {
-            self.ctx.queue.write_buffer(&self.grid_buf, 0, bytemuck::cast_slice(&host));
+            self.ctx
+                .queue
+                .write_buffer(&self.grid_buf, 0, bytemuck::cast_slice(&host));
             self.grid_host = host;
         }
         self.ctx.check()
@@ -606,7 +736,9 @@ impl GpuRenderer {
 
     pub fn update_mlp(&mut self, mlp: &ViewMlp) -> Result<()> {
         mlp.validate()?;
-        self.ctx.queue.write_buffer(&self.mlp_buf, 0, bytemuck::cast_slice(&mlp.to_flat()));
+        self.ctx
+            .queue
+            .write_buffer(&self.mlp_buf, 0, bytemuck::cast_slice(&mlp_gpu_layout(mlp)));
         self.ctx.check()
     }
 
@@ -616,7 +748,14 @@ impl GpuRenderer {
         let c = &v.cam;
         let (k0, k1, w) = time_slot(h, v.time);
         let g3 = h.grid_dim().pow(3) as u32;
-        let n = s.ndc.unwrap_or(snerf_asset::Ndc { fx: 1.0, fy: 1.0, width: 1.0, height: 1.0, near: 1.0, xy_extent: 1.0 });
+        let n = s.ndc.unwrap_or(snerf_asset::Ndc {
+            fx: 1.0,
+            fy: 1.0,
+            width: 1.0,
+            height: 1.0,
+            near: 1.0,
+            xy_extent: 1.0,
+        });
         let t = self.layout.texels();
         let row = |r: [f32; 3]| [r[0], r[1], r[2], 0.0];
         Params {
@@ -642,11 +781,21 @@ impl GpuRenderer {
             bail!("cannot render an empty {}x{} image", width, height);
         }
         let bytes = px * 16;
-        for (limit, max) in
-            [("max_storage_buffer_binding_size", limits.max_storage_buffer_binding_size), ("max_buffer_size", limits.max_buffer_size)]
-        {
+        for (limit, max) in [
+            (
+                "max_storage_buffer_binding_size",
+                limits.max_storage_buffer_binding_size,
+            ),
+            ("max_buffer_size", limits.max_buffer_size),
+        ] {
             if bytes > max {
-                return Err(LimitError { limit, needed: bytes, max, what: format!("a {}x{} image", width, height) }.into());
+                return Err(LimitError {
+                    limit,
+                    needed: bytes,
+                    max,
+                    what: format!("a {}x{} image", width, height),
+                }
+                .into());
             }
         }
         let dim = limits.max_compute_workgroups_per_dimension as u64;
@@ -660,12 +809,13 @@ impl GpuRenderer {
             .into());
         }
         while self.params.len() < views {
-            self.params.push(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("march params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }));
+            self.params
+                .push(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("march params"),
+                    size: std::mem::size_of::<Params>() as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }));
         }
         let fits = matches!(&self.target, Some(t) if t.width == width && t.height == height && t.bind_groups.len() >= views);
         if fits {
@@ -684,24 +834,48 @@ impl GpuRenderer {
             };
             let rgba = mk("march rgba", px * 16);
             let depth = mk("march depth", px * 4);
-            let views_t: Vec<wgpu::TextureView> =
-                self.tex.iter().map(|t| t.create_view(&wgpu::TextureViewDescriptor::default())).collect();
+            let views_t: Vec<wgpu::TextureView> = self
+                .tex
+                .iter()
+                .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()))
+                .collect();
             let layout = self.pipeline.get_bind_group_layout(0);
             let bind_groups = self.params[..views]
                 .iter()
                 .map(|p| {
                     let mut entries = vec![
-                        wgpu::BindGroupEntry { binding: 0, resource: p.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 1, resource: self.grid_buf.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 2, resource: self.mlp_buf.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 3, resource: rgba.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 4, resource: depth.as_entire_binding() },
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: p.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: self.grid_buf.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: self.mlp_buf.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: rgba.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: depth.as_entire_binding(),
+                        },
                     ];
                     for (k, v) in views_t.iter().enumerate() {
-                        entries.push(wgpu::BindGroupEntry { binding: 5 + k as u32, resource: wgpu::BindingResource::TextureView(v) });
+                        entries.push(wgpu::BindGroupEntry {
+                            binding: 5 + k as u32,
+                            resource: wgpu::BindingResource::TextureView(v),
+                        });
                     }
                     if let Some(s) = &self.sampler {
-                        entries.push(wgpu::BindGroupEntry { binding: 7, resource: wgpu::BindingResource::Sampler(s) });
+                        entries.push(wgpu::BindGroupEntry {
+                            binding: 7,
+                            resource: wgpu::BindingResource::Sampler(s),
+                        });
                     }
                     device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("march bind group"),
@@ -710,7 +884,13 @@ impl GpuRenderer {
                     })
                 })
                 .collect();
-            Target { width, height, rgba, depth, bind_groups }
+            Target {
+                width,
+                height,
+                rgba,
+                depth,
+                bind_groups,
+            }
         })?;
         self.target = Some(target);
         Ok(())
@@ -718,24 +898,46 @@ impl GpuRenderer {
 
     /// Record the march of `views` (side by side in one `width` x `height` output) into
     /// `encoder`. The output buffer is `output_buffer()` afterwards.
-    pub(crate) fn encode(&mut self, encoder: &mut wgpu::CommandEncoder, width: u32, height: u32, views: &[View]) -> Result<()> {
+    pub(crate) fn encode(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        width: u32,
+        height: u32,
+        views: &[View],
+    ) -> Result<()> {
         self.ctx.check()?;
         for v in views {
             let c = &v.cam;
             if c.width == 0 || c.height == 0 || v.x0 + c.width > width || c.height > height {
-                bail!("view {}x{} at x {} does not fit the {}x{} output", c.width, c.height, v.x0, width, height);
+                bail!(
+                    "view {}x{} at x {} does not fit the {}x{} output",
+                    c.width,
+                    c.height,
+                    v.x0,
+                    width,
+                    height
+                );
             }
             if !(c.fx.is_finite() && c.fy.is_finite() && c.fx != 0.0 && c.fy != 0.0) {
-                bail!("camera focal lengths must be finite and non-zero (fx {}, fy {})", c.fx, c.fy);
+                bail!(
+                    "camera focal lengths must be finite and non-zero (fx {}, fy {})",
+                    c.fx,
+                    c.fy
+                );
             }
         }
         self.ensure_target(width, height, views.len())?;
         for (i, v) in views.iter().enumerate() {
             let p = self.params_for(v, width);
-            self.ctx.queue.write_buffer(&self.params[i], 0, bytemuck::bytes_of(&p));
+            self.ctx
+                .queue
+                .write_buffer(&self.params[i], 0, bytemuck::bytes_of(&p));
         }
         let target = self.target.as_ref().expect("target allocated above");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("march"), timestamp_writes: None });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("march"),
+            timestamp_writes: None,
+        });
         pass.set_pipeline(&self.pipeline);
         for (i, v) in views.iter().enumerate() {
             pass.set_bind_group(0, &target.bind_groups[i], &[]);
@@ -751,7 +953,12 @@ impl GpuRenderer {
     /// March `views` and wait for the GPU (no readback): the timed part of `bench_view`.
     pub fn render_wait(&mut self, width: u32, height: u32, views: &[View]) -> Result<Duration> {
         let t0 = Instant::now();
-        let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("march") });
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("march"),
+            });
         self.encode(&mut enc, width, height, views)?;
         self.ctx.queue.submit([enc.finish()]);
         self.ctx.wait()?;
@@ -760,7 +967,12 @@ impl GpuRenderer {
 
     /// March `views` side by side and read the image back.
     pub fn render_views(&mut self, width: u32, height: u32, views: &[View]) -> Result<Frame> {
-        let mut enc = self.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("march") });
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("march"),
+            });
         self.encode(&mut enc, width, height, views)?;
         let px = width as u64 * height as u64;
         let device = &self.ctx.device;
@@ -797,7 +1009,15 @@ impl GpuRenderer {
 
     /// One camera at `time` (seconds of the asset's time axis; ignored for static assets).
     pub fn render(&mut self, cam: &Camera, time: f32) -> Result<Frame> {
-        self.render_views(cam.width, cam.height, &[View { cam: *cam, time, x0: 0 }])
+        self.render_views(
+            cam.width,
+            cam.height,
+            &[View {
+                cam: *cam,
+                time,
+                x0: 0,
+            }],
+        )
     }
 
     /// Left and right eye side by side (left in the left half), same time.
@@ -806,13 +1026,59 @@ impl GpuRenderer {
         self.render_views(
             w,
             h,
-            &[View { cam: *left, time, x0: 0 }, View { cam: *right, time, x0: left.width }],
+            &[
+                View {
+                    cam: *left,
+                    time,
+                    x0: 0,
+                },
+                View {
+                    cam: *right,
+                    time,
+                    x0: left.width,
+                },
+            ],
         )
     }
 }
 
+/// f32 count of the shader's MLP layout (225 vec4).
+pub const MLP_GPU_FLOATS: usize = 900;
+
+/// The view MLP transposed for the shader: per layer, input-major rows of the 16 (or 3,
+/// padded to 4) unit weights, then the biases: W1ᵀ [34][16], b1 [16], W2ᵀ [16][16],
+/// b2 [16], W3ᵀ [16][4], b3 [4].
+pub fn mlp_gpu_layout(m: &ViewMlp) -> Vec<f32> {
+    use snerf_asset::mlp::{MLP_HIDDEN as H, MLP_IN as I, MLP_OUT as O};
+    let mut v = Vec::with_capacity(MLP_GPU_FLOATS);
+    let at = |w: &[f32], k: usize| w.get(k).copied().unwrap_or(0.0);
+    for i in 0..I {
+        for j in 0..H {
+            v.push(at(&m.w1, j * I + i));
+        }
+    }
+    v.extend((0..H).map(|j| at(&m.b1, j)));
+    for i in 0..H {
+        for j in 0..H {
+            v.push(at(&m.w2, j * H + i));
+        }
+    }
+    v.extend((0..H).map(|j| at(&m.b2, j)));
+    for i in 0..H {
+        for j in 0..4 {
+            v.push(if j < O { at(&m.w3, j * H + i) } else { 0.0 });
+        }
+    }
+    v.extend((0..4).map(|j| if j < O { at(&m.b3, j) } else { 0.0 }));
+    debug_assert_eq!(v.len(), MLP_GPU_FLOATS);
+    v
+}
+
 /// Map a buffer (after a submitted copy into it) and return its contents.
-pub(crate) fn read_buffer<T: bytemuck::Pod>(ctx: &GpuContext, buf: &wgpu::Buffer) -> Result<Vec<T>> {
+pub(crate) fn read_buffer<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    buf: &wgpu::Buffer,
+) -> Result<Vec<T>> {
     let slice = buf.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -823,7 +1089,9 @@ pub(crate) fn read_buffer<T: bytemuck::Pod>(ctx: &GpuContext, buf: &wgpu::Buffer
         .map_err(|_| anyhow!("GPU readback never completed"))?
         .map_err(|e| anyhow!("GPU readback failed: {}", e))?;
     let data = {
-        let view = slice.get_mapped_range().map_err(|e| anyhow!("GPU readback failed: {:?}", e))?;
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| anyhow!("GPU readback failed: {:?}", e))?;
         bytemuck::cast_slice::<u8, T>(&view).to_vec()
     };
     buf.unmap();
@@ -848,12 +1116,16 @@ pub fn shader_source(h: &Header, hardware_filter: bool) -> String {
     )
 }
 
-fn build_pipeline(device: &wgpu::Device, h: &Header, hardware_filter: bool) -> wgpu::ComputePipeline {
+fn build_pipeline(
+    device: &wgpu::Device,
+    h: &Header,
+    hardware_filter: bool,
+) -> wgpu::ComputePipeline {
     let src = shader_source(h, hardware_filter);
-    let desc = wgpu::ShaderModuleDescriptor { label: Some("march.wgsl"), source: wgpu::ShaderSource::Wgsl(src.into()) };
-    let module = if std::env::var_os("SNERF_CHECKED").is_some() { device.create_shader_module(desc) } else {
-    // SAFETY: experiment
-    unsafe { device.create_shader_module_trusted(desc, wgpu::ShaderRuntimeChecks::unchecked()) } };
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("march.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some("march"),
         layout: None,
@@ -881,6 +1153,11 @@ fn check_consistent(asset: &Asset) -> Result<()> {
         asset.present.len(),
         h.atlas_blocks
     );
-    anyhow::ensure!(asset.grids.len() == h.num_frames(), "asset has {} grids for {} frames", asset.grids.len(), h.num_frames());
+    anyhow::ensure!(
+        asset.grids.len() == h.num_frames(),
+        "asset has {} grids for {} frames",
+        asset.grids.len(),
+        h.num_frames()
+    );
     Ok(())
 }

@@ -12,7 +12,11 @@ pub fn render_frames(asset: &Asset, cams: &[(Camera, f32)]) -> Result<Vec<Frame>
     render_frames_with(asset, cams, GpuOptions::default())
 }
 
-pub fn render_frames_with(asset: &Asset, cams: &[(Camera, f32)], opts: GpuOptions) -> Result<Vec<Frame>> {
+pub fn render_frames_with(
+    asset: &Asset,
+    cams: &[(Camera, f32)],
+    opts: GpuOptions,
+) -> Result<Vec<Frame>> {
     let mut r = GpuRenderer::with_options(asset, opts)?;
     cams.iter().map(|(c, t)| r.render(c, *t)).collect()
 }
@@ -29,7 +33,10 @@ pub enum RenderedBy {
 /// GPU if an adapter exists, else the CPU reference renderer (`snerf_asset::render`);
 /// `RenderedBy::Cpu` carries the message to print. Errors other than "no adapter" (a lost
 /// device, an asset beyond the GPU's limits) also fall back, with their message.
-pub fn render_frames_or_cpu(asset: &Asset, cams: &[(Camera, f32)]) -> Result<(Vec<Frame>, RenderedBy)> {
+pub fn render_frames_or_cpu(
+    asset: &Asset,
+    cams: &[(Camera, f32)],
+) -> Result<(Vec<Frame>, RenderedBy)> {
     match GpuRenderer::new(asset) {
         Ok(mut r) => {
             let info = r.adapter_info();
@@ -52,9 +59,15 @@ pub fn render_frames_or_cpu(asset: &Asset, cams: &[(Camera, f32)]) -> Result<(Ve
             let why = if e.downcast_ref::<NoAdapterError>().is_some() {
                 format!("{}; falling back to the CPU reference renderer", e)
             } else {
-                format!("GPU renderer unavailable ({:#}); falling back to the CPU reference renderer", e)
+                format!(
+                    "GPU renderer unavailable ({:#}); falling back to the CPU reference renderer",
+                    e
+                )
             };
-            let frames = cams.iter().map(|(c, t)| snerf_asset::render(asset, c, *t)).collect();
+            let frames = cams
+                .iter()
+                .map(|(c, t)| snerf_asset::render(asset, c, *t))
+                .collect();
             Ok((frames, RenderedBy::Cpu(why)))
         }
     }

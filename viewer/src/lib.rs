@@ -3,8 +3,9 @@
 //! Uses only `snerf-asset`, never the trainer, so a headset client stays small.
 //!
 //! Data flow: an `AssetSource` (a file, or a streaming client) yields an `Asset` and later
-//! block updates -> `GpuRenderer` uploads the atlas into two 3D textures of
-//! (block+2)^3-voxel blocks, the indirection grids and the view MLP into storage buffers ->
+//! block updates -> `GpuRenderer` uploads the atlas into a 3D texture of (block+2)^3-voxel
+//! blocks (one rg32uint texel per voxel), the indirection grids into a storage buffer and
+//! the view MLP into a uniform buffer ->
 //! per frame, `shaders/march.wgsl` (built for the scene's kind and static/dynamic only)
 //! ray-marches each pixel exactly like `snerf_asset::render` (the CPU reference) into a
 //! float buffer -> the window presents it (`shaders/present.wgsl`), headless callers read
@@ -18,10 +19,12 @@ pub mod headless;
 pub mod window;
 
 pub use bench::{bench_view, bench_view_with, BenchOptions, BenchView, StereoBench};
-pub use camera::{camera_from_c2w, initial_camera, load_poses, stereo_pair, Controller, PoseSample};
+pub use camera::{
+    camera_from_c2w, initial_camera, load_poses, stereo_pair, Controller, PoseSample,
+};
 pub use gpu::{
-    gpu_available, shader_source, AtlasLayout, DeviceLostError, GpuContext, GpuOptions, GpuRenderer, LimitError,
-    NoAdapterError, View,
+    gpu_available, shader_source, AtlasLayout, DeviceLostError, GpuContext, GpuOptions,
+    GpuRenderer, LimitError, NoAdapterError, View,
 };
 pub use headless::{render_frames, render_frames_or_cpu, render_frames_with, RenderedBy};
 pub use wgpu;

@@ -19,14 +19,17 @@ use winit::window::{Window, WindowId};
 
 use crate::bench::median;
 use crate::camera::{camera_from_c2w, load_poses, stereo_pair, Controller, PoseSample};
-use crate::gpu::{new_instance, read_buffer, DeviceLostError, GpuContext, GpuOptions, GpuRenderer, View, PRESENT_WGSL};
+use crate::gpu::{
+    new_instance, read_buffer, DeviceLostError, GpuContext, GpuOptions, GpuRenderer, View,
+    PRESENT_WGSL,
+};
 use snerf_asset::{Asset, ViewMlp};
 
 /// What an `AssetSource` hands the viewer.
 pub enum AssetUpdate {
     /// A whole asset (possibly partial: blocks not present and grids not arrived render
     /// empty); replaces whatever the viewer holds.
-    Whole(Asset),
+    Whole(Box<Asset>),
     /// Blocks of the asset the viewer holds arrived or changed: (atlas index, bytes).
     Blocks(Vec<(u32, Vec<u8>)>),
     /// One keyframe's indirection grid arrived.
@@ -65,7 +68,7 @@ impl FileSource {
 
 impl AssetSource for FileSource {
     fn poll(&mut self) -> Option<AssetUpdate> {
-        self.asset.take().map(AssetUpdate::Whole)
+        self.asset.take().map(|a| AssetUpdate::Whole(Box::new(a)))
     }
 }
 
@@ -91,7 +94,7 @@ pub struct ViewOptions {
     pub screenshot_dir: PathBuf,
     /// Seconds for one pass through a dynamic asset's time range.
     pub loop_seconds: f32,
-    /// Give up (error) if `frames` have not been presented after this long.
+    /// Give up (return an error) when the window is still open after this long.
     pub timeout: Option<Duration>,
     /// Print the frame time to stderr every second.
     pub print_stats: bool,
@@ -129,7 +132,8 @@ pub fn keys_help() -> &'static str {
      \x20      H print these keys | Esc quit"
 }
 
-const SHORT_KEYS: &str = "drag orbit, WASD fly, wheel zoom, P play, [ ] scrub, F12 shot, V vsync, H keys, Esc quit";
+const SHORT_KEYS: &str =
+    "drag orbit, WASD fly, wheel zoom, P play, [ ] scrub, F12 shot, V vsync, H keys, Esc quit";
 
 /// Open a window and render `source`'s asset until closed (or `opts.frames` presented).
 /// Errors (no display, no adapter, a lost device that cannot be recreated, a failed
@@ -143,22 +147,48 @@ pub fn run_window(source: Box<dyn AssetSource>, opts: ViewOptions) -> Result<()>
         bail!("window size {}x{} is empty", opts.width, opts.height);
     }
     let mut builder = EventLoop::builder();
-    #[cfg(all(unix, not(target_os = "macos"), not(target_os = "android"), not(target_os = "ios")))]
+    #[cfg(all(
+        unix,
+        not(target_os = "macos"),
+        not(target_os = "android"),
+        not(target_os = "ios")
+    ))]
     {
         use winit::platform::x11::EventLoopBuilderExtX11;
         // Tests and embedding callers run us off the main thread.
         builder.with_any_thread(true);
     }
     let event_loop = builder.build().map_err(|e| {
-        anyhow!("cannot open a window: {} (is DISPLAY set? run under Xvfb for a virtual display)", e)
+        anyhow!(
+            "cannot open a window: {} (is DISPLAY set? run under Xvfb for a virtual display)",
+            e
+        )
     })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut app = App::new(source, opts, poses);
-    event_loop.run_app(&mut app).map_err(|e| anyhow!("window event loop failed: {}", e))?;
+    // Last line of defence: a panic inside the windowing stack (e.g. the X server going
+    // away) becomes an error instead of taking the caller down.
+    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        event_loop.run_app(&mut app)
+    }));
     // Drop GPU objects before the window.
     app.scene = None;
     app.gfx = None;
-    app.result
+    match run {
+        Ok(Ok(())) => app.result,
+        Ok(Err(e)) => app
+            .result
+            .and(Err(anyhow!("window event loop failed: {}", e))),
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            app.result
+                .and(Err(anyhow!("the window system failed: {}", msg)))
+        }
+    }
 }
 
 struct Gfx {
@@ -209,6 +239,9 @@ struct App {
     play: Playback,
     stats: Stats,
     presented: u64,
+    marched_frames: u64,
+    /// Asset time of the last frame drawn (playback, or the pose file's).
+    shown_time: f32,
     shot_request: Option<PathBuf>,
     started: Instant,
     last_tick: Instant,
@@ -228,9 +261,19 @@ impl App {
             scene: None,
             result: Ok(()),
             input: Input::default(),
-            play: Playback { t: 0.0, playing: true },
-            stats: Stats { frame_ms: Vec::new(), last_print: now, last_frame: None, summary: String::new() },
+            play: Playback {
+                t: 0.0,
+                playing: true,
+            },
+            stats: Stats {
+                frame_ms: Vec::new(),
+                last_print: now,
+                last_frame: None,
+                summary: String::new(),
+            },
             presented: 0,
+            marched_frames: 0,
+            shown_time: 0.0,
             shot_request: None,
             started: now,
             last_tick: now,
@@ -249,7 +292,10 @@ impl App {
         let attrs = Window::default_attributes()
             .with_title(format!("{} — {}", self.opts.title, SHORT_KEYS))
             .with_inner_size(PhysicalSize::new(self.opts.width, self.opts.height));
-        let window = Arc::new(el.create_window(attrs).context("cannot create the window")?);
+        let window = Arc::new(
+            el.create_window(attrs)
+                .context("cannot create the window")?,
+        );
         let instance = new_instance(&self.opts.gpu, Some(Box::new(el.owned_display_handle())));
         let gfx = Self::gfx_for_window(&self.opts, self.vsync, window, instance)?;
         eprintln!(
@@ -265,21 +311,35 @@ impl App {
     }
 
     fn reconfigure(&mut self) -> Result<()> {
-        let Some(g) = self.gfx.as_mut() else { return Ok(()) };
+        let Some(g) = self.gfx.as_mut() else {
+            return Ok(());
+        };
         let size = g.window.inner_size();
         if size.width == 0 || size.height == 0 {
             return Ok(()); // minimized: keep the old configuration, skip frames
         }
         g.config.width = size.width;
         g.config.height = size.height;
-        g.config.present_mode = if self.vsync { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync };
-        g.ctx.scoped("configuring the window surface", || g.surface.configure(&g.ctx.device, &g.config))
+        g.config.present_mode = if self.vsync {
+            wgpu::PresentMode::AutoVsync
+        } else {
+            wgpu::PresentMode::AutoNoVsync
+        };
+        g.ctx.scoped("configuring the window surface", || {
+            g.surface.configure(&g.ctx.device, &g.config)
+        })
     }
 
     /// Surface lost: make a new one for the same window.
     fn recreate_surface(&mut self) -> Result<()> {
-        let Some(g) = self.gfx.as_mut() else { return Ok(()) };
-        g.surface = g.ctx.instance.create_surface(g.window.clone()).context("cannot recreate the window surface")?;
+        let Some(g) = self.gfx.as_mut() else {
+            return Ok(());
+        };
+        g.surface = g
+            .ctx
+            .instance
+            .create_surface(g.window.clone())
+            .context("cannot recreate the window surface")?;
         self.reconfigure()
     }
 
@@ -290,7 +350,9 @@ impl App {
             bail!("GPU device lost again ({}); giving up", why);
         }
         eprintln!("snerf view: {}; recreating the GPU device", why);
-        let Some(old) = self.gfx.take() else { return Ok(()) };
+        let Some(old) = self.gfx.take() else {
+            return Ok(());
+        };
         let (window, instance) = (old.window.clone(), old.ctx.instance.clone());
         // Keep the CPU-side asset and the view; drop everything on the old device.
         let kept = self.scene.take().map(|s| (s.asset, s.controller));
@@ -300,37 +362,83 @@ impl App {
         self.gfx = Some(g);
         if let Some((asset, controller)) = kept {
             let renderer = GpuRenderer::with_context(ctx, &asset, self.opts.gpu.clone())?;
-            self.scene = Some(Scene { asset, renderer, controller });
+            self.scene = Some(Scene {
+                asset,
+                renderer,
+                controller,
+            });
         }
         Ok(())
     }
 
-    fn gfx_for_window(opts: &ViewOptions, vsync: bool, window: Arc<Window>, instance: wgpu::Instance) -> Result<Gfx> {
-        let surface = instance.create_surface(window.clone()).context("cannot create a drawing surface for the window")?;
+    fn gfx_for_window(
+        opts: &ViewOptions,
+        vsync: bool,
+        window: Arc<Window>,
+        instance: wgpu::Instance,
+    ) -> Result<Gfx> {
+        let surface = instance
+            .create_surface(window.clone())
+            .context("cannot create a drawing surface for the window")?;
         let ctx = GpuContext::from_instance(instance, Some(&surface), &opts.gpu)?;
         let caps = surface.get_capabilities(&ctx.adapter);
         if caps.formats.is_empty() {
-            bail!("the window surface is not supported by adapter {}", ctx.adapter_info());
+            bail!(
+                "the window surface is not supported by adapter {}",
+                ctx.adapter_info()
+            );
         }
-        let format = caps.formats.iter().copied().find(|f| !f.is_srgb()).unwrap_or(caps.formats[0]);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| !f.is_srgb())
+            .unwrap_or(caps.formats[0]);
         let view_format = format.remove_srgb_suffix();
         let can_copy = caps.usages.contains(wgpu::TextureUsages::COPY_SRC);
         let size = window.inner_size();
         let config = wgpu::SurfaceConfiguration {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | if can_copy { wgpu::TextureUsages::COPY_SRC } else { wgpu::TextureUsages::empty() },
+                | if can_copy {
+                    wgpu::TextureUsages::COPY_SRC
+                } else {
+                    wgpu::TextureUsages::empty()
+                },
             format,
             color_space: Default::default(),
             width: size.width.max(1),
             height: size.height.max(1),
-            present_mode: if vsync { wgpu::PresentMode::AutoVsync } else { wgpu::PresentMode::AutoNoVsync },
+            present_mode: if vsync {
+                wgpu::PresentMode::AutoVsync
+            } else {
+                wgpu::PresentMode::AutoNoVsync
+            },
             desired_maximum_frame_latency: 2,
-            alpha_mode: caps.alpha_modes.first().copied().unwrap_or(wgpu::CompositeAlphaMode::Auto),
-            view_formats: if view_format != format { vec![view_format] } else { vec![] },
+            alpha_mode: caps
+                .alpha_modes
+                .first()
+                .copied()
+                .unwrap_or(wgpu::CompositeAlphaMode::Auto),
+            view_formats: if view_format != format {
+                vec![view_format]
+            } else {
+                vec![]
+            },
         };
         let (present, screen) = present_pipeline(&ctx, view_format)?;
-        let gfx = Gfx { surface, ctx, config, view_format, can_copy, present, screen, window };
-        gfx.ctx.scoped("configuring the window surface", || gfx.surface.configure(&gfx.ctx.device, &gfx.config))?;
+        let gfx = Gfx {
+            surface,
+            ctx,
+            config,
+            view_format,
+            can_copy,
+            present,
+            screen,
+            window,
+        };
+        gfx.ctx.scoped("configuring the window surface", || {
+            gfx.surface.configure(&gfx.ctx.device, &gfx.config)
+        })?;
         Ok(gfx)
     }
 
@@ -342,19 +450,29 @@ impl App {
             match u {
                 AssetUpdate::Whole(asset) => {
                     let controller = match self.scene.take() {
-                        Some(s) if s.asset.header.kind == asset.header.kind && s.asset.header.space == asset.header.space => {
+                        Some(s)
+                            if s.asset.header.kind == asset.header.kind
+                                && s.asset.header.space == asset.header.space =>
+                        {
                             s.controller
                         }
                         _ => Controller::new(&asset.header),
                     };
-                    let renderer = GpuRenderer::with_context(g.ctx.clone(), &asset, self.opts.gpu.clone())?;
+                    let renderer =
+                        GpuRenderer::with_context(g.ctx.clone(), &asset, self.opts.gpu.clone())?;
                     if let Some(r) = asset.header.time_range {
                         self.play.t = self.play.t.clamp(r[0], r[1]);
                     }
-                    self.scene = Some(Scene { asset, renderer, controller });
+                    self.scene = Some(Scene {
+                        asset: *asset,
+                        renderer,
+                        controller,
+                    });
                 }
                 AssetUpdate::Blocks(blocks) => {
-                    let Some(s) = self.scene.as_mut() else { continue };
+                    let Some(s) = self.scene.as_mut() else {
+                        continue;
+                    };
                     let bb = s.asset.block_bytes();
                     let mut idx = Vec::with_capacity(blocks.len());
                     for (i, bytes) in blocks {
@@ -370,10 +488,15 @@ impl App {
                     s.renderer.update_blocks(&s.asset, &idx)?;
                 }
                 AssetUpdate::Grid { frame, entries } => {
-                    let Some(s) = self.scene.as_mut() else { continue };
+                    let Some(s) = self.scene.as_mut() else {
+                        continue;
+                    };
                     let g3 = s.asset.grid_dim().pow(3);
                     let n = s.asset.header.atlas_blocks;
-                    if entries.len() != g3 || frame as usize >= s.asset.grids.len() || entries.iter().any(|&e| e != snerf_asset::EMPTY && e >= n) {
+                    if entries.len() != g3
+                        || frame as usize >= s.asset.grids.len()
+                        || entries.iter().any(|&e| e != snerf_asset::EMPTY && e >= n)
+                    {
                         eprintln!("snerf view: ignoring a bad grid for frame {}", frame);
                         continue;
                     }
@@ -381,7 +504,9 @@ impl App {
                     s.renderer.update_grids(&s.asset)?;
                 }
                 AssetUpdate::Mlp(m) => {
-                    let Some(s) = self.scene.as_mut() else { continue };
+                    let Some(s) = self.scene.as_mut() else {
+                        continue;
+                    };
                     s.renderer.update_mlp(&m)?;
                     s.asset.mlp = m;
                 }
@@ -406,16 +531,28 @@ impl App {
             }
         }
         let k = &self.input.keys;
-        let speed = 0.8 * dt * if self.input.mods.shift_key() { 4.0 } else { 1.0 };
+        let speed = 0.8
+            * dt
+            * if self.input.mods.shift_key() {
+                4.0
+            } else {
+                1.0
+            };
         let axis = |p: KeyCode, n: KeyCode| (k.contains(&p) as i32 - k.contains(&n) as i32) as f32;
-        let (r, u, f) = (axis(KeyCode::KeyD, KeyCode::KeyA), axis(KeyCode::KeyE, KeyCode::KeyQ), axis(KeyCode::KeyW, KeyCode::KeyS));
+        let (r, u, f) = (
+            axis(KeyCode::KeyD, KeyCode::KeyA),
+            axis(KeyCode::KeyE, KeyCode::KeyQ),
+            axis(KeyCode::KeyW, KeyCode::KeyS),
+        );
         if !self.input.mods.control_key() && (r != 0.0 || u != 0.0 || f != 0.0) {
             s.controller.fly(r * speed, u * speed, f * speed);
         }
     }
 
     fn scrub(&mut self, dir: f32) {
-        let Some(r) = self.scene.as_ref().and_then(|s| s.asset.header.time_range) else { return };
+        let Some(r) = self.scene.as_ref().and_then(|s| s.asset.header.time_range) else {
+            return;
+        };
         self.play.t = (self.play.t + dir * (r[1] - r[0]) / 50.0).clamp(r[0], r[1]);
     }
 
@@ -435,9 +572,24 @@ impl App {
             let lw = width / 2;
             let (l, _) = stereo_pair(c2w, self.opts.ipd, lw, height, fov);
             let (_, r) = stereo_pair(c2w, self.opts.ipd, width - lw, height, fov);
-            vec![View { cam: l, time, x0: 0 }, View { cam: r, time, x0: lw }]
+            vec![
+                View {
+                    cam: l,
+                    time,
+                    x0: 0,
+                },
+                View {
+                    cam: r,
+                    time,
+                    x0: lw,
+                },
+            ]
         } else {
-            vec![View { cam: camera_from_c2w(c2w, width, height, fov), time, x0: 0 }]
+            vec![View {
+                cam: camera_from_c2w(c2w, width, height, fov),
+                time,
+                x0: 0,
+            }]
         };
         Some((views, eye, fwd))
     }
@@ -445,30 +597,41 @@ impl App {
     fn redraw(&mut self, el: &ActiveEventLoop) -> Result<()> {
         self.apply_updates()?;
         self.tick();
-        let Some(g) = self.gfx.as_ref() else { return Ok(()) };
+        let Some(g) = self.gfx.as_ref() else {
+            return Ok(());
+        };
         let (w, h) = (g.config.width, g.config.height);
         let views = self.views(w, h);
-        if let Some((_, eye, fwd)) = &views {
+        if let Some((v, eye, fwd)) = &views {
             self.source.set_pose(*eye, *fwd);
+            self.shown_time = v[0].time;
         }
-        let frame = match g.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(t) => t,
-            wgpu::CurrentSurfaceTexture::Suboptimal(t) => {
-                drop(t);
-                return self.reconfigure();
+        let (frame, suboptimal) = match g.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) => (t, false),
+            // Still presentable: draw it, then reconfigure for the next frame.
+            wgpu::CurrentSurfaceTexture::Suboptimal(t) => (t, true),
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(())
             }
-            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => return Ok(()),
             wgpu::CurrentSurfaceTexture::Outdated => return self.reconfigure(),
             wgpu::CurrentSurfaceTexture::Lost => return self.recreate_surface(),
             wgpu::CurrentSurfaceTexture::Validation => {
-                return g.ctx.check().and_then(|_| Err(anyhow!("the window surface reported a validation error")))
+                return g
+                    .ctx
+                    .check()
+                    .and_then(|_| Err(anyhow!("the window surface reported a validation error")))
             }
         };
         let target = frame.texture.create_view(&wgpu::TextureViewDescriptor {
             format: Some(g.view_format),
             ..Default::default()
         });
-        let mut enc = g.ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let mut enc = g
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
         let mut marched = false;
         if let (Some((views, _, _)), Some(s)) = (&views, self.scene.as_mut()) {
             match s.renderer.encode(&mut enc, w, h, views) {
@@ -482,15 +645,26 @@ impl App {
             }
         }
         let g = self.gfx.as_ref().expect("checked above");
-        let bind = match (marched, self.scene.as_ref().and_then(|s| s.renderer.output_buffer())) {
+        let bind = match (
+            marched,
+            self.scene.as_ref().and_then(|s| s.renderer.output_buffer()),
+        ) {
             (true, Some(out)) => {
-                g.ctx.queue.write_buffer(&g.screen, 0, bytemuck::cast_slice(&[w, h, 0u32, 0u32]));
+                g.ctx
+                    .queue
+                    .write_buffer(&g.screen, 0, bytemuck::cast_slice(&[w, h, 0u32, 0u32]));
                 Some(g.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("present"),
                     layout: &g.present.get_bind_group_layout(0),
                     entries: &[
-                        wgpu::BindGroupEntry { binding: 0, resource: g.screen.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 1, resource: out.as_entire_binding() },
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: g.screen.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: out.as_entire_binding(),
+                        },
                     ],
                 }))
             }
@@ -504,7 +678,12 @@ impl App {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.12, g: 0.12, b: 0.12, a: 1.0 }),
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: 0.12,
+                            g: 0.12,
+                            b: 0.12,
+                            a: 1.0,
+                        }),
                         store: wgpu::StoreOp::Store,
                     },
                 })],
@@ -520,9 +699,24 @@ impl App {
             }
         }
         // Screenshot of this frame: --frames N --screenshot FILE on the last frame, or a key.
-        let last = self.opts.frames.is_some_and(|n| self.presented + 1 >= n);
-        let shot_path = if last && marched { self.opts.screenshot.clone() } else { None }
-            .or_else(|| if marched { self.shot_request.take() } else { None });
+        // --frames counts frames that showed the asset (a stream may take a while to start).
+        let last = marched
+            && self
+                .opts
+                .frames
+                .is_some_and(|n| self.marched_frames + 1 >= n);
+        let shot_path = if last && marched {
+            self.opts.screenshot.clone()
+        } else {
+            None
+        }
+        .or_else(|| {
+            if marched {
+                self.shot_request.take()
+            } else {
+                None
+            }
+        });
         let shot = match &shot_path {
             Some(_) if g.can_copy => {
                 let (buf, bpr) = surface_copy(g, &mut enc, &frame.texture)?;
@@ -550,16 +744,34 @@ impl App {
         }
         g.ctx.queue.present(frame);
         self.presented += 1;
+        self.marched_frames += marched as u64;
+        if suboptimal {
+            self.reconfigure()?;
+        }
         self.frame_stats();
         if last {
             el.exit();
         }
-        if let (Some(t), Some(n)) = (self.opts.timeout, self.opts.frames) {
-            if self.started.elapsed() > t && self.presented < n {
-                bail!("presented only {} of {} frames in {:?}", self.presented, n, t);
-            }
+        self.check_timeout()
+    }
+
+    fn check_timeout(&self) -> Result<()> {
+        match self.opts.timeout {
+            Some(t) if self.started.elapsed() > t => match self.opts.frames {
+                Some(n) => bail!(
+                    "presented only {} of {} frames of the asset in {:?}",
+                    self.marched_frames,
+                    n,
+                    t
+                ),
+                None => bail!(
+                    "window still open after {:?} ({} frames presented)",
+                    t,
+                    self.presented
+                ),
+            },
+            _ => Ok(()),
         }
-        Ok(())
     }
 
     fn frame_stats(&mut self) {
@@ -568,17 +780,29 @@ impl App {
             self.stats.frame_ms.push((now - prev).as_secs_f64() * 1e3);
         }
         self.stats.last_frame = Some(now);
-        if now - self.stats.last_print >= Duration::from_secs(1) && !self.stats.frame_ms.is_empty() {
+        if now - self.stats.last_print >= Duration::from_secs(1) && !self.stats.frame_ms.is_empty()
+        {
             let n = self.stats.frame_ms.len();
             let m = median(&mut self.stats.frame_ms);
             self.stats.frame_ms.clear();
             self.stats.last_print = now;
-            let (w, h) = self.gfx.as_ref().map_or((0, 0), |g| (g.config.width, g.config.height));
+            let (w, h) = self
+                .gfx
+                .as_ref()
+                .map_or((0, 0), |g| (g.config.width, g.config.height));
             let time = match self.scene.as_ref().and_then(|s| s.asset.header.time_range) {
-                Some(_) => format!(", t {:.3}{}", self.play.t, if self.play.playing { "" } else { " (paused)" }),
+                Some(_) => format!(
+                    ", t {:.3}{}",
+                    self.shown_time,
+                    if self.play.playing { "" } else { " (paused)" }
+                ),
                 None => String::new(),
             };
-            let status = self.source.status().map(|s| format!(", {}", s)).unwrap_or_default();
+            let status = self
+                .source
+                .status()
+                .map(|s| format!(", {}", s))
+                .unwrap_or_default();
             self.stats.summary = format!(
                 "{:.1} ms/frame ({:.1} fps), {}x{}{}{}{}",
                 m,
@@ -593,7 +817,10 @@ impl App {
                 eprintln!("snerf view: {} over {} frames", self.stats.summary, n);
             }
             if let Some(g) = &self.gfx {
-                g.window.set_title(&format!("{} — {} — {}", self.opts.title, self.stats.summary, SHORT_KEYS));
+                g.window.set_title(&format!(
+                    "{} — {} — {}",
+                    self.opts.title, self.stats.summary, SHORT_KEYS
+                ));
             }
         }
     }
@@ -613,7 +840,10 @@ impl App {
             KeyCode::KeyH | KeyCode::F1 => eprintln!("{}", keys_help()),
             KeyCode::KeyV => {
                 self.vsync = !self.vsync;
-                eprintln!("snerf view: vsync {}", if self.vsync { "on" } else { "off" });
+                eprintln!(
+                    "snerf view: vsync {}",
+                    if self.vsync { "on" } else { "off" }
+                );
                 if let Err(e) = self.reconfigure() {
                     self.fail(el, e);
                 }
@@ -625,13 +855,18 @@ impl App {
     }
 
     fn request_shot(&mut self) {
-        let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+        let secs = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
         let name = format!("snerf-{}-{:05}.png", secs, self.presented);
         self.shot_request = Some(self.opts.screenshot_dir.join(name));
     }
 }
 
-fn present_pipeline(ctx: &GpuContext, view_format: wgpu::TextureFormat) -> Result<(wgpu::RenderPipeline, wgpu::Buffer)> {
+fn present_pipeline(
+    ctx: &GpuContext,
+    view_format: wgpu::TextureFormat,
+) -> Result<(wgpu::RenderPipeline, wgpu::Buffer)> {
     let device = ctx.device.clone();
     ctx.scoped("creating the present pipeline", || {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -654,7 +889,11 @@ fn present_pipeline(ctx: &GpuContext, view_format: wgpu::TextureFormat) -> Resul
                 module: &module,
                 entry_point: Some("fs"),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState { format: view_format, blend: None, write_mask: wgpu::ColorWrites::ALL })],
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: view_format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
             }),
             multiview_mask: None,
             cache: None,
@@ -670,9 +909,14 @@ fn present_pipeline(ctx: &GpuContext, view_format: wgpu::TextureFormat) -> Resul
 }
 
 /// Copy the swapchain image into a mappable buffer (rows padded to 256 bytes).
-fn surface_copy(g: &Gfx, enc: &mut wgpu::CommandEncoder, tex: &wgpu::Texture) -> Result<(wgpu::Buffer, u32)> {
+fn surface_copy(
+    g: &Gfx,
+    enc: &mut wgpu::CommandEncoder,
+    tex: &wgpu::Texture,
+) -> Result<(wgpu::Buffer, u32)> {
     let (w, h) = (g.config.width, g.config.height);
-    let bpr = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let bpr =
+        (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     let buf = g.ctx.scoped("allocating the screenshot buffer", || {
         g.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("screenshot"),
@@ -682,21 +926,51 @@ fn surface_copy(g: &Gfx, enc: &mut wgpu::CommandEncoder, tex: &wgpu::Texture) ->
         })
     })?;
     enc.copy_texture_to_buffer(
-        wgpu::TexelCopyTextureInfo { texture: tex, mip_level: 0, origin: wgpu::Origin3d::ZERO, aspect: wgpu::TextureAspect::All },
+        wgpu::TexelCopyTextureInfo {
+            texture: tex,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
         wgpu::TexelCopyBufferInfo {
             buffer: &buf,
-            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(bpr), rows_per_image: Some(h) },
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(bpr),
+                rows_per_image: Some(h),
+            },
         },
-        wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
     );
     Ok((buf, bpr))
 }
 
-fn save_surface_png(bytes: &[u8], bpr: u32, w: u32, h: u32, format: wgpu::TextureFormat, path: &Path) -> Result<()> {
-    let bgra = matches!(format, wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb);
-    let rgba = matches!(format, wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb);
+fn save_surface_png(
+    bytes: &[u8],
+    bpr: u32,
+    w: u32,
+    h: u32,
+    format: wgpu::TextureFormat,
+    path: &Path,
+) -> Result<()> {
+    let bgra = matches!(
+        format,
+        wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+    );
+    let rgba = matches!(
+        format,
+        wgpu::TextureFormat::Rgba8Unorm | wgpu::TextureFormat::Rgba8UnormSrgb
+    );
     if !bgra && !rgba {
-        bail!("{}: cannot save a screenshot of a {:?} swapchain", path.display(), format);
+        bail!(
+            "{}: cannot save a screenshot of a {:?} swapchain",
+            path.display(),
+            format
+        );
     }
     let mut rgb = Vec::with_capacity((w * h * 3) as usize);
     for y in 0..h as usize {
@@ -711,7 +985,8 @@ fn save_surface_png(bytes: &[u8], bpr: u32, w: u32, h: u32, format: wgpu::Textur
     }
     let img = image::RgbImage::from_raw(w, h, rgb).ok_or_else(|| anyhow!("bad screenshot size"))?;
     let mut png = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut png, image::ImageFormat::Png).map_err(|e| anyhow!("{}: PNG encoding failed: {}", path.display(), e))?;
+    img.write_to(&mut png, image::ImageFormat::Png)
+        .map_err(|e| anyhow!("{}: PNG encoding failed: {}", path.display(), e))?;
     snerf_asset::atomic::write_atomic(path, &png.into_inner())
 }
 
@@ -750,10 +1025,14 @@ impl ApplicationHandler for App {
             WindowEvent::CursorLeft { .. } => self.input.cursor = None,
             WindowEvent::CursorMoved { position, .. } => {
                 let prev = self.input.cursor.replace((position.x, position.y));
-                let (Some((px, py)), Some(s)) = (prev, self.scene.as_mut()) else { return };
+                let (Some((px, py)), Some(s)) = (prev, self.scene.as_mut()) else {
+                    return;
+                };
                 let (dx, dy) = ((position.x - px) as f32, (position.y - py) as f32);
                 let b = &self.input.buttons;
-                if b.contains(&MouseButton::Middle) || (b.contains(&MouseButton::Left) && self.input.mods.shift_key()) {
+                if b.contains(&MouseButton::Middle)
+                    || (b.contains(&MouseButton::Left) && self.input.mods.shift_key())
+                {
                     s.controller.pan(dx, dy);
                 } else if b.contains(&MouseButton::Left) {
                     s.controller.orbit(dx, dy);
@@ -800,6 +1079,10 @@ impl ApplicationHandler for App {
 
     fn about_to_wait(&mut self, el: &ActiveEventLoop) {
         if el.exiting() {
+            return;
+        }
+        if let Err(e) = self.check_timeout() {
+            self.fail(el, e);
             return;
         }
         if let Some(g) = &self.gfx {

@@ -12,8 +12,15 @@ fn atlas_beyond_max_3d_texture_is_a_clear_error() {
     // 412 blocks of 10^3 voxels; a device limited to 3D textures of 64 texels per axis
     // holds at most 6^3 = 216 blocks.
     let a = object_asset();
-    assert!(a.header.atlas_blocks > 216, "{} blocks", a.header.atlas_blocks);
-    let opts = GpuOptions { max_texture_dimension_3d: Some(64), ..Default::default() };
+    assert!(
+        a.header.atlas_blocks > 216,
+        "{} blocks",
+        a.header.atlas_blocks
+    );
+    let opts = GpuOptions {
+        max_texture_dimension_3d: Some(64),
+        ..Default::default()
+    };
     let err = match GpuRenderer::with_options(&a, opts) {
         Ok(_) => panic!("an atlas beyond the texture limit was accepted"),
         Err(e) => e,
@@ -27,18 +34,38 @@ fn atlas_beyond_max_3d_texture_is_a_clear_error() {
     let r = GpuRenderer::new(&a).unwrap();
     let l = r.atlas_layout();
     assert!(l.nx * l.ny * l.nz >= a.header.atlas_blocks);
-    println!("real layout {:?}, device max 3D {}", l, r.context().limits().max_texture_dimension_3d);
+    println!(
+        "real layout {:?}, device max 3D {}",
+        l,
+        r.context().limits().max_texture_dimension_3d
+    );
 }
 
 #[test]
 fn atlas_layout_plans() {
     let l = AtlasLayout::plan(1000, 10, 2048).unwrap();
-    assert!(l.nx * l.ny * l.nz >= 1000 && l.texels().iter().all(|&t| t <= 2048), "{:?}", l);
+    assert!(
+        l.nx * l.ny * l.nz >= 1000 && l.texels().iter().all(|&t| t <= 2048),
+        "{:?}",
+        l
+    );
     let l = AtlasLayout::plan(8_000_000, 10, 2048).unwrap(); // 204^3 = 8.49M fit
-    assert!(l.nx as u64 * l.ny as u64 * l.nz as u64 >= 8_000_000 && l.texels().iter().all(|&t| t <= 2048), "{:?}", l);
+    assert!(
+        l.nx as u64 * l.ny as u64 * l.nz as u64 >= 8_000_000
+            && l.texels().iter().all(|&t| t <= 2048),
+        "{:?}",
+        l
+    );
     let e = AtlasLayout::plan(9_000_000, 10, 2048).unwrap_err();
-    assert!(e.to_string().contains("max_texture_dimension_3d = 2048"), "{}", e);
-    assert!(AtlasLayout::plan(1, 66, 64).is_err(), "a block larger than the limit");
+    assert!(
+        e.to_string().contains("max_texture_dimension_3d = 2048"),
+        "{}",
+        e
+    );
+    assert!(
+        AtlasLayout::plan(1, 66, 64).is_err(),
+        "a block larger than the limit"
+    );
     for n in [0u32, 1, 2, 7, 8, 9, 63, 64, 65, 1000, 4097] {
         let l = AtlasLayout::plan(n, 6, 256).unwrap();
         assert!(l.nx * l.ny * l.nz >= n.max(1));
@@ -60,7 +87,12 @@ fn inconsistent_asset_and_bad_cameras_are_errors() {
     }
     let mut a = dynamic_asset();
     a.atlas.truncate(a.atlas.len() - 1);
-    let msg = format!("{:#}", GpuRenderer::new(&a).err().expect("truncated atlas accepted"));
+    let msg = format!(
+        "{:#}",
+        GpuRenderer::new(&a)
+            .err()
+            .expect("truncated atlas accepted")
+    );
     assert!(msg.contains("atlas"), "{}", msg);
 
     let a = dynamic_asset();
@@ -75,7 +107,7 @@ fn inconsistent_asset_and_bad_cameras_are_errors() {
     let mut c = cams(&a.header, 1, 32, 32)[0];
     c.width = 60_000;
     c.height = 60_000;
-    let msg = format!("{:#}", r.render(&c, 0.0).err().expect("huge image accepted"));
+    let msg = format!("{:#}", r.render(&c, 0.0).expect_err("huge image accepted"));
     println!("huge image: {}", msg);
     assert!(msg.contains("limit"), "{}", msg);
     // Still usable afterwards.
@@ -88,8 +120,13 @@ fn no_adapter_is_a_typed_error_and_cpu_fallback_says_so() {
     setup();
     // No backend at all: the same path as a machine without any GPU driver.
     let a = dynamic_asset();
-    let opts = GpuOptions { backends: Some(wgpu::Backends::empty()), ..Default::default() };
-    let err = GpuRenderer::with_options(&a, opts).err().expect("no backends gave an adapter");
+    let opts = GpuOptions {
+        backends: Some(wgpu::Backends::empty()),
+        ..Default::default()
+    };
+    let err = GpuRenderer::with_options(&a, opts)
+        .err()
+        .expect("no backends gave an adapter");
     let msg = format!("{:#}", err);
     println!("{}", msg);
     assert!(err.downcast_ref::<NoAdapterError>().is_some(), "{}", msg);
@@ -105,10 +142,40 @@ fn bad_pose_files_are_errors() {
     let e = snerf_viewer::load_poses(&p).unwrap_err().to_string();
     assert!(e.contains("poses.json") && e.contains("rows"), "{}", e);
     std::fs::write(&p, "not json").unwrap();
-    assert!(snerf_viewer::load_poses(&p).unwrap_err().to_string().contains("poses.json"));
+    assert!(snerf_viewer::load_poses(&p)
+        .unwrap_err()
+        .to_string()
+        .contains("poses.json"));
     std::fs::write(&p, "[{\"c2w\": [[1,0,0,0],[0,1,0,0],[0,0,1,3]], \"time\": 0.5}, {\"c2w\": [[1,0,0,0],[0,1,0,0],[0,0,1,3],[0,0,0,1]]}]").unwrap();
     let poses = snerf_viewer::load_poses(&p).unwrap();
     assert_eq!(poses.len(), 2);
     assert_eq!(poses[1].time, None);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn lost_device_is_an_error_not_a_panic() {
+    if !have_gpu("lost_device_is_an_error_not_a_panic") {
+        return;
+    }
+    let a = dynamic_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    let c = cams(&a.header, 1, 32, 24)[0];
+    r.render(&c, 0.0).unwrap();
+    r.context().destroy_device_for_test();
+    for _ in 0..2 {
+        let e = r
+            .render(&c, 0.3)
+            .expect_err("rendering on a destroyed device succeeded");
+        let msg = format!("{:#}", e);
+        println!("after device loss: {}", msg);
+        assert!(
+            e.downcast_ref::<snerf_viewer::DeviceLostError>().is_some(),
+            "{}",
+            msg
+        );
+    }
+    // A fresh renderer works again (what the window does on loss).
+    let mut r2 = GpuRenderer::new(&a).unwrap();
+    r2.render(&c, 0.3).unwrap();
 }

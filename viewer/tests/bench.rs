@@ -13,7 +13,11 @@ fn bench_view_gpu_beats_cpu_small() {
     let b = snerf_viewer::bench_view(&a, 320, 240, 8).unwrap();
     println!("{}", b);
     assert!(b.gpu_median_ms > 0.0 && b.cpu_median_ms > 0.0);
-    assert!(b.speedup > 1.0, "GPU path slower than the CPU reference: {}", b);
+    assert!(
+        b.speedup > 1.0,
+        "GPU path slower than the CPU reference: {}",
+        b
+    );
 }
 
 #[test]
@@ -22,7 +26,11 @@ fn bench_view_720p() {
     if !have_gpu("bench_view_720p") {
         return;
     }
-    for (name, a) in [("object", object_asset()), ("unbounded", unbounded_asset()), ("dynamic", dynamic_asset())] {
+    for (name, a) in [
+        ("object", object_asset()),
+        ("unbounded", unbounded_asset()),
+        ("dynamic", dynamic_asset()),
+    ] {
         let opts = snerf_viewer::BenchOptions {
             frames: 10,
             cpu_frames: 3,
@@ -30,6 +38,9 @@ fn bench_view_720p() {
             ..Default::default()
         };
         let b = snerf_viewer::bench_view_with(&a, &opts).unwrap();
-        println!("== {} ({} blocks, res {})\n{}", name, a.header.atlas_blocks, a.header.res, b);
+        println!(
+            "== {} ({} blocks, res {})\n{}",
+            name, a.header.atlas_blocks, a.header.res, b
+        );
     }
 }

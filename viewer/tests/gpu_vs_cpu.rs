@@ -30,10 +30,31 @@ fn check(name: &str, asset: &Asset, r: &mut GpuRenderer, cam: &Camera, time: f32
         d.opacity_max,
         coverage(&cpu)
     );
-    assert!(d.mean <= 1.0 / 255.0, "{}: mean abs diff {} > 1/255", name, d.mean);
-    assert!(d.max <= MAX_BOUND, "{}: max abs diff {} > {}", name, d.max, MAX_BOUND);
-    assert!(d.p999 <= 1.0 / 255.0, "{}: 99.9th percentile abs diff {} > 1/255", name, d.p999);
-    assert!(d.opacity_mean <= 1.0 / 255.0, "{}: opacity mean diff {}", name, d.opacity_mean);
+    assert!(
+        d.mean <= 1.0 / 255.0,
+        "{}: mean abs diff {} > 1/255",
+        name,
+        d.mean
+    );
+    assert!(
+        d.max <= MAX_BOUND,
+        "{}: max abs diff {} > {}",
+        name,
+        d.max,
+        MAX_BOUND
+    );
+    assert!(
+        d.p999 <= 1.0 / 255.0,
+        "{}: 99.9th percentile abs diff {} > 1/255",
+        name,
+        d.p999
+    );
+    assert!(
+        d.opacity_mean <= 1.0 / 255.0,
+        "{}: opacity mean diff {}",
+        name,
+        d.opacity_mean
+    );
     d
 }
 
@@ -50,11 +71,19 @@ fn static_object_matches_cpu() {
         check(&format!("object cam {}", i), &a, &mut r, c, 0.0);
         cov += coverage(&snerf_asset::render(&a, c, 0.0));
     }
-    assert!(cov / 5.0 > 0.1, "test images are mostly empty ({})", cov / 5.0);
+    assert!(
+        cov / 5.0 > 0.1,
+        "test images are mostly empty ({})",
+        cov / 5.0
+    );
     // Axis-aligned camera (ray direction components exactly 0) and one inside the box.
     let m = snerf_asset::render::model_to_world(&a.header, [0.0, 0.0, 0.0]);
     let axis = Camera {
-        c2w: [[1.0, 0.0, 0.0, m[0]], [0.0, 1.0, 0.0, m[1]], [0.0, 0.0, 1.0, m[2] + 3.0]],
+        c2w: [
+            [1.0, 0.0, 0.0, m[0]],
+            [0.0, 1.0, 0.0, m[1]],
+            [0.0, 0.0, 1.0, m[2] + 3.0],
+        ],
         fx: 100.0,
         fy: 100.0,
         cx: 80.0,
@@ -110,9 +139,18 @@ fn dynamic_keyframes_match_cpu() {
     let mut r = GpuRenderer::new(&a).unwrap();
     let cs = cams(&a.header, 3, W, H);
     let mut prev: Option<snerf_asset::Frame> = None;
-    for (i, &t) in [-1.0f32, 0.0, 0.2, 0.5, 0.77, 1.0, 3.0, f32::NAN].iter().enumerate() {
+    for (i, &t) in [-1.0f32, 0.0, 0.2, 0.5, 0.77, 1.0, 3.0, f32::NAN]
+        .iter()
+        .enumerate()
+    {
         let c = &cs[i % cs.len()];
-        check(&format!("dynamic t={} cam {}", t, i % cs.len()), &a, &mut r, c, t);
+        check(
+            &format!("dynamic t={} cam {}", t, i % cs.len()),
+            &a,
+            &mut r,
+            c,
+            t,
+        );
         // Time changes the picture (the GPU path really interpolates keyframes).
         let f = r.render(&cs[0], t).unwrap();
         if let (Some(p), true) = (&prev, t == 0.2) {
@@ -133,10 +171,19 @@ fn stereo_pair_matches_cpu() {
     let (l, rr) = stereo_pair(c.c2w, 0.1, W, H, 50.0);
     let f = r.render_stereo(&l, &rr, 0.0).unwrap();
     assert_eq!((f.width, f.height), (2 * W, H));
-    let (cl, cr) = (snerf_asset::render(&a, &l, 0.0), snerf_asset::render(&a, &rr, 0.0));
+    let (cl, cr) = (
+        snerf_asset::render(&a, &l, 0.0),
+        snerf_asset::render(&a, &rr, 0.0),
+    );
     // Split the side-by-side frame into its eyes.
     let half = |x0: u32| {
-        let mut e = snerf_asset::Frame { width: W, height: H, rgb: vec![], depth: vec![], opacity: vec![] };
+        let mut e = snerf_asset::Frame {
+            width: W,
+            height: H,
+            rgb: vec![],
+            depth: vec![],
+            opacity: vec![],
+        };
         for y in 0..H {
             for x in 0..W {
                 let i = (y * 2 * W + x0 + x) as usize;
@@ -150,11 +197,22 @@ fn stereo_pair_matches_cpu() {
     let (gl, gr) = (half(0), half(W));
     for (name, g, c) in [("stereo left", &gl, &cl), ("stereo right", &gr, &cr)] {
         let d = diff(g, c);
-        println!("{}: mean {:.2e} p99.9 {:.2e} max {:.2e}", name, d.mean, d.p999, d.max);
-        assert!(d.mean <= 1.0 / 255.0 && d.max <= MAX_BOUND, "{}: {:?}", name, d);
+        println!(
+            "{}: mean {:.2e} p99.9 {:.2e} max {:.2e}",
+            name, d.mean, d.p999, d.max
+        );
+        assert!(
+            d.mean <= 1.0 / 255.0 && d.max <= MAX_BOUND,
+            "{}: {:?}",
+            name,
+            d
+        );
     }
     // The eyes really differ (parallax).
-    assert!(diff(&gl, &gr).mean > 1e-3, "left and right eyes are identical");
+    assert!(
+        diff(&gl, &gr).mean > 1e-3,
+        "left and right eyes are identical"
+    );
 }
 
 /// Hardware trilinear filtering (optional path): reported, looser bar, never the default.
@@ -164,7 +222,14 @@ fn hardware_filter_variant_reported() {
         return;
     }
     let a = object_asset();
-    let mut r = GpuRenderer::with_options(&a, GpuOptions { hardware_filter: true, ..Default::default() }).unwrap();
+    let mut r = GpuRenderer::with_options(
+        &a,
+        GpuOptions {
+            hardware_filter: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let mut worst = 0.0f64;
     for (i, c) in cams(&a.header, 3, W, H).iter().enumerate() {
         let d = diff(&r.render(c, 0.0).unwrap(), &snerf_asset::render(&a, c, 0.0));
@@ -178,7 +243,11 @@ fn hardware_filter_variant_reported() {
         );
         worst = worst.max(d.mean);
     }
-    assert!(worst < 4.0 / 255.0, "hardware filtering is far off: mean {}", worst);
+    assert!(
+        worst < 4.0 / 255.0,
+        "hardware filtering is far off: mean {}",
+        worst
+    );
 }
 
 /// Progressive (streaming) rendering: blocks missing render empty, exactly as the CPU
@@ -220,7 +289,10 @@ fn headless_render_frames_and_fallback() {
         return;
     }
     let a = dynamic_asset();
-    let cs: Vec<(Camera, f32)> = cams(&a.header, 3, 64, 48).into_iter().zip([0.0, 0.4, 0.9]).collect();
+    let cs: Vec<(Camera, f32)> = cams(&a.header, 3, 64, 48)
+        .into_iter()
+        .zip([0.0, 0.4, 0.9])
+        .collect();
     let frames = snerf_viewer::render_frames(&a, &cs).unwrap();
     assert_eq!(frames.len(), 3);
     for (f, (c, t)) in frames.iter().zip(&cs) {
@@ -229,4 +301,60 @@ fn headless_render_frames_and_fallback() {
     let (frames2, by) = snerf_viewer::render_frames_or_cpu(&a, &cs).unwrap();
     assert!(matches!(by, snerf_viewer::RenderedBy::Gpu(_)), "{:?}", by);
     assert_eq!(frames2, frames);
+}
+
+/// Every shader variant (3 kinds x static/dynamic x texel loads/hardware filter) builds and
+/// matches the CPU reference on a small asset.
+#[test]
+fn all_variants_build_and_match() {
+    if !have_gpu("all_variants_build_and_match") {
+        return;
+    }
+    use snerf_asset::{encode_voxel, AssetBuilder, Header, Keyframe, Kind, Ndc};
+    for kind in [Kind::Object, Kind::Forward, Kind::Unbounded] {
+        for dynamic in [false, true] {
+            let mut h = Header::new(kind, 16, 4);
+            h.background = [0.3, 0.2, 0.1];
+            if kind == Kind::Forward {
+                h.space.ndc = Some(Ndc { fx: 40.0, fy: 40.0, width: 64.0, height: 48.0, near: 1.0, xy_extent: 1.2 });
+            }
+            if dynamic {
+                h.time_range = Some([0.0, 2.0]);
+                h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 2.0 }]);
+            }
+            let d = h.density;
+            let mut b = AssetBuilder::new(h.clone(), mlp(1.0)).unwrap();
+            for f in 0..h.num_frames() {
+                for z in 0..4 {
+                    for y in 0..4 {
+                        for x in 0..4 {
+                            if (x + y + z + f) % 3 == 0 {
+                                continue;
+                            }
+                            let blk = b.block_from_fn([x, y, z], |v| {
+                                let s = 0.5 + ((v[0] * 7 + v[1] * 3 + v[2] * 5 + f * 11) % 13) as f32;
+                                let c = [v[0] as f32 / 16.0, v[1] as f32 / 16.0, v[2] as f32 / 16.0];
+                                encode_voxel(s.ln(), c, [c[2], c[1], c[0], 0.5], &d)
+                            });
+                            b.set_block(f, [x, y, z], &blk).unwrap();
+                        }
+                    }
+                }
+            }
+            let a = b.finish().unwrap();
+            for hw in [false, true] {
+                let mut r = GpuRenderer::with_options(&a, GpuOptions { hardware_filter: hw, ..Default::default() }).unwrap();
+                for (i, c) in cams(&a.header, 2, 48, 36).iter().enumerate() {
+                    let t = 0.7 * i as f32;
+                    let dd = diff(&r.render(c, t).unwrap(), &snerf_asset::render(&a, c, t));
+                    println!("{:?} dynamic {} hw {} cam {}: mean {:.2e} max {:.2e}", kind, dynamic, hw, i, dd.mean, dd.max);
+                    let bar = if hw { 4.0 / 255.0 } else { 1.0 / 255.0 };
+                    assert!(dd.mean <= bar, "{:?} dynamic {} hw {}: {:?}", kind, dynamic, hw, dd);
+                    if !hw {
+                        assert!(dd.max <= MAX_BOUND && dd.p999 <= 1.0 / 255.0, "{:?} dynamic {}: {:?}", kind, dynamic, dd);
+                    }
+                }
+            }
+        }
+    }
 }

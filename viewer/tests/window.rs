@@ -4,56 +4,7 @@
 //! per process.
 mod common;
 use common::*;
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-struct Xvfb(Option<Child>);
-impl Drop for Xvfb {
-    fn drop(&mut self) {
-        if let Some(c) = self.0.as_mut() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
-fn which(bin: &str) -> bool {
-    std::env::var_os("PATH").is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(bin).is_file()))
-}
-
-/// A display: $DISPLAY, or a private Xvfb we start (and stop on drop).
-fn display() -> Option<Xvfb> {
-    if std::env::var_os("DISPLAY").is_some() {
-        return Some(Xvfb(None));
-    }
-    if !which("Xvfb") {
-        return None;
-    }
-    for n in 90 + (std::process::id() % 50)..200 {
-        let sock = format!("/tmp/.X11-unix/X{}", n);
-        if Path::new(&sock).exists() || Path::new(&format!("/tmp/.X{}-lock", n)).exists() {
-            continue;
-        }
-        let child = Command::new("Xvfb")
-            .args([&format!(":{}", n), "-screen", "0", "640x480x24", "-nolisten", "tcp"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .ok()?;
-        let x = Xvfb(Some(child));
-        let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(10) {
-            if Path::new(&sock).exists() {
-                std::env::set_var("DISPLAY", format!(":{}", n));
-                return Some(x);
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        return None;
-    }
-    None
-}
 
 #[test]
 fn window_presents_and_screenshot_matches_headless() {
@@ -85,13 +36,22 @@ fn window_presents_and_screenshot_matches_headless() {
     let src = snerf_viewer::FileSource::open(&asset_path).unwrap();
     let t0 = Instant::now();
     snerf_viewer::run_window(Box::new(src), opts).unwrap();
-    println!("window: 6 frames presented in {:.2} s", t0.elapsed().as_secs_f64());
+    println!(
+        "window: 6 frames presented in {:.2} s",
+        t0.elapsed().as_secs_f64()
+    );
 
     let img = image::open(&shot).unwrap().to_rgb8();
     assert_eq!(img.dimensions(), (w, h), "screenshot size");
     let cam = snerf_viewer::initial_camera(&asset.header, w, h, 50.0);
-    let frame = snerf_viewer::render_frames(&asset, &[(cam, 0.0)]).unwrap().remove(0);
-    let want: Vec<u8> = frame.rgb.iter().map(|&v| snerf_asset::quantize_unit(v)).collect();
+    let frame = snerf_viewer::render_frames(&asset, &[(cam, 0.0)])
+        .unwrap()
+        .remove(0);
+    let want: Vec<u8> = frame
+        .rgb
+        .iter()
+        .map(|&v| snerf_asset::quantize_unit(v))
+        .collect();
     let got = img.as_raw();
     let mut max = 0i32;
     let mut differing = 0usize;
@@ -100,9 +60,22 @@ fn window_presents_and_screenshot_matches_headless() {
         max = max.max(d);
         differing += (d > 0) as usize;
     }
-    println!("screenshot vs headless: {} of {} values differ, max {} levels", differing, want.len(), max);
-    assert!(max <= 1, "screenshot differs from the headless render by {} levels", max);
-    assert!(differing * 1000 <= want.len(), "{} values differ", differing);
+    println!(
+        "screenshot vs headless: {} of {} values differ, max {} levels",
+        differing,
+        want.len(),
+        max
+    );
+    assert!(
+        max <= 1,
+        "screenshot differs from the headless render by {} levels",
+        max
+    );
+    assert!(
+        differing * 1000 <= want.len(),
+        "{} values differ",
+        differing
+    );
     // Not a blank image: the object covers part of the view.
     assert!(coverage(&frame) > 0.05);
     let _ = std::fs::remove_dir_all(&dir);

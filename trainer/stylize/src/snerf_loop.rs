@@ -118,7 +118,9 @@ pub fn run(
         Ok(bytes) => {
             let state: StylizeState = serde_json::from_slice(&bytes)
                 .with_context(|| format!("{}: not a stylization state file", state_path(out).display()))?;
-            if state.options != *opts {
+            // More (or fewer) rounds extend (or end) the same run; anything else is another run.
+            let same = StylizeOptions { rounds: opts.rounds, ..state.options.clone() } == *opts;
+            if !same {
                 bail!(
                     "{}: holds a stylization run with other options (style {}, stylizer {}, {} rounds); \
                      choose another --out or repeat the same options to resume",
@@ -130,6 +132,8 @@ pub fn run(
             }
             let ck = if state.rounds_done > 0 { checkpoint::load(&ck_path)? } else { source.clone() };
             let t = trainer_from(ck, data, opts)?;
+            let mut state = state;
+            state.options.rounds = opts.rounds;
             (state, t)
         }
         Err(_) => {

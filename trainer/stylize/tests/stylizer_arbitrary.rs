@@ -21,7 +21,7 @@ fn stylizes_square_and_non_square_views_toward_the_style() {
     let embedder = StyleEmbedder::new(&opts).unwrap();
     let style_emb = embedder.embed(&snerf_stylize::stylizer::load_style_image(&style_path).unwrap()).unwrap();
     assert_eq!(style_emb.len(), 100);
-    // 384^2 (the network's own size), non-square smaller, and larger than 384 (native path).
+    // 384^2 (the network's own size), non-square smaller, and larger than 384 (resized).
     for (w, h) in [(384, 384), (200, 120), (96, 160), (520, 400)] {
         let content = content_image(w, h);
         let out = s.stylize(&content).unwrap();
@@ -64,9 +64,11 @@ fn resize_and_native_large_views_both_work() {
     let style = style_image(256, 256);
     let content = content_image(600, 400);
     let s = ArbitraryStylizer::new(&style, &opts).unwrap();
-    let native = s.stylize(&content).unwrap();
-    let s = s.with_large_views(LargeViews::Resize);
     let resized = s.stylize(&content).unwrap();
+    assert_eq!(s.network_size(600, 400), (384, 384), "default for large views is Resize");
+    let s = s.with_large_views(LargeViews::Native);
+    assert_eq!(s.network_size(600, 400), (400, 600));
+    let native = s.stylize(&content).unwrap();
     assert_eq!((native.width, native.height), (600, 400));
     assert_eq!((resized.width, resized.height), (600, 400));
     assert_finite_in_range(&native);

@@ -78,7 +78,11 @@ fn bench_large_views_resize_vs_native() {
     let embedder = StyleEmbedder::new(&opts).unwrap();
     let style_emb = embedder.embed(&style).unwrap();
     for (w, h) in [(768, 512), (1008, 548)] {
-        let content = stylizer_support::content_image(w, h);
+        // SNERF_BENCH_CONTENT=photo.jpg measures on a real picture instead of the synthetic one.
+        let content = match std::env::var_os("SNERF_BENCH_CONTENT") {
+            Some(p) => snerf_stylize::stylizer::resize(&snerf_stylize::stylizer::image_from_png(std::path::Path::new(&p)).unwrap(), w, h),
+            None => stylizer_support::content_image(w, h),
+        };
         for mode in [LargeViews::Resize, LargeViews::Native] {
             let s = ArbitraryStylizer::new(&style, &opts).unwrap().with_large_views(mode);
             let t0 = std::time::Instant::now();

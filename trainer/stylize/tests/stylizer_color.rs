@@ -2,7 +2,7 @@
 
 mod stylizer_support;
 
-use snerf_stylize::stylizer::{color_transfer, from_spec, mean_and_covariance, save_png, Image, Stylizer, StylizerOptions};
+use snerf_stylize::stylizer::{color_transfer, from_spec, mean_and_covariance, save_png, Image, StylizerOptions};
 use stylizer_support::{assert_finite_in_range, content_image, style_image};
 
 #[test]
@@ -20,7 +20,7 @@ fn matches_the_style_mean_and_covariance() {
     for c in 0..3 {
         assert!((mo[c] - ms[c]).abs() < 0.01, "channel {c} mean {} vs style {}", mo[c], ms[c]);
         for k in 0..3 {
-            assert!((co[c][k] - cs[c][k]).abs() < 0.1 * cs[c][c].max(cs[k][k]), "covariance {c},{k}: {} vs {}", co[c][k], cs[c][k]);
+            assert!((co[c][k] - cs[c][k]).abs() < 0.03 * cs[c][c].max(cs[k][k]), "covariance {c},{k}: {} vs {}", co[c][k], cs[c][k]);
         }
     }
 }

@@ -35,7 +35,9 @@ fn gradient_matches_central_differences() {
     let x = Planes { data: content.data.iter().zip(noise(content.data.len(), 9)).map(|(c, n)| (c + 0.1 * n).clamp(0.05, 0.95)).collect(), ..content.clone() };
     let (loss, grad) = obj.loss_and_grad(&x);
     assert!(loss > 0.0 && loss.is_finite());
-    let h = 1e-3f32;
+    // Small enough that few ReLU/max-pool switches fall inside [x - h, x + h] (at 1e-3 they
+    // shift this tiny network's derivatives by a few percent), large enough for f32.
+    let h = 1e-4f32;
 
     // Directional derivatives along random directions.
     for seed in 0..4 {
@@ -44,7 +46,7 @@ fn gradient_matches_central_differences() {
         let an: f64 = grad.data.iter().zip(&dir).map(|(g, d)| (*g as f64) * (*d as f64)).sum();
         let rel = (fd - an).abs() / an.abs().max(fd.abs()).max(1e-8);
         println!("direction {seed}: finite difference {fd:.6e}, analytic {an:.6e}, relative error {rel:.2e}");
-        assert!(rel < 2e-2, "directional derivative {seed}: fd {fd} vs analytic {an}");
+        assert!(rel < 1e-2, "directional derivative {seed}: fd {fd} vs analytic {an}");
     }
 
     // Single pixels with the largest gradients.
@@ -59,7 +61,7 @@ fn gradient_matches_central_differences() {
         worst = worst.max((fd - an).abs() / an.abs().max(fd.abs()));
     }
     println!("largest-gradient pixels: worst relative error {worst:.2e}");
-    assert!(worst < 5e-2, "per-pixel gradient relative error {worst}");
+    assert!(worst < 2e-2, "per-pixel gradient relative error {worst}");
 }
 
 #[test]

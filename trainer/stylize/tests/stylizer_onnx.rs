@@ -6,7 +6,7 @@ mod stylizer_support;
 use std::path::{Path, PathBuf};
 
 use prost::Message;
-use snerf_stylize::stylizer::{from_spec, models_dir, Image, Stylizer, StylizerOptions};
+use snerf_stylize::stylizer::{from_spec, models_dir, Image, StylizerOptions};
 use stylizer_support::{content_image, models_or_skip};
 use tract_onnx::pb::{
     tensor_shape_proto::{dimension, Dimension},

@@ -2,7 +2,7 @@
 
 mod stylizer_support;
 
-use snerf_stylize::stylizer::{from_spec, Stylizer, StylizerOptions};
+use snerf_stylize::stylizer::{from_spec, StylizerOptions};
 use stylizer_support::{assert_finite_in_range, content_image, models_or_skip};
 
 #[test]

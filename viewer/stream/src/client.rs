@@ -80,9 +80,8 @@ pub struct FetchStats {
     pub elapsed: Duration,
 }
 
-fn transport(opts: &ClientOptions, peer: SocketAddr) -> Result<quinn::TransportConfig> {
+fn transport(opts: &ClientOptions) -> Result<quinn::TransportConfig> {
     let mut t = quinn::TransportConfig::default();
-    t.mtu_discovery_config(Some(crate::proto::mtu_discovery(crate::proto::is_loopback(peer))));
     t.max_concurrent_bidi_streams(VarInt::from_u32(0))
         .max_concurrent_uni_streams(VarInt::from_u32(opts.max_streams))
         .stream_receive_window(VarInt::from_u32(opts.stream_window))
@@ -172,12 +171,9 @@ pub async fn connect_raw(addr: SocketAddr, pin: &str, opts: &ClientOptions) -> R
     let pin = tls::parse_pin(pin)?;
     let verifier = Arc::new(PinVerifier::new(pin));
     let mut cc = quinn::ClientConfig::new(Arc::new(tls::client_crypto(verifier.clone())?));
-    cc.transport_config(Arc::new(transport(opts, addr)?));
+    cc.transport_config(Arc::new(transport(opts)?));
     let bind: SocketAddr = if addr.is_ipv6() { "[::]:0".parse()? } else { "0.0.0.0:0".parse()? };
-    let socket = std::net::UdpSocket::bind(bind).context("cannot open a UDP socket")?;
-    let runtime = quinn::default_runtime().ok_or_else(|| anyhow!("no async runtime"))?;
-    let mut endpoint =
-        Endpoint::new(crate::proto::endpoint_config(), None, socket, runtime).context("cannot open a UDP socket")?;
+    let mut endpoint = Endpoint::client(bind).context("cannot open a UDP socket")?;
     endpoint.set_default_client_config(cc);
     let connecting = endpoint.connect(addr, "snerf").map_err(|e| anyhow!("cannot connect to {}: {}", addr, e))?;
     let conn = match tokio::time::timeout(opts.connect_timeout, connecting).await {
@@ -390,8 +386,10 @@ impl Collector {
     }
 }
 
+/// Push an encoded chunk whose framing and CRC were already checked.
 fn push(asm: &mut Assembler, chunk: &[u8], blocks: &mut Vec<u32>) -> Result<()> {
-    asm.push_chunk(chunk)?;
+    let tag = [chunk[0], chunk[1], chunk[2], chunk[3]];
+    asm.push(tag, &chunk[CHUNK_HEADER_LEN..])?;
     if chunk[..4] == snerf_asset::chunk::TAG_BLKS {
         let p = &chunk[CHUNK_HEADER_LEN..];
         let first = u32::from_le_bytes([p[0], p[1], p[2], p[3]]);
@@ -487,7 +485,7 @@ impl PartLog {
             frames: 0,
         };
         let Ok(mut collector) = Collector::new(info.clone()) else { return Ok(None) };
-        if chunks < 2 || chunks > 1 << 28 {
+        if !(2..=1 << 28).contains(&chunks) {
             return Ok(None);
         }
         let mut offsets = vec![None; chunks as usize];

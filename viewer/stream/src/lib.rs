@@ -4,11 +4,16 @@
 //!   directory of `.snerf` files or one file, token-authenticated, self-signed certificate.
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
+//! - `bench`: `snerf bench stream` (QUIC vs TCP side by side, time to first view).
 //! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
 //!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
 //!
 //! Depends on `snerf-asset` only (never on the trainer).
 
+// `%` instead of is_multiple_of keeps older toolchains building.
+#![allow(clippy::manual_is_multiple_of)]
+
+pub mod bench;
 pub mod client;
 pub mod live;
 pub mod plan;
@@ -20,5 +25,5 @@ pub mod url;
 pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
 pub use live::LiveAsset;
 pub use proto::{Pose, ALPN, DEFAULT_PORT, PROTOCOL_VERSION};
-pub use server::{serve, serve_blocking, spawn, start, Limits, ServeOptions, ServerHandle, ServerStats};
+pub use server::{serve, serve_blocking, spawn, start, Congestion, Limits, ServeOptions, ServerHandle, ServerStats};
 pub use url::{parse_url, resolve};

@@ -288,6 +288,118 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
 fn norm(a: [f32; 3]) -> f32 {
     dot(a, a).sqrt()
 }
-fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+pub(crate) fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
     norm(sub(a, b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use snerf_asset::{AssetBuilder, Keyframe, ViewMlp};
+
+    fn asset(kind: Kind, dynamic: bool) -> ServedAsset {
+        let mut h = Header::new(kind, 32, 8);
+        if kind == Kind::Forward {
+            h.space.ndc = Some(snerf_asset::Ndc { fx: 50.0, fy: 50.0, width: 64.0, height: 48.0, near: 1.0, xy_extent: 1.0 });
+        }
+        if dynamic {
+            h.time_range = Some([0.0, 2.0]);
+            h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }, Keyframe { time: 2.0 }]);
+        }
+        let g = h.grid_dim();
+        let frames = h.num_frames();
+        let mut b = AssetBuilder::new(h, ViewMlp::zeros()).unwrap();
+        let bb = b.header().block_bytes();
+        for f in 0..frames {
+            for z in 0..g {
+                for y in 0..g {
+                    for x in 0..g {
+                        // Frame f changes the cells with x == f (others shared).
+                        let v = vec![(x + 4 * y + 16 * z + if x == f { 64 * f } else { 0 }) as u8; bb];
+                        b.set_block(f, [x, y, z], &v).unwrap();
+                    }
+                }
+            }
+        }
+        let a = b.finish().unwrap();
+        ServedAsset::from_bytes("t", Path::new("t.snerf"), a.to_bytes()).unwrap()
+    }
+
+    fn order(a: &ServedAsset, pose: Option<Pose>) -> Vec<&BlkEntry> {
+        let v = pose.map(|p| View::new(a, &p));
+        let mut b: Vec<&BlkEntry> = a.blks.iter().collect();
+        b.sort_by(|x, y| {
+            let (p, q) = (a.priority(x, v.as_ref()), a.priority(y, v.as_ref()));
+            p.0.cmp(&q.0).then(p.1.cmp(&q.1)).then(p.2.total_cmp(&q.2))
+        });
+        b
+    }
+
+    #[test]
+    fn frustum_then_distance() {
+        let a = asset(Kind::Object, false);
+        assert_eq!(a.blks.len(), 64);
+        let pose = Pose { eye: [3.0, 0.0, 0.0], forward: [-1.0, 0.0, 0.0], time: 0.0, fov_deg: 20.0 };
+        let o = order(&a, Some(pose));
+        // Nearest block first: on the +x face, near the axis.
+        assert!(o[0].centre[0] > 0.7 && o[0].centre[1].abs() < 0.3, "{:?}", o[0].centre);
+        // Everything in the cone precedes everything outside it.
+        let v = View::new(&a, &pose);
+        let tiers: Vec<u8> = o.iter().map(|b| a.priority(b, Some(&v)).1).collect();
+        assert!(tiers.windows(2).all(|w| w[0] <= w[1]));
+        assert!(tiers.contains(&0) && tiers.iter().any(|&t| t > 0));
+        // Looking the other way: blocks behind the eye are last.
+        let back = Pose { eye: [0.0, 0.0, -0.6], forward: [0.0, 0.0, 1.0], time: 0.0, fov_deg: 60.0 };
+        let o = order(&a, Some(back));
+        assert!(o.last().unwrap().centre[2] < -0.6);
+        assert!(o[0].centre[2] > -0.6 - o[0].radius);
+        let v = View::new(&a, &back);
+        assert_eq!(a.priority(o.last().unwrap(), Some(&v)).1, 2);
+        // No pose: centre-out.
+        let o = order(&a, None);
+        assert!(crate::plan::dist(o[0].centre, [0.0; 3]) <= crate::plan::dist(o[63].centre, [0.0; 3]));
+    }
+
+    #[test]
+    fn keyframes_ahead_of_playback() {
+        let a = asset(Kind::Object, true);
+        for (t, k) in [(0.0, 0u32), (1.0, 1), (1.5, 1), (2.0, 2), (-5.0, 0), (9.0, 2)] {
+            assert_eq!(a.frame_at(t), k);
+            let pose = Pose { eye: [0.0, 0.0, 3.0], forward: [0.0, 0.0, -1.0], time: t, fov_deg: 60.0 };
+            let o = order(&a, Some(pose));
+            let rank = |b: &BlkEntry| a.priority(b, Some(&View::new(&a, &pose))).0;
+            assert!(o.windows(2).all(|w| rank(w[0]) <= rank(w[1])));
+            // Blocks used by the playback keyframe first.
+            assert!(o[0].frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k)));
+            let first_other = o.iter().position(|b| !b.frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k))).unwrap();
+            assert!(o[first_other..].iter().all(|b| !b.frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k))));
+        }
+    }
+
+    #[test]
+    fn grid_to_world_inverts_the_mappings() {
+        // Forward: the NDC inverse maps back through the forward mapping.
+        let a = asset(Kind::Forward, false);
+        let n = a.header.space.ndc.unwrap();
+        for g in [[0.0, 0.0, 0.0], [0.5, -0.5, 0.5], [-0.9, 0.2, -0.9]] {
+            let m = grid_to_world(&a.header, g);
+            let ax = -n.fx / (n.width * 0.5);
+            let ay = -n.fy / (n.height * 0.5);
+            let back = [ax * m[0] / m[2] / n.xy_extent, ay * m[1] / m[2] / n.xy_extent, 1.0 + 2.0 * n.near / m[2]];
+            for i in 0..3 {
+                assert!((back[i] - g[i]).abs() < 1e-4, "{:?} -> {:?} -> {:?}", g, m, back);
+            }
+        }
+        // Unbounded: contraction of the inverse gives the grid point back.
+        let mut h = a.header.clone();
+        h.kind = Kind::Unbounded;
+        h.space.ndc = None;
+        for g in [[0.1, 0.2, -0.3], [0.75, 0.1, -0.2], [-0.2, -0.9, 0.4]] {
+            let w = grid_to_world(&h, g);
+            let c = snerf_asset::render::contract(w);
+            for i in 0..3 {
+                assert!((c[i] / 2.0 - g[i]).abs() < 1e-4, "{:?} -> {:?} -> {:?}", g, w, c);
+            }
+        }
+    }
 }

@@ -13,34 +13,6 @@ pub const PROTOCOL_VERSION: u32 = 1;
 /// Default UDP port.
 pub const DEFAULT_PORT: u16 = 4433;
 
-/// MTU discovery ceiling towards loopback peers. Loopback carries 64 KiB datagrams (TCP uses
-/// a 64 KiB MSS there too), and quinn's per-packet costs dominate at 1452 bytes; real paths
-/// keep quinn's 1452-byte ceiling. Discovery probes upward and only keeps what gets through.
-pub const LOOPBACK_MAX_UDP_PAYLOAD: u16 = 65000;
-/// quinn's default MTU discovery ceiling (fits a 1500-byte Ethernet path).
-pub const PATH_MAX_UDP_PAYLOAD: u16 = 1452;
-
-/// Transport settings shared by both sides that depend on where the peer is.
-pub fn is_loopback(peer: std::net::SocketAddr) -> bool {
-    peer.ip().is_loopback()
-        || matches!(peer.ip(), std::net::IpAddr::V6(v6) if v6.to_ipv4_mapped().is_some_and(|v4| v4.is_loopback()))
-}
-
-pub fn mtu_discovery(lo: bool) -> quinn::MtuDiscoveryConfig {
-    let mut m = quinn::MtuDiscoveryConfig::default();
-    let ceiling = std::env::var("SNERF_STREAM_MTU").ok().and_then(|v| v.parse().ok()).unwrap_or(LOOPBACK_MAX_UDP_PAYLOAD);
-    m.upper_bound(if lo { ceiling } else { PATH_MAX_UDP_PAYLOAD });
-    m
-}
-
-/// Endpoint settings: accept datagrams up to the loopback ceiling (what we advertise as
-/// max_udp_payload_size; a remote peer's discovery still stops at its path MTU).
-pub fn endpoint_config() -> quinn::EndpointConfig {
-    let mut e = quinn::EndpointConfig::default();
-    e.max_udp_payload_size(LOOPBACK_MAX_UDP_PAYLOAD.max(1200)).expect("payload size in range");
-    e
-}
-
 /// Largest token, asset name and `have` list a server accepts in a Hello.
 pub const MAX_TOKEN_LEN: usize = 256;
 pub const MAX_NAME_LEN: usize = 255;
@@ -396,4 +368,50 @@ pub fn to_ranges(have: &[bool]) -> Vec<[u32; 2]> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_and_messages_round_trip() {
+        let m = ClientMsg::Hello {
+            version: 1,
+            token: "tok".into(),
+            asset: Some("a".into()),
+            have: vec![[0, 3]],
+            resume_id: None,
+            pose: Some(Pose::new([1.0, 2.0, 3.0], [0.0, 0.0, -1.0])),
+        };
+        let f = encode_frame(&m);
+        let (payload, rest) = split_frame(&f, 1024).unwrap().unwrap();
+        assert!(rest.is_empty());
+        assert_eq!(decode_client_msg(payload).unwrap(), m);
+        assert!(split_frame(&f[..f.len() - 1], 1024).unwrap().is_none());
+        assert!(split_frame(&f, 3).is_err());
+        let p = Pose { eye: [1.0, -2.0, 3.5], forward: [0.0, 1.0, 0.0], time: 2.5, fov_deg: 70.0 };
+        assert_eq!(decode_pose(&encode_pose(42, &p)).unwrap(), (42, p));
+        let mut bad = encode_pose(1, &p);
+        bad[20..24].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert!(decode_pose(&bad).is_err());
+        let zero = Pose::new([0.0; 3], [0.0; 3]);
+        assert!(decode_pose(&encode_pose(1, &zero)).is_err());
+        assert_eq!(to_ranges(&[true, true, false, true, false, false, true]), vec![[0, 2], [3, 4], [6, 7]]);
+        assert_eq!(from_hex(&to_hex(&[0, 1, 0xab, 0xff])).unwrap(), vec![0, 1, 0xab, 0xff]);
+        assert!(valid_asset_name("a.b_c-1") && !valid_asset_name(".x") && !valid_asset_name("a/b") && !valid_asset_name(""));
+    }
+
+    #[tokio::test]
+    async fn read_frame_limits() {
+        let f = encode_frame(&ClientMsg::List);
+        let mut r: &[u8] = &f;
+        assert!(read_frame(&mut r, 1024).await.unwrap().is_some());
+        assert!(read_frame(&mut r, 1024).await.unwrap().is_none());
+        let mut r: &[u8] = &f[..5];
+        assert!(matches!(read_frame(&mut r, 1024).await, Err(FrameError::Truncated)));
+        let big = (1u32 << 30).to_le_bytes();
+        let mut r: &[u8] = &big;
+        assert!(matches!(read_frame(&mut r, 1024).await, Err(FrameError::TooLarge(..))));
+    }
 }

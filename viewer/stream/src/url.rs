@@ -72,3 +72,39 @@ pub fn resolve(host_port: &str) -> Result<SocketAddr> {
         .next()
         .ok_or_else(|| anyhow!("{} resolves to no address", host_port))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn urls() {
+        assert_eq!(parse_url("quic://127.0.0.1:4433/scene").unwrap(), ("127.0.0.1:4433".into(), "scene".into()));
+        assert_eq!(parse_url("quic://host.example/scene.snerf").unwrap(), ("host.example:4433".into(), "scene".into()));
+        assert_eq!(parse_url("quic://[::1]:9/a_b-c.d").unwrap(), ("[::1]:9".into(), "a_b-c.d".into()));
+        assert_eq!(parse_url("quic://h:1").unwrap(), ("h:1".into(), "".into()));
+        assert_eq!(parse_url("quic://h:1/").unwrap(), ("h:1".into(), "".into()));
+        for bad in [
+            "http://h:1/a",
+            "quic://",
+            "quic://:5/a",
+            "quic://h:0/a",
+            "quic://h:99999/a",
+            "quic://h:x/a",
+            "quic://h:1/../a",
+            "quic://h:1/a/b",
+            "quic://h:1/.hidden",
+            "quic://u@h:1/a",
+            "quic://[::1/a",
+            "quic://[nope]:1/a",
+            "quic://h h:1/a",
+            "quic://h:1/a?x=1",
+        ] {
+            let e = parse_url(bad);
+            assert!(e.is_err(), "{} should fail", bad);
+            assert!(format!("{:#}", e.unwrap_err()).contains(bad), "error should quote the URL");
+        }
+        assert_eq!(resolve("127.0.0.1:5").unwrap(), "127.0.0.1:5".parse().unwrap());
+        assert!(resolve("localhost:5").unwrap().ip().is_loopback());
+    }
+}

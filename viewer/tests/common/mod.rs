@@ -3,7 +3,13 @@
 //! content; a forward-facing (NDC) scene; a 3-keyframe dynamic asset.
 #![allow(dead_code)]
 
-use snerf_asset::{encode_voxel, Asset, AssetBuilder, Camera, Frame, Header, Keyframe, Kind, Ndc, ViewMlp};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use snerf_asset::{
+    encode_voxel, Asset, AssetBuilder, Camera, Frame, Header, Keyframe, Kind, Ndc, ViewMlp,
+};
 
 /// Private XDG_RUNTIME_DIR (silences Mesa) and the "GPU tests are required" switch.
 pub fn setup() {
@@ -35,7 +41,10 @@ pub fn have_gpu(test: &str) -> bool {
             if gpu_required() {
                 panic!("{}: no GPU adapter, and SNERF_REQUIRE_GPU_TESTS=1", test);
             }
-            eprintln!("SKIP {}: no GPU adapter (install mesa-vulkan-drivers for lavapipe)", test);
+            eprintln!(
+                "SKIP {}: no GPU adapter (install mesa-vulkan-drivers for lavapipe)",
+                test
+            );
             false
         }
     }
@@ -94,7 +103,12 @@ fn centre(i: usize, res: u32) -> f32 {
 }
 
 /// Fill every cell for which `occupied(cell)` holds, per frame, from `voxel(frame, grid point)`.
-fn build(h: Header, m: ViewMlp, occupied: impl Fn(usize, [usize; 3]) -> bool, voxel: impl Fn(usize, [f32; 3]) -> [u8; 8]) -> Asset {
+fn build(
+    h: Header,
+    m: ViewMlp,
+    occupied: impl Fn(usize, [usize; 3]) -> bool,
+    voxel: impl Fn(usize, [f32; 3]) -> [u8; 8],
+) -> Asset {
     let g = h.grid_dim();
     let res = h.res;
     let frames = h.num_frames();
@@ -124,26 +138,56 @@ pub fn object_asset() -> Asset {
     h.space.rot = rot(0.7);
     h.space.scale = 0.8;
     h.background = [0.9, 0.85, 0.8];
-    h.density = snerf_asset::DensityRange { logit_min: -8.0, logit_max: 6.0 };
+    h.density = snerf_asset::DensityRange {
+        logit_min: -8.0,
+        logit_max: 6.0,
+    };
     h.march.step = 1.0 / 64.0;
     let d = h.density;
-    let noise = |p: [f32; 3]| ((p[0] * 91.7 + p[1] * 47.3 + p[2] * 13.1).sin() * 43758.5).fract().abs();
+    let noise = |p: [f32; 3]| {
+        ((p[0] * 91.7 + p[1] * 47.3 + p[2] * 13.1).sin() * 43758.5)
+            .fract()
+            .abs()
+    };
     build(
         h,
         mlp(1.0),
         |_, c| {
             // leave the +x,+y,+z corner region and a few others empty
-            !(c[0] >= 6 && c[1] >= 6) && !(c[2] == 0 && c[0] < 2)
+            (c[0] < 6 || c[1] < 6) && (c[2] != 0 || c[0] >= 2)
         },
         move |_, p| {
             let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
             let shell = (-((r - 0.55) / 0.06).powi(2)).exp() * 7.0;
-            let slab = if (p[1] + 0.35).abs() < 0.04 && p[0].abs() < 0.8 { 2.5 } else { 0.0 };
-            let cube = if (p[0] - 0.25).abs() < 0.15 && (p[1] - 0.1).abs() < 0.15 && p[2].abs() < 0.15 { 30.0 } else { 0.0 };
+            let slab = if (p[1] + 0.35).abs() < 0.04 && p[0].abs() < 0.8 {
+                2.5
+            } else {
+                0.0
+            };
+            let cube =
+                if (p[0] - 0.25).abs() < 0.15 && (p[1] - 0.1).abs() < 0.15 && p[2].abs() < 0.15 {
+                    30.0
+                } else {
+                    0.0
+                };
             let sigma = shell + slab + cube + 0.002;
-            let rgb = [0.5 + 0.5 * p[0], 0.5 + 0.4 * (3.0 * p[1]).sin(), 0.3 + 0.6 * noise(p)];
-            let feat = [0.5 + 0.5 * p[2], noise(p), 0.5 - 0.4 * p[0], 0.25 + 0.5 * (p[1] * p[1])];
-            encode_voxel(sigma.ln(), rgb.map(|v| v.clamp(0.0, 1.0)), feat.map(|v| v.clamp(0.0, 1.0)), &d)
+            let rgb = [
+                0.5 + 0.5 * p[0],
+                0.5 + 0.4 * (3.0 * p[1]).sin(),
+                0.3 + 0.6 * noise(p),
+            ];
+            let feat = [
+                0.5 + 0.5 * p[2],
+                noise(p),
+                0.5 - 0.4 * p[0],
+                0.25 + 0.5 * (p[1] * p[1]),
+            ];
+            encode_voxel(
+                sigma.ln(),
+                rgb.map(|v| v.clamp(0.0, 1.0)),
+                feat.map(|v| v.clamp(0.0, 1.0)),
+                &d,
+            )
         },
     )
 }
@@ -166,13 +210,22 @@ pub fn unbounded_asset() -> Asset {
             let inner = {
                 let q = [g[0] * 2.0, g[1] * 2.0, g[2] * 2.0];
                 let r = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-                if r < 0.5 { 12.0 } else { 0.0 }
+                if r < 0.5 {
+                    12.0
+                } else {
+                    0.0
+                }
             };
             let far = if m > 0.8 && m < 0.97 { 0.8 } else { 0.0 };
             let sigma: f32 = inner + far + 1e-3;
             let rgb = [0.5 + 0.5 * g[0], 0.5 + 0.5 * g[2], 0.5 - 0.4 * g[1]];
             let feat = [m, 1.0 - m, 0.5 + 0.5 * g[1], 0.3];
-            encode_voxel(sigma.ln(), rgb.map(|v| v.clamp(0.0, 1.0)), feat.map(|v| v.clamp(0.0, 1.0)), &d)
+            encode_voxel(
+                sigma.ln(),
+                rgb.map(|v| v.clamp(0.0, 1.0)),
+                feat.map(|v| v.clamp(0.0, 1.0)),
+                &d,
+            )
         },
     )
 }
@@ -180,7 +233,14 @@ pub fn unbounded_asset() -> Asset {
 /// Forward-facing (NDC): three translucent layers at different NDC depths with patterns.
 pub fn forward_asset() -> Asset {
     let mut h = Header::new(Kind::Forward, 64, 8);
-    h.space.ndc = Some(Ndc { fx: 60.0, fy: 60.0, width: 100.0, height: 80.0, near: 1.0, xy_extent: 1.3 });
+    h.space.ndc = Some(Ndc {
+        fx: 60.0,
+        fy: 60.0,
+        width: 100.0,
+        height: 80.0,
+        near: 1.0,
+        xy_extent: 1.3,
+    });
     h.space.scale = 1.0;
     h.background = [0.0, 0.0, 0.0];
     h.march.step = 1.0 / 64.0;
@@ -194,7 +254,12 @@ pub fn forward_asset() -> Asset {
             let stripes = 0.5 + 0.5 * (g[0] * 9.0).sin() * (g[1] * 7.0).cos();
             let sigma = 40.0 * layer(-0.5) * stripes + 15.0 * layer(0.2) + 60.0 * layer(0.8) + 1e-3;
             let rgb = [0.5 + 0.5 * g[0], 0.5 + 0.5 * g[1], 0.5 + 0.5 * g[2]];
-            encode_voxel(sigma.ln(), rgb.map(|v| v.clamp(0.0, 1.0)), [0.2, 0.4, stripes, 0.6], &d)
+            encode_voxel(
+                sigma.ln(),
+                rgb.map(|v| v.clamp(0.0, 1.0)),
+                [0.2, 0.4, stripes, 0.6],
+                &d,
+            )
         },
     )
 }
@@ -205,7 +270,11 @@ pub fn dynamic_asset() -> Asset {
     let mut h = Header::new(Kind::Object, 32, 8);
     h.background = [0.05, 0.05, 0.1];
     h.time_range = Some([0.0, 1.0]);
-    h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 0.5 }, Keyframe { time: 1.0 }]);
+    h.frames = Some(vec![
+        Keyframe { time: 0.0 },
+        Keyframe { time: 0.5 },
+        Keyframe { time: 1.0 },
+    ]);
     h.march.step = 1.0 / 48.0;
     let d = h.density;
     build(
@@ -220,7 +289,12 @@ pub fn dynamic_asset() -> Asset {
             let r = ((g[0] - cx).powi(2) + g[1] * g[1] + g[2] * g[2]).sqrt();
             let sigma: f32 = if r < 0.5 { 8.0 } else { 0.05 };
             let rgb = [0.3 + 0.3 * f as f32, 0.5 + 0.4 * g[1], 0.8 - 0.3 * f as f32];
-            encode_voxel(sigma.ln(), rgb.map(|v| v.clamp(0.0, 1.0)), [0.1 * f as f32, 0.5, 0.5 + 0.4 * g[0], 0.2], &d)
+            encode_voxel(
+                sigma.ln(),
+                rgb.map(|v| v.clamp(0.0, 1.0)),
+                [0.1 * f as f32, 0.5, 0.5 + 0.4 * g[0], 0.2],
+                &d,
+            )
         },
     )
 }
@@ -237,12 +311,22 @@ pub struct Diff {
 
 pub fn diff(a: &Frame, b: &Frame) -> Diff {
     assert_eq!((a.width, a.height), (b.width, b.height));
-    let mut d: Vec<f64> = a.rgb.iter().zip(&b.rgb).map(|(x, y)| (x - y).abs() as f64).collect();
+    let mut d: Vec<f64> = a
+        .rgb
+        .iter()
+        .zip(&b.rgb)
+        .map(|(x, y)| (x - y).abs() as f64)
+        .collect();
     let mean = d.iter().sum::<f64>() / d.len() as f64;
     d.sort_by(|x, y| x.total_cmp(y));
     let p999 = d[((d.len() as f64 * 0.999) as usize).min(d.len() - 1)];
     let max = *d.last().unwrap();
-    let od: Vec<f64> = a.opacity.iter().zip(&b.opacity).map(|(x, y)| (x - y).abs() as f64).collect();
+    let od: Vec<f64> = a
+        .opacity
+        .iter()
+        .zip(&b.opacity)
+        .map(|(x, y)| (x - y).abs() as f64)
+        .collect();
     Diff {
         mean,
         p999,
@@ -258,5 +342,63 @@ pub fn coverage(f: &Frame) -> f64 {
 }
 
 pub fn cams(h: &Header, n: usize, w: u32, hh: u32) -> Vec<Camera> {
-    (0..n).map(|i| snerf_asset::orbit(h, n, i, w, hh, 50.0)).collect()
+    (0..n)
+        .map(|i| snerf_asset::orbit(h, n, i, w, hh, 50.0))
+        .collect()
+}
+
+/// A private X display for window tests (Xvfb), stopped on drop.
+pub struct Xvfb(Option<Child>);
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        if let Some(c) = self.0.as_mut() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+pub fn which(bin: &str) -> bool {
+    std::env::var_os("PATH")
+        .is_some_and(|p| std::env::split_paths(&p).any(|d| d.join(bin).is_file()))
+}
+
+/// A display: $DISPLAY, or a private Xvfb we start (and stop on drop).
+pub fn display() -> Option<Xvfb> {
+    if std::env::var_os("DISPLAY").is_some() {
+        return Some(Xvfb(None));
+    }
+    if !which("Xvfb") {
+        return None;
+    }
+    for n in 90 + (std::process::id() % 50)..200 {
+        let sock = format!("/tmp/.X11-unix/X{}", n);
+        if Path::new(&sock).exists() || Path::new(&format!("/tmp/.X{}-lock", n)).exists() {
+            continue;
+        }
+        let child = Command::new("Xvfb")
+            .args([
+                &format!(":{}", n),
+                "-screen",
+                "0",
+                "640x480x24",
+                "-nolisten",
+                "tcp",
+            ])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .ok()?;
+        let x = Xvfb(Some(child));
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(10) {
+            if Path::new(&sock).exists() {
+                std::env::set_var("DISPLAY", format!(":{}", n));
+                return Some(x);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        return None;
+    }
+    None
 }

@@ -109,9 +109,18 @@ pub fn bench_arbitrary(opts: &StylizerOptions, size: usize, reps: usize) -> Resu
     })
 }
 
-/// `scripts/bench_onnxruntime.py` in this source tree.
+/// `scripts/bench_onnxruntime.py`: in `$SNERF_SCRIPTS_DIR` if set, else in this source
+/// tree, else under the current directory.
 pub fn onnxruntime_script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/bench_onnxruntime.py")
+    const NAME: &str = "bench_onnxruntime.py";
+    if let Some(dir) = std::env::var_os("SNERF_SCRIPTS_DIR") {
+        return PathBuf::from(dir).join(NAME);
+    }
+    let in_tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts").join(NAME);
+    if in_tree.is_file() {
+        return in_tree;
+    }
+    Path::new("scripts").join(NAME)
 }
 
 /// onnxruntime's medians for the same two networks (style 256x256, transform

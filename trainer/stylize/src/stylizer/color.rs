@@ -13,7 +13,8 @@ use super::{Image, Stylizer};
 
 type Mat3 = [[f64; 3]; 3];
 
-/// Covariance eigenvalues are floored at this (std 0.01) so flat images stay finite.
+/// Content covariance eigenvalues are floored at this (std 0.01) before inverting, so flat
+/// or nearly flat views stay finite.
 const EIGEN_FLOOR: f64 = 1e-4;
 
 /// Per-channel mean and the 3x3 colour covariance of an image.
@@ -116,12 +117,15 @@ fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
     c
 }
 
-/// `m^p` for a symmetric positive semi-definite 3x3 matrix (eigenvalues floored).
+/// `m^p` for a symmetric positive semi-definite 3x3 matrix. For negative powers the
+/// eigenvalues are floored at `EIGEN_FLOOR` (a colour direction the content barely uses is
+/// not blown up); for positive powers only rounding noise below zero is removed.
 fn sym_power(m: &Mat3, p: f64) -> Mat3 {
     let (vals, vecs) = jacobi_eigen(m);
+    let floor = if p < 0.0 { EIGEN_FLOOR } else { 0.0 };
     let mut out = [[0.0; 3]; 3];
     for k in 0..3 {
-        let l = vals[k].max(EIGEN_FLOOR).powf(p);
+        let l = vals[k].max(floor).powf(p);
         for i in 0..3 {
             for j in 0..3 {
                 out[i][j] += vecs[i][k] * l * vecs[j][k];

@@ -23,7 +23,8 @@ pub const MAX_STYLE_DECODE_SIDE: usize = 8192;
 /// 256-512 px, and Gram/embedding statistics do not need more.
 pub const MAX_STYLE_SIDE: usize = 1024;
 
-/// Loads a style image, checking its size before decoding. Errors name the file and the
+/// Loads a style image (alpha composited over white; see the module doc), checking its size
+/// before decoding, downscaling past `MAX_STYLE_SIDE`. Errors name the file and the
 /// problem (missing, not an image, too small, too large).
 pub fn load_style_image(path: &Path) -> Result<Image> {
     let bytes = read_file(path)?;

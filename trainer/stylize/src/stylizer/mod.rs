@@ -16,6 +16,7 @@
 mod arbitrary;
 mod bench;
 mod color;
+mod fake_quant;
 mod finite_guard;
 pub mod gatys;
 mod image_files;
@@ -32,6 +33,7 @@ use anyhow::{bail, Context, Result};
 pub use arbitrary::{style_distance, ArbitraryStylizer, LargeViews, MagentaNets, StyleEmbedder, EMBEDDING_LEN};
 pub use bench::{bench_arbitrary, bench_onnxruntime, onnxruntime_script, synthetic_image, BenchResult};
 pub use color::{color_transfer, mean_and_covariance, ColorStylizer};
+pub use fake_quant::{fuse_fake_quant, FakeQuantI8};
 pub use finite_guard::FiniteGuard;
 pub use gatys::{GatysStylizer, GATYS_HELP};
 pub use image_files::{image_from_png, load_style_image, save_png, MAX_STYLE_SIDE};

@@ -5,7 +5,8 @@
 //! these machines: symbolic shapes ran 6-8x slower), and optimizing takes a while, so each
 //! plan is built once and kept. Why a process-wide executor: tract's matmul kernels run
 //! single-threaded unless `multithread-mm`'s default executor is set (~1.6x faster on 2
-//! cores, bit-identical).
+//! cores, bit-identical). Quantize/dequantize pairs are fused after optimization (see
+//! `fake_quant`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -15,6 +16,8 @@ use std::time::Instant;
 use anyhow::{anyhow, bail, Context, Result};
 use tract_linalg::multithread::{set_default_executor, Executor};
 use tract_onnx::prelude::*;
+
+use super::fake_quant::fuse_fake_quant;
 
 pub type Plan = Arc<TypedRunnableModel>;
 
@@ -80,6 +83,7 @@ impl ShapePlans {
         }
         let plan = model
             .into_optimized()
+            .and_then(|m| Ok(fuse_fake_quant(m)?.0))
             .and_then(|m| m.into_runnable())
             .map_err(|e| anyhow!("{}: cannot prepare the model for inputs {shapes:?}: {e:#}", self.path.display()))?;
         plans.insert(shapes.to_vec(), plan.clone());

@@ -1,0 +1,264 @@
+//! Security: tokens, pins, hostile control messages, garbage datagrams, and a property test
+//! over every decoder that sees network bytes.
+
+mod common;
+use common::*;
+use snerf_stream::client::{connect_raw, open_session};
+use snerf_stream::proto::{self, code, encode_frame, ClientMsg, PROTOCOL_VERSION};
+use snerf_stream::{fetch, ClientOptions, LiveAsset, Pose};
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+fn setup(name: &str) -> (TempDir, snerf_stream::ServerHandle, Vec<u8>) {
+    let dir = TempDir::new(name);
+    let assets = dir.join("assets");
+    std::fs::create_dir_all(&assets).unwrap();
+    let want = write_asset(&static_asset(64, 8, 0.95, 21), &assets, "scene");
+    let server = start_server(&assets, &dir.join("state"), Default::default());
+    (dir, server, want)
+}
+
+fn hello(token: &str, asset: Option<&str>) -> ClientMsg {
+    ClientMsg::Hello {
+        version: PROTOCOL_VERSION,
+        token: token.into(),
+        asset: asset.map(str::to_string),
+        have: vec![],
+        resume_id: None,
+        pose: None,
+    }
+}
+
+#[test]
+fn wrong_token_is_refused_before_any_asset_byte() {
+    let (dir, server, _) = setup("token");
+    let rt = runtime();
+    rt.block_on(async {
+        // Raw client: count every stream frame the server sends us.
+        let opts = ClientOptions::default();
+        let (_ep, conn, _) = connect_raw(server.addr(), server.fingerprint(), &opts).await.unwrap();
+        let (mut send, mut recv) = conn.open_bi().await.unwrap();
+        send.write_all(&encode_frame(&hello("0000wrong0000token0000", Some("scene")))).await.unwrap();
+        let mut buf = [0u8; 64];
+        let r = recv.read(&mut buf).await;
+        assert!(r.is_err(), "server answered a wrong token with data: {:?}", r);
+        let why = conn.closed().await;
+        match &why {
+            quinn::ConnectionError::ApplicationClosed(c) => {
+                assert_eq!(c.error_code.into_inner(), code::UNAUTHORIZED as u64);
+                assert!(String::from_utf8_lossy(&c.reason).contains("token"));
+            }
+            other => panic!("expected an application close, got {:?}", other),
+        }
+        assert!(conn.accept_uni().await.is_err());
+        let st = conn.stats();
+        assert_eq!(st.frame_rx.stream, 0, "server sent {} STREAM frames to an unauthenticated client", st.frame_rx.stream);
+        println!("SECURITY wrong token: closed with code {} ({}), STREAM frames received: {}", code::UNAUTHORIZED, why, st.frame_rx.stream);
+        // The fetch client reports it clearly and writes nothing.
+        let out = dir.join("x.snerf");
+        let e = fetch(&server.url("scene"), server.fingerprint(), "not-the-token", &out).await.unwrap_err();
+        let msg = format!("{:#}", e);
+        assert!(msg.contains("unauthorized") && msg.contains("invalid access token"), "{}", msg);
+        assert!(!out.exists() && !snerf_stream::part_path(&out).exists());
+    });
+    assert_eq!(server.stats().unauthorized.load(Ordering::Relaxed), 2);
+    assert_eq!(server.stats().bytes_sent.load(Ordering::Relaxed), 0);
+    assert_eq!(server.stats().streams_started.load(Ordering::Relaxed), 0);
+    // LiveAsset too.
+    let e = LiveAsset::connect(&server.url("scene"), server.fingerprint(), "nope").err().unwrap();
+    assert!(format!("{:#}", e).contains("invalid access token"));
+    server.shutdown();
+}
+
+#[test]
+fn wrong_pin_is_refused_by_the_client() {
+    let (dir, server, _) = setup("pin");
+    let rt = runtime();
+    let wrong = "ab".repeat(32);
+    rt.block_on(async {
+        let out = dir.join("x.snerf");
+        let e = fetch(&server.url("scene"), &wrong, server.token(), &out).await.unwrap_err();
+        let msg = format!("{:#}", e);
+        println!("SECURITY wrong pin: {}", msg);
+        assert!(msg.contains("does not match the pinned fingerprint"), "{}", msg);
+        assert!(msg.contains(server.fingerprint()) && msg.contains(&wrong), "error should name both fingerprints: {}", msg);
+        assert!(!out.exists());
+        // Malformed pins are rejected before connecting.
+        for bad in ["", "xyz", &"ab".repeat(31)] {
+            let e = fetch(&server.url("scene"), bad, server.token(), &out).await.unwrap_err();
+            assert!(format!("{:#}", e).contains("fingerprint"), "{:#}", e);
+        }
+        // Pin formats with colons / prefix / upper case are accepted.
+        let colon: String = server.fingerprint().to_uppercase().as_bytes().chunks(2).map(|c| std::str::from_utf8(c).unwrap()).collect::<Vec<_>>().join(":");
+        fetch(&server.url("scene"), &format!("sha256:{}", colon), server.token(), &out).await.unwrap();
+    });
+    // The token never reached a server the client did not trust: nothing was authenticated.
+    server.shutdown();
+}
+
+/// Send raw bytes on a fresh control stream and return the close code the server used.
+async fn close_code_for(server: &snerf_stream::ServerHandle, bytes: Vec<u8>, finish: bool) -> (u64, String) {
+    let (_ep, conn, _) = connect_raw(server.addr(), server.fingerprint(), &ClientOptions::default()).await.unwrap();
+    let (mut send, _recv) = conn.open_bi().await.unwrap();
+    let _ = send.write_all(&bytes).await;
+    if finish {
+        let _ = send.finish();
+    }
+    match tokio::time::timeout(Duration::from_secs(20), conn.closed()).await.expect("server did not close the connection") {
+        quinn::ConnectionError::ApplicationClosed(c) => (c.error_code.into_inner(), String::from_utf8_lossy(&c.reason).into_owned()),
+        other => panic!("expected an application close, got {:?}", other),
+    }
+}
+
+#[test]
+fn hostile_control_messages_close_only_that_connection() {
+    let (dir, server, want) = setup("hostile");
+    let rt = runtime();
+    let token = server.token().to_string();
+    rt.block_on(async {
+        // A good client streams the whole time through a slow relay.
+        let relay = start_relay(server.addr(), RelayConfig { delay: Duration::from_millis(15), ..Default::default() }).await;
+        let good_url = format!("quic://{}/scene", relay.addr);
+        let out = dir.join("good.snerf");
+        let (pin, tok) = (server.fingerprint().to_string(), token.clone());
+        let good = tokio::spawn(async move { fetch(&good_url, &pin, &tok, &out).await.map(|_| out) });
+
+        let frame = |json: &str| {
+            let mut b = (json.len() as u32).to_le_bytes().to_vec();
+            b.extend_from_slice(json.as_bytes());
+            b
+        };
+        let cases: Vec<(&str, Vec<u8>, bool, u32)> = vec![
+            ("not JSON", frame("this is not json"), false, code::MALFORMED),
+            ("unknown type", frame(r#"{"type":"gimme"}"#), false, code::MALFORMED),
+            ("oversized length prefix", (100u32 << 20).to_le_bytes().to_vec(), false, code::TOO_LARGE),
+            ("List before Hello", encode_frame(&ClientMsg::List), false, code::PROTOCOL),
+            ("truncated frame", { let mut b = frame(r#"{"type":"list"}"#); b.truncate(8); b }, true, code::MALFORMED),
+            ("stream closed before Hello", vec![], true, code::PROTOCOL),
+            ("wrong version", frame(&format!(r#"{{"type":"hello","version":99,"token":"{}"}}"#, token)), false, code::VERSION),
+            ("duplicate Hello", { let mut b = encode_frame(&hello(&token, None)); b.extend(encode_frame(&hello(&token, None))); b }, false, code::PROTOCOL),
+            ("bad asset name", encode_frame(&hello(&token, Some("../etc/passwd"))), false, code::NOT_FOUND),
+            ("no such asset", encode_frame(&hello(&token, Some("nope"))), false, code::NOT_FOUND),
+            ("inverted have range", frame(&format!(r#"{{"type":"hello","version":1,"token":"{}","have":[[5,1]]}}"#, token)), false, code::MALFORMED),
+            ("random bytes", { let mut r = Rng(99); let mut b = vec![0u8; 300]; r.fill(&mut b); b[..4].copy_from_slice(&296u32.to_le_bytes()); b }, false, code::MALFORMED),
+        ];
+        for (name, bytes, finish, want_code) in cases {
+            let (c, reason) = close_code_for(&server, bytes, finish).await;
+            println!("SECURITY {:<28} -> closed with code {} ({}): {}", name, c, code::name(c), reason);
+            assert_eq!(c, want_code as u64, "{}: {}", name, reason);
+        }
+        // Garbage UDP at the server port and garbage datagrams from an authenticated client.
+        let sock = tokio::net::UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let mut r = Rng(7);
+        for i in 0..2000 {
+            let mut b = vec![0u8; 1 + (r.below(1400) as usize)];
+            r.fill(&mut b);
+            if i % 3 == 0 {
+                b[0] |= 0xc0; // long-header-looking
+            }
+            let _ = sock.send_to(&b, server.addr()).await;
+        }
+        let mut s = open_session(server.addr(), server.fingerprint(), hello(&token, Some("scene")), &ClientOptions::default()).await.unwrap();
+        for _ in 0..500 {
+            let mut b = vec![0u8; r.below(60) as usize];
+            r.fill(&mut b);
+            let _ = s.conn.send_datagram(b.into());
+        }
+        // Authenticated List works.
+        let l = s.list().await.unwrap();
+        assert_eq!(l.len(), 1);
+        assert_eq!(l[0].name, "scene");
+        s.close();
+
+        let out = good.await.unwrap().expect("the good client failed while others misbehaved");
+        assert!(std::fs::read(&out).unwrap() == want);
+        // And the server still serves new clients.
+        let out2 = dir.join("after.snerf");
+        fetch(&server.url("scene"), server.fingerprint(), &token, &out2).await.unwrap();
+        assert!(std::fs::read(&out2).unwrap() == want);
+    });
+    println!(
+        "SECURITY server counters: protocol_errors {}, bad datagrams {}",
+        server.stats().protocol_errors.load(Ordering::Relaxed),
+        server.stats().bad_datagrams.load(Ordering::Relaxed)
+    );
+    assert!(server.stats().bad_datagrams.load(Ordering::Relaxed) > 0);
+    server.shutdown();
+}
+
+#[test]
+fn no_panic_on_arbitrary_network_bytes() {
+    let mut rng = Rng(0x1234_5678);
+    let valid: Vec<Vec<u8>> = vec![
+        serde_json::to_vec(&ClientMsg::Hello {
+            version: 1,
+            token: "t".repeat(64),
+            asset: Some("scene".into()),
+            have: vec![[0, 5], [9, 12]],
+            resume_id: Some("ab".repeat(32)),
+            pose: Some(Pose::new([1.0, 2.0, 3.0], [0.0, 0.0, -1.0])),
+        })
+        .unwrap(),
+        serde_json::to_vec(&ClientMsg::List).unwrap(),
+        br#"{"type":"welcome","version":1,"asset":{"name":"a","size":100,"chunks":4,"sha256":"0000000000000000000000000000000000000000000000000000000000000000","preamble":"534e4552464153540100000000000000","atlas_blocks":1,"frames":1},"resumed":false}"#.to_vec(),
+        br#"{"type":"listing","assets":[{"name":"a","size":1}]}"#.to_vec(),
+        proto::encode_pose(7, &Pose::new([0.0; 3], [1.0, 0.0, 0.0])).to_vec(),
+    ];
+    let rt = tokio::runtime::Builder::new_current_thread().build().unwrap();
+    let n = 200_000;
+    let t0 = std::time::Instant::now();
+    let mut accepted = 0usize;
+    for i in 0..n {
+        let mut b = if i % 2 == 0 {
+            let mut b = vec![0u8; rng.below(200) as usize];
+            rng.fill(&mut b);
+            b
+        } else {
+            let mut b = valid[rng.below(valid.len() as u64) as usize].clone();
+            for _ in 0..1 + rng.below(4) {
+                if b.is_empty() {
+                    break;
+                }
+                let j = rng.below(b.len() as u64) as usize;
+                match rng.below(3) {
+                    0 => b[j] = rng.next() as u8,
+                    1 => {
+                        b.remove(j);
+                    }
+                    _ => b.insert(j, rng.next() as u8),
+                }
+            }
+            b
+        };
+        if i % 7 == 0 && b.len() >= 4 {
+            let len = (b.len() - 4) as u32;
+            b[..4].copy_from_slice(&len.to_le_bytes());
+        }
+        let r = std::panic::catch_unwind(|| {
+            let mut ok = 0;
+            ok += proto::decode_client_msg(&b).is_ok() as usize;
+            ok += proto::decode_server_msg(&b).is_ok() as usize;
+            ok += proto::decode_pose(&b).is_ok() as usize;
+            if let Ok(Some((m, _))) = proto::split_frame(&b, 1 << 16) {
+                ok += proto::decode_client_msg(m).is_ok() as usize;
+            }
+            if b.len() >= 16 {
+                ok += proto::parse_record_header(&b[..16], 1000, 1 << 20).is_ok() as usize;
+            }
+            let s = String::from_utf8_lossy(&b);
+            ok += snerf_stream::parse_url(&format!("quic://{}", s)).is_ok() as usize;
+            ok += snerf_stream::tls::parse_pin(&s).is_ok() as usize;
+            if i % 16 == 0 {
+                let mut rd: &[u8] = &b;
+                let _ = rt.block_on(proto::read_frame(&mut rd, 1 << 16));
+            }
+            ok
+        });
+        match r {
+            Ok(k) => accepted += k,
+            Err(_) => panic!("decoder panicked on input {} ({} bytes): {:?}", i, b.len(), &b[..b.len().min(64)]),
+        }
+    }
+    println!("PROPERTY {} inputs through 7 decoders in {:.1} s without a panic ({} accepted)", n, t0.elapsed().as_secs_f64(), accepted);
+    assert!(accepted > 0);
+}
