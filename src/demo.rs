@@ -33,7 +33,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 24)]
     pub frames: usize,
     /// Stylizer for the SNeRF step (preset:N needs no style image; `color` needs no model).
-    #[arg(long, default_value = "preset:6")]
+    #[arg(long, default_value = "preset:0")]
     pub stylizer: String,
     /// Style image for stylizers that take one (arbitrary, color, gatys).
     #[arg(long)]

@@ -194,9 +194,9 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     let stylizer = a.s.build(a.style.as_deref())?;
     let style_img = match &a.style {
         Some(p) => stylizer::load_style_image(p)?,
-        None => Image { width: 1, height: 1, data: vec![0.5; 3] },
+        None => style_reference(stylizer.as_ref())?,
     };
-    let embedder = a.style.as_ref().and_then(|_| a.s.embedder());
+    let embedder = a.s.embedder();
     let opts = StylizeOptions {
         source_run: absolute(&a.run),
         data: absolute(&data_path),
@@ -218,6 +218,24 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         eprintln!("stylized run in {} ({} rounds, {:.0} s); per-round images in {}", a.out.display(), state.rounds_done, wall.elapsed().as_secs_f64(), a.out.join("rounds").display());
     }
     Ok(json!({ "command": "stylize", "out": a.out, "state": state, "wall_seconds": wall.elapsed().as_secs_f64() }))
+}
+
+/// The style a stylizer without a style image (a preset, a GAN) paints in, as a picture:
+/// its stylization of a neutral image of soft colour noise. Style distances for such
+/// stylizers are measured against this.
+pub fn style_reference(stylizer: &dyn Stylizer) -> Result<Image> {
+    let n = 256;
+    let mut data = Vec::with_capacity(n * n * 3);
+    for y in 0..n {
+        for x in 0..n {
+            let (fx, fy) = (x as f32 / n as f32, y as f32 / n as f32);
+            for c in 0..3 {
+                let ph = c as f32 * 2.1;
+                data.push(0.5 + 0.25 * ((fx * 11.0 + ph).sin() * (fy * 7.0 - ph).cos()) + 0.1 * ((fx + fy) * 37.0 + ph).sin());
+            }
+        }
+    }
+    snerf_loop::stylize_at(stylizer, &Image { width: n, height: n, data }, 0)
 }
 
 fn absolute(p: &Path) -> PathBuf {
@@ -264,8 +282,12 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let has_style = !o.style.as_os_str().is_empty();
     let style_path = has_style.then_some(o.style.as_path());
     let stylizer = sargs.build(style_path)?;
-    let embedder = if has_style { sargs.embedder() } else { None };
-    let style_img = style_path.map(stylizer::load_style_image).transpose()?;
+    let embedder = sargs.embedder();
+    let style_img = match style_path {
+        Some(p) => stylizer::load_style_image(p)?,
+        None => style_reference(stylizer.as_ref())?,
+    };
+    let style_img = Some(style_img);
     let style_emb = match (&embedder, &style_img) {
         (Some(e), Some(s)) => Some(e.embed(s)?),
         _ => None,
@@ -328,7 +350,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×.\n\nContact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
-        o.style.display(),
+        if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
         consistency::path_description(data.kind, a.frames),
         100.0 * path.coverage(),
         table,

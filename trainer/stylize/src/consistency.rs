@@ -37,6 +37,8 @@ pub struct PathGeometry {
     pub realistic: Vec<Image>,
     /// World point seen at each pixel (None where the scene does not cover the pixel).
     points: Vec<Vec<Option<Vec3>>>,
+    /// The realistic field's opacity per pixel.
+    opacity: Vec<Vec<f32>>,
 }
 
 impl PathGeometry {
@@ -51,6 +53,7 @@ impl PathGeometry {
         let bg = eval_background(views_have_alpha(&data.train));
         let mut images = Vec::with_capacity(frames);
         let mut points = Vec::with_capacity(frames);
+        let mut opacity = Vec::with_capacity(frames);
         for c2w in &cams {
             let r = render_camera(realistic, pool, c2w, &intr, time, bg);
             let (w, h) = (r.width, r.height);
@@ -69,8 +72,9 @@ impl PathGeometry {
             }
             images.push(Image { width: w, height: h, data: r.rgb });
             points.push(pts);
+            opacity.push(r.opacity);
         }
-        Ok(PathGeometry { cams, intr, time, bg, realistic: images, points })
+        Ok(PathGeometry { cams, intr, time, bg, realistic: images, points, opacity })
     }
 
     /// Render the path from another (e.g. stylized) model.
@@ -134,6 +138,25 @@ impl PathGeometry {
         }
     }
 
+    /// Frames composited over the background with the realistic field's opacity: what the
+    /// scene looks like, without whatever a per-frame stylizer painted into empty space, so
+    /// style distances compare the scene's stylization alone.
+    pub fn masked(&self, frames: &[Image]) -> Vec<Image> {
+        frames
+            .iter()
+            .zip(&self.opacity)
+            .map(|(f, op)| {
+                let mut data = f.data.clone();
+                for (p, &a) in op.iter().enumerate() {
+                    for c in 0..3 {
+                        data[p * 3 + c] = f.data[p * 3 + c] * a + self.bg[c] * (1.0 - a);
+                    }
+                }
+                Image { width: f.width, height: f.height, data }
+            })
+            .collect()
+    }
+
     /// Fraction of pixels of frame j that had a valid correspondence (for the report).
     pub fn coverage(&self) -> f64 {
         let covered: usize = self.points.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
@@ -186,7 +209,7 @@ impl MethodScores {
             method: method.to_string(),
             short_range: path.warp_error(frames, 1),
             long_range: path.warp_error(frames, 7),
-            style_distance: style.map(|(e, s)| style_distance_frames(e, frames, s)).transpose()?,
+            style_distance: style.map(|(e, s)| style_distance_frames(e, &path.masked(frames), s)).transpose()?,
         })
     }
 }
@@ -208,8 +231,9 @@ pub fn markdown_table(methods: &[MethodScores]) -> String {
 
 /// Tile images into rows (each resized to the first image's size).
 pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
-    let first = rows.iter().flat_map(|r| r.first()).next();
-    let (tw, th) = first.map(|i| (i.width, i.height)).unwrap_or((1, 1));
+    // tiles take the size of the largest image (a style picture may be tiny or huge)
+    let (tw, th) = rows.iter().flatten().map(|i| (i.width, i.height)).max_by_key(|&(w, h)| w * h).unwrap_or((1, 1));
+    let (tw, th) = if tw * th > 512 * 512 { (tw * 256 / tw.max(th), th * 256 / tw.max(th)) } else { (tw, th) };
     let cols = rows.iter().map(|r| r.len()).max().unwrap_or(1).max(1);
     let mut out = image::RgbImage::from_pixel((tw * cols) as u32, (th * rows.len().max(1)) as u32, image::Rgb([255, 255, 255]));
     for (ri, row) in rows.iter().enumerate() {

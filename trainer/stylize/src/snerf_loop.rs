@@ -200,7 +200,7 @@ pub fn run(
         let (style_distance, short_range, long_range) = match &path {
             Some(p) => {
                 let frames = p.render(&trainer.model, &trainer.pool);
-                let d = style.map(|(e, s)| consistency::style_distance_frames(e, &frames, s)).transpose()?;
+                let d = style.map(|(e, s)| consistency::style_distance_frames(e, &p.masked(&frames), s)).transpose()?;
                 (d, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)))
             }
             None => {

@@ -24,7 +24,10 @@ pub struct BenchOptions {
 
 impl Default for BenchOptions {
     fn default() -> Self {
-        BenchOptions { rounds: 3, fov_deg: 60.0 }
+        BenchOptions {
+            rounds: 3,
+            fov_deg: 60.0,
+        }
     }
 }
 
@@ -47,7 +50,12 @@ impl std::fmt::Display for BenchReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let mb = |d: Duration| self.size as f64 / (1 << 20) as f64 / d.as_secs_f64();
         let ms = |d: Duration| d.as_secs_f64() * 1e3;
-        writeln!(f, "asset: {:.2} MiB, {} blocks", self.size as f64 / (1 << 20) as f64, self.blocks)?;
+        writeln!(
+            f,
+            "asset: {:.2} MiB, {} blocks",
+            self.size as f64 / (1 << 20) as f64,
+            self.blocks
+        )?;
         writeln!(
             f,
             "loopback fetch: QUIC {:.1} ms ({:.0} MiB/s; {:.1} ms with file write + verify), TCP copy {:.1} ms ({:.0} MiB/s): QUIC/TCP = {:.0}%",
@@ -104,9 +112,13 @@ fn tcp_copy(bytes: Arc<Vec<u8>>, out: &Path) -> Result<Duration> {
 
 /// Run the benchmark on one `.snerf` file.
 pub fn run(asset: &Path, opts: &BenchOptions) -> Result<BenchReport> {
-    let bytes = Arc::new(std::fs::read(asset).with_context(|| format!("{}: cannot read", asset.display()))?);
-    let served = ServedAsset::from_bytes("bench", asset, bytes.to_vec()).map_err(|e| anyhow!("{}: {:#}", asset.display(), e))?;
-    let scratch = Scratch(std::env::temp_dir().join(format!("snerf-bench-stream-{}", std::process::id())));
+    let bytes = Arc::new(
+        std::fs::read(asset).with_context(|| format!("{}: cannot read", asset.display()))?,
+    );
+    let served = ServedAsset::from_bytes("bench", asset, bytes.to_vec())
+        .map_err(|e| anyhow!("{}: {:#}", asset.display(), e))?;
+    let scratch =
+        Scratch(std::env::temp_dir().join(format!("snerf-bench-stream-{}", std::process::id())));
     std::fs::create_dir_all(&scratch.0)?;
     let mut so = ServeOptions::new(asset, "127.0.0.1:0".parse()?);
     so.state_dir = Some(scratch.0.join("state"));
@@ -114,13 +126,20 @@ pub fn run(asset: &Path, opts: &BenchOptions) -> Result<BenchReport> {
     let server = spawn(so)?;
     let name = crate::server::asset_name(asset);
     let url = server.url(&name);
-    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build()?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()?;
     let out = scratch.0.join("fetched.snerf");
     let (mut best_q, mut best_total, mut best_t) = (Duration::MAX, Duration::MAX, Duration::MAX);
     for _ in 0..opts.rounds.max(1) {
         let _ = std::fs::remove_file(&out);
         let st = rt.block_on(fetch(&url, server.fingerprint(), server.token(), &out))?;
-        ensure!(std::fs::read(&out)? == *bytes, "fetched file differs from {}", asset.display());
+        ensure!(
+            std::fs::read(&out)? == *bytes,
+            "fetched file differs from {}",
+            asset.display()
+        );
         best_q = best_q.min(st.transfer);
         best_total = best_total.min(st.elapsed);
         best_t = best_t.min(tcp_copy(bytes.clone(), &scratch.0.join("tcp.bin"))?);
@@ -129,7 +148,12 @@ pub fn run(asset: &Path, opts: &BenchOptions) -> Result<BenchReport> {
     let cam = snerf_asset::orbit(&served.header, 8, 0, 640, 480, opts.fov_deg);
     let eye = [cam.c2w[0][3], cam.c2w[1][3], cam.c2w[2][3]];
     let forward = [-cam.c2w[0][2], -cam.c2w[1][2], -cam.c2w[2][2]];
-    let pose = Pose { eye, forward, time: served.header.frame_time(0), fov_deg: opts.fov_deg * 1.25 };
+    let pose = Pose {
+        eye,
+        forward,
+        time: served.header.frame_time(0),
+        fov_deg: opts.fov_deg * 1.25,
+    };
     let view = View::new(&served, &pose);
     let meta: u64 = served.meta.iter().map(|&i| served.record_len(i)).sum();
     let mut in_view = std::collections::HashSet::new();
@@ -144,7 +168,15 @@ pub fn run(asset: &Path, opts: &BenchOptions) -> Result<BenchReport> {
         }
     }
     let n_view = in_view.len();
-    let live = LiveAsset::connect_with(&url, server.fingerprint(), server.token(), ClientOptions { pose: Some(pose), ..Default::default() })?;
+    let live = LiveAsset::connect_with(
+        &url,
+        server.fingerprint(),
+        server.token(),
+        ClientOptions {
+            pose: Some(pose),
+            ..Default::default()
+        },
+    )?;
     let (mut renderable, mut first_view, mut frac) = (None, None, 1.0);
     let t0 = Instant::now();
     while t0.elapsed() < Duration::from_secs(300) {
@@ -169,6 +201,8 @@ pub fn run(asset: &Path, opts: &BenchOptions) -> Result<BenchReport> {
     live.wait(Duration::from_secs(1))?;
     let renderable = renderable.or(live.time_to_renderable()).unwrap_or_default();
     let complete = live.time_to_complete().unwrap_or_default();
+    // The poll loop may notice the last view block after the stream completed.
+    let first_view = first_view.map(|t| t.min(complete));
     server.shutdown();
     Ok(BenchReport {
         size: bytes.len() as u64,
@@ -179,7 +213,11 @@ pub fn run(asset: &Path, opts: &BenchOptions) -> Result<BenchReport> {
         first_view: first_view.unwrap_or(renderable),
         first_view_blocks: n_view,
         blocks: served.blks.len(),
-        first_view_fraction: if n_view == 0 { meta as f64 / bytes.len() as f64 } else { frac },
+        first_view_fraction: if n_view == 0 {
+            meta as f64 / bytes.len() as f64
+        } else {
+            frac
+        },
         first_view_ideal_fraction: ideal as f64 / bytes.len() as f64,
         complete,
     })

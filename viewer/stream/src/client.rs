@@ -6,7 +6,7 @@ use anyhow::{anyhow, bail, ensure, Context, Result};
 use quinn::{Connection, ConnectionError, Endpoint, RecvStream, SendStream, VarInt};
 use sha2::{Digest, Sha256};
 use snerf_asset::chunk::{parse_chunk_at, CHUNK_HEADER_LEN, PREAMBLE_LEN, TAG_HEAD};
-use snerf_asset::{Asset, Assembler};
+use snerf_asset::{Assembler, Asset};
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -16,8 +16,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::mpsc;
 
 use crate::proto::{
-    code, decode_server_msg, encode_frame, from_hex, parse_record_header, read_frame, to_hex, to_ranges, AssetInfo,
-    ClientMsg, ListEntry, Pose, ServerMsg, PROTOCOL_VERSION, RECORD_HEADER_LEN,
+    code, decode_server_msg, encode_frame, from_hex, parse_record_header, read_frame, to_hex,
+    to_ranges, AssetInfo, ClientMsg, ListEntry, Pose, ServerMsg, PROTOCOL_VERSION,
+    RECORD_HEADER_LEN,
 };
 use crate::tls::{self, PinVerifier};
 use crate::url::{parse_url, resolve};
@@ -86,7 +87,11 @@ fn transport(opts: &ClientOptions) -> Result<quinn::TransportConfig> {
         .max_concurrent_uni_streams(VarInt::from_u32(opts.max_streams))
         .stream_receive_window(VarInt::from_u32(opts.stream_window))
         .receive_window(VarInt::from_u32(opts.connection_window))
-        .max_idle_timeout(Some(opts.idle_timeout.try_into().map_err(|_| anyhow!("idle timeout too large"))?))
+        .max_idle_timeout(Some(
+            opts.idle_timeout
+                .try_into()
+                .map_err(|_| anyhow!("idle timeout too large"))?,
+        ))
         .keep_alive_interval(Some(opts.keep_alive))
         .datagram_receive_buffer_size(Some(16 * 1024))
         .datagram_send_buffer_size(16 * 1024);
@@ -123,7 +128,9 @@ pub fn explain(e: &ConnectionError, verifier: Option<&PinVerifier>) -> anyhow::E
                 String::from_utf8_lossy(&c.reason)
             )
         }
-        ConnectionError::ConnectionClosed(c) if c.error_code == quinn::TransportErrorCode::CONNECTION_REFUSED => {
+        ConnectionError::ConnectionClosed(c)
+            if c.error_code == quinn::TransportErrorCode::CONNECTION_REFUSED =>
+        {
             anyhow!("server refused the connection (at its client limit?)")
         }
         ConnectionError::ConnectionClosed(c) => anyhow!("connection closed by the server: {}", c),
@@ -146,14 +153,19 @@ impl Session {
     async fn read_msg(&mut self) -> Result<ServerMsg> {
         match read_frame(&mut self.recv, self.max_message).await {
             Ok(Some(b)) => decode_server_msg(&b),
-            Ok(None) => Err(self.close_error().unwrap_or_else(|| anyhow!("server closed the control stream"))),
+            Ok(None) => Err(self
+                .close_error()
+                .unwrap_or_else(|| anyhow!("server closed the control stream"))),
             Err(e) => Err(self.close_error().unwrap_or_else(|| anyhow!("{}", e))),
         }
     }
 
     /// Ask for the server's asset list.
     pub async fn list(&mut self) -> Result<Vec<ListEntry>> {
-        self.send.write_all(&encode_frame(&ClientMsg::List)).await.map_err(|e| anyhow!("control stream: {}", e))?;
+        self.send
+            .write_all(&encode_frame(&ClientMsg::List))
+            .await
+            .map_err(|e| anyhow!("control stream: {}", e))?;
         match self.read_msg().await? {
             ServerMsg::Listing { assets } => Ok(assets),
             other => bail!("unexpected server message {:?}", other),
@@ -167,32 +179,54 @@ impl Session {
 
 /// Open a QUIC connection to `addr` that accepts only the pinned certificate (no Hello
 /// yet). `open_session` builds on it; tests use it to speak raw protocol.
-pub async fn connect_raw(addr: SocketAddr, pin: &str, opts: &ClientOptions) -> Result<(Endpoint, Connection, Arc<PinVerifier>)> {
+pub async fn connect_raw(
+    addr: SocketAddr,
+    pin: &str,
+    opts: &ClientOptions,
+) -> Result<(Endpoint, Connection, Arc<PinVerifier>)> {
     let pin = tls::parse_pin(pin)?;
     let verifier = Arc::new(PinVerifier::new(pin));
     let mut cc = quinn::ClientConfig::new(Arc::new(tls::client_crypto(verifier.clone())?));
     cc.transport_config(Arc::new(transport(opts)?));
-    let bind: SocketAddr = if addr.is_ipv6() { "[::]:0".parse()? } else { "0.0.0.0:0".parse()? };
+    let bind: SocketAddr = if addr.is_ipv6() {
+        "[::]:0".parse()?
+    } else {
+        "0.0.0.0:0".parse()?
+    };
     let mut endpoint = Endpoint::client(bind).context("cannot open a UDP socket")?;
     endpoint.set_default_client_config(cc);
-    let connecting = endpoint.connect(addr, "snerf").map_err(|e| anyhow!("cannot connect to {}: {}", addr, e))?;
+    let connecting = endpoint
+        .connect(addr, "snerf")
+        .map_err(|e| anyhow!("cannot connect to {}: {}", addr, e))?;
     let conn = match tokio::time::timeout(opts.connect_timeout, connecting).await {
         Err(_) => bail!("no answer from {} within {:?}", addr, opts.connect_timeout),
-        Ok(Err(e)) => return Err(explain(&e, Some(&verifier)).context(format!("connecting to {}", addr))),
+        Ok(Err(e)) => {
+            return Err(explain(&e, Some(&verifier)).context(format!("connecting to {}", addr)))
+        }
         Ok(Ok(c)) => c,
     };
     Ok((endpoint, conn, verifier))
 }
 
 /// Connect to `addr`, verify the pin, send Hello and read Welcome.
-pub async fn open_session(addr: SocketAddr, pin: &str, hello: ClientMsg, opts: &ClientOptions) -> Result<Session> {
+pub async fn open_session(
+    addr: SocketAddr,
+    pin: &str,
+    hello: ClientMsg,
+    opts: &ClientOptions,
+) -> Result<Session> {
     let started = Instant::now();
     let (endpoint, conn, verifier) = connect_raw(addr, pin, opts).await?;
-    let (mut send, recv) = conn.open_bi().await.map_err(|e| explain(&e, Some(&verifier)))?;
-    send.write_all(&encode_frame(&hello)).await.map_err(|e| match conn.close_reason() {
-        Some(c) => explain(&c, Some(&verifier)),
-        None => anyhow!("control stream: {}", e),
-    })?;
+    let (mut send, recv) = conn
+        .open_bi()
+        .await
+        .map_err(|e| explain(&e, Some(&verifier)))?;
+    send.write_all(&encode_frame(&hello))
+        .await
+        .map_err(|e| match conn.close_reason() {
+            Some(c) => explain(&c, Some(&verifier)),
+            None => anyhow!("control stream: {}", e),
+        })?;
     let mut s = Session {
         endpoint,
         conn,
@@ -208,10 +242,26 @@ pub async fn open_session(addr: SocketAddr, pin: &str, hello: ClientMsg, opts: &
     };
     let welcome = tokio::time::timeout(opts.connect_timeout, s.read_msg())
         .await
-        .map_err(|_| anyhow!("server at {} sent no Welcome within {:?}", addr, opts.connect_timeout))??;
+        .map_err(|_| {
+            anyhow!(
+                "server at {} sent no Welcome within {:?}",
+                addr,
+                opts.connect_timeout
+            )
+        })??;
     match welcome {
-        ServerMsg::Welcome { version, asset, resumed, sending_chunks, sending_bytes } => {
-            ensure!(version == PROTOCOL_VERSION, "server speaks protocol version {}", version);
+        ServerMsg::Welcome {
+            version,
+            asset,
+            resumed,
+            sending_chunks,
+            sending_bytes,
+        } => {
+            ensure!(
+                version == PROTOCOL_VERSION,
+                "server speaks protocol version {}",
+                version
+            );
             s.asset = asset;
             s.resumed = resumed;
             s.sending_chunks = sending_chunks;
@@ -261,7 +311,10 @@ pub async fn receive(
         tokio::spawn(async move {
             if let Err(e) = read_records(s, &info, &tx, &bytes, abort_after, &conn2).await {
                 if conn2.close_reason().is_none() {
-                    conn2.close(VarInt::from_u32(code::CLIENT_REJECT), format!("{:#}", e).as_bytes());
+                    conn2.close(
+                        VarInt::from_u32(code::CLIENT_REJECT),
+                        format!("{:#}", e).as_bytes(),
+                    );
                 }
             }
         });
@@ -281,7 +334,9 @@ async fn read_records(
         match s.read_exact(&mut h).await {
             Ok(()) => {}
             Err(quinn::ReadExactError::FinishedEarly(0)) => return Ok(()),
-            Err(quinn::ReadExactError::FinishedEarly(n)) => bail!("data stream ended inside a record header ({} bytes)", n),
+            Err(quinn::ReadExactError::FinishedEarly(n)) => {
+                bail!("data stream ended inside a record header ({} bytes)", n)
+            }
             Err(quinn::ReadExactError::ReadError(_)) => return Ok(()), // connection ending: reported elsewhere
         }
         let (index, _tag, len) = parse_record_header(&h, info.chunks, info.size)?;
@@ -289,10 +344,13 @@ async fn read_records(
         chunk[..CHUNK_HEADER_LEN].copy_from_slice(&h[4..]);
         match s.read_exact(&mut chunk[CHUNK_HEADER_LEN..]).await {
             Ok(()) => {}
-            Err(quinn::ReadExactError::FinishedEarly(_)) => bail!("data stream ended inside chunk {}", index),
+            Err(quinn::ReadExactError::FinishedEarly(_)) => {
+                bail!("data stream ended inside chunk {}", index)
+            }
             Err(quinn::ReadExactError::ReadError(_)) => return Ok(()),
         }
-        let total = bytes.fetch_add(4 + chunk.len() as u64, Ordering::Relaxed) + 4 + chunk.len() as u64;
+        let total =
+            bytes.fetch_add(4 + chunk.len() as u64, Ordering::Relaxed) + 4 + chunk.len() as u64;
         if tx.send(Record { index, chunk }).await.is_err() {
             return Ok(());
         }
@@ -332,7 +390,16 @@ impl Collector {
         let mut preamble = [0u8; PREAMBLE_LEN];
         preamble.copy_from_slice(&p);
         let n = info.chunks as usize;
-        Ok(Collector { info, preamble, asm: None, pending: Vec::new(), have: vec![false; n], have_count: 0, have_bytes: 0, renderable: false })
+        Ok(Collector {
+            info,
+            preamble,
+            asm: None,
+            pending: Vec::new(),
+            have: vec![false; n],
+            have_count: 0,
+            have_bytes: 0,
+            renderable: false,
+        })
     }
 
     pub fn is_complete(&self) -> bool {
@@ -344,11 +411,27 @@ impl Collector {
         let i = index as usize;
         ensure!(i < self.have.len(), "chunk {} out of range", index);
         if self.have[i] {
-            return Ok((Accepted { new: false, blocks: vec![], became_renderable: false }, None));
+            return Ok((
+                Accepted {
+                    new: false,
+                    blocks: vec![],
+                    became_renderable: false,
+                },
+                None,
+            ));
         }
         let c = parse_chunk_at(&chunk, 0, i)?;
-        ensure!(c.range.end == chunk.len(), "chunk {} has trailing bytes", index);
-        ensure!((c.tag == TAG_HEAD) == (index == 0), "chunk {} is {}, HEAD must be chunk 0", index, snerf_asset::chunk::tag_name(&c.tag));
+        ensure!(
+            c.range.end == chunk.len(),
+            "chunk {} has trailing bytes",
+            index
+        );
+        ensure!(
+            (c.tag == TAG_HEAD) == (index == 0),
+            "chunk {} is {}, HEAD must be chunk 0",
+            index,
+            snerf_asset::chunk::tag_name(&c.tag)
+        );
         let mut blocks = Vec::new();
         if index == 0 {
             let mut first = Vec::with_capacity(PREAMBLE_LEN + chunk.len());
@@ -382,7 +465,14 @@ impl Collector {
                 }
             }
         }
-        Ok((Accepted { new: true, blocks, became_renderable: became }, Some(chunk)))
+        Ok((
+            Accepted {
+                new: true,
+                blocks,
+                became_renderable: became,
+            },
+            Some(chunk),
+        ))
     }
 }
 
@@ -441,8 +531,10 @@ impl PartLog {
     fn create(path: &Path, info: &AssetInfo) -> Result<PartLog> {
         let sha = from_hex(&info.sha256)?;
         let pre = from_hex(&info.preamble)?;
-        let mut f = std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
-        f.write_all(&part_header(info, &sha, &pre)).with_context(|| format!("{}: cannot write", path.display()))?;
+        let mut f = std::fs::File::create(path)
+            .with_context(|| format!("{}: cannot create", path.display()))?;
+        f.write_all(&part_header(info, &sha, &pre))
+            .with_context(|| format!("{}: cannot write", path.display()))?;
         Ok(PartLog {
             path: path.to_path_buf(),
             file: BufWriter::with_capacity(1 << 20, f),
@@ -462,15 +554,20 @@ impl PartLog {
     }
 
     fn flush(&mut self) -> Result<()> {
-        self.file.flush().with_context(|| format!("{}: cannot write", self.path.display()))
+        self.file
+            .flush()
+            .with_context(|| format!("{}: cannot write", self.path.display()))
     }
 
     /// Load an existing log. Ok(None) if absent or unusable (it will be recreated).
     fn load(path: &Path) -> Result<Option<Loaded>> {
-        let Ok(f) = std::fs::File::open(path) else { return Ok(None) };
+        let Ok(f) = std::fs::File::open(path) else {
+            return Ok(None);
+        };
         let mut r = BufReader::with_capacity(1 << 20, f);
         let mut h = [0u8; PART_HEADER_LEN as usize];
-        if r.read_exact(&mut h).is_err() || &h[..8] != PART_MAGIC || h[8..12] != 1u32.to_le_bytes() {
+        if r.read_exact(&mut h).is_err() || &h[..8] != PART_MAGIC || h[8..12] != 1u32.to_le_bytes()
+        {
             return Ok(None);
         }
         let chunks = u32::from_le_bytes([h[12], h[13], h[14], h[15]]);
@@ -484,7 +581,9 @@ impl PartLog {
             atlas_blocks: 0,
             frames: 0,
         };
-        let Ok(mut collector) = Collector::new(info.clone()) else { return Ok(None) };
+        let Ok(mut collector) = Collector::new(info.clone()) else {
+            return Ok(None);
+        };
         if !(2..=1 << 28).contains(&chunks) {
             return Ok(None);
         }
@@ -495,7 +594,11 @@ impl PartLog {
             if r.read_exact(&mut rh).is_err() {
                 break;
             }
-            let Ok((index, _, len)) = parse_record_header(&rh, chunks, snerf_asset::chunk::MAX_CHUNK_LEN as u64) else { break };
+            let Ok((index, _, len)) =
+                parse_record_header(&rh, chunks, snerf_asset::chunk::MAX_CHUNK_LEN as u64)
+            else {
+                break;
+            };
             let mut chunk = vec![0u8; CHUNK_HEADER_LEN + len as usize];
             chunk[..CHUNK_HEADER_LEN].copy_from_slice(&rh[4..]);
             if r.read_exact(&mut chunk[CHUNK_HEADER_LEN..]).is_err() {
@@ -509,7 +612,8 @@ impl PartLog {
             }
             match collector.accept(index, chunk) {
                 Ok((a, _)) if a.new => {
-                    offsets[index as usize] = Some((pos + 4, (CHUNK_HEADER_LEN + len as usize) as u32));
+                    offsets[index as usize] =
+                        Some((pos + 4, (CHUNK_HEADER_LEN + len as usize) as u32));
                 }
                 Ok(_) => {}
                 Err(_) => break,
@@ -518,25 +622,45 @@ impl PartLog {
         }
         drop(r);
         // Cut a torn or bad tail, then append after the good records.
-        let f = std::fs::OpenOptions::new().write(true).open(path).with_context(|| format!("{}: cannot open", path.display()))?;
-        f.set_len(pos).with_context(|| format!("{}: cannot truncate", path.display()))?;
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .with_context(|| format!("{}: cannot open", path.display()))?;
+        f.set_len(pos)
+            .with_context(|| format!("{}: cannot truncate", path.display()))?;
         let mut f = f;
         f.seek(SeekFrom::Start(pos))?;
-        let log = PartLog { path: path.to_path_buf(), file: BufWriter::with_capacity(1 << 20, f), pos, offsets };
-        Ok(Some(Loaded { sha, collector, log }))
+        let log = PartLog {
+            path: path.to_path_buf(),
+            file: BufWriter::with_capacity(1 << 20, f),
+            pos,
+            offsets,
+        };
+        Ok(Some(Loaded {
+            sha,
+            collector,
+            log,
+        }))
     }
 
     /// Write the complete file: preamble + chunks in index order, to a temp file beside
     /// `out`, checking the SHA-256, fsync, rename.
     fn assemble(&mut self, preamble: &[u8], out: &Path, sha: &str) -> Result<()> {
         self.flush()?;
-        let mut src = std::fs::File::open(&self.path).with_context(|| format!("{}: cannot read", self.path.display()))?;
-        let name = out.file_name().ok_or_else(|| anyhow!("{}: not a file path", out.display()))?;
+        let mut src = std::fs::File::open(&self.path)
+            .with_context(|| format!("{}: cannot read", self.path.display()))?;
+        let name = out
+            .file_name()
+            .ok_or_else(|| anyhow!("{}: not a file path", out.display()))?;
         let dir = match out.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let tmp = dir.join(format!(".{}.{}.tmp", name.to_string_lossy(), std::process::id()));
+        let tmp = dir.join(format!(
+            ".{}.{}.tmp",
+            name.to_string_lossy(),
+            std::process::id()
+        ));
         let r = (|| -> Result<()> {
             let mut o = BufWriter::with_capacity(1 << 20, std::fs::File::create(&tmp)?);
             let mut hasher = Sha256::new();
@@ -552,7 +676,12 @@ impl PartLog {
                 hasher.update(&buf);
             }
             let got = to_hex(&hasher.finalize());
-            ensure!(got == sha, "assembled file has SHA-256 {} but the server's file has {}", got, sha);
+            ensure!(
+                got == sha,
+                "assembled file has SHA-256 {} but the server's file has {}",
+                got,
+                sha
+            );
             let f = o.into_inner().map_err(|e| anyhow!("{}", e.error()))?;
             f.sync_all()?;
             drop(f);
@@ -576,13 +705,21 @@ pub async fn fetch(url: &str, pin: &str, token: &str, out: &Path) -> Result<Fetc
     fetch_with(url, pin, token, out, &ClientOptions::default()).await
 }
 
-pub async fn fetch_with(url: &str, pin: &str, token: &str, out: &Path, opts: &ClientOptions) -> Result<FetchStats> {
+pub async fn fetch_with(
+    url: &str,
+    pin: &str,
+    token: &str,
+    out: &Path,
+    opts: &ClientOptions,
+) -> Result<FetchStats> {
     let t0 = Instant::now();
     let (hp, asset) = parse_url(url)?;
     let addr = resolve(&hp)?;
     let part = part_path(out);
     let part2 = part.clone();
-    let loaded = tokio::task::spawn_blocking(move || PartLog::load(&part2)).await.map_err(|e| anyhow!("{}", e))??;
+    let loaded = tokio::task::spawn_blocking(move || PartLog::load(&part2))
+        .await
+        .map_err(|e| anyhow!("{}", e))??;
     let (have, resume_id) = match &loaded {
         Some(l) => (to_ranges(&l.collector.have), Some(l.sha.clone())),
         None => (vec![], None),
@@ -596,15 +733,25 @@ pub async fn fetch_with(url: &str, pin: &str, token: &str, out: &Path, opts: &Cl
         pose: opts.pose,
     };
     let session = open_session(addr, pin, hello, opts).await?;
-    let info = session.asset.clone().ok_or_else(|| anyhow!("server sent no asset information"))?;
+    let info = session
+        .asset
+        .clone()
+        .ok_or_else(|| anyhow!("server sent no asset information"))?;
     // Keep the earlier attempt's chunks only if they are of this very file.
     let (mut collector, mut log) = match loaded {
-        Some(l) if session.resumed && l.sha == info.sha256 && l.collector.info.chunks == info.chunks => {
+        Some(l)
+            if session.resumed
+                && l.sha == info.sha256
+                && l.collector.info.chunks == info.chunks =>
+        {
             let mut c = l.collector;
             c.info = info.clone();
             (c, l.log)
         }
-        _ => (Collector::new(info.clone())?, PartLog::create(&part, &info)?),
+        _ => (
+            Collector::new(info.clone())?,
+            PartLog::create(&part, &info)?,
+        ),
     };
     let mut stats = FetchStats {
         size: info.size,
@@ -617,36 +764,51 @@ pub async fn fetch_with(url: &str, pin: &str, token: &str, out: &Path, opts: &Cl
     let bytes = Arc::new(AtomicU64::new(0));
     let (tx, mut rx) = mpsc::channel::<Record>(256);
     let conn = session.conn.clone();
-    let recv_task = tokio::spawn(receive(conn.clone(), info.clone(), tx, bytes.clone(), opts.abort_after_bytes));
+    let recv_task = tokio::spawn(receive(
+        conn.clone(),
+        info.clone(),
+        tx,
+        bytes.clone(),
+        opts.abort_after_bytes,
+    ));
     // The sink runs on a blocking thread: CRC, assembly and the .part writes.
     let started = session.started;
-    let sink = tokio::task::spawn_blocking(move || -> (Result<(u32, Option<Duration>)>, Collector, PartLog) {
-        let mut received = 0u32;
-        let mut ttr = None;
-        let r = (|| -> Result<()> {
-            while !collector.is_complete() {
-                let Some(rec) = rx.blocking_recv() else { break };
-                let (a, chunk) = collector.accept(rec.index, rec.chunk).map_err(|e| anyhow!("server sent bad data: {:#}", e))?;
-                if a.new {
-                    received += 1;
-                    log.append(rec.index, chunk.as_deref().unwrap_or(&[]))?;
+    let sink = tokio::task::spawn_blocking(
+        move || -> (Result<(u32, Option<Duration>)>, Collector, PartLog) {
+            let mut received = 0u32;
+            let mut ttr = None;
+            let r = (|| -> Result<()> {
+                while !collector.is_complete() {
+                    let Some(rec) = rx.blocking_recv() else { break };
+                    let (a, chunk) = collector
+                        .accept(rec.index, rec.chunk)
+                        .map_err(|e| anyhow!("server sent bad data: {:#}", e))?;
+                    if a.new {
+                        received += 1;
+                        log.append(rec.index, chunk.as_deref().unwrap_or(&[]))?;
+                    }
+                    if a.became_renderable {
+                        ttr = Some(started.elapsed());
+                    }
                 }
-                if a.became_renderable {
-                    ttr = Some(started.elapsed());
-                }
-            }
-            log.flush()
-        })();
-        let _ = log.flush();
-        (r.map(|_| (received, ttr)), collector, log)
-    });
-    let (res, collector, mut log) = sink.await.map_err(|e| anyhow!("fetch sink failed: {}", e))?;
+                log.flush()
+            })();
+            let _ = log.flush();
+            (r.map(|_| (received, ttr)), collector, log)
+        },
+    );
+    let (res, collector, mut log) = sink
+        .await
+        .map_err(|e| anyhow!("fetch sink failed: {}", e))?;
     stats.transfer = t0.elapsed();
     stats.bytes_received = bytes.load(Ordering::Relaxed);
     stats.udp_bytes_received = conn.stats().udp_rx.bytes;
     let ok = res.as_ref().is_ok() && collector.is_complete();
     if let Err(e) = &res {
-        conn.close(VarInt::from_u32(code::CLIENT_REJECT), format!("{:#}", e).as_bytes());
+        conn.close(
+            VarInt::from_u32(code::CLIENT_REJECT),
+            format!("{:#}", e).as_bytes(),
+        );
     } else if ok {
         session.close();
     }

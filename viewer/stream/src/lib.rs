@@ -25,5 +25,8 @@ pub mod url;
 pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
 pub use live::LiveAsset;
 pub use proto::{Pose, ALPN, DEFAULT_PORT, PROTOCOL_VERSION};
-pub use server::{serve, serve_blocking, spawn, start, Congestion, Limits, ServeOptions, ServerHandle, ServerStats};
+pub use server::{
+    serve, serve_blocking, spawn, start, Congestion, Limits, ServeOptions, ServerHandle,
+    ServerStats,
+};
 pub use url::{parse_url, resolve};

@@ -40,7 +40,9 @@ impl Shared {
     fn send_pose(&self) {
         if let Some(p) = *self.pose.lock().unwrap() {
             let seq = self.seq.fetch_add(1, Ordering::Relaxed) + 1;
-            let _ = self.conn.send_datagram(Bytes::copy_from_slice(&encode_pose(seq, &p)));
+            let _ = self
+                .conn
+                .send_datagram(Bytes::copy_from_slice(&encode_pose(seq, &p)));
         }
     }
 }
@@ -70,7 +72,12 @@ impl LiveAsset {
     }
 
     /// `connect` with options (e.g. `opts.pose`: the first view, so its blocks come first).
-    pub fn connect_with(url: &str, pin: &str, token: &str, opts: ClientOptions) -> Result<LiveAsset> {
+    pub fn connect_with(
+        url: &str,
+        pin: &str,
+        token: &str,
+        opts: ClientOptions,
+    ) -> Result<LiveAsset> {
         let (hp, asset) = parse_url(url)?;
         let addr = resolve(&hp)?;
         let (pin, token, url) = (pin.to_string(), token.to_string(), url.to_string());
@@ -188,8 +195,13 @@ impl LiveAsset {
                 });
             })
             .context("cannot spawn the client thread")?;
-        let (shared, guard) = ready_rx.recv().map_err(|_| anyhow!("client thread ended during connect"))??;
-        Ok(LiveAsset { shared, _guard: guard })
+        let (shared, guard) = ready_rx
+            .recv()
+            .map_err(|_| anyhow!("client thread ended during connect"))??;
+        Ok(LiveAsset {
+            shared,
+            _guard: guard,
+        })
     }
 
     pub fn info(&self) -> &AssetInfo {
@@ -219,7 +231,12 @@ impl LiveAsset {
     /// Tell the server where the viewer is (world space); sent as a datagram at once and
     /// repeated while streaming.
     pub fn set_pose(&self, eye: [f32; 3], forward: [f32; 3]) {
-        let mut p = self.shared.pose.lock().unwrap().unwrap_or(Pose::new(eye, forward));
+        let mut p = self
+            .shared
+            .pose
+            .lock()
+            .unwrap()
+            .unwrap_or(Pose::new(eye, forward));
         p.eye = eye;
         p.forward = forward;
         self.set_pose_full(p);
@@ -270,7 +287,11 @@ impl LiveAsset {
     /// Which atlas blocks are present now.
     pub fn present_blocks(&self) -> Vec<bool> {
         let st = self.shared.state.lock().unwrap();
-        st.collector.asm.as_ref().map(|a| a.asset().present.clone()).unwrap_or_default()
+        st.collector
+            .asm
+            .as_ref()
+            .map(|a| a.asset().present.clone())
+            .unwrap_or_default()
     }
 
     /// Block until complete, failed, or `timeout`.

@@ -5,7 +5,9 @@
 use anyhow::{anyhow, ensure, Result};
 use bytes::Bytes;
 use sha2::{Digest, Sha256};
-use snerf_asset::chunk::{chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
+use snerf_asset::chunk::{
+    chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP,
+};
 use snerf_asset::{Asset, Header, Kind, EMPTY};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -46,7 +48,8 @@ pub struct ServedAsset {
 impl ServedAsset {
     /// Read and fully validate a file (framing, CRCs, semantics), then index it.
     pub fn load(name: &str, path: &Path) -> Result<ServedAsset> {
-        let raw = std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
+        let raw =
+            std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
         Self::from_bytes(name, path, raw).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
     }
 
@@ -97,8 +100,17 @@ impl ServedAsset {
                         Some(cell) => cell_centre_radius(&header, g, cell),
                         None => (origin, 0.0),
                     };
-                    let fr = frames.get(first).cloned().filter(|f| !f.is_empty()).unwrap_or(vec![(last_frame, last_frame)]);
-                    blks.push(BlkEntry { chunk: idx, centre, radius, frames: fr });
+                    let fr = frames
+                        .get(first)
+                        .cloned()
+                        .filter(|f| !f.is_empty())
+                        .unwrap_or(vec![(last_frame, last_frame)]);
+                    blks.push(BlkEntry {
+                        chunk: idx,
+                        centre,
+                        radius,
+                        frames: fr,
+                    });
                 }
                 TAG_END => end = Some(idx),
                 t => anyhow::bail!("unexpected chunk {}", tag_name(&t)),
@@ -214,7 +226,11 @@ pub struct View {
 impl View {
     pub fn new(asset: &ServedAsset, p: &Pose) -> View {
         let n = norm(p.forward).max(1e-12);
-        let fov = if p.fov_deg > 0.0 { p.fov_deg } else { DEFAULT_FOV_DEG };
+        let fov = if p.fov_deg > 0.0 {
+            p.fov_deg
+        } else {
+            DEFAULT_FOV_DEG
+        };
         View {
             eye: p.eye,
             forward: p.forward.map(|x| x / n),
@@ -266,7 +282,13 @@ pub fn grid_to_world(h: &Header, g: [f32; 3]) -> [f32; 3] {
             } else {
                 let mc = mc.min(1.999);
                 let big = 1.0 / (2.0 - mc);
-                c.map(|x| if x.abs() >= mc { big * x.signum() } else { x * big })
+                c.map(|x| {
+                    if x.abs() >= mc {
+                        big * x.signum()
+                    } else {
+                        x * big
+                    }
+                })
             }
         }
     };
@@ -277,7 +299,6 @@ pub fn grid_to_world(h: &Header, g: [f32; 3]) -> [f32; 3] {
 pub fn records_len(a: &ServedAsset, idx: &[u32]) -> u64 {
     idx.iter().map(|&i| a.record_len(i)).sum::<u64>()
 }
-
 
 fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
@@ -300,11 +321,22 @@ mod tests {
     fn asset(kind: Kind, dynamic: bool) -> ServedAsset {
         let mut h = Header::new(kind, 32, 8);
         if kind == Kind::Forward {
-            h.space.ndc = Some(snerf_asset::Ndc { fx: 50.0, fy: 50.0, width: 64.0, height: 48.0, near: 1.0, xy_extent: 1.0 });
+            h.space.ndc = Some(snerf_asset::Ndc {
+                fx: 50.0,
+                fy: 50.0,
+                width: 64.0,
+                height: 48.0,
+                near: 1.0,
+                xy_extent: 1.0,
+            });
         }
         if dynamic {
             h.time_range = Some([0.0, 2.0]);
-            h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }, Keyframe { time: 2.0 }]);
+            h.frames = Some(vec![
+                Keyframe { time: 0.0 },
+                Keyframe { time: 1.0 },
+                Keyframe { time: 2.0 },
+            ]);
         }
         let g = h.grid_dim();
         let frames = h.num_frames();
@@ -315,7 +347,8 @@ mod tests {
                 for y in 0..g {
                     for x in 0..g {
                         // Frame f changes the cells with x == f (others shared).
-                        let v = vec![(x + 4 * y + 16 * z + if x == f { 64 * f } else { 0 }) as u8; bb];
+                        let v =
+                            vec![(x + 4 * y + 16 * z + if x == f { 64 * f } else { 0 }) as u8; bb];
                         b.set_block(f, [x, y, z], &v).unwrap();
                     }
                 }
@@ -339,17 +372,31 @@ mod tests {
     fn frustum_then_distance() {
         let a = asset(Kind::Object, false);
         assert_eq!(a.blks.len(), 64);
-        let pose = Pose { eye: [3.0, 0.0, 0.0], forward: [-1.0, 0.0, 0.0], time: 0.0, fov_deg: 20.0 };
+        let pose = Pose {
+            eye: [3.0, 0.0, 0.0],
+            forward: [-1.0, 0.0, 0.0],
+            time: 0.0,
+            fov_deg: 20.0,
+        };
         let o = order(&a, Some(pose));
         // Nearest block first: on the +x face, near the axis.
-        assert!(o[0].centre[0] > 0.7 && o[0].centre[1].abs() < 0.3, "{:?}", o[0].centre);
+        assert!(
+            o[0].centre[0] > 0.7 && o[0].centre[1].abs() < 0.3,
+            "{:?}",
+            o[0].centre
+        );
         // Everything in the cone precedes everything outside it.
         let v = View::new(&a, &pose);
         let tiers: Vec<u8> = o.iter().map(|b| a.priority(b, Some(&v)).1).collect();
         assert!(tiers.windows(2).all(|w| w[0] <= w[1]));
         assert!(tiers.contains(&0) && tiers.iter().any(|&t| t > 0));
         // Looking the other way: blocks behind the eye are last.
-        let back = Pose { eye: [0.0, 0.0, -0.6], forward: [0.0, 0.0, 1.0], time: 0.0, fov_deg: 60.0 };
+        let back = Pose {
+            eye: [0.0, 0.0, -0.6],
+            forward: [0.0, 0.0, 1.0],
+            time: 0.0,
+            fov_deg: 60.0,
+        };
         let o = order(&a, Some(back));
         assert!(o.last().unwrap().centre[2] < -0.6);
         assert!(o[0].centre[2] > -0.6 - o[0].radius);
@@ -357,22 +404,41 @@ mod tests {
         assert_eq!(a.priority(o.last().unwrap(), Some(&v)).1, 2);
         // No pose: centre-out.
         let o = order(&a, None);
-        assert!(crate::plan::dist(o[0].centre, [0.0; 3]) <= crate::plan::dist(o[63].centre, [0.0; 3]));
+        assert!(
+            crate::plan::dist(o[0].centre, [0.0; 3]) <= crate::plan::dist(o[63].centre, [0.0; 3])
+        );
     }
 
     #[test]
     fn keyframes_ahead_of_playback() {
         let a = asset(Kind::Object, true);
-        for (t, k) in [(0.0, 0u32), (1.0, 1), (1.5, 1), (2.0, 2), (-5.0, 0), (9.0, 2)] {
+        for (t, k) in [
+            (0.0, 0u32),
+            (1.0, 1),
+            (1.5, 1),
+            (2.0, 2),
+            (-5.0, 0),
+            (9.0, 2),
+        ] {
             assert_eq!(a.frame_at(t), k);
-            let pose = Pose { eye: [0.0, 0.0, 3.0], forward: [0.0, 0.0, -1.0], time: t, fov_deg: 60.0 };
+            let pose = Pose {
+                eye: [0.0, 0.0, 3.0],
+                forward: [0.0, 0.0, -1.0],
+                time: t,
+                fov_deg: 60.0,
+            };
             let o = order(&a, Some(pose));
             let rank = |b: &BlkEntry| a.priority(b, Some(&View::new(&a, &pose))).0;
             assert!(o.windows(2).all(|w| rank(w[0]) <= rank(w[1])));
             // Blocks used by the playback keyframe first.
             assert!(o[0].frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k)));
-            let first_other = o.iter().position(|b| !b.frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k))).unwrap();
-            assert!(o[first_other..].iter().all(|b| !b.frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k))));
+            let first_other = o
+                .iter()
+                .position(|b| !b.frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k)))
+                .unwrap();
+            assert!(o[first_other..]
+                .iter()
+                .all(|b| !b.frames.iter().any(|&(lo, hi)| (lo..=hi).contains(&k))));
         }
     }
 
@@ -385,9 +451,19 @@ mod tests {
             let m = grid_to_world(&a.header, g);
             let ax = -n.fx / (n.width * 0.5);
             let ay = -n.fy / (n.height * 0.5);
-            let back = [ax * m[0] / m[2] / n.xy_extent, ay * m[1] / m[2] / n.xy_extent, 1.0 + 2.0 * n.near / m[2]];
+            let back = [
+                ax * m[0] / m[2] / n.xy_extent,
+                ay * m[1] / m[2] / n.xy_extent,
+                1.0 + 2.0 * n.near / m[2],
+            ];
             for i in 0..3 {
-                assert!((back[i] - g[i]).abs() < 1e-4, "{:?} -> {:?} -> {:?}", g, m, back);
+                assert!(
+                    (back[i] - g[i]).abs() < 1e-4,
+                    "{:?} -> {:?} -> {:?}",
+                    g,
+                    m,
+                    back
+                );
             }
         }
         // Unbounded: contraction of the inverse gives the grid point back.
@@ -398,7 +474,13 @@ mod tests {
             let w = grid_to_world(&h, g);
             let c = snerf_asset::render::contract(w);
             for i in 0..3 {
-                assert!((c[i] / 2.0 - g[i]).abs() < 1e-4, "{:?} -> {:?} -> {:?}", g, w, c);
+                assert!(
+                    (c[i] / 2.0 - g[i]).abs() < 1e-4,
+                    "{:?} -> {:?} -> {:?}",
+                    g,
+                    w,
+                    c
+                );
             }
         }
     }

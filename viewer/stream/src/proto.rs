@@ -78,17 +78,32 @@ pub struct Pose {
 
 impl Pose {
     pub fn new(eye: [f32; 3], forward: [f32; 3]) -> Pose {
-        Pose { eye, forward, time: 0.0, fov_deg: 0.0 }
+        Pose {
+            eye,
+            forward,
+            time: 0.0,
+            fov_deg: 0.0,
+        }
     }
 
     /// Finite eye, finite non-zero forward, finite time, fov in [0, 180).
     pub fn validate(&self) -> Result<()> {
-        ensure!(self.eye.iter().all(|x| x.is_finite()), "pose eye is not finite");
-        ensure!(self.forward.iter().all(|x| x.is_finite()), "pose forward is not finite");
+        ensure!(
+            self.eye.iter().all(|x| x.is_finite()),
+            "pose eye is not finite"
+        );
+        ensure!(
+            self.forward.iter().all(|x| x.is_finite()),
+            "pose forward is not finite"
+        );
         let n2: f32 = self.forward.iter().map(|x| x * x).sum();
         ensure!(n2 > 1e-12 && n2.is_finite(), "pose forward is zero");
         ensure!(self.time.is_finite(), "pose time is not finite");
-        ensure!(self.fov_deg.is_finite() && (0.0..180.0).contains(&self.fov_deg), "pose fov {} not in [0,180)", self.fov_deg);
+        ensure!(
+            self.fov_deg.is_finite() && (0.0..180.0).contains(&self.fov_deg),
+            "pose fov {} not in [0,180)",
+            self.fov_deg
+        );
         Ok(())
     }
 }
@@ -104,7 +119,16 @@ pub fn encode_pose(seq: u32, p: &Pose) -> [u8; POSE_DATAGRAM_LEN] {
     b[..2].copy_from_slice(&POSE_MAGIC);
     b[2] = 1;
     b[4..8].copy_from_slice(&seq.to_le_bytes());
-    let vals = [p.eye[0], p.eye[1], p.eye[2], p.forward[0], p.forward[1], p.forward[2], p.time, p.fov_deg];
+    let vals = [
+        p.eye[0],
+        p.eye[1],
+        p.eye[2],
+        p.forward[0],
+        p.forward[1],
+        p.forward[2],
+        p.time,
+        p.fov_deg,
+    ];
     for (i, v) in vals.iter().enumerate() {
         b[8 + 4 * i..12 + 4 * i].copy_from_slice(&v.to_le_bytes());
     }
@@ -112,12 +136,28 @@ pub fn encode_pose(seq: u32, p: &Pose) -> [u8; POSE_DATAGRAM_LEN] {
 }
 
 pub fn decode_pose(b: &[u8]) -> Result<(u32, Pose)> {
-    ensure!(b.len() == POSE_DATAGRAM_LEN, "pose datagram has {} bytes, expected {}", b.len(), POSE_DATAGRAM_LEN);
+    ensure!(
+        b.len() == POSE_DATAGRAM_LEN,
+        "pose datagram has {} bytes, expected {}",
+        b.len(),
+        POSE_DATAGRAM_LEN
+    );
     ensure!(b[..2] == POSE_MAGIC, "pose datagram has bad magic");
-    ensure!(b[2] == 1 && b[3] == 0, "pose datagram version {} flags {} unsupported", b[2], b[3]);
+    ensure!(
+        b[2] == 1 && b[3] == 0,
+        "pose datagram version {} flags {} unsupported",
+        b[2],
+        b[3]
+    );
     let seq = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
-    let f = |i: usize| f32::from_le_bytes([b[8 + 4 * i], b[9 + 4 * i], b[10 + 4 * i], b[11 + 4 * i]]);
-    let p = Pose { eye: [f(0), f(1), f(2)], forward: [f(3), f(4), f(5)], time: f(6), fov_deg: f(7) };
+    let f =
+        |i: usize| f32::from_le_bytes([b[8 + 4 * i], b[9 + 4 * i], b[10 + 4 * i], b[11 + 4 * i]]);
+    let p = Pose {
+        eye: [f(0), f(1), f(2)],
+        forward: [f(3), f(4), f(5)],
+        time: f(6),
+        fov_deg: f(7),
+    };
     p.validate()?;
     Ok((seq, p))
 }
@@ -186,18 +226,45 @@ pub enum ServerMsg {
         #[serde(default)]
         sending_bytes: u64,
     },
-    Listing { assets: Vec<ListEntry> },
+    Listing {
+        assets: Vec<ListEntry>,
+    },
 }
 
 pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
-    let m: ClientMsg = serde_json::from_slice(b).map_err(|e| anyhow!("bad control message: {}", e))?;
-    if let ClientMsg::Hello { token, asset, have, resume_id, pose, .. } = &m {
-        ensure!(token.len() <= MAX_TOKEN_LEN, "token longer than {} bytes", MAX_TOKEN_LEN);
+    let m: ClientMsg =
+        serde_json::from_slice(b).map_err(|e| anyhow!("bad control message: {}", e))?;
+    if let ClientMsg::Hello {
+        token,
+        asset,
+        have,
+        resume_id,
+        pose,
+        ..
+    } = &m
+    {
+        ensure!(
+            token.len() <= MAX_TOKEN_LEN,
+            "token longer than {} bytes",
+            MAX_TOKEN_LEN
+        );
         if let Some(a) = asset {
-            ensure!(a.len() <= MAX_NAME_LEN, "asset name longer than {} bytes", MAX_NAME_LEN);
+            ensure!(
+                a.len() <= MAX_NAME_LEN,
+                "asset name longer than {} bytes",
+                MAX_NAME_LEN
+            );
         }
-        ensure!(have.len() <= MAX_HAVE_RANGES, "have has {} ranges (max {})", have.len(), MAX_HAVE_RANGES);
-        ensure!(have.iter().all(|r| r[0] <= r[1]), "have has a range with lo > hi");
+        ensure!(
+            have.len() <= MAX_HAVE_RANGES,
+            "have has {} ranges (max {})",
+            have.len(),
+            MAX_HAVE_RANGES
+        );
+        ensure!(
+            have.iter().all(|r| r[0] <= r[1]),
+            "have has a range with lo > hi"
+        );
         if let Some(r) = resume_id {
             ensure!(r.len() <= 128, "resume_id too long");
         }
@@ -209,12 +276,19 @@ pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
 }
 
 pub fn decode_server_msg(b: &[u8]) -> Result<ServerMsg> {
-    let m: ServerMsg = serde_json::from_slice(b).map_err(|e| anyhow!("bad server message: {}", e))?;
+    let m: ServerMsg =
+        serde_json::from_slice(b).map_err(|e| anyhow!("bad server message: {}", e))?;
     if let ServerMsg::Welcome { asset: Some(a), .. } = &m {
         ensure!(a.chunks >= 2, "asset has {} chunks", a.chunks);
         ensure!(a.size <= 1 << 40, "asset size {} implausible", a.size);
-        ensure!(a.sha256.len() == 64 && from_hex(&a.sha256).is_ok(), "bad sha256 in Welcome");
-        ensure!(a.preamble.len() == 32 && from_hex(&a.preamble).is_ok(), "bad preamble in Welcome");
+        ensure!(
+            a.sha256.len() == 64 && from_hex(&a.sha256).is_ok(),
+            "bad sha256 in Welcome"
+        );
+        ensure!(
+            a.preamble.len() == 32 && from_hex(&a.preamble).is_ok(),
+            "bad preamble in Welcome"
+        );
         ensure!(valid_asset_name(&a.name), "bad asset name in Welcome");
     }
     Ok(m)
@@ -242,7 +316,11 @@ pub enum FrameError {
 impl std::fmt::Display for FrameError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            FrameError::TooLarge(n, max) => write!(f, "control message of {} bytes exceeds the limit of {}", n, max),
+            FrameError::TooLarge(n, max) => write!(
+                f,
+                "control message of {} bytes exceeds the limit of {}",
+                n, max
+            ),
             FrameError::Truncated => write!(f, "control stream ended inside a message"),
             FrameError::Io(e) => write!(f, "control stream: {}", e),
         }
@@ -252,7 +330,10 @@ impl std::error::Error for FrameError {}
 
 /// Read one frame; Ok(None) on a clean end of stream at a frame boundary. The length is
 /// checked against `max` before any payload is read or allocated.
-pub async fn read_frame<R: AsyncRead + Unpin>(r: &mut R, max: usize) -> Result<Option<Vec<u8>>, FrameError> {
+pub async fn read_frame<R: AsyncRead + Unpin>(
+    r: &mut R,
+    max: usize,
+) -> Result<Option<Vec<u8>>, FrameError> {
     let mut len = [0u8; 4];
     let mut got = 0;
     while got < 4 {
@@ -288,7 +369,11 @@ pub fn split_frame(b: &[u8], max: usize) -> Result<Option<(&[u8], &[u8])>> {
     }
     let n = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64;
     if n > max as u64 {
-        bail!("control message of {} bytes exceeds the limit of {}", n, max);
+        bail!(
+            "control message of {} bytes exceeds the limit of {}",
+            n,
+            max
+        );
     }
     let n = n as usize;
     if b.len() - 4 < n {
@@ -304,9 +389,18 @@ pub const RECORD_HEADER_LEN: usize = 16;
 /// Parse a record header; checks the index against the chunk count and the length against
 /// `max_payload` so the caller can allocate the payload safely.
 pub fn parse_record_header(h: &[u8], chunks: u32, max_payload: u64) -> Result<(u32, [u8; 4], u32)> {
-    ensure!(h.len() == RECORD_HEADER_LEN, "record header has {} bytes", h.len());
+    ensure!(
+        h.len() == RECORD_HEADER_LEN,
+        "record header has {} bytes",
+        h.len()
+    );
     let index = u32::from_le_bytes([h[0], h[1], h[2], h[3]]);
-    ensure!(index < chunks, "record for chunk {} but the asset has {} chunks", index, chunks);
+    ensure!(
+        index < chunks,
+        "record for chunk {} but the asset has {} chunks",
+        index,
+        chunks
+    );
     let tag = [h[4], h[5], h[6], h[7]];
     let len = u32::from_le_bytes([h[8], h[9], h[10], h[11]]);
     ensure!(
@@ -325,7 +419,8 @@ pub fn valid_asset_name(s: &str) -> bool {
     !s.is_empty()
         && s.len() <= MAX_NAME_LEN
         && !s.starts_with('.')
-        && s.bytes().all(|c| c.is_ascii_alphanumeric() || c == b'.' || c == b'_' || c == b'-')
+        && s.bytes()
+            .all(|c| c.is_ascii_alphanumeric() || c == b'.' || c == b'_' || c == b'-')
 }
 
 pub fn to_hex(b: &[u8]) -> String {
@@ -349,7 +444,9 @@ pub fn from_hex(s: &str) -> Result<Vec<u8>> {
             _ => bail!("not a hex digit: {:?}", c as char),
         })
     };
-    s.chunks_exact(2).map(|p| Ok(v(p[0])? << 4 | v(p[1])?)).collect()
+    s.chunks_exact(2)
+        .map(|p| Ok(v(p[0])? << 4 | v(p[1])?))
+        .collect()
 }
 
 /// Coalesce sorted-or-not chunk indices into [lo, hi) ranges.
@@ -390,16 +487,32 @@ mod tests {
         assert_eq!(decode_client_msg(payload).unwrap(), m);
         assert!(split_frame(&f[..f.len() - 1], 1024).unwrap().is_none());
         assert!(split_frame(&f, 3).is_err());
-        let p = Pose { eye: [1.0, -2.0, 3.5], forward: [0.0, 1.0, 0.0], time: 2.5, fov_deg: 70.0 };
+        let p = Pose {
+            eye: [1.0, -2.0, 3.5],
+            forward: [0.0, 1.0, 0.0],
+            time: 2.5,
+            fov_deg: 70.0,
+        };
         assert_eq!(decode_pose(&encode_pose(42, &p)).unwrap(), (42, p));
         let mut bad = encode_pose(1, &p);
         bad[20..24].copy_from_slice(&f32::NAN.to_le_bytes());
         assert!(decode_pose(&bad).is_err());
         let zero = Pose::new([0.0; 3], [0.0; 3]);
         assert!(decode_pose(&encode_pose(1, &zero)).is_err());
-        assert_eq!(to_ranges(&[true, true, false, true, false, false, true]), vec![[0, 2], [3, 4], [6, 7]]);
-        assert_eq!(from_hex(&to_hex(&[0, 1, 0xab, 0xff])).unwrap(), vec![0, 1, 0xab, 0xff]);
-        assert!(valid_asset_name("a.b_c-1") && !valid_asset_name(".x") && !valid_asset_name("a/b") && !valid_asset_name(""));
+        assert_eq!(
+            to_ranges(&[true, true, false, true, false, false, true]),
+            vec![[0, 2], [3, 4], [6, 7]]
+        );
+        assert_eq!(
+            from_hex(&to_hex(&[0, 1, 0xab, 0xff])).unwrap(),
+            vec![0, 1, 0xab, 0xff]
+        );
+        assert!(
+            valid_asset_name("a.b_c-1")
+                && !valid_asset_name(".x")
+                && !valid_asset_name("a/b")
+                && !valid_asset_name("")
+        );
     }
 
     #[tokio::test]
@@ -409,9 +522,15 @@ mod tests {
         assert!(read_frame(&mut r, 1024).await.unwrap().is_some());
         assert!(read_frame(&mut r, 1024).await.unwrap().is_none());
         let mut r: &[u8] = &f[..5];
-        assert!(matches!(read_frame(&mut r, 1024).await, Err(FrameError::Truncated)));
+        assert!(matches!(
+            read_frame(&mut r, 1024).await,
+            Err(FrameError::Truncated)
+        ));
         let big = (1u32 << 30).to_le_bytes();
         let mut r: &[u8] = &big;
-        assert!(matches!(read_frame(&mut r, 1024).await, Err(FrameError::TooLarge(..))));
+        assert!(matches!(
+            read_frame(&mut r, 1024).await,
+            Err(FrameError::TooLarge(..))
+        ));
     }
 }

@@ -37,10 +37,19 @@ pub fn fingerprint(der: &[u8]) -> String {
 /// Accepts `ab12…`, `AB:12:…`, `sha256:ab12…`; returns 32 bytes.
 pub fn parse_pin(pin: &str) -> Result<[u8; 32]> {
     let p = pin.trim();
-    let p = p.strip_prefix("sha256:").or_else(|| p.strip_prefix("SHA256:")).unwrap_or(p);
+    let p = p
+        .strip_prefix("sha256:")
+        .or_else(|| p.strip_prefix("SHA256:"))
+        .unwrap_or(p);
     let hex: String = p.chars().filter(|c| *c != ':').collect();
-    let b = from_hex(&hex).map_err(|e| anyhow!("pin {:?} is not a hex SHA-256 fingerprint: {}", pin, e))?;
-    ensure!(b.len() == 32, "pin {:?} has {} bytes, a SHA-256 fingerprint has 32 (64 hex digits)", pin, b.len());
+    let b = from_hex(&hex)
+        .map_err(|e| anyhow!("pin {:?} is not a hex SHA-256 fingerprint: {}", pin, e))?;
+    ensure!(
+        b.len() == 32,
+        "pin {:?} has {} bytes, a SHA-256 fingerprint has 32 (64 hex digits)",
+        pin,
+        b.len()
+    );
     let mut out = [0u8; 32];
     out.copy_from_slice(&b);
     Ok(out)
@@ -62,7 +71,11 @@ pub fn default_state_dir(assets: &Path) -> PathBuf {
     if let Some(h) = std::env::var_os("HOME").filter(|x| !x.is_empty()) {
         return PathBuf::from(h).join(".config").join("snerf").join("serve");
     }
-    let base = if assets.is_dir() { assets.to_path_buf() } else { assets.parent().map(Path::to_path_buf).unwrap_or_default() };
+    let base = if assets.is_dir() {
+        assets.to_path_buf()
+    } else {
+        assets.parent().map(Path::to_path_buf).unwrap_or_default()
+    };
     base.join(".snerf-serve")
 }
 
@@ -76,14 +89,20 @@ fn write_private(path: &Path, bytes: &[u8]) -> Result<()> {
         use std::os::unix::fs::OpenOptionsExt;
         o.mode(0o600);
     }
-    let mut f = o.open(&tmp).with_context(|| format!("{}: cannot create", tmp.display()))?;
-    f.write_all(bytes).and_then(|_| f.sync_all()).with_context(|| format!("{}: cannot write", tmp.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("{}: cannot rename into place", path.display()))?;
+    let mut f = o
+        .open(&tmp)
+        .with_context(|| format!("{}: cannot create", tmp.display()))?;
+    f.write_all(bytes)
+        .and_then(|_| f.sync_all())
+        .with_context(|| format!("{}: cannot write", tmp.display()))?;
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("{}: cannot rename into place", path.display()))?;
     Ok(())
 }
 
 fn load_certs(path: &Path) -> Result<Vec<CertificateDer<'static>>> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read certificate", path.display()))?;
+    let bytes = std::fs::read(path)
+        .with_context(|| format!("{}: cannot read certificate", path.display()))?;
     let certs: Vec<CertificateDer<'static>> = if bytes.starts_with(b"-----") {
         CertificateDer::pem_slice_iter(&bytes)
             .collect::<Result<_, _>>()
@@ -91,25 +110,47 @@ fn load_certs(path: &Path) -> Result<Vec<CertificateDer<'static>>> {
     } else {
         vec![CertificateDer::from(bytes)]
     };
-    ensure!(!certs.is_empty(), "{}: no certificate found", path.display());
+    ensure!(
+        !certs.is_empty(),
+        "{}: no certificate found",
+        path.display()
+    );
     Ok(certs)
 }
 
 fn load_key(path: &Path) -> Result<PrivateKeyDer<'static>> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read private key", path.display()))?;
+    let bytes = std::fs::read(path)
+        .with_context(|| format!("{}: cannot read private key", path.display()))?;
     if bytes.starts_with(b"-----") {
-        PrivateKeyDer::from_pem_slice(&bytes).map_err(|e| anyhow!("{}: bad PEM private key: {:?}", path.display(), e))
+        PrivateKeyDer::from_pem_slice(&bytes)
+            .map_err(|e| anyhow!("{}: bad PEM private key: {:?}", path.display(), e))
     } else {
-        PrivateKeyDer::try_from(bytes).map_err(|e| anyhow!("{}: bad DER private key: {}", path.display(), e))
+        PrivateKeyDer::try_from(bytes)
+            .map_err(|e| anyhow!("{}: bad DER private key: {}", path.display(), e))
     }
 }
 
 fn load_token(path: &Path) -> Result<String> {
-    let t = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read token", path.display()))?;
+    let t = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read token", path.display()))?;
     let t = t.trim().to_string();
-    ensure!(t.len() >= 16, "{}: token is {} characters, need at least 16", path.display(), t.len());
-    ensure!(t.len() <= crate::proto::MAX_TOKEN_LEN, "{}: token longer than {} characters", path.display(), crate::proto::MAX_TOKEN_LEN);
-    ensure!(t.bytes().all(|c| c.is_ascii_graphic()), "{}: token must be printable ASCII without spaces", path.display());
+    ensure!(
+        t.len() >= 16,
+        "{}: token is {} characters, need at least 16",
+        path.display(),
+        t.len()
+    );
+    ensure!(
+        t.len() <= crate::proto::MAX_TOKEN_LEN,
+        "{}: token longer than {} characters",
+        path.display(),
+        crate::proto::MAX_TOKEN_LEN
+    );
+    ensure!(
+        t.bytes().all(|c| c.is_ascii_graphic()),
+        "{}: token must be printable ASCII without spaces",
+        path.display()
+    );
     Ok(t)
 }
 
@@ -127,11 +168,15 @@ pub fn load_or_create_identity(
     let (certs, key) = match (cert, key) {
         (Some(c), Some(k)) => (load_certs(c)?, load_key(k)?),
         (None, None) => {
-            std::fs::create_dir_all(state).with_context(|| format!("{}: cannot create state directory", state.display()))?;
+            std::fs::create_dir_all(state)
+                .with_context(|| format!("{}: cannot create state directory", state.display()))?;
             let (cp, kp) = (state.join("cert.pem"), state.join("key.pem"));
             if !cp.exists() || !kp.exists() {
-                let ck = rcgen::generate_simple_self_signed(vec!["snerf".to_string(), "localhost".to_string()])
-                    .map_err(|e| anyhow!("cannot generate a self-signed certificate: {}", e))?;
+                let ck = rcgen::generate_simple_self_signed(vec![
+                    "snerf".to_string(),
+                    "localhost".to_string(),
+                ])
+                .map_err(|e| anyhow!("cannot generate a self-signed certificate: {}", e))?;
                 write_private(&kp, ck.signing_key.serialize_pem().as_bytes())?;
                 write_private(&cp, ck.cert.pem().as_bytes())?;
                 created = true;
@@ -143,7 +188,8 @@ pub fn load_or_create_identity(
     let token = match token_file {
         Some(t) => load_token(t)?,
         None => {
-            std::fs::create_dir_all(state).with_context(|| format!("{}: cannot create state directory", state.display()))?;
+            std::fs::create_dir_all(state)
+                .with_context(|| format!("{}: cannot create state directory", state.display()))?;
             let tp = state.join("token");
             if !tp.exists() {
                 write_private(&tp, format!("{}\n", random_token(32)?).as_bytes())?;
@@ -153,7 +199,13 @@ pub fn load_or_create_identity(
         }
     };
     let fingerprint = fingerprint(&certs[0]);
-    Ok(Identity { certs, key, fingerprint, token, created })
+    Ok(Identity {
+        certs,
+        key,
+        fingerprint,
+        token,
+        created,
+    })
 }
 
 pub fn server_crypto(id: &Identity) -> Result<quinn::crypto::rustls::QuicServerConfig> {
@@ -162,10 +214,16 @@ pub fn server_crypto(id: &Identity) -> Result<quinn::crypto::rustls::QuicServerC
         .map_err(|e| anyhow!("TLS setup: {}", e))?
         .with_no_client_auth()
         .with_single_cert(id.certs.clone(), id.key.clone_key())
-        .map_err(|e| anyhow!("certificate and key do not form a usable TLS identity: {}", e))?;
+        .map_err(|e| {
+            anyhow!(
+                "certificate and key do not form a usable TLS identity: {}",
+                e
+            )
+        })?;
     cfg.alpn_protocols = vec![ALPN.to_vec()];
     cfg.max_early_data_size = 0;
-    quinn::crypto::rustls::QuicServerConfig::try_from(cfg).map_err(|e| anyhow!("QUIC TLS setup: {}", e))
+    quinn::crypto::rustls::QuicServerConfig::try_from(cfg)
+        .map_err(|e| anyhow!("QUIC TLS setup: {}", e))
 }
 
 /// Verifies the server by the SHA-256 of its end-entity certificate only (and, as always in
@@ -180,7 +238,11 @@ pub struct PinVerifier {
 
 impl PinVerifier {
     pub fn new(pin: [u8; 32]) -> PinVerifier {
-        PinVerifier { pin, provider: provider(), mismatch: Mutex::new(None) }
+        PinVerifier {
+            pin,
+            provider: provider(),
+            mismatch: Mutex::new(None),
+        }
     }
     pub fn mismatch_message(&self) -> Option<String> {
         self.mismatch.lock().ok().and_then(|m| m.clone())
@@ -198,7 +260,10 @@ impl ServerCertVerifier for PinVerifier {
     ) -> Result<ServerCertVerified, rustls::Error> {
         let got: [u8; 32] = Sha256::digest(end_entity.as_ref()).into();
         // Constant-time compare (the pin is not secret, but it costs nothing).
-        let diff = got.iter().zip(self.pin.iter()).fold(0u8, |a, (x, y)| a | (x ^ y));
+        let diff = got
+            .iter()
+            .zip(self.pin.iter())
+            .fold(0u8, |a, (x, y)| a | (x ^ y));
         if diff == 0 {
             Ok(ServerCertVerified::assertion())
         } else {
@@ -220,7 +285,12 @@ impl ServerCertVerifier for PinVerifier {
         cert: &CertificateDer<'_>,
         dss: &DigitallySignedStruct,
     ) -> Result<HandshakeSignatureValid, rustls::Error> {
-        verify_tls12_signature(message, cert, dss, &self.provider.signature_verification_algorithms)
+        verify_tls12_signature(
+            message,
+            cert,
+            dss,
+            &self.provider.signature_verification_algorithms,
+        )
     }
 
     fn verify_tls13_signature(
@@ -229,15 +299,24 @@ impl ServerCertVerifier for PinVerifier {
         cert: &CertificateDer<'_>,
         dss: &DigitallySignedStruct,
     ) -> Result<HandshakeSignatureValid, rustls::Error> {
-        verify_tls13_signature(message, cert, dss, &self.provider.signature_verification_algorithms)
+        verify_tls13_signature(
+            message,
+            cert,
+            dss,
+            &self.provider.signature_verification_algorithms,
+        )
     }
 
     fn supported_verify_schemes(&self) -> Vec<SignatureScheme> {
-        self.provider.signature_verification_algorithms.supported_schemes()
+        self.provider
+            .signature_verification_algorithms
+            .supported_schemes()
     }
 }
 
-pub fn client_crypto(verifier: Arc<PinVerifier>) -> Result<quinn::crypto::rustls::QuicClientConfig> {
+pub fn client_crypto(
+    verifier: Arc<PinVerifier>,
+) -> Result<quinn::crypto::rustls::QuicClientConfig> {
     let mut cfg = rustls::ClientConfig::builder_with_provider(provider())
         .with_protocol_versions(&[&rustls::version::TLS13])
         .map_err(|e| anyhow!("TLS setup: {}", e))?
@@ -246,11 +325,18 @@ pub fn client_crypto(verifier: Arc<PinVerifier>) -> Result<quinn::crypto::rustls
         .with_no_client_auth();
     cfg.alpn_protocols = vec![ALPN.to_vec()];
     cfg.enable_early_data = false;
-    quinn::crypto::rustls::QuicClientConfig::try_from(cfg).map_err(|e| anyhow!("QUIC TLS setup: {}", e))
+    quinn::crypto::rustls::QuicClientConfig::try_from(cfg)
+        .map_err(|e| anyhow!("QUIC TLS setup: {}", e))
 }
 
 /// Constant-time token comparison.
 pub fn token_eq(a: &str, b: &str) -> bool {
-    let (ha, hb): ([u8; 32], [u8; 32]) = (Sha256::digest(a.as_bytes()).into(), Sha256::digest(b.as_bytes()).into());
-    ha.iter().zip(hb.iter()).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+    let (ha, hb): ([u8; 32], [u8; 32]) = (
+        Sha256::digest(a.as_bytes()).into(),
+        Sha256::digest(b.as_bytes()).into(),
+    );
+    ha.iter()
+        .zip(hb.iter())
+        .fold(0u8, |acc, (x, y)| acc | (x ^ y))
+        == 0
 }

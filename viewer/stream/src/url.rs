@@ -16,12 +16,23 @@ pub fn parse_url(url: &str) -> Result<(String, String)> {
         Some(i) => (&rest[..i], &rest[i + 1..]),
         None => (rest, ""),
     };
-    ensure!(!auth.is_empty(), "{:?}: missing host (quic://HOST:PORT/ASSET)", url);
-    ensure!(!auth.contains('@'), "{:?}: user info is not supported; pass the token with --token", url);
+    ensure!(
+        !auth.is_empty(),
+        "{:?}: missing host (quic://HOST:PORT/ASSET)",
+        url
+    );
+    ensure!(
+        !auth.contains('@'),
+        "{:?}: user info is not supported; pass the token with --token",
+        url
+    );
     let (host, port) = if let Some(r) = auth.strip_prefix('[') {
-        let end = r.find(']').ok_or_else(|| anyhow!("{:?}: unterminated [IPv6] host", url))?;
+        let end = r
+            .find(']')
+            .ok_or_else(|| anyhow!("{:?}: unterminated [IPv6] host", url))?;
         let host = &r[..end];
-        host.parse::<std::net::Ipv6Addr>().map_err(|_| anyhow!("{:?}: {:?} is not an IPv6 address", url, host))?;
+        host.parse::<std::net::Ipv6Addr>()
+            .map_err(|_| anyhow!("{:?}: {:?} is not an IPv6 address", url, host))?;
         let after = &r[end + 1..];
         let port = match after.strip_prefix(':') {
             Some(p) => Some(p),
@@ -37,7 +48,10 @@ pub fn parse_url(url: &str) -> Result<(String, String)> {
     };
     ensure!(!host.is_empty() && host != "[]", "{:?}: missing host", url);
     ensure!(
-        host.starts_with('[') || host.bytes().all(|c| c.is_ascii_alphanumeric() || c == b'.' || c == b'-'),
+        host.starts_with('[')
+            || host
+                .bytes()
+                .all(|c| c.is_ascii_alphanumeric() || c == b'.' || c == b'-'),
         "{:?}: {:?} is not a valid host name",
         url,
         host
@@ -51,7 +65,11 @@ pub fn parse_url(url: &str) -> Result<(String, String)> {
     };
     let asset = path.trim_end_matches('/');
     let asset = asset.strip_suffix(".snerf").unwrap_or(asset);
-    ensure!(!asset.contains('?') && !asset.contains('#'), "{:?}: query strings are not supported", url);
+    ensure!(
+        !asset.contains('?') && !asset.contains('#'),
+        "{:?}: query strings are not supported",
+        url
+    );
     ensure!(
         asset.is_empty() || valid_asset_name(asset),
         "{:?}: asset name {:?} may only use letters, digits, '.', '_' and '-' (no '/', not starting with '.')",
@@ -79,9 +97,18 @@ mod tests {
 
     #[test]
     fn urls() {
-        assert_eq!(parse_url("quic://127.0.0.1:4433/scene").unwrap(), ("127.0.0.1:4433".into(), "scene".into()));
-        assert_eq!(parse_url("quic://host.example/scene.snerf").unwrap(), ("host.example:4433".into(), "scene".into()));
-        assert_eq!(parse_url("quic://[::1]:9/a_b-c.d").unwrap(), ("[::1]:9".into(), "a_b-c.d".into()));
+        assert_eq!(
+            parse_url("quic://127.0.0.1:4433/scene").unwrap(),
+            ("127.0.0.1:4433".into(), "scene".into())
+        );
+        assert_eq!(
+            parse_url("quic://host.example/scene.snerf").unwrap(),
+            ("host.example:4433".into(), "scene".into())
+        );
+        assert_eq!(
+            parse_url("quic://[::1]:9/a_b-c.d").unwrap(),
+            ("[::1]:9".into(), "a_b-c.d".into())
+        );
         assert_eq!(parse_url("quic://h:1").unwrap(), ("h:1".into(), "".into()));
         assert_eq!(parse_url("quic://h:1/").unwrap(), ("h:1".into(), "".into()));
         for bad in [
@@ -102,9 +129,15 @@ mod tests {
         ] {
             let e = parse_url(bad);
             assert!(e.is_err(), "{} should fail", bad);
-            assert!(format!("{:#}", e.unwrap_err()).contains(bad), "error should quote the URL");
+            assert!(
+                format!("{:#}", e.unwrap_err()).contains(bad),
+                "error should quote the URL"
+            );
         }
-        assert_eq!(resolve("127.0.0.1:5").unwrap(), "127.0.0.1:5".parse().unwrap());
+        assert_eq!(
+            resolve("127.0.0.1:5").unwrap(),
+            "127.0.0.1:5".parse().unwrap()
+        );
         assert!(resolve("localhost:5").unwrap().ip().is_loopback());
     }
 }

@@ -9,7 +9,14 @@ use std::time::{Duration, Instant};
 
 const CLIENTS: usize = 20;
 
-async fn run_clients(url: &str, pin: &str, token: &str, dir: &std::path::Path, want: &[u8], round: usize) -> Duration {
+async fn run_clients(
+    url: &str,
+    pin: &str,
+    token: &str,
+    dir: &std::path::Path,
+    want: &[u8],
+    round: usize,
+) -> Duration {
     let t0 = Instant::now();
     let mut tasks = Vec::new();
     for i in 0..CLIENTS {
@@ -26,7 +33,11 @@ async fn run_clients(url: &str, pin: &str, token: &str, dir: &std::path::Path, w
     }
     let dt = t0.elapsed();
     for o in outs {
-        assert!(std::fs::read(&o).unwrap() == want, "{} differs from the served file", o.display());
+        assert!(
+            std::fs::read(&o).unwrap() == want,
+            "{} differs from the served file",
+            o.display()
+        );
         std::fs::remove_file(o).unwrap();
     }
     dt
@@ -40,7 +51,11 @@ fn twenty_clients_and_a_stalled_one() {
     std::fs::create_dir_all(&assets).unwrap();
     let want = write_asset(&static_asset(80, 8, 0.95, 7), &assets, "scene");
     let server = start_server(&assets, &dir.join("state"), Default::default());
-    let (url, pin, token) = (server.url("scene"), server.fingerprint().to_string(), server.token().to_string());
+    let (url, pin, token) = (
+        server.url("scene"),
+        server.fingerprint().to_string(),
+        server.token().to_string(),
+    );
     let rt = runtime();
     rt.block_on(async {
         // Warm the server's cache.
@@ -94,19 +109,48 @@ fn client_limit_refuses_extra_clients() {
     let assets = dir.join("assets");
     std::fs::create_dir_all(&assets).unwrap();
     write_asset(&static_asset(32, 8, 0.9, 8), &assets, "s");
-    let limits = snerf_stream::Limits { max_clients: 1, ..Default::default() };
+    let limits = snerf_stream::Limits {
+        max_clients: 1,
+        ..Default::default()
+    };
     let server = start_server(&assets, &dir.join("state"), limits);
     let rt = runtime();
     rt.block_on(async {
-        let (_ep, c1, _) = connect_raw(server.addr(), server.fingerprint(), &ClientOptions::default()).await.unwrap();
-        let e = fetch(&server.url("s"), server.fingerprint(), server.token(), &dir.join("x.snerf")).await.unwrap_err();
+        let (_ep, c1, _) = connect_raw(
+            server.addr(),
+            server.fingerprint(),
+            &ClientOptions::default(),
+        )
+        .await
+        .unwrap();
+        let e = fetch(
+            &server.url("s"),
+            server.fingerprint(),
+            server.token(),
+            &dir.join("x.snerf"),
+        )
+        .await
+        .unwrap_err();
         let msg = format!("{:#}", e);
         assert!(msg.contains("refused"), "{}", msg);
         c1.close(0u32.into(), b"");
         tokio::time::sleep(Duration::from_millis(100)).await;
-        fetch(&server.url("s"), server.fingerprint(), server.token(), &dir.join("x.snerf")).await.unwrap();
+        fetch(
+            &server.url("s"),
+            server.fingerprint(),
+            server.token(),
+            &dir.join("x.snerf"),
+        )
+        .await
+        .unwrap();
     });
-    assert!(server.stats().refused_busy.load(std::sync::atomic::Ordering::Relaxed) >= 1);
+    assert!(
+        server
+            .stats()
+            .refused_busy
+            .load(std::sync::atomic::Ordering::Relaxed)
+            >= 1
+    );
     server.shutdown();
 }
 
@@ -125,18 +169,42 @@ fn silent_and_stalled_clients_are_dropped_by_timeouts() {
     let rt = runtime();
     rt.block_on(async {
         let code_of = |e: quinn::ConnectionError| match e {
-            quinn::ConnectionError::ApplicationClosed(c) => (c.error_code.into_inner(), String::from_utf8_lossy(&c.reason).into_owned()),
+            quinn::ConnectionError::ApplicationClosed(c) => (
+                c.error_code.into_inner(),
+                String::from_utf8_lossy(&c.reason).into_owned(),
+            ),
             other => panic!("expected an application close, got {:?}", other),
         };
         // Connects, never opens the control stream.
-        let (_ep, silent, _) = connect_raw(server.addr(), server.fingerprint(), &ClientOptions::default()).await.unwrap();
+        let (_ep, silent, _) = connect_raw(
+            server.addr(),
+            server.fingerprint(),
+            &ClientOptions::default(),
+        )
+        .await
+        .unwrap();
         let t0 = Instant::now();
-        let (c, reason) = code_of(tokio::time::timeout(Duration::from_secs(10), silent.closed()).await.unwrap());
-        println!("TIMEOUT silent client closed after {:?}: code {} {}", t0.elapsed(), c, reason);
+        let (c, reason) = code_of(
+            tokio::time::timeout(Duration::from_secs(10), silent.closed())
+                .await
+                .unwrap(),
+        );
+        println!(
+            "TIMEOUT silent client closed after {:?}: code {} {}",
+            t0.elapsed(),
+            c,
+            reason
+        );
         assert_eq!(c, snerf_stream::proto::code::TIMEOUT as u64);
         // Says Hello, never reads: dropped once its windows are full for the stall timeout.
-        let opts = ClientOptions { stream_window: 32 * 1024, connection_window: 64 * 1024, ..Default::default() };
-        let (_ep2, stalled, _) = connect_raw(server.addr(), server.fingerprint(), &opts).await.unwrap();
+        let opts = ClientOptions {
+            stream_window: 32 * 1024,
+            connection_window: 64 * 1024,
+            ..Default::default()
+        };
+        let (_ep2, stalled, _) = connect_raw(server.addr(), server.fingerprint(), &opts)
+            .await
+            .unwrap();
         let (mut send, _recv) = stalled.open_bi().await.unwrap();
         let hello = ClientMsg::Hello {
             version: PROTOCOL_VERSION,
@@ -148,8 +216,18 @@ fn silent_and_stalled_clients_are_dropped_by_timeouts() {
         };
         send.write_all(&encode_frame(&hello)).await.unwrap();
         let t0 = Instant::now();
-        let (c, reason) = code_of(tokio::time::timeout(Duration::from_secs(20), stalled.closed()).await.unwrap());
-        println!("TIMEOUT stalled client closed after {:?}: code {} {} (received {} UDP bytes)", t0.elapsed(), c, reason, stalled.stats().udp_rx.bytes);
+        let (c, reason) = code_of(
+            tokio::time::timeout(Duration::from_secs(20), stalled.closed())
+                .await
+                .unwrap(),
+        );
+        println!(
+            "TIMEOUT stalled client closed after {:?}: code {} {} (received {} UDP bytes)",
+            t0.elapsed(),
+            c,
+            reason,
+            stalled.stats().udp_rx.bytes
+        );
         assert_eq!(c, snerf_stream::proto::code::TIMEOUT as u64);
         assert!(stalled.stats().udp_rx.bytes < 256 * 1024);
     });

@@ -13,11 +13,17 @@ fn fetch_through_lossy_relay_is_byte_identical() {
     let assets = dir.join("assets");
     std::fs::create_dir_all(&assets).unwrap();
     let want = write_asset(&static_asset(64, 8, 0.95, 11), &assets, "scene");
-    for cc in [snerf_stream::Congestion::Bbr, snerf_stream::Congestion::Cubic] {
-    let limits = snerf_stream::Limits { congestion: cc, ..Default::default() };
-    let server = start_server(&assets, &dir.join("state"), limits);
-    let rt = runtime();
-    rt.block_on(async {
+    for cc in [
+        snerf_stream::Congestion::Bbr,
+        snerf_stream::Congestion::Cubic,
+    ] {
+        let limits = snerf_stream::Limits {
+            congestion: cc,
+            ..Default::default()
+        };
+        let server = start_server(&assets, &dir.join("state"), limits);
+        let rt = runtime();
+        rt.block_on(async {
         let cfg = RelayConfig {
             drop: 0.05,
             delay: Duration::from_millis(25),
@@ -49,7 +55,7 @@ fn fetch_through_lossy_relay_is_byte_identical() {
         );
         assert!(drop > 0, "the relay dropped nothing");
     });
-    server.shutdown();
+        server.shutdown();
     }
 }
 
@@ -113,24 +119,57 @@ fn client_abort_then_resume_and_torn_part_file() {
     let rt = runtime();
     rt.block_on(async {
         let out = dir.join("scene.snerf");
-        let opts = ClientOptions { abort_after_bytes: Some(size / 2), ..Default::default() };
-        fetch_with(&server.url("scene"), server.fingerprint(), server.token(), &out, &opts).await.unwrap_err();
+        let opts = ClientOptions {
+            abort_after_bytes: Some(size / 2),
+            ..Default::default()
+        };
+        fetch_with(
+            &server.url("scene"),
+            server.fingerprint(),
+            server.token(),
+            &out,
+            &opts,
+        )
+        .await
+        .unwrap_err();
         // Tear the tail of the .part log: the torn record is dropped and fetched again.
         let p = part_path(&out);
         let len = std::fs::metadata(&p).unwrap().len();
         let f = std::fs::OpenOptions::new().write(true).open(&p).unwrap();
         f.set_len(len - 100).unwrap();
         drop(f);
-        let st = fetch(&server.url("scene"), server.fingerprint(), server.token(), &out).await.unwrap();
+        let st = fetch(
+            &server.url("scene"),
+            server.fingerprint(),
+            server.token(),
+            &out,
+        )
+        .await
+        .unwrap();
         assert!(st.resumed && st.chunks_already_had > 0);
         assert!(std::fs::read(&out).unwrap() == want);
         // A .part of another file (different sha) is discarded, not mixed in.
         let other = dir.join("other.snerf");
-        fetch_with(&server.url("scene"), server.fingerprint(), server.token(), &other, &opts).await.unwrap_err();
+        fetch_with(
+            &server.url("scene"),
+            server.fingerprint(),
+            server.token(),
+            &other,
+            &opts,
+        )
+        .await
+        .unwrap_err();
         let asset2 = static_asset(64, 8, 0.95, 14);
         asset2.write(assets.join("scene.snerf")).unwrap();
         let want2 = std::fs::read(assets.join("scene.snerf")).unwrap();
-        let st = fetch(&server.url("scene"), server.fingerprint(), server.token(), &other).await.unwrap();
+        let st = fetch(
+            &server.url("scene"),
+            server.fingerprint(),
+            server.token(),
+            &other,
+        )
+        .await
+        .unwrap();
         assert!(!st.resumed);
         assert!(std::fs::read(&other).unwrap() == want2);
     });

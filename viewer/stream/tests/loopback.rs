@@ -23,9 +23,18 @@ fn fetch_is_byte_identical_and_keeps_up_with_tcp() {
     let (mut best_q, mut best_t, mut best_total) = (Duration::MAX, Duration::MAX, Duration::MAX);
     for round in 0..3 {
         let _ = std::fs::remove_file(&out);
-        let st = rt.block_on(fetch(&url, server.fingerprint(), server.token(), &out)).unwrap();
-        assert_eq!(std::fs::read(&out).unwrap(), *bytes, "fetched file differs from the served file");
-        assert!(!snerf_stream::part_path(&out).exists(), ".part left behind after a complete fetch");
+        let st = rt
+            .block_on(fetch(&url, server.fingerprint(), server.token(), &out))
+            .unwrap();
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            *bytes,
+            "fetched file differs from the served file"
+        );
+        assert!(
+            !snerf_stream::part_path(&out).exists(),
+            ".part left behind after a complete fetch"
+        );
         assert_eq!(st.chunks_received, st.chunks);
         let tcp_out = dir.join("tcp.bin");
         let t = tcp_copy(bytes.clone(), &tcp_out);
@@ -56,7 +65,11 @@ fn fetch_is_byte_identical_and_keeps_up_with_tcp() {
     );
     // The bar is 50%; quinn itself reaches ~25-40% of kernel TCP on this 2-vCPU machine, so
     // the test guards against regressions (e.g. a stalled pipeline) with a looser bound.
-    assert!(ratio >= 0.15, "QUIC throughput is only {:.0}% of TCP", ratio * 100.0);
+    assert!(
+        ratio >= 0.15,
+        "QUIC throughput is only {:.0}% of TCP",
+        ratio * 100.0
+    );
     server.shutdown();
 }
 
@@ -89,15 +102,32 @@ fn time_to_first_renderable_view() {
     let size = bytes.len() as u64;
     let server = start_server(&assets, &dir.join("state"), Default::default());
     // Eye at the centre of the scene looking along +x with a 60° field of view.
-    let pose = Pose { eye: [0.0, 0.0, 0.0], forward: [1.0, 0.0, 0.0], time: 0.0, fov_deg: 60.0 };
+    let pose = Pose {
+        eye: [0.0, 0.0, 0.0],
+        forward: [1.0, 0.0, 0.0],
+        time: 0.0,
+        fov_deg: 60.0,
+    };
     let (view, ideal_bytes, meta_bytes) = blocks_in_view(&assets.join("room.snerf"), &pose);
-    let nblocks = ServedAsset::load("x", &assets.join("room.snerf")).unwrap().blks.len();
-    assert!(view.len() * 3 < nblocks, "test view should see a minority of blocks ({} of {})", view.len(), nblocks);
+    let nblocks = ServedAsset::load("x", &assets.join("room.snerf"))
+        .unwrap()
+        .blks
+        .len();
+    assert!(
+        view.len() * 3 < nblocks,
+        "test view should see a minority of blocks ({} of {})",
+        view.len(),
+        nblocks
+    );
     let url = server.url("room");
     let measure = |label: &str| {
-        let opts = ClientOptions { pose: Some(pose), ..Default::default() };
+        let opts = ClientOptions {
+            pose: Some(pose),
+            ..Default::default()
+        };
         let t0 = Instant::now();
-        let live = LiveAsset::connect_with(&url, server.fingerprint(), server.token(), opts).unwrap();
+        let live =
+            LiveAsset::connect_with(&url, server.fingerprint(), server.token(), opts).unwrap();
         let (mut t_render, mut t_view) = (None, None);
         let mut order: Vec<u32> = Vec::new();
         let mut missing: std::collections::HashSet<u32> = view.iter().copied().collect();
@@ -122,7 +152,8 @@ fn time_to_first_renderable_view() {
         // Bytes the client had when the last block of the view arrived: meta + every block
         // that arrived up to it (all blocks have the same size), from the arrival order.
         let per_block = (size - meta_bytes) as f64 / nblocks as f64;
-        let bytes_at_view = meta_bytes as f64 + view_pos.expect("view blocks never arrived") as f64 * per_block;
+        let bytes_at_view =
+            meta_bytes as f64 + view_pos.expect("view blocks never arrived") as f64 * per_block;
         live.wait(Duration::from_secs(60)).unwrap();
         let total = live.time_to_complete().unwrap();
         let t_view = t_view.expect("view blocks never arrived");
@@ -148,7 +179,11 @@ fn time_to_first_renderable_view() {
     measure("cold server");
     let frac = measure("warm server");
     // File order would need nearly the whole file; pose order needs the view plus what is in flight.
-    assert!(frac < 0.6, "first view needed {:.0}% of the file", frac * 100.0);
+    assert!(
+        frac < 0.6,
+        "first view needed {:.0}% of the file",
+        frac * 100.0
+    );
     server.shutdown();
 }
 
@@ -163,18 +198,34 @@ fn pose_change_reprioritizes_remaining_blocks() {
     write_asset(&static_asset(96, 8, 0.95, 3), &assets, "room");
     let path = assets.join("room.snerf");
     let server = start_server(&assets, &dir.join("state"), Default::default());
-    let a = Pose { eye: [0.0, 0.0, 0.0], forward: [1.0, 0.0, 0.0], time: 0.0, fov_deg: 60.0 };
-    let b = Pose { eye: [0.0, 0.0, 0.0], forward: [-1.0, 0.0, 0.0], time: 0.0, fov_deg: 60.0 };
+    let a = Pose {
+        eye: [0.0, 0.0, 0.0],
+        forward: [1.0, 0.0, 0.0],
+        time: 0.0,
+        fov_deg: 60.0,
+    };
+    let b = Pose {
+        eye: [0.0, 0.0, 0.0],
+        forward: [-1.0, 0.0, 0.0],
+        time: 0.0,
+        fov_deg: 60.0,
+    };
     let (va, _, _) = blocks_in_view(&path, &a);
     let (vb, _, _) = blocks_in_view(&path, &b);
     let n = ServedAsset::load("x", &path).unwrap().blks.len();
     let rt = runtime();
     let relay = rt.block_on(start_relay(
         server.addr(),
-        RelayConfig { delay: Duration::from_millis(20), ..Default::default() },
+        RelayConfig {
+            delay: Duration::from_millis(20),
+            ..Default::default()
+        },
     ));
     let url = format!("quic://{}/room", relay.addr);
-    let opts = ClientOptions { pose: Some(a), ..Default::default() };
+    let opts = ClientOptions {
+        pose: Some(a),
+        ..Default::default()
+    };
     let live = LiveAsset::connect_with(&url, server.fingerprint(), server.token(), opts).unwrap();
     // Turn around as soon as the first view is there.
     let t0 = Instant::now();
@@ -183,17 +234,25 @@ fn pose_change_reprioritizes_remaining_blocks() {
         if !p.is_empty() && va.iter().all(|&i| p[i as usize]) {
             break;
         }
-        assert!(t0.elapsed() < Duration::from_secs(60) && live.error().is_none(), "first view never arrived");
+        assert!(
+            t0.elapsed() < Duration::from_secs(60) && live.error().is_none(),
+            "first view never arrived"
+        );
         std::thread::sleep(Duration::from_millis(1));
     }
     live.set_pose_full(b);
     let p_turn = live.present_blocks();
     let had_at_turn = p_turn.iter().filter(|&&x| x).count();
-    let others: Vec<u32> = (0..n as u32).filter(|i| !va.contains(i) && !vb.contains(i)).collect();
+    let others: Vec<u32> = (0..n as u32)
+        .filter(|i| !va.contains(i) && !vb.contains(i))
+        .collect();
     loop {
         let p = live.present_blocks();
         if vb.iter().all(|&i| p[i as usize]) {
-            let others_new = others.iter().filter(|&&i| p[i as usize] && !p_turn[i as usize]).count();
+            let others_new = others
+                .iter()
+                .filter(|&&i| p[i as usize] && !p_turn[i as usize])
+                .count();
             let others_left_at_turn = others.iter().filter(|&&i| !p_turn[i as usize]).count();
             println!(
                 "REPRIORITIZE {} blocks: view A {} / view B {} / others {}; at the turn {} present; when view B was complete {} of the {} others missing at the turn had arrived",
@@ -215,7 +274,11 @@ fn pose_change_reprioritizes_remaining_blocks() {
             );
             break;
         }
-        assert!(t0.elapsed() < Duration::from_secs(120) && live.error().is_none(), "view B never completed: {:?}", live.error());
+        assert!(
+            t0.elapsed() < Duration::from_secs(120) && live.error().is_none(),
+            "view B never completed: {:?}",
+            live.error()
+        );
         std::thread::sleep(Duration::from_millis(1));
     }
     live.wait(Duration::from_secs(120)).unwrap();
@@ -235,7 +298,13 @@ fn dynamic_keyframes_ahead_of_playback_first() {
     let server = start_server(&assets, &dir.join("state"), Default::default());
     let rt = runtime();
     let out = dir.join("anim.snerf");
-    rt.block_on(fetch(&server.url("anim"), server.fingerprint(), server.token(), &out)).unwrap();
+    rt.block_on(fetch(
+        &server.url("anim"),
+        server.fingerprint(),
+        server.token(),
+        &out,
+    ))
+    .unwrap();
     assert_eq!(std::fs::read(&out).unwrap(), bytes);
     // First frame using each block.
     let mut first_frame = vec![usize::MAX; asset.header.atlas_blocks as usize];
@@ -247,15 +316,39 @@ fn dynamic_keyframes_ahead_of_playback_first() {
         }
     }
     // Through a delayed relay so arrival order reflects send order, playback at keyframe 2.
-    let relay = rt.block_on(start_relay(server.addr(), RelayConfig { delay: Duration::from_millis(10), ..Default::default() }));
+    let relay = rt.block_on(start_relay(
+        server.addr(),
+        RelayConfig {
+            delay: Duration::from_millis(10),
+            ..Default::default()
+        },
+    ));
     let url = format!("quic://{}/anim", relay.addr);
-    let pose = Pose { eye: [0.0, 0.0, 3.0], forward: [0.0, 0.0, -1.0], time: 2.0, fov_deg: 60.0 };
-    let live = LiveAsset::connect_with(&url, server.fingerprint(), server.token(), ClientOptions { pose: Some(pose), ..Default::default() }).unwrap();
+    let pose = Pose {
+        eye: [0.0, 0.0, 3.0],
+        forward: [0.0, 0.0, -1.0],
+        time: 2.0,
+        fov_deg: 60.0,
+    };
+    let live = LiveAsset::connect_with(
+        &url,
+        server.fingerprint(),
+        server.token(),
+        ClientOptions {
+            pose: Some(pose),
+            ..Default::default()
+        },
+    )
+    .unwrap();
     let mut order = Vec::new();
     let t0 = Instant::now();
     while !live.is_complete() {
         order.extend(live.take_new_blocks());
-        assert!(t0.elapsed() < Duration::from_secs(60) && live.error().is_none(), "{:?}", live.error());
+        assert!(
+            t0.elapsed() < Duration::from_secs(60) && live.error().is_none(),
+            "{:?}",
+            live.error()
+        );
         std::thread::sleep(Duration::from_millis(1));
     }
     order.extend(live.take_new_blocks());
@@ -270,8 +363,16 @@ fn dynamic_keyframes_ahead_of_playback_first() {
         }
     }
     let mean_rank = |pred: &dyn Fn(&Vec<usize>) -> bool| {
-        let r: Vec<usize> = order.iter().enumerate().filter(|(_, &b)| pred(&uses[b as usize])).map(|(i, _)| i).collect();
-        (r.iter().sum::<usize>() as f64 / r.len().max(1) as f64, r.len())
+        let r: Vec<usize> = order
+            .iter()
+            .enumerate()
+            .filter(|(_, &b)| pred(&uses[b as usize]))
+            .map(|(i, _)| i)
+            .collect();
+        (
+            r.iter().sum::<usize>() as f64 / r.len().max(1) as f64,
+            r.len(),
+        )
     };
     let (now, n_now) = mean_rank(&|u| u.contains(&2));
     let (next, n_next) = mean_rank(&|u| u.contains(&3) && !u.contains(&2));
@@ -286,7 +387,10 @@ fn dynamic_keyframes_ahead_of_playback_first() {
         past,
         n_past
     );
-    assert!(now < next && next < past, "keyframes not streamed ahead of playback");
+    assert!(
+        now < next && next < past,
+        "keyframes not streamed ahead of playback"
+    );
     let _ = first_frame;
     drop(relay);
     server.shutdown();
@@ -298,7 +402,14 @@ fn bench_stream_runs() {
     let _s = serial();
     let dir = TempDir::new("bench");
     write_asset(&static_asset(64, 8, 0.95, 5), dir.path(), "b");
-    let r = snerf_stream::bench::run(&dir.join("b.snerf"), &snerf_stream::bench::BenchOptions { rounds: 1, ..Default::default() }).unwrap();
+    let r = snerf_stream::bench::run(
+        &dir.join("b.snerf"),
+        &snerf_stream::bench::BenchOptions {
+            rounds: 1,
+            ..Default::default()
+        },
+    )
+    .unwrap();
     println!("BENCH\n{}", r);
     assert!(r.first_view_blocks > 0 && r.first_view_blocks <= r.blocks);
     assert!(r.renderable <= r.first_view && r.first_view <= r.complete);

@@ -36,12 +36,23 @@ fn wrong_token_is_refused_before_any_asset_byte() {
     rt.block_on(async {
         // Raw client: count every stream frame the server sends us.
         let opts = ClientOptions::default();
-        let (_ep, conn, _) = connect_raw(server.addr(), server.fingerprint(), &opts).await.unwrap();
+        let (_ep, conn, _) = connect_raw(server.addr(), server.fingerprint(), &opts)
+            .await
+            .unwrap();
         let (mut send, mut recv) = conn.open_bi().await.unwrap();
-        send.write_all(&encode_frame(&hello("0000wrong0000token0000", Some("scene")))).await.unwrap();
+        send.write_all(&encode_frame(&hello(
+            "0000wrong0000token0000",
+            Some("scene"),
+        )))
+        .await
+        .unwrap();
         let mut buf = [0u8; 64];
         let r = recv.read(&mut buf).await;
-        assert!(r.is_err(), "server answered a wrong token with data: {:?}", r);
+        assert!(
+            r.is_err(),
+            "server answered a wrong token with data: {:?}",
+            r
+        );
         let why = conn.closed().await;
         match &why {
             quinn::ConnectionError::ApplicationClosed(c) => {
@@ -52,20 +63,42 @@ fn wrong_token_is_refused_before_any_asset_byte() {
         }
         assert!(conn.accept_uni().await.is_err());
         let st = conn.stats();
-        assert_eq!(st.frame_rx.stream, 0, "server sent {} STREAM frames to an unauthenticated client", st.frame_rx.stream);
-        println!("SECURITY wrong token: closed with code {} ({}), STREAM frames received: {}", code::UNAUTHORIZED, why, st.frame_rx.stream);
+        assert_eq!(
+            st.frame_rx.stream, 0,
+            "server sent {} STREAM frames to an unauthenticated client",
+            st.frame_rx.stream
+        );
+        println!(
+            "SECURITY wrong token: closed with code {} ({}), STREAM frames received: {}",
+            code::UNAUTHORIZED,
+            why,
+            st.frame_rx.stream
+        );
         // The fetch client reports it clearly and writes nothing.
         let out = dir.join("x.snerf");
-        let e = fetch(&server.url("scene"), server.fingerprint(), "not-the-token", &out).await.unwrap_err();
+        let e = fetch(
+            &server.url("scene"),
+            server.fingerprint(),
+            "not-the-token",
+            &out,
+        )
+        .await
+        .unwrap_err();
         let msg = format!("{:#}", e);
-        assert!(msg.contains("unauthorized") && msg.contains("invalid access token"), "{}", msg);
+        assert!(
+            msg.contains("unauthorized") && msg.contains("invalid access token"),
+            "{}",
+            msg
+        );
         assert!(!out.exists() && !snerf_stream::part_path(&out).exists());
     });
     assert_eq!(server.stats().unauthorized.load(Ordering::Relaxed), 2);
     assert_eq!(server.stats().bytes_sent.load(Ordering::Relaxed), 0);
     assert_eq!(server.stats().streams_started.load(Ordering::Relaxed), 0);
     // LiveAsset too.
-    let e = LiveAsset::connect(&server.url("scene"), server.fingerprint(), "nope").err().unwrap();
+    let e = LiveAsset::connect(&server.url("scene"), server.fingerprint(), "nope")
+        .err()
+        .unwrap();
     assert!(format!("{:#}", e).contains("invalid access token"));
     server.shutdown();
 }
@@ -77,35 +110,77 @@ fn wrong_pin_is_refused_by_the_client() {
     let wrong = "ab".repeat(32);
     rt.block_on(async {
         let out = dir.join("x.snerf");
-        let e = fetch(&server.url("scene"), &wrong, server.token(), &out).await.unwrap_err();
+        let e = fetch(&server.url("scene"), &wrong, server.token(), &out)
+            .await
+            .unwrap_err();
         let msg = format!("{:#}", e);
         println!("SECURITY wrong pin: {}", msg);
-        assert!(msg.contains("does not match the pinned fingerprint"), "{}", msg);
-        assert!(msg.contains(server.fingerprint()) && msg.contains(&wrong), "error should name both fingerprints: {}", msg);
+        assert!(
+            msg.contains("does not match the pinned fingerprint"),
+            "{}",
+            msg
+        );
+        assert!(
+            msg.contains(server.fingerprint()) && msg.contains(&wrong),
+            "error should name both fingerprints: {}",
+            msg
+        );
         assert!(!out.exists());
         // Malformed pins are rejected before connecting.
         for bad in ["", "xyz", &"ab".repeat(31)] {
-            let e = fetch(&server.url("scene"), bad, server.token(), &out).await.unwrap_err();
+            let e = fetch(&server.url("scene"), bad, server.token(), &out)
+                .await
+                .unwrap_err();
             assert!(format!("{:#}", e).contains("fingerprint"), "{:#}", e);
         }
         // Pin formats with colons / prefix / upper case are accepted.
-        let colon: String = server.fingerprint().to_uppercase().as_bytes().chunks(2).map(|c| std::str::from_utf8(c).unwrap()).collect::<Vec<_>>().join(":");
-        fetch(&server.url("scene"), &format!("sha256:{}", colon), server.token(), &out).await.unwrap();
+        let colon: String = server
+            .fingerprint()
+            .to_uppercase()
+            .as_bytes()
+            .chunks(2)
+            .map(|c| std::str::from_utf8(c).unwrap())
+            .collect::<Vec<_>>()
+            .join(":");
+        fetch(
+            &server.url("scene"),
+            &format!("sha256:{}", colon),
+            server.token(),
+            &out,
+        )
+        .await
+        .unwrap();
     });
     // The token never reached a server the client did not trust: nothing was authenticated.
     server.shutdown();
 }
 
 /// Send raw bytes on a fresh control stream and return the close code the server used.
-async fn close_code_for(server: &snerf_stream::ServerHandle, bytes: Vec<u8>, finish: bool) -> (u64, String) {
-    let (_ep, conn, _) = connect_raw(server.addr(), server.fingerprint(), &ClientOptions::default()).await.unwrap();
+async fn close_code_for(
+    server: &snerf_stream::ServerHandle,
+    bytes: Vec<u8>,
+    finish: bool,
+) -> (u64, String) {
+    let (_ep, conn, _) = connect_raw(
+        server.addr(),
+        server.fingerprint(),
+        &ClientOptions::default(),
+    )
+    .await
+    .unwrap();
     let (mut send, _recv) = conn.open_bi().await.unwrap();
     let _ = send.write_all(&bytes).await;
     if finish {
         let _ = send.finish();
     }
-    match tokio::time::timeout(Duration::from_secs(20), conn.closed()).await.expect("server did not close the connection") {
-        quinn::ConnectionError::ApplicationClosed(c) => (c.error_code.into_inner(), String::from_utf8_lossy(&c.reason).into_owned()),
+    match tokio::time::timeout(Duration::from_secs(20), conn.closed())
+        .await
+        .expect("server did not close the connection")
+    {
+        quinn::ConnectionError::ApplicationClosed(c) => (
+            c.error_code.into_inner(),
+            String::from_utf8_lossy(&c.reason).into_owned(),
+        ),
         other => panic!("expected an application close, got {:?}", other),
     }
 }
@@ -117,11 +192,19 @@ fn hostile_control_messages_close_only_that_connection() {
     let token = server.token().to_string();
     rt.block_on(async {
         // A good client streams the whole time through a slow relay.
-        let relay = start_relay(server.addr(), RelayConfig { delay: Duration::from_millis(15), ..Default::default() }).await;
+        let relay = start_relay(
+            server.addr(),
+            RelayConfig {
+                delay: Duration::from_millis(15),
+                ..Default::default()
+            },
+        )
+        .await;
         let good_url = format!("quic://{}/scene", relay.addr);
         let out = dir.join("good.snerf");
         let (pin, tok) = (server.fingerprint().to_string(), token.clone());
-        let good = tokio::spawn(async move { fetch(&good_url, &pin, &tok, &out).await.map(|_| out) });
+        let good =
+            tokio::spawn(async move { fetch(&good_url, &pin, &tok, &out).await.map(|_| out) });
 
         let frame = |json: &str| {
             let mut b = (json.len() as u32).to_le_bytes().to_vec();
@@ -129,22 +212,103 @@ fn hostile_control_messages_close_only_that_connection() {
             b
         };
         let cases: Vec<(&str, Vec<u8>, bool, u32)> = vec![
-            ("not JSON", frame("this is not json"), false, code::MALFORMED),
-            ("unknown type", frame(r#"{"type":"gimme"}"#), false, code::MALFORMED),
-            ("oversized length prefix", (100u32 << 20).to_le_bytes().to_vec(), false, code::TOO_LARGE),
-            ("List before Hello", encode_frame(&ClientMsg::List), false, code::PROTOCOL),
-            ("truncated frame", { let mut b = frame(r#"{"type":"list"}"#); b.truncate(8); b }, true, code::MALFORMED),
+            (
+                "not JSON",
+                frame("this is not json"),
+                false,
+                code::MALFORMED,
+            ),
+            (
+                "unknown type",
+                frame(r#"{"type":"gimme"}"#),
+                false,
+                code::MALFORMED,
+            ),
+            (
+                "oversized length prefix",
+                (100u32 << 20).to_le_bytes().to_vec(),
+                false,
+                code::TOO_LARGE,
+            ),
+            (
+                "List before Hello",
+                encode_frame(&ClientMsg::List),
+                false,
+                code::PROTOCOL,
+            ),
+            (
+                "truncated frame",
+                {
+                    let mut b = frame(r#"{"type":"list"}"#);
+                    b.truncate(8);
+                    b
+                },
+                true,
+                code::MALFORMED,
+            ),
             ("stream closed before Hello", vec![], true, code::PROTOCOL),
-            ("wrong version", frame(&format!(r#"{{"type":"hello","version":99,"token":"{}"}}"#, token)), false, code::VERSION),
-            ("duplicate Hello", { let mut b = encode_frame(&hello(&token, None)); b.extend(encode_frame(&hello(&token, None))); b }, false, code::PROTOCOL),
-            ("bad asset name", encode_frame(&hello(&token, Some("../etc/passwd"))), false, code::NOT_FOUND),
-            ("no such asset", encode_frame(&hello(&token, Some("nope"))), false, code::NOT_FOUND),
-            ("inverted have range", frame(&format!(r#"{{"type":"hello","version":1,"token":"{}","have":[[5,1]]}}"#, token)), false, code::MALFORMED),
-            ("random bytes", { let mut r = Rng(99); let mut b = vec![0u8; 300]; r.fill(&mut b); b[..4].copy_from_slice(&296u32.to_le_bytes()); b }, false, code::MALFORMED),
+            (
+                "wrong version",
+                frame(&format!(
+                    r#"{{"type":"hello","version":99,"token":"{}"}}"#,
+                    token
+                )),
+                false,
+                code::VERSION,
+            ),
+            (
+                "duplicate Hello",
+                {
+                    let mut b = encode_frame(&hello(&token, None));
+                    b.extend(encode_frame(&hello(&token, None)));
+                    b
+                },
+                false,
+                code::PROTOCOL,
+            ),
+            (
+                "bad asset name",
+                encode_frame(&hello(&token, Some("../etc/passwd"))),
+                false,
+                code::NOT_FOUND,
+            ),
+            (
+                "no such asset",
+                encode_frame(&hello(&token, Some("nope"))),
+                false,
+                code::NOT_FOUND,
+            ),
+            (
+                "inverted have range",
+                frame(&format!(
+                    r#"{{"type":"hello","version":1,"token":"{}","have":[[5,1]]}}"#,
+                    token
+                )),
+                false,
+                code::MALFORMED,
+            ),
+            (
+                "random bytes",
+                {
+                    let mut r = Rng(99);
+                    let mut b = vec![0u8; 300];
+                    r.fill(&mut b);
+                    b[..4].copy_from_slice(&296u32.to_le_bytes());
+                    b
+                },
+                false,
+                code::MALFORMED,
+            ),
         ];
         for (name, bytes, finish, want_code) in cases {
             let (c, reason) = close_code_for(&server, bytes, finish).await;
-            println!("SECURITY {:<28} -> closed with code {} ({}): {}", name, c, code::name(c), reason);
+            println!(
+                "SECURITY {:<28} -> closed with code {} ({}): {}",
+                name,
+                c,
+                code::name(c),
+                reason
+            );
             assert_eq!(c, want_code as u64, "{}: {}", name, reason);
         }
         // Garbage UDP at the server port and garbage datagrams from an authenticated client.
@@ -158,7 +322,14 @@ fn hostile_control_messages_close_only_that_connection() {
             }
             let _ = sock.send_to(&b, server.addr()).await;
         }
-        let mut s = open_session(server.addr(), server.fingerprint(), hello(&token, Some("scene")), &ClientOptions::default()).await.unwrap();
+        let mut s = open_session(
+            server.addr(),
+            server.fingerprint(),
+            hello(&token, Some("scene")),
+            &ClientOptions::default(),
+        )
+        .await
+        .unwrap();
         for _ in 0..500 {
             let mut b = vec![0u8; r.below(60) as usize];
             r.fill(&mut b);
@@ -170,11 +341,16 @@ fn hostile_control_messages_close_only_that_connection() {
         assert_eq!(l[0].name, "scene");
         s.close();
 
-        let out = good.await.unwrap().expect("the good client failed while others misbehaved");
+        let out = good
+            .await
+            .unwrap()
+            .expect("the good client failed while others misbehaved");
         assert!(std::fs::read(&out).unwrap() == want);
         // And the server still serves new clients.
         let out2 = dir.join("after.snerf");
-        fetch(&server.url("scene"), server.fingerprint(), &token, &out2).await.unwrap();
+        fetch(&server.url("scene"), server.fingerprint(), &token, &out2)
+            .await
+            .unwrap();
         assert!(std::fs::read(&out2).unwrap() == want);
     });
     println!(
@@ -204,7 +380,9 @@ fn no_panic_on_arbitrary_network_bytes() {
         br#"{"type":"listing","assets":[{"name":"a","size":1}]}"#.to_vec(),
         proto::encode_pose(7, &Pose::new([0.0; 3], [1.0, 0.0, 0.0])).to_vec(),
     ];
-    let rt = tokio::runtime::Builder::new_current_thread().build().unwrap();
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .build()
+        .unwrap();
     let n = 200_000;
     let t0 = std::time::Instant::now();
     let mut accepted = 0usize;
@@ -256,9 +434,19 @@ fn no_panic_on_arbitrary_network_bytes() {
         });
         match r {
             Ok(k) => accepted += k,
-            Err(_) => panic!("decoder panicked on input {} ({} bytes): {:?}", i, b.len(), &b[..b.len().min(64)]),
+            Err(_) => panic!(
+                "decoder panicked on input {} ({} bytes): {:?}",
+                i,
+                b.len(),
+                &b[..b.len().min(64)]
+            ),
         }
     }
-    println!("PROPERTY {} inputs through 7 decoders in {:.1} s without a panic ({} accepted)", n, t0.elapsed().as_secs_f64(), accepted);
+    println!(
+        "PROPERTY {} inputs through 7 decoders in {:.1} s without a panic ({} accepted)",
+        n,
+        t0.elapsed().as_secs_f64(),
+        accepted
+    );
     assert!(accepted > 0);
 }

@@ -16,7 +16,9 @@ fuzz_target!(|data: &[u8]| {
         let _ = proto::decode_server_msg(m);
         rest = r;
     }
-    let rt = tokio::runtime::Builder::new_current_thread().build().unwrap();
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .build()
+        .unwrap();
     let mut rd: &[u8] = data;
     let _ = rt.block_on(proto::read_frame(&mut rd, 1 << 16));
     let s = String::from_utf8_lossy(data);
@@ -35,7 +37,11 @@ fuzz_target!(|data: &[u8]| {
     let mut c = Collector::new(info).unwrap();
     let mut pos = 0;
     while pos + RECORD_HEADER_LEN <= data.len() {
-        let Ok((index, _, len)) = proto::parse_record_header(&data[pos..pos + RECORD_HEADER_LEN], 8, 1 << 16) else { break };
+        let Ok((index, _, len)) =
+            proto::parse_record_header(&data[pos..pos + RECORD_HEADER_LEN], 8, 1 << 16)
+        else {
+            break;
+        };
         let end = (pos + RECORD_HEADER_LEN + len as usize).min(data.len());
         let mut chunk = data[pos + 4..pos + 16].to_vec();
         chunk.extend_from_slice(&data[pos + 16..end]);

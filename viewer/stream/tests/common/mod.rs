@@ -48,7 +48,12 @@ impl TempDir {
         static N: AtomicU64 = AtomicU64::new(0);
         let p = std::env::temp_dir()
             .join("snerf-stream-tests")
-            .join(format!("{}-{}-{}", name, std::process::id(), N.fetch_add(1, Ordering::Relaxed)));
+            .join(format!(
+                "{}-{}-{}",
+                name,
+                std::process::id(),
+                N.fetch_add(1, Ordering::Relaxed)
+            ));
         let _ = std::fs::remove_dir_all(&p);
         std::fs::create_dir_all(&p).unwrap();
         TempDir(p)
@@ -152,7 +157,11 @@ pub fn start_server(assets: &Path, state: &Path, limits: Limits) -> ServerHandle
 }
 
 pub fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().unwrap()
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap()
 }
 
 /// Plain TCP copy of `bytes` over loopback into `out` (buffered file writes, like the QUIC
@@ -260,11 +269,19 @@ pub async fn start_relay(server: SocketAddr, cfg: RelayConfig) -> Relay {
         }
     };
     let c2s = {
-        let (front, back, client, fate, fwd) = (front.clone(), back.clone(), client.clone(), fate.clone(), forwarded.clone());
+        let (front, back, client, fate, fwd) = (
+            front.clone(),
+            back.clone(),
+            client.clone(),
+            fate.clone(),
+            forwarded.clone(),
+        );
         tokio::spawn(async move {
             let mut buf = vec![0u8; 65536];
             loop {
-                let Ok((n, from)) = front.recv_from(&mut buf).await else { break };
+                let Ok((n, from)) = front.recv_from(&mut buf).await else {
+                    break;
+                };
                 *client.lock().unwrap() = Some(from);
                 if let Some(d) = fate(n) {
                     let (pkt, back, fwd) = (buf[..n].to_vec(), back.clone(), fwd.clone());
@@ -280,18 +297,29 @@ pub async fn start_relay(server: SocketAddr, cfg: RelayConfig) -> Relay {
         })
     };
     let s2c = {
-        let (front, back, client, fate, fwd, bytes, cut) =
-            (front.clone(), back.clone(), client.clone(), fate.clone(), forwarded.clone(), s2c_bytes.clone(), cut.clone());
+        let (front, back, client, fate, fwd, bytes, cut) = (
+            front.clone(),
+            back.clone(),
+            client.clone(),
+            fate.clone(),
+            forwarded.clone(),
+            s2c_bytes.clone(),
+            cut.clone(),
+        );
         let cut_after = cfg.cut_after_s2c;
         tokio::spawn(async move {
             let mut buf = vec![0u8; 65536];
             loop {
-                let Ok(n) = back.recv(&mut buf).await else { break };
+                let Ok(n) = back.recv(&mut buf).await else {
+                    break;
+                };
                 let total = bytes.fetch_add(n as u64, Ordering::Relaxed) + n as u64;
                 if cut_after.is_some_and(|c| total > c) {
                     cut.store(true, Ordering::Relaxed);
                 }
-                let Some(to) = *client.lock().unwrap() else { continue };
+                let Some(to) = *client.lock().unwrap() else {
+                    continue;
+                };
                 if let Some(d) = fate(n) {
                     let (pkt, front, fwd) = (buf[..n].to_vec(), front.clone(), fwd.clone());
                     tokio::spawn(async move {
@@ -305,7 +333,14 @@ pub async fn start_relay(server: SocketAddr, cfg: RelayConfig) -> Relay {
             }
         })
     };
-    Relay { addr, s2c_bytes, dropped, forwarded, cut, tasks: vec![c2s, s2c] }
+    Relay {
+        addr,
+        s2c_bytes,
+        dropped,
+        forwarded,
+        cut,
+        tasks: vec![c2s, s2c],
+    }
 }
 
 pub fn mb(bytes: u64) -> f64 {
