@@ -50,6 +50,7 @@ struct Sample {
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
+// indirection grids of all keyframes: EMPTY or the packed atlas position of the block
 @group(0) @binding(1) var<storage, read> grid: array<u32>;
 // view MLP weights transposed to input-major vec4 rows (see gpu.rs `mlp_gpu_layout`)
 @group(0) @binding(2) var<uniform> mlp: array<vec4<f32>, 225>;
@@ -106,11 +107,11 @@ fn accum_add(v: Vals, delta: f32, t: f32) -> bool {
 }
 
 // ---- atlas ----
+// Grid entries hold the block's place in the atlas texture, in blocks, packed 10 bits per
+// axis (the host packs them; no per-sample integer division).
 fn block_origin(blk: u32) -> vec3<u32> {
-    let nx = P.grid.z;
-    let ny = P.grid.w;
     let e = BLOCK + 2u;
-    return vec3<u32>(blk % nx, (blk / nx) % ny, blk / (nx * ny)) * e;
+    return vec3<u32>(blk & 1023u, (blk >> 10u) & 1023u, blk >> 20u) * e;
 }
 
 // Trilinear values of one stored block, decoded (density as logit).
@@ -130,33 +131,29 @@ fn empty_vals() -> Vals {
     return o;
 }
 
-// sample.rs `sample_slot`: None when every side involved is empty.
+// sample.rs `sample_slot`: None when every side involved is empty. Written with two
+// interpolation sites only, so SIMD lanes that disagree run at most two block fetches.
 fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
     var s: Sample;
     let a = grid[P.frames.x + cell];
+    var b = a;
     let w = P.dens.z;
-    if (!DYNAMIC || w == 0.0 || P.frames.z != 0u) {
-        s.ok = a != EMPTY;
-        if (s.ok) {
-            s.v = interpolate(a, l);
-        }
-        return s;
+    if (DYNAMIC && w != 0.0 && P.frames.z == 0u) {
+        b = grid[P.frames.y + cell];
     }
-    let b = grid[P.frames.y + cell];
-    if (a == EMPTY && b == EMPTY) {
-        s.ok = false;
-        return s;
-    }
-    s.ok = true;
-    if (a == b) {
-        s.v = interpolate(a, l);
+    s.ok = a != EMPTY || b != EMPTY;
+    if (!s.ok) {
         return s;
     }
     var va = empty_vals();
-    var vb = empty_vals();
     if (a != EMPTY) {
         va = interpolate(a, l);
     }
+    if (!DYNAMIC || a == b) {
+        s.v = va;
+        return s;
+    }
+    var vb = empty_vals();
     if (b != EMPTY) {
         vb = interpolate(b, l);
     }

@@ -38,6 +38,10 @@ pub struct BakeArgs {
     /// Keep a block when some voxel reaches this opacity over one march step.
     #[arg(long, default_value_t = 0.005)]
     pub min_alpha: f32,
+    /// Dynamic scenes: share a block with the previous keyframe when no voxel's opacity (and
+    /// no seen colour) moved by more than this.
+    #[arg(long, default_value_t = 0.03)]
+    pub reuse_tolerance: f32,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = 32)]
     pub visibility_views: usize,
@@ -91,7 +95,7 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
         keyframes: a.keyframes,
         min_alpha: a.min_alpha,
         visibility_views: a.visibility_views,
-        ..Default::default()
+        reuse_tolerance: a.reuse_tolerance,
     };
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
     let (asset, report) = bake(&model, &pool, &data.train, bg, &opts, &|what, done, total| {
@@ -176,6 +180,10 @@ pub struct RenderArgs {
     /// Output directory for frame_NNN.png and preview.png.
     #[arg(long)]
     pub out: PathBuf,
+    /// Render through the viewer's GPU shaders (wgpu; lavapipe without a GPU). Without any
+    /// adapter it says so and falls back to the CPU reference renderer.
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 #[derive(serde::Deserialize)]
@@ -225,30 +233,46 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
     let asset = Asset::read(&a.file)?;
     let cams = render_path(&asset, &a.path, a.frames, parse_size(&a.size)?)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
-    let pb = bar(cams.len() as u64, "{spinner} rendering {bar:30} {pos}/{len} [{elapsed}]");
     let t0 = Instant::now();
-    let mut frames = Vec::new();
+    let (frames, renderer) = if a.gpu {
+        let (frames, by) = snerf_viewer::render_frames_or_cpu(&asset, &cams)?;
+        match by {
+            snerf_viewer::RenderedBy::Gpu(info) => (frames, format!("gpu: {info}")),
+            snerf_viewer::RenderedBy::Cpu(why) => {
+                eprintln!("{why}");
+                (frames, "cpu-reference (no GPU adapter)".to_string())
+            }
+        }
+    } else {
+        let pb = bar(cams.len() as u64, "{spinner} rendering {bar:30} {pos}/{len} [{elapsed}]");
+        let frames = cams
+            .iter()
+            .map(|(cam, time)| {
+                let f = asset_render::render(&asset, cam, *time);
+                pb.inc(1);
+                f
+            })
+            .collect();
+        pb.finish_and_clear();
+        (frames, "cpu-reference".to_string())
+    };
     let mut files = Vec::new();
-    for (i, (cam, time)) in cams.iter().enumerate() {
-        let f = asset_render::render(&asset, cam, *time);
+    for (i, f) in frames.iter().enumerate() {
         let file = a.out.join(format!("frame_{i:03}.png"));
-        asset_render::write_png(&f, &file)?;
+        asset_render::write_png(f, &file)?;
         files.push(file);
-        frames.push(f);
-        pb.inc(1);
     }
-    pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let preview = a.out.join("preview.png");
     asset_render::contact_strip(&frames[..frames.len().min(8)], &preview)?;
-    eprintln!("rendered {} frames in {:.1} s ({:.0} ms/frame, CPU reference) -> {}", frames.len(), secs, secs * 1e3 / frames.len() as f64, a.out.display());
+    eprintln!("rendered {} frames in {:.1} s ({:.0} ms/frame, {renderer}) -> {}", frames.len(), secs, secs * 1e3 / frames.len() as f64, a.out.display());
     Ok(json!({
         "command": "render",
         "file": a.file,
         "frames": files,
         "preview": preview,
         "seconds": secs,
-        "renderer": "cpu-reference",
+        "renderer": renderer,
     }))
 }
 

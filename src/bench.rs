@@ -15,6 +15,33 @@ pub enum BenchCmd {
     /// End-to-end training throughput (gradient-carrying samples per second) and where the
     /// time goes, after a warm-up so the occupancy grid has settled.
     Train(BenchTrainArgs),
+    /// One `arbitrary` stylization (tract-onnx) against onnxruntime on the same model, shapes
+    /// and thread count, side by side (onnxruntime from `pip install onnxruntime`).
+    Stylize(BenchStylizeArgs),
+    /// QUIC streaming on loopback: fetch throughput against a plain TCP copy of the same
+    /// bytes, and time to the first view.
+    Stream(BenchStreamArgs),
+    /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
+    /// reference renderer at the same size, in the same run.
+    View(crate::view_cmd::BenchViewArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchStylizeArgs {
+    /// View side in pixels (the view is SIZE x SIZE).
+    #[arg(long, default_value_t = 384)]
+    pub size: usize,
+    #[arg(long, default_value_t = 5)]
+    pub reps: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchStreamArgs {
+    /// A baked asset file.
+    pub asset: PathBuf,
+    /// Rounds of each measurement (the best is reported).
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
 }
 
 #[derive(Args, Debug)]
@@ -35,7 +62,28 @@ pub struct BenchTrainArgs {
 pub fn run(cmd: &BenchCmd) -> Result<Value> {
     match cmd {
         BenchCmd::Train(a) => train(a),
+        BenchCmd::Stylize(a) => stylize(a),
+        BenchCmd::View(a) => crate::view_cmd::bench_view(a),
+        BenchCmd::Stream(a) => crate::stream_cmd::bench_stream(&a.asset, a.rounds),
     }
+}
+
+fn stylize(a: &BenchStylizeArgs) -> Result<Value> {
+    use snerf_stylize::stylizer;
+    let opts = stylizer::StylizerOptions::default();
+    let tract = stylizer::bench_arbitrary(&opts, a.size, a.reps)?;
+    let ort = stylizer::bench_onnxruntime(&stylizer::models_dir(&opts), tract.transform_shape.0.max(tract.transform_shape.1), a.reps, tract.threads);
+    let ort_transform = ort.as_ref().and_then(|v| v.pointer("/transform_median_s")).and_then(|v| v.as_f64());
+    eprintln!(
+        "arbitrary {}x{}: tract whole stylization {:.3} s, transform network {:.3} s; onnxruntime transform {}; ratio {}",
+        a.size,
+        a.size,
+        tract.stylize_median_s,
+        tract.transform_median_s,
+        ort_transform.map(|t| format!("{t:.3} s")).unwrap_or_else(|| "n/a (pip install onnxruntime)".into()),
+        ort_transform.map(|t| format!("{:.2}x", tract.transform_median_s / t)).unwrap_or_else(|| "n/a".into()),
+    );
+    Ok(json!({ "command": "bench stylize", "tract": tract, "onnxruntime": ort }))
 }
 
 /// FLOPs per sample of the field (encode, decoder, both directions), counting an FMA as 2.

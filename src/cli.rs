@@ -56,6 +56,13 @@ pub enum Cmd {
     Render(crate::bake_cmd::RenderArgs),
     /// Export a baked asset as a binary glTF mesh (marching cubes, baked colours, world units).
     ExportGltf(crate::bake_cmd::ExportGltfArgs),
+    /// Show a baked asset in a window (wgpu): orbit/fly controls, stereo, 4D playback; also
+    /// streams from `snerf serve` (quic://HOST:PORT/ASSET) and draws blocks as they arrive.
+    View(crate::view_cmd::ViewArgs),
+    /// Serve baked assets over QUIC (TLS 1.3, self-signed certificate pinned by clients, token).
+    Serve(crate::stream_cmd::ServeArgs),
+    /// Download a baked asset from `snerf serve` (resumable, checksum-verified).
+    Fetch(crate::stream_cmd::FetchArgs),
     /// The whole path on built-in data: scene -> train -> eval -> turntable + contact sheet.
     Demo(crate::demo::DemoArgs),
     /// Benchmarks that print numbers (see BENCH.md).
@@ -239,6 +246,9 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::Inspect(a) => crate::bake_cmd::inspect_cmd(&a, cli.json)?,
         Cmd::Render(a) => crate::bake_cmd::render_cmd(&a)?,
         Cmd::ExportGltf(a) => crate::bake_cmd::export_gltf_cmd(&a)?,
+        Cmd::View(a) => crate::view_cmd::view_cmd(&a)?,
+        Cmd::Serve(a) => crate::stream_cmd::serve_cmd(&a)?,
+        Cmd::Fetch(a) => crate::stream_cmd::fetch_cmd(&a)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
         Cmd::Bench(b) => crate::bench::run(&b)?,
     };

@@ -173,6 +173,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         keyframes: 12,
         min_alpha: 0.005,
         visibility_views: 32,
+        reuse_tolerance: 0.03,
         eval_views: 4,
         opts: cli::DataOpts::default(),
     })?;
@@ -182,6 +183,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         frames: 8,
         size: a.size.clone(),
         out: a.out.join("baked_turntable"),
+        gpu: false,
     })?;
     eprintln!("[8/8] exporting a glTF mesh");
     let glb = a.out.join("stylized.glb");

@@ -4,7 +4,9 @@ mod bake_cmd;
 mod bench;
 mod cli;
 mod demo;
+mod stream_cmd;
 mod stylize_cmd;
+mod view_cmd;
 
 use std::process::ExitCode;
 

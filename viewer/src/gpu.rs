@@ -307,6 +307,8 @@ impl AtlasLayout {
         if cap == 0 || cap * cap * cap < n {
             return Err(fail());
         }
+        // Grid entries pack the block position 10 bits per axis (see march.wgsl).
+        let cap = cap.min(1024);
         let mut nx = ((n as f64).cbrt().ceil() as u64).clamp(1, cap);
         let mut ny = (n.div_ceil(nx) as f64).sqrt().ceil() as u64;
         ny = ny.clamp(1, cap);
@@ -333,6 +335,16 @@ impl AtlasLayout {
             self.ny * self.edge,
             self.nz * self.edge,
         ]
+    }
+
+    /// Position of `block` in blocks, packed for the shader: x | y << 10 | z << 20.
+    pub fn packed(&self, block: u32) -> u32 {
+        let (x, y, z) = (
+            block % self.nx,
+            block / self.nx % self.ny,
+            block / (self.nx * self.ny),
+        );
+        x | y << 10 | z << 20
     }
 
     pub fn origin(&self, block: u32) -> [u32; 3] {
@@ -720,7 +732,7 @@ impl GpuRenderer {
             if let Some(grid) = asset.grids.get(f).filter(|g| g.len() == g3) {
                 for (d, &e) in host[f * g3..(f + 1) * g3].iter_mut().zip(grid) {
                     if e != EMPTY && asset.present.get(e as usize).copied().unwrap_or(false) {
-                        *d = e;
+                        *d = self.layout.packed(e);
                     }
                 }
             }

@@ -316,7 +316,14 @@ fn all_variants_build_and_match() {
             let mut h = Header::new(kind, 16, 4);
             h.background = [0.3, 0.2, 0.1];
             if kind == Kind::Forward {
-                h.space.ndc = Some(Ndc { fx: 40.0, fy: 40.0, width: 64.0, height: 48.0, near: 1.0, xy_extent: 1.2 });
+                h.space.ndc = Some(Ndc {
+                    fx: 40.0,
+                    fy: 40.0,
+                    width: 64.0,
+                    height: 48.0,
+                    near: 1.0,
+                    xy_extent: 1.2,
+                });
             }
             if dynamic {
                 h.time_range = Some([0.0, 2.0]);
@@ -332,8 +339,10 @@ fn all_variants_build_and_match() {
                                 continue;
                             }
                             let blk = b.block_from_fn([x, y, z], |v| {
-                                let s = 0.5 + ((v[0] * 7 + v[1] * 3 + v[2] * 5 + f * 11) % 13) as f32;
-                                let c = [v[0] as f32 / 16.0, v[1] as f32 / 16.0, v[2] as f32 / 16.0];
+                                let s =
+                                    0.5 + ((v[0] * 7 + v[1] * 3 + v[2] * 5 + f * 11) % 13) as f32;
+                                let c =
+                                    [v[0] as f32 / 16.0, v[1] as f32 / 16.0, v[2] as f32 / 16.0];
                                 encode_voxel(s.ln(), c, [c[2], c[1], c[0], 0.5], &d)
                             });
                             b.set_block(f, [x, y, z], &blk).unwrap();
@@ -343,15 +352,38 @@ fn all_variants_build_and_match() {
             }
             let a = b.finish().unwrap();
             for hw in [false, true] {
-                let mut r = GpuRenderer::with_options(&a, GpuOptions { hardware_filter: hw, ..Default::default() }).unwrap();
+                let mut r = GpuRenderer::with_options(
+                    &a,
+                    GpuOptions {
+                        hardware_filter: hw,
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
                 for (i, c) in cams(&a.header, 2, 48, 36).iter().enumerate() {
                     let t = 0.7 * i as f32;
                     let dd = diff(&r.render(c, t).unwrap(), &snerf_asset::render(&a, c, t));
-                    println!("{:?} dynamic {} hw {} cam {}: mean {:.2e} max {:.2e}", kind, dynamic, hw, i, dd.mean, dd.max);
+                    println!(
+                        "{:?} dynamic {} hw {} cam {}: mean {:.2e} max {:.2e}",
+                        kind, dynamic, hw, i, dd.mean, dd.max
+                    );
                     let bar = if hw { 4.0 / 255.0 } else { 1.0 / 255.0 };
-                    assert!(dd.mean <= bar, "{:?} dynamic {} hw {}: {:?}", kind, dynamic, hw, dd);
+                    assert!(
+                        dd.mean <= bar,
+                        "{:?} dynamic {} hw {}: {:?}",
+                        kind,
+                        dynamic,
+                        hw,
+                        dd
+                    );
                     if !hw {
-                        assert!(dd.max <= MAX_BOUND && dd.p999 <= 1.0 / 255.0, "{:?} dynamic {}: {:?}", kind, dynamic, dd);
+                        assert!(
+                            dd.max <= MAX_BOUND && dd.p999 <= 1.0 / 255.0,
+                            "{:?} dynamic {}: {:?}",
+                            kind,
+                            dynamic,
+                            dd
+                        );
                     }
                 }
             }

@@ -193,7 +193,10 @@ pub async fn connect_raw(
     } else {
         "0.0.0.0:0".parse()?
     };
-    let mut endpoint = Endpoint::client(bind).context("cannot open a UDP socket")?;
+    let socket = crate::proto::udp_socket(bind).context("cannot open a UDP socket")?;
+    let runtime = quinn::default_runtime().ok_or_else(|| anyhow!("no async runtime"))?;
+    let mut endpoint = Endpoint::new(quinn::EndpointConfig::default(), None, socket, runtime)
+        .context("cannot open a UDP socket")?;
     endpoint.set_default_client_config(cc);
     let connecting = endpoint
         .connect(addr, "snerf")

@@ -13,6 +13,24 @@ pub const PROTOCOL_VERSION: u32 = 1;
 /// Default UDP port.
 pub const DEFAULT_PORT: u16 = 4433;
 
+/// Socket buffer size asked for (the kernel caps it at net.core.rmem_max / wmem_max). The
+/// default ~208 KiB receive buffer overflows at a few hundred MB/s and QUIC reads that loss
+/// as congestion.
+pub const SOCKET_BUFFER: usize = 8 << 20;
+
+/// A UDP socket bound to `addr` with large send/receive buffers (best effort).
+pub fn udp_socket(addr: std::net::SocketAddr) -> std::io::Result<std::net::UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let s = Socket::new(Domain::for_address(addr), Type::DGRAM, Some(Protocol::UDP))?;
+    if addr.is_ipv6() {
+        let _ = s.set_only_v6(false);
+    }
+    let _ = s.set_recv_buffer_size(SOCKET_BUFFER);
+    let _ = s.set_send_buffer_size(SOCKET_BUFFER);
+    s.bind(&addr.into())?;
+    Ok(s.into())
+}
+
 /// Largest token, asset name and `have` list a server accepts in a Hello.
 pub const MAX_TOKEN_LEN: usize = 256;
 pub const MAX_NAME_LEN: usize = 255;

@@ -521,7 +521,10 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
     let mut sc = quinn::ServerConfig::with_crypto(Arc::new(tls::server_crypto(&id)?));
     sc.transport_config(Arc::new(transport(&opts.limits)?));
     sc.migration(true);
-    let endpoint = Endpoint::server(sc, opts.listen)
+    let socket = crate::proto::udp_socket(opts.listen)
+        .with_context(|| format!("cannot listen on UDP {}", opts.listen))?;
+    let runtime = quinn::default_runtime().ok_or_else(|| anyhow!("no async runtime"))?;
+    let endpoint = Endpoint::new(quinn::EndpointConfig::default(), Some(sc), socket, runtime)
         .with_context(|| format!("cannot listen on UDP {}", opts.listen))?;
     let shared = Arc::new(Shared {
         limits: opts.limits.clone(),
@@ -582,10 +585,6 @@ async fn handle(shared: Arc<Shared>, conn: Connection) {
     let mut tasks = JoinSet::new();
     let r = session(&shared, &conn, &mut tasks).await;
     tasks.abort_all();
-    if std::env::var_os("SNERF_STREAM_STATS").is_some() {
-        let st = conn.stats();
-        eprintln!("server conn stats: lost {} pkts / sent {} / congestion events {} cwnd {} mtu {}", st.path.lost_packets, st.path.sent_packets, st.path.congestion_events, st.path.cwnd, st.path.current_mtu);
-    }
     match r {
         Ok(()) => {}
         Err(Close(c, reason)) => {
