@@ -157,9 +157,19 @@ fn demo_writes_pictures_and_a_summary() {
         .args(["--json", "demo", "--out"])
         .arg(&out)
         .args(["--minutes", "0.15", "--views", "20", "--size", "32x32", "--frames", "4"])
+        .args(["--rounds", "1", "--steps-per-round", "20"])
         .output()
         .unwrap());
     assert!(s["eval"]["mean_psnr"].as_f64().unwrap() > 12.0);
+    // stylized, measured, baked, rendered and exported
+    assert!(out.join("stylized/consistency.md").exists());
+    assert!(out.join("baked_turntable/preview.png").exists());
+    assert!(out.join("stylized.glb").exists());
+    let asset = out.join("stylized.snerf");
+    let info = ok(snerf().args(["--json", "inspect"]).arg(&asset).output().unwrap());
+    assert_eq!(info["summary"]["frames"].as_u64(), Some(1), "{info}");
+    // a file that is not an asset: a clear error naming it
+    fails(snerf().args(["inspect"]).arg(out.join("summary.json")).output().unwrap(), &["summary.json"]);
     assert!(out.join("contact_sheet.png").exists());
     assert!(out.join("turntable/frame_003.png").exists());
     assert!(out.join("summary.json").exists());
