@@ -44,6 +44,9 @@ pub struct DemoArgs {
     /// Training steps per SNeRF round.
     #[arg(long, default_value_t = 150)]
     pub steps_per_round: u64,
+    /// Do not open the viewer at the end (it opens when a display and a terminal are present).
+    #[arg(long)]
+    pub no_view: bool,
 }
 
 const MARKER: &str = "snerf-demo.json";
@@ -226,6 +229,27 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         sheet.display(),
         asset_path.display()
     );
+    let display = std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    if !a.no_view && !quiet && display && std::io::IsTerminal::is_terminal(&std::io::stdin()) {
+        eprintln!("opening the viewer (Esc closes it; H lists the keys)");
+        let view = crate::view_cmd::ViewArgs {
+            asset: asset_path.display().to_string(),
+            pin: None,
+            token: None,
+            size: "1280x720".into(),
+            fov: 50.0,
+            stereo: false,
+            ipd: 0.064,
+            poses: None,
+            no_vsync: false,
+            frames: None,
+            screenshot: None,
+            loop_seconds: 4.0,
+        };
+        if let Err(e) = crate::view_cmd::view_cmd(&view) {
+            eprintln!("the viewer could not open ({e:#}); run: snerf view {}", asset_path.display());
+        }
+    }
     Ok(summary)
 }
 
