@@ -401,8 +401,9 @@ pub fn train_chunk(
     stats
 }
 
-/// σ at many grid points (occupancy refresh, baking): forward only, in batches.
-pub fn density_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, out: &mut [f32]) {
+/// Decode the field at many grid points, in batches of 1024; `f(k, raw_outputs)` sees each
+/// point's raw decoder outputs (OUT values).
+fn decode_points(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, mut f: impl FnMut(usize, &[f32])) {
     let (inp, h) = (field.layout.input, field.layout.hidden);
     const B: usize = 1024;
     for (bi, chunk) in points.chunks(B).enumerate() {
@@ -415,34 +416,24 @@ pub fn density_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut
         }
         field.decode_forward(n, &ws.feat[..n * inp], &mut ws.hid[..n * h], &mut ws.out[..n * OUT]);
         for k in 0..n {
-            out[bi * B + k] = activate(&ws.out[k * OUT..(k + 1) * OUT]).0;
+            f(bi * B + k, &ws.out[k * OUT..(k + 1) * OUT]);
         }
     }
+}
+
+/// σ at many grid points (occupancy refresh): forward only, in batches.
+pub fn density_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, out: &mut [f32]) {
+    decode_points(field, points, times, ws, |i, o| out[i] = activate(o).0);
 }
 
 /// Everything the baker stores, at many grid points: the density logit (clamped to the
 /// field's range, so σ = exp(logit)) and the 7 activated values (diffuse rgb, 4 features).
 pub fn values_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, out: &mut [[f32; 8]]) {
-    let (inp, h) = (field.layout.input, field.layout.hidden);
-    const B: usize = 1024;
-    for (bi, chunk) in points.chunks(B).enumerate() {
-        let n = chunk.len();
-        ws.feat.resize(n * inp, 0.0);
-        ws.hid.resize(n * h, 0.0);
-        ws.out.resize(n * OUT, 0.0);
-        for (k, g) in chunk.iter().enumerate() {
-            field.encode(g, times[bi * B + k], &mut ws.feat[k * inp..(k + 1) * inp]);
-        }
-        field.decode_forward(n, &ws.feat[..n * inp], &mut ws.hid[..n * h], &mut ws.out[..n * OUT]);
-        for k in 0..n {
-            let o = &ws.out[k * OUT..(k + 1) * OUT];
-            let (_, v) = activate(o);
-            let mut r = [0.0f32; 8];
-            r[0] = o[0].clamp(crate::field::SIGMA_LOGIT_MIN, crate::field::SIGMA_LOGIT_MAX);
-            r[1..].copy_from_slice(&v);
-            out[bi * B + k] = r;
-        }
-    }
+    decode_points(field, points, times, ws, |i, o| {
+        let (_, v) = activate(o);
+        out[i][0] = o[0].clamp(crate::field::SIGMA_LOGIT_MIN, crate::field::SIGMA_LOGIT_MAX);
+        out[i][1..].copy_from_slice(&v);
+    });
 }
 
 /// Prefetch the gradient cells a recorded point will scatter into.
