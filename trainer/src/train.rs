@@ -45,6 +45,11 @@ pub struct TrainConfig {
     /// "appearance only" ablation).
     #[serde(default)]
     pub freeze_geometry: bool,
+    /// Keep the view-dependence MLP fixed. Stylization sets it: per-view stylized targets
+    /// disagree in detail, and a free view MLP learns that disagreement as view-dependent
+    /// colour, which is exactly the flicker between viewpoints SNeRF exists to remove.
+    #[serde(default)]
+    pub freeze_view: bool,
     pub seed: u64,
     pub field: FieldConfig,
 }
@@ -80,6 +85,7 @@ impl TrainConfig {
             distortion: if data.kind == SceneKind::Object { 0.0 } else { 0.01 },
             tv: if data.kind == SceneKind::Object && !data.dynamic { 1e-3 } else { 0.0 },
             freeze_geometry: false,
+            freeze_view: false,
             seed: 0,
             field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
         }
@@ -321,22 +327,22 @@ impl Trainer {
         let params = &mut self.model.field.params;
         let plane_end = self.model.field.layout.plane_end;
         self.adam.begin_step();
+        // A zero learning rate leaves a parameter exactly where it is, while the optimizer
+        // still consumes (and clears) its gradient buffers.
+        let l = &self.model.field.layout;
         let total = params.len();
-        if self.cfg.freeze_geometry {
-            // A zero learning rate leaves a parameter exactly where it is, and the optimizer
-            // still consumes (and clears) its gradient buffers.
-            let l = &self.model.field.layout;
-            let (sigma_row_end, b2) = (l.w2 + l.hidden, l.b2);
-            let lr = self.cfg.lr_mlp * s;
-            self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, 0.0);
-            self.adam.update_dense(params, &mut grads, plane_end..sigma_row_end, 0.0);
-            self.adam.update_dense(params, &mut grads, sigma_row_end..b2, lr);
-            self.adam.update_dense(params, &mut grads, b2..b2 + 1, 0.0);
-            self.adam.update_dense(params, &mut grads, b2 + 1..total, lr);
-        } else {
-            self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, self.cfg.lr_planes * s);
-            self.adam.update_dense(params, &mut grads, plane_end..total, self.cfg.lr_mlp * s);
-        }
+        let lr = self.cfg.lr_mlp * s;
+        let (sigma_row_end, b2, view) = (l.w2 + l.hidden, l.b2, l.view.w1..l.view.end);
+        let geometry = if self.cfg.freeze_geometry { 0.0 } else { 1.0 };
+        let view_lr = if self.cfg.freeze_view { 0.0 } else { lr };
+        self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, self.cfg.lr_planes * s * geometry);
+        // decoder: shared hidden layer + density row | colour rows | density bias | colour biases
+        self.adam.update_dense(params, &mut grads, plane_end..sigma_row_end, lr * geometry);
+        self.adam.update_dense(params, &mut grads, sigma_row_end..b2, lr);
+        self.adam.update_dense(params, &mut grads, b2..b2 + 1, lr * geometry);
+        self.adam.update_dense(params, &mut grads, b2 + 1..view.start, lr);
+        self.adam.update_dense(params, &mut grads, view.start..view.end, view_lr);
+        self.adam.update_dense(params, &mut grads, view.end..total, lr);
         let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
         if self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4)) {

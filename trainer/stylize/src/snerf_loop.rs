@@ -236,6 +236,7 @@ pub fn run(
 fn trainer_from(ck: snerf_trainer::checkpoint::Checkpoint, data: &Dataset, opts: &StylizeOptions) -> Result<Trainer> {
     let mut cfg = ck.cfg.clone();
     cfg.freeze_geometry = opts.appearance_only;
+    cfg.freeze_view = true;
     let adam = snerf_trainer::adam::Adam::new(ck.model.field.params.len());
     let mut t = Trainer::from_parts(data, cfg, ck.model, adam)?;
     t.step = ck.step;
