@@ -307,7 +307,10 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     pb.set_message("SNeRF");
     let snerf_frames = path.render(&stylized, &spool);
     pb.inc(1);
+    // The unstylized field is the floor of the warp error (resampling, aliasing) and shows
+    // how far from the style the scene starts.
     let mut methods = vec![
+        MethodScores::of("Realistic field (no stylization)", &path, &path.realistic, style_ref)?,
         MethodScores::of("Per-frame image stylization", &path, &per_frame, style_ref)?,
     ];
     let mut one_round_frames = None;
@@ -324,7 +327,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let out = a.out.clone().unwrap_or_else(|| a.srun.clone());
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     let table = consistency::markdown_table(&methods);
-    let pf = &methods[0];
+    let pf = &methods[1];
     let sn = methods.last().unwrap();
     let ratios = json!({
         "short_range": sn.short_range / pf.short_range,
