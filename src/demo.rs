@@ -272,7 +272,9 @@ fn contact_sheet(eval_dir: &Path, report: &eval::EvalReport, turntables: &[&[Pat
         let p = eval_dir.join(format!("{}.png", report.views[i].name));
         rows.push(image::open(&p).with_context(|| format!("{}: cannot read", p.display()))?.to_rgb8());
     }
-    let width = rows.iter().map(|r| r.width()).max().unwrap_or(0);
+    let consistency_img = image::open(consistency).ok().map(|c| c.to_rgb8());
+    // as wide as the widest picture, so the turntables get full rows
+    let width = rows.iter().chain(consistency_img.iter()).map(|r| r.width()).max().unwrap_or(0);
     let mut tile_rows: Vec<image::RgbImage> = Vec::new();
     for frames in turntables {
         let tiles: Vec<image::RgbImage> =
@@ -287,8 +289,8 @@ fn contact_sheet(eval_dir: &Path, report: &eval::EvalReport, turntables: &[&[Pat
         }
         tile_rows.push(block);
     }
-    if let Ok(c) = image::open(consistency) {
-        tile_rows.push(c.to_rgb8());
+    if let Some(c) = consistency_img {
+        tile_rows.push(c);
     }
     let all: Vec<&image::RgbImage> = rows.iter().chain(tile_rows.iter()).collect();
     let w = all.iter().map(|r| r.width()).max().unwrap_or(1);
