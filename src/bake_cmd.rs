@@ -55,6 +55,9 @@ pub struct BakeArgs {
 /// The dataset a run was trained on, from its config.json (or, for a stylization run, from
 /// its options).
 pub fn run_dataset(run: &Path) -> Result<PathBuf> {
+    if !run.is_dir() {
+        bail!("{}: no such run directory (expected the --out of `snerf train` or `snerf stylize`)", run.display());
+    }
     let cfg = run.join("config.json");
     if let Ok(bytes) = std::fs::read(&cfg) {
         let v: Value = serde_json::from_slice(&bytes).with_context(|| format!("{}: not JSON", cfg.display()))?;

@@ -287,11 +287,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         Some(p) => stylizer::load_style_image(p)?,
         None => style_reference(stylizer.as_ref())?,
     };
-    let style_img = Some(style_img);
-    let style_emb = match (&embedder, &style_img) {
-        (Some(e), Some(s)) => Some(e.embed(s)?),
-        _ => None,
-    };
+    let style_emb = embedder.as_ref().map(|e| e.embed(&style_img)).transpose()?;
     let style_ref = embedder.as_ref().zip(style_emb.as_deref());
 
     let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
@@ -336,8 +332,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     });
     // contact sheet: style | realistic | per-frame | (1 round) | SNeRF, for two frames far apart
     let far = (a.frames - 1).min(7.max(a.frames / 2));
-    let blank = Image { width: 1, height: 1, data: vec![1.0; 3] };
-    let style_tile = style_img.as_ref().unwrap_or(&blank);
+    let style_tile = &style_img;
     let mut rows = Vec::new();
     for &i in &[0usize, far] {
         let mut row: Vec<&Image> = vec![style_tile, &path.realistic[i], &per_frame[i]];
