@@ -190,16 +190,22 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     })?;
     eprintln!("[8/8] exporting a glTF mesh");
     let glb = a.out.join("stylized.glb");
+    // A short or weak training run may have no voxel as opaque as the usual level: then
+    // take half the densest voxel's opacity, and say so.
+    let max_alpha = snerf_baker::mesh_export::max_voxel_alpha(&snerf_asset::Asset::read(&asset_path)?);
+    let iso = if max_alpha > 0.5 { 0.5 } else { (max_alpha * 0.5).max(1e-4) };
+    if iso < 0.5 {
+        eprintln!("      the densest voxel is only {max_alpha:.3} opaque: the mesh uses iso level {iso:.4}");
+    }
     let exported = crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
         file: asset_path.clone(),
         out: glb.clone(),
-        iso: 0.5,
+        iso,
         check: None,
         data: None,
         validate: false,
         opts: cli::DataOpts::default(),
     })?;
-
     let sheet = a.out.join("contact_sheet.png");
     let consistency_png = srun.join("consistency.png");
     contact_sheet(&eval_dir, &report, &[&frames, &sframes], &consistency_png, &sheet)?;

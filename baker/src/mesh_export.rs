@@ -38,6 +38,13 @@ fn voxel_alpha(asset: &Asset, frame: usize, idx: [usize; 3], voxel_len: f32) -> 
     1.0 - (-sigma * voxel_len).exp()
 }
 
+/// The largest one-voxel opacity anywhere in the atlas: an iso level above it finds no surface.
+pub fn max_voxel_alpha(asset: &Asset) -> f32 {
+    let code = asset.atlas.iter().step_by(8).copied().max().unwrap_or(0);
+    let sigma = decode_density(code, &asset.header.density).exp();
+    1.0 - (-sigma * 2.0 / asset.header.res as f32).exp()
+}
+
 fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
         c / 12.92
