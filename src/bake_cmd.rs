@@ -12,7 +12,8 @@ use snerf_asset::Asset;
 use snerf_baker::bake::{bake, BakeOptions};
 use snerf_trainer::{eval, train};
 
-use crate::cli::{bar, load_model, parse_size, DataOpts};
+use crate::cli::{bar, load_model, parse_size, pj, DataOpts};
+use snerf_files::guard::{check_output, Input};
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
@@ -27,26 +28,26 @@ pub struct BakeArgs {
     pub data: Option<PathBuf>,
     /// Voxels per axis of the baked grid (192: the built-in object at 128² in 18 MB, 0.6 dB
     /// below the field; 256: 34 MB, 0.1 dB; see BENCH.md).
-    #[arg(long, default_value_t = 192)]
+    #[arg(long, default_value_t = 192, value_parser = crate::args::int_in::<u32>(16, 2048, ""))]
     pub resolution: u32,
     /// Voxels per block edge (blocks are the unit of storage and streaming).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<u32>(4, 64, ""))]
     pub block: u32,
     /// Keyframes of a dynamic scene, evenly spaced over its time range.
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, default_value_t = 12, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub keyframes: usize,
     /// Keep a block when some voxel reaches this opacity over one march step.
-    #[arg(long, default_value_t = 0.005)]
+    #[arg(long, default_value_t = 0.005, value_parser = crate::args::unit_f32)]
     pub min_alpha: f32,
     /// Dynamic scenes: share a block with the previous keyframe when no voxel's opacity (and
     /// no seen colour) moved by more than this.
-    #[arg(long, default_value_t = 0.03)]
+    #[arg(long, default_value_t = 0.03, value_parser = crate::args::unit_f32)]
     pub reuse_tolerance: f32,
     /// Training views for the visibility test (0 keeps hidden blocks too).
-    #[arg(long, default_value_t = 32)]
+    #[arg(long, default_value_t = 32, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
     /// Held-out views on which to measure what baking loses (0: skip).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<usize>(0, 10000, ""))]
     pub eval_views: usize,
     #[command(flatten)]
     pub opts: DataOpts,
@@ -90,6 +91,7 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
         None => run_dataset(&a.run)?,
     };
     let data = a.opts.load(&data_path)?;
+    crate::cli::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let (model, pool) = load_model(&a.run)?;
     let bg = eval::eval_background(train::views_have_alpha(&data.train));
     let opts = BakeOptions {
@@ -140,8 +142,8 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     }
     Ok(json!({
         "command": "bake",
-        "run": a.run,
-        "out": a.out,
+        "run": pj(&a.run),
+        "out": pj(&a.out),
         "bake_seconds": bake_seconds,
         "peak_rss_mb": peak_rss_mb(),
         "report": report,
@@ -163,7 +165,7 @@ pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
     if !quiet {
         eprintln!("{}", serde_json::to_string_pretty(&s)?);
     }
-    Ok(json!({ "command": "inspect", "file": a.file, "summary": s }))
+    Ok(json!({ "command": "inspect", "file": pj(&a.file), "summary": s }))
 }
 
 #[derive(Args, Debug)]
@@ -175,7 +177,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "orbit")]
     pub path: String,
     /// Frames on the orbit (dynamic assets play their time once around).
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
     pub frames: usize,
     /// Image size WxH for the orbit.
     #[arg(long, default_value = "256x256")]
@@ -226,15 +228,36 @@ pub fn render_path(asset: &Asset, path: &str, frames: usize, size: (u32, u32)) -
             if !(1..=8192).contains(&c.width) || !(1..=8192).contains(&c.height) {
                 bail!("{path}: camera {i}: size {}x{} out of range", c.width, c.height);
             }
+            let finite = c.c2w.iter().flatten().chain([&c.fx, &c.fy, &c.cx, &c.cy]).all(|v| v.is_finite());
+            if !finite || c.fx <= 0.0 || c.fy <= 0.0 {
+                bail!("{path}: camera {i}: fx and fy must be positive and every number finite (fx {}, fy {})", c.fx, c.fy);
+            }
+            if c.time.is_some_and(|t| !t.is_finite()) {
+                bail!("{path}: camera {i}: time is not a finite number");
+            }
             let cam = Camera { c2w: c.c2w, fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy, width: c.width, height: c.height };
             Ok((cam, c.time.unwrap_or(t0)))
         })
         .collect()
 }
 
+/// Pixels one `snerf render` may produce in all (frames x width x height): 2^28, a thousand
+/// 512² frames. The GPU path holds every frame in memory before writing.
+const MAX_RENDER_PIXELS: u64 = 1 << 28;
+
 pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
     let asset = Asset::read(&a.file)?;
     let cams = render_path(&asset, &a.path, a.frames, parse_size(&a.size)?)?;
+    let pixels: u64 = cams.iter().map(|(c, _)| c.width as u64 * c.height as u64).sum();
+    if pixels > MAX_RENDER_PIXELS {
+        bail!(
+            "{} frames of {} pixels in all is more than one render may produce ({} Mpixel); render fewer or smaller frames",
+            cams.len(),
+            pixels,
+            MAX_RENDER_PIXELS >> 20
+        );
+    }
+    check_output("--out", &a.out, &[Input::File(&a.file)])?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     let t0 = Instant::now();
     let (frames, renderer) = if a.gpu {
@@ -247,36 +270,42 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
             }
         }
     } else {
+        // Each frame is written as soon as it is rendered; only the preview's are kept.
         let pb = bar(cams.len() as u64, "{spinner} rendering {bar:30} {pos}/{len} [{elapsed}]");
-        let frames = cams
-            .iter()
-            .map(|(cam, time)| {
-                let f = asset_render::render(&asset, cam, *time);
-                pb.inc(1);
-                f
-            })
-            .collect();
+        let mut kept = Vec::new();
+        for (i, (cam, time)) in cams.iter().enumerate() {
+            let f = asset_render::render(&asset, cam, *time);
+            asset_render::write_png(&f, frame_file(&a.out, i))?;
+            if kept.len() < 8 {
+                kept.push(f);
+            }
+            pb.inc(1);
+        }
         pb.finish_and_clear();
-        (frames, "cpu-reference".to_string())
+        (kept, "cpu-reference".to_string())
     };
-    let mut files = Vec::new();
-    for (i, f) in frames.iter().enumerate() {
-        let file = a.out.join(format!("frame_{i:03}.png"));
-        asset_render::write_png(f, &file)?;
-        files.push(file);
+    if a.gpu {
+        for (i, f) in frames.iter().enumerate() {
+            asset_render::write_png(f, frame_file(&a.out, i))?;
+        }
     }
+    let files: Vec<PathBuf> = (0..cams.len()).map(|i| frame_file(&a.out, i)).collect();
     let secs = t0.elapsed().as_secs_f64();
     let preview = a.out.join("preview.png");
     asset_render::contact_strip(&frames[..frames.len().min(8)], &preview)?;
-    eprintln!("rendered {} frames in {:.1} s ({:.0} ms/frame, {renderer}) -> {}", frames.len(), secs, secs * 1e3 / frames.len() as f64, a.out.display());
+    eprintln!("rendered {} frames in {:.1} s ({:.0} ms/frame, {renderer}) -> {}", cams.len(), secs, secs * 1e3 / cams.len() as f64, a.out.display());
     Ok(json!({
         "command": "render",
-        "file": a.file,
-        "frames": files,
-        "preview": preview,
+        "file": pj(&a.file),
+        "frames": files.iter().map(pj).collect::<Vec<_>>(),
+        "preview": pj(&preview),
         "seconds": secs,
         "renderer": renderer,
     }))
+}
+
+fn frame_file(dir: &Path, i: usize) -> PathBuf {
+    dir.join(format!("frame_{i:03}.png"))
 }
 
 #[derive(Args, Debug)]
@@ -287,7 +316,7 @@ pub struct ExportGltfArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Surface level: opacity of one voxel in (0,1). Lower keeps thinner, fainter matter.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = crate::args::unit_f32)]
     pub iso: f32,
     /// Also measure how well the mesh agrees with this run's depth (the run the asset was
     /// baked from): median distance from the field's surface points to the mesh, in voxels.
@@ -307,6 +336,10 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
     if !(a.iso > 0.0 && a.iso < 1.0) {
         bail!("--iso {}: must be an opacity in (0,1)", a.iso);
     }
+    let mut inputs = vec![Input::File(&a.file)];
+    let check_files = a.check.as_deref().map(crate::cli::run_files).unwrap_or_default();
+    inputs.extend(check_files.iter().map(|f| Input::File(f)));
+    check_output("--out", &a.out, &inputs)?;
     let t0 = Instant::now();
     let asset = Asset::read(&a.file)?;
     let (report, meshes) = snerf_baker::mesh_export::export_glb(&asset, a.iso, &a.out)?;
@@ -328,8 +361,8 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
     let validation = if a.validate { Some(validate_glb(&a.out)?) } else { None };
     Ok(json!({
         "command": "export-gltf",
-        "file": a.file,
-        "out": a.out,
+        "file": pj(&a.file),
+        "out": pj(&a.out),
         "report": report,
         "seconds": secs,
         "surface_agreement": agreement,

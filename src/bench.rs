@@ -29,9 +29,9 @@ pub enum BenchCmd {
 #[derive(Args, Debug)]
 pub struct BenchStylizeArgs {
     /// View side in pixels (the view is SIZE x SIZE).
-    #[arg(long, default_value_t = 384)]
+    #[arg(long, default_value_t = 384, value_parser = crate::args::int_in::<usize>(16, 4096, ""))]
     pub size: usize,
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::args::int_in::<usize>(1, 1000, ""))]
     pub reps: usize,
 }
 
@@ -40,7 +40,7 @@ pub struct BenchStreamArgs {
     /// A baked asset file.
     pub asset: PathBuf,
     /// Rounds of each measurement (the best is reported).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = crate::args::int_in::<usize>(1, 1000, ""))]
     pub rounds: usize,
 }
 
@@ -48,14 +48,14 @@ pub struct BenchStreamArgs {
 pub struct BenchTrainArgs {
     pub data: PathBuf,
     /// Steps before measuring (the first steps march through unpruned space).
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = 150, value_parser = crate::args::int_in::<u64>(0, 10000000, ""))]
     pub warmup: u64,
     /// Steps measured.
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
     pub steps: u64,
     /// CPU peak in GFLOP/s used for the utilization figure (default: 2 cores x 2.6 GHz x
     /// 32 f32 FLOP per cycle — two 256-bit FMA pipes, as on this machine's Zen 4 cores).
-    #[arg(long, default_value_t = 166.4)]
+    #[arg(long, default_value_t = 166.4, value_parser = crate::args::positive)]
     pub peak_gflops: f64,
 }
 

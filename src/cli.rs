@@ -8,6 +8,7 @@ use clap::{Args, Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::{json, Value};
 use snerf_trainer::data::{self, Dataset, LoadOptions, SceneKind};
+use snerf_files::guard::{check_output, Input};
 use snerf_trainer::{checkpoint, eval, run, train};
 
 #[derive(Parser, Debug)]
@@ -24,7 +25,7 @@ pub struct Cli {
     #[arg(long, global = true)]
     pub json: bool,
     /// Worker threads (default: all cores).
-    #[arg(long, global = true)]
+    #[arg(long, global = true, value_parser = crate::args::threads)]
     pub threads: Option<usize>,
     #[command(subcommand)]
     pub cmd: Cmd,
@@ -78,16 +79,16 @@ pub struct SceneArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Training views (default depends on the scene).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<usize>(1, 100000, ""))]
     pub views: Option<usize>,
     /// Held-out test views.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<usize>(1, 100000, ""))]
     pub test_views: Option<usize>,
     /// Image size WxH, e.g. 128x128.
     #[arg(long)]
     pub size: Option<String>,
     /// Supersampling per axis for anti-aliasing (4 = 16 samples per pixel).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<u32>(1, 16, ""))]
     pub supersample: Option<u32>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -105,10 +106,10 @@ pub struct DataOpts {
     #[arg(long = "static")]
     pub force_static: bool,
     /// Integer image downscale factor.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<u32>(1, 64, ""))]
     pub downscale: Option<u32>,
     /// For LLFF/COLMAP/single-file data: every n-th image is held out for testing.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<usize>(2, 100000, ""))]
     pub holdout_every: Option<usize>,
 }
 
@@ -152,43 +153,43 @@ pub struct TrainArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Stop after this many steps in total (a resumed run counts its earlier steps).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<u64>(1, 1000000000000, ""))]
     pub steps: Option<u64>,
     /// Stop after this many minutes of training in total (default 5 when --steps is absent).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::positive)]
     pub minutes: Option<f64>,
     /// Continue the run in --out from its last checkpoint.
     #[arg(long)]
     pub resume: bool,
     /// Fixed rays per step (default: adapt the ray count to --batch-samples).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<usize>(64, 1048576, ""))]
     pub batch: Option<usize>,
     /// Samples per step the ray count adapts to.
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<usize>(1024, 16777216, ""))]
     pub batch_samples: Option<usize>,
     /// Held-out pixels (random, fixed) scored for the PSNR-vs-time curve in metrics.json.
-    #[arg(long, default_value_t = 16384)]
+    #[arg(long, default_value_t = 16384, value_parser = crate::args::int_in::<usize>(0, 16777216, ""))]
     pub curve_pixels: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Learning rate of the feature planes (Adam).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::positive_f32)]
     pub lr_planes: Option<f32>,
     /// Learning rate of the decoder and view MLP (Adam).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::positive_f32)]
     pub lr_mlp: Option<f32>,
     /// Weight of the distortion loss (default 0.01 for forward/unbounded scenes, 0 for objects).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::non_negative_f32)]
     pub distortion: Option<f32>,
     /// Weight of the total-variation loss on the feature planes (default 1e-3 for static objects, 0 otherwise).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::non_negative_f32)]
     pub tv: Option<f32>,
     /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<u32>(16, 4096, ""))]
     pub resolution: Option<u32>,
     /// Write a checkpoint at least every this many seconds of training (a killed run loses
     /// at most this much).
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = crate::args::non_negative)]
     pub checkpoint_every: f64,
     #[command(flatten)]
     pub opts: DataOpts,
@@ -216,15 +217,53 @@ pub struct TurntableArgs {
     pub data: PathBuf,
     #[arg(long)]
     pub out: PathBuf,
-    #[arg(long, default_value_t = 36)]
+    #[arg(long, default_value_t = 36, value_parser = crate::args::int_in::<usize>(1, 3600, ""))]
     pub frames: usize,
     #[command(flatten)]
     pub opts: DataOpts,
 }
 
+/// The subcommand's name, for the JSON error object.
+pub fn command_name(cmd: &Cmd) -> String {
+    let dbg = format!("{cmd:?}");
+    let variant = dbg.split(['(', ' ', '{']).next().unwrap_or("");
+    let mut name = String::new();
+    for (i, c) in variant.chars().enumerate() {
+        if c.is_uppercase() && i > 0 {
+            name.push('-');
+        }
+        name.extend(c.to_lowercase());
+    }
+    name
+}
+
+/// A path as a JSON string. JSON holds UTF-8 only; a path that is not is written lossily
+/// rather than failing after the work is done.
+pub fn pj(p: impl AsRef<Path>) -> Value {
+    Value::String(p.as_ref().to_string_lossy().into_owned())
+}
+
+/// The files of a run directory that no command may overwrite through an `--out`.
+pub fn run_files(run: &Path) -> Vec<PathBuf> {
+    [checkpoint::FILE_NAME, "metrics.json", "config.json", snerf_stylize::snerf_loop::STATE_FILE]
+        .iter()
+        .map(|f| run.join(f))
+        .collect()
+}
+
+/// `check_output` with a run's files and a dataset tree as the inputs.
+pub fn guard_run_output(flag: &str, out: &Path, run: &Path, data_root: Option<&Path>) -> Result<()> {
+    let files = run_files(run);
+    let mut inputs: Vec<Input> = files.iter().map(|f| Input::File(f)).collect();
+    if let Some(d) = data_root {
+        inputs.push(Input::Tree(d));
+    }
+    check_output(flag, out, &inputs)
+}
+
 pub fn dispatch(cli: Cli) -> Result<()> {
     if let Some(n) = cli.threads {
-        rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global().ok();
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let summary = match cli.cmd {
         Cmd::Scene(a) => scene(&a)?,
@@ -247,12 +286,12 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::Render(a) => crate::bake_cmd::render_cmd(&a)?,
         Cmd::ExportGltf(a) => crate::bake_cmd::export_gltf_cmd(&a)?,
         Cmd::View(a) => crate::view_cmd::view_cmd(&a)?,
-        Cmd::Serve(a) => crate::stream_cmd::serve_cmd(&a)?,
+        Cmd::Serve(a) => crate::stream_cmd::serve_cmd(&a, cli.json)?,
         Cmd::Fetch(a) => crate::stream_cmd::fetch_cmd(&a)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
         Cmd::Bench(b) => crate::bench::run(&b)?,
     };
-    if cli.json {
+    if cli.json && !summary.is_null() {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     }
     Ok(())
@@ -276,6 +315,9 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
 
 pub fn scene(a: &SceneArgs) -> Result<Value> {
     let source = snerf_scene::Source::parse(&a.name)?;
+    if let snerf_scene::Source::Gltf(f) = &source {
+        check_output("--out", &a.out, &[Input::Tree(f)])?;
+    }
     let mut spec = snerf_scene::SceneSpec::default_for(source);
     if let Some(v) = a.views {
         spec.train_views = v;
@@ -287,7 +329,7 @@ pub fn scene(a: &SceneArgs) -> Result<Value> {
         (spec.width, spec.height) = parse_size(s)?;
     }
     if let Some(s) = a.supersample {
-        spec.supersample = s.clamp(1, 16);
+        spec.supersample = s;
     }
     spec.seed = a.seed;
     spec.path = match a.path.as_str() {
@@ -307,14 +349,15 @@ pub fn scene(a: &SceneArgs) -> Result<Value> {
 
 pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     let data = a.opts.load(&a.data)?;
+    check_output("--out", &a.out, &[Input::Tree(&data.root), Input::Tree(&a.data)])?;
     let mut cfg = train::TrainConfig::for_dataset(&data);
     cfg.seed = a.seed;
     if let Some(b) = a.batch {
-        cfg.batch_rays = b.clamp(64, 1 << 20);
+        cfg.batch_rays = b;
         cfg.batch_samples = 0;
     }
     if let Some(b) = a.batch_samples {
-        cfg.batch_samples = b.clamp(1024, 1 << 24);
+        cfg.batch_samples = b;
     }
     if let Some(lr) = a.lr_planes {
         cfg.lr_planes = lr;
@@ -323,10 +366,10 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         cfg.lr_mlp = lr;
     }
     if let Some(d) = a.distortion {
-        cfg.distortion = d.max(0.0);
+        cfg.distortion = d;
     }
     if let Some(t) = a.tv {
-        cfg.tv = t.max(0.0);
+        cfg.tv = t;
     }
     if let Some(r) = a.resolution {
         cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r].into_iter().map(|x| x.max(2)).collect();
@@ -335,23 +378,74 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         (None, None) => Some(300.0),
         (_, m) => m.map(|m| m * 60.0),
     };
-    if let Some(s) = seconds {
-        anyhow::ensure!(s.is_finite() && s > 0.0, "--minutes must be positive");
-    }
     let opts = run::RunOptions {
         dir: a.out.clone(),
         steps: a.steps,
         seconds,
         curve_pixels: a.curve_pixels,
-        checkpoint_every: a.checkpoint_every.max(0.0),
+        checkpoint_every: a.checkpoint_every,
     };
-    train_run(&data, cfg, &opts, a.resume, quiet)
+    let given = a.given_settings();
+    train_run_checked(&data, cfg, &opts, a.resume, quiet, &given)
+}
+
+impl TrainArgs {
+    /// The training settings this command line sets explicitly: (flag, where the setting
+    /// lives in the config's JSON form), so a resumed run can refuse ones that differ.
+    fn given_settings(&self) -> Vec<(&'static str, &'static str)> {
+        [
+            ("--resolution", "/field/resolutions", self.resolution.is_some()),
+            ("--lr-planes", "/lr_planes", self.lr_planes.is_some()),
+            ("--lr-mlp", "/lr_mlp", self.lr_mlp.is_some()),
+            ("--distortion", "/distortion", self.distortion.is_some()),
+            ("--tv", "/tv", self.tv.is_some()),
+            ("--batch", "/batch_rays", self.batch.is_some()),
+            ("--batch-samples", "/batch_samples", self.batch_samples.is_some()),
+            ("--seed", "/seed", self.seed != 0),
+        ]
+        .into_iter()
+        .filter(|g| g.2)
+        .map(|(flag, ptr, _)| (flag, ptr))
+        .collect()
+    }
+}
+
+/// `train_run`, refusing a resume whose explicit settings differ from the run's own (a
+/// resumed run keeps the settings it was started with; ignoring a flag silently would lie).
+pub fn train_run_checked(
+    data: &Dataset,
+    cfg: train::TrainConfig,
+    opts: &run::RunOptions,
+    resume: bool,
+    quiet: bool,
+    given: &[(&'static str, &'static str)],
+) -> Result<Value> {
+    if resume && !given.is_empty() {
+        if let Ok(c) = checkpoint::load(&run::checkpoint_path(&opts.dir)) {
+            let theirs = serde_json::to_value(&c.cfg)?;
+            let ours = serde_json::to_value(&cfg)?;
+            for (flag, ptr) in given {
+                let (a, b) = (ours.pointer(ptr), theirs.pointer(ptr));
+                if a != b {
+                    bail!(
+                        "{flag} asks for {} but the run in {} was trained with {}; a resumed run keeps its \
+                         settings (drop {flag}, or start a new run with another --out)",
+                        a.cloned().unwrap_or(Value::Null),
+                        opts.dir.display(),
+                        b.cloned().unwrap_or(Value::Null)
+                    );
+                }
+            }
+        }
+    }
+    train_run(data, cfg, opts, resume, quiet)
 }
 
 /// Train (or resume) with a progress bar; returns the run summary.
 pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions, resume: bool, quiet: bool) -> Result<Value> {
     let wall = Instant::now();
     let out = &opts.dir;
+    let _lock = snerf_files::DirLock::acquire(out)?;
     let mut trainer = run::open(data, cfg, out, resume)?;
     if !quiet {
         eprintln!(
@@ -396,7 +490,7 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
     }
     Ok(json!({
         "command": "train",
-        "run": out,
+        "run": pj(out),
         "wall_seconds": wall.elapsed().as_secs_f64(),
         "metrics": metrics,
     }))
@@ -426,9 +520,13 @@ pub fn eval_cmd(a: &EvalArgs) -> Result<Value> {
         bail!("{}: the {} split is empty", a.data.display(), a.split);
     }
     let out = a.out.clone().unwrap_or_else(|| a.run.join("eval"));
+    guard_run_output("--out", &out, &a.run, Some(&data.root))?;
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     let has_alpha = train::views_have_alpha(&data.train);
     let report = eval::evaluate(&model, &pool, views, has_alpha, Some(&out))?;
+    if !(report.mean_psnr.is_finite() && report.mean_ssim.is_finite()) {
+        bail!("{}: the field renders non-finite colours (PSNR {}, SSIM {}); the run diverged", a.run.display(), report.mean_psnr, report.mean_ssim);
+    }
     eprintln!(
         "{} {} views: PSNR {:.2} dB, SSIM {:.4} ({:.1} s); images in {}",
         a.split,
@@ -438,16 +536,17 @@ pub fn eval_cmd(a: &EvalArgs) -> Result<Value> {
         report.seconds,
         out.display()
     );
-    let v = json!({ "command": "eval", "run": a.run, "split": a.split, "report": report, "images": out });
+    let v = json!({ "command": "eval", "run": pj(&a.run), "split": a.split, "report": report, "images": pj(&out) });
     checkpoint::write_json_atomic(&out.join("eval.json"), &v)?;
     Ok(v)
 }
 
 pub fn turntable_cmd(a: &TurntableArgs) -> Result<Value> {
     let data = a.opts.load(&a.data)?;
+    guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let (model, pool) = load_model(&a.run)?;
     let frames = turntable(&model, &pool, &data, a.frames, &a.out)?;
-    Ok(json!({ "command": "turntable", "frames": frames, "out": a.out }))
+    Ok(json!({ "command": "turntable", "frames": frames.iter().map(pj).collect::<Vec<_>>(), "out": pj(&a.out) }))
 }
 
 /// Render `n` frames on an orbit into `out/frame_NNN.png`; returns the file names.

@@ -10,7 +10,7 @@ use serde_json::{json, Value};
 use snerf_trainer::data::LoadOptions;
 use snerf_trainer::{checkpoint, eval, train};
 
-use crate::cli;
+use crate::cli::{self, pj};
 
 #[derive(Args, Debug)]
 pub struct DemoArgs {
@@ -21,16 +21,16 @@ pub struct DemoArgs {
     #[arg(long, default_value = "object")]
     pub scene: String,
     /// Minutes of training.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = 1.5, value_parser = crate::args::positive)]
     pub minutes: f64,
     /// Image size of the generated views.
     #[arg(long, default_value = "128x128")]
     pub size: String,
     /// Training views to generate.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
     pub views: usize,
     /// Turntable frames.
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(1, 3600, ""))]
     pub frames: usize,
     /// Stylizer for the SNeRF step (preset:N needs no style image; `color` needs no model).
     #[arg(long, default_value = "preset:0")]
@@ -39,10 +39,10 @@ pub struct DemoArgs {
     #[arg(long)]
     pub style: Option<PathBuf>,
     /// SNeRF rounds (render -> stylize -> train).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = crate::args::int_in::<usize>(1, 100, ""))]
     pub rounds: usize,
     /// Training steps per SNeRF round.
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = 150, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
     pub steps_per_round: u64,
     /// Do not open the viewer at the end (it opens when a display and a terminal are present).
     #[arg(long)]
@@ -214,13 +214,13 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         "scene": scene,
         "train": trained,
         "eval": { "mean_psnr": report.mean_psnr, "mean_ssim": report.mean_ssim, "views": report.views.len() },
-        "turntable": a.out.join("turntable"),
+        "turntable": pj(a.out.join("turntable")),
         "stylize": stylized,
         "consistency": consistency,
         "bake": baked,
         "baked_render": rendered,
         "gltf": exported,
-        "contact_sheet": sheet,
+        "contact_sheet": pj(&sheet),
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
     checkpoint::write_json_atomic(&a.out.join("summary.json"), &summary)?;
@@ -241,7 +241,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         let view = crate::view_cmd::ViewArgs {
             asset: asset_path.display().to_string(),
             pin: None,
-            token: None,
+            token: Default::default(),
             size: "1280x720".into(),
             fov: 50.0,
             stereo: false,

@@ -29,30 +29,34 @@ pub struct ServeArgs {
     /// File holding the access token (default: generated in the state directory).
     #[arg(long)]
     pub token_file: Option<PathBuf>,
-    /// Simultaneous clients; more are refused.
-    #[arg(long, default_value_t = 64)]
+    /// Simultaneous authenticated clients; more are refused (connections still in their
+    /// handshake are capped separately, per address and in total).
+    #[arg(long, default_value_t = 64, value_parser = crate::args::int_in::<usize>(1, 100000, ""))]
     pub max_clients: usize,
     /// Largest control message accepted, bytes.
-    #[arg(long, default_value_t = 64 * 1024)]
+    #[arg(long, default_value_t = 64 * 1024, value_parser = crate::args::int_in::<usize>(1024, 16777216, ""))]
     pub max_message: usize,
     /// Drop a silent peer after this many seconds.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = crate::args::positive)]
     pub idle_timeout: f64,
     /// Drop a client that stops reading for this many seconds.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = crate::args::positive)]
     pub stall_timeout: f64,
     /// Bytes in flight per client (back-pressure).
-    #[arg(long, default_value_t = 8 << 20)]
+    #[arg(long, default_value_t = 8 << 20, value_parser = crate::args::int_in::<u64>(65536, 1073741824, ""))]
     pub send_budget: u64,
     /// Data streams in flight per client.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub max_streams: usize,
     /// Congestion control: cubic (best on loopback/LAN) or bbr (10x faster under random loss, e.g. Wi-Fi).
     #[arg(long, default_value = "cubic")]
     pub congestion: String,
 }
 
-pub fn serve_cmd(a: &ServeArgs) -> Result<Value> {
+/// Serve until Ctrl-C. With `json`, one line of JSON on stdout once the server listens
+/// (address, fingerprint, URL, token unless it came from the user's file); the human banner
+/// goes to stderr. Returns Null: nothing more is printed when it stops.
+pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
     let mut o = ServeOptions::new(a.path.clone(), a.listen);
     o.state_dir = a.state.clone();
     o.cert = a.cert.clone();
@@ -68,8 +72,25 @@ pub fn serve_cmd(a: &ServeArgs) -> Result<Value> {
         congestion: a.congestion.parse::<Congestion>()?,
         ..Limits::default()
     };
-    snerf_stream::serve_blocking(o)?;
-    Ok(json!({ "command": "serve", "path": a.path }))
+    let path = crate::cli::pj(&a.path);
+    snerf_stream::serve_blocking_with(o, |h| {
+        if json {
+            let v = json!({
+                "command": "serve",
+                "path": path,
+                "address": h.addr().to_string(),
+                "url": h.url(""),
+                "fingerprint": h.fingerprint(),
+                "token": if h.token_from_file() { Value::Null } else { Value::String(h.token().to_string()) },
+                "token_file": h.token_file().map(crate::cli::pj),
+                "created_identity": h.created_identity(),
+            });
+            println!("{v}");
+            use std::io::Write;
+            let _ = std::io::stdout().flush();
+        }
+    })?;
+    Ok(Value::Null)
 }
 
 #[derive(Args, Debug)]
@@ -79,22 +100,54 @@ pub struct FetchArgs {
     /// SHA-256 fingerprint of the server's certificate (printed by `snerf serve`).
     #[arg(long)]
     pub pin: String,
-    /// Access token (printed by `snerf serve`).
-    #[arg(long)]
-    pub token: String,
+    #[command(flatten)]
+    pub token: TokenArgs,
     /// The asset file to write; an interrupted fetch resumes from OUT.part.
     #[arg(long)]
     pub out: PathBuf,
 }
 
+/// How a client gets the server's access token. A token on the command line shows in `ps`
+/// and shell history, so a file or the environment is preferred.
+#[derive(Args, Debug, Clone, Default)]
+pub struct TokenArgs {
+    /// Access token (printed by `snerf serve`). Visible to other users in `ps`; prefer
+    /// --token-file or $SNERF_TOKEN.
+    #[arg(long)]
+    pub token: Option<String>,
+    /// File holding the access token (e.g. the server's state directory `token` file).
+    #[arg(long, conflicts_with = "token")]
+    pub token_file: Option<PathBuf>,
+}
+
+pub const TOKEN_ENV: &str = "SNERF_TOKEN";
+
+impl TokenArgs {
+    /// --token, else --token-file, else $SNERF_TOKEN.
+    pub fn resolve(&self) -> Result<String> {
+        let token = if let Some(t) = &self.token {
+            t.clone()
+        } else if let Some(f) = &self.token_file {
+            std::fs::read_to_string(f).with_context(|| format!("--token-file {}: cannot read", f.display()))?.trim().to_string()
+        } else if let Ok(t) = std::env::var(TOKEN_ENV) {
+            t.trim().to_string()
+        } else {
+            anyhow::bail!("no access token: pass --token-file FILE, set ${TOKEN_ENV}, or --token T (all printed by `snerf serve`)");
+        };
+        anyhow::ensure!(!token.is_empty(), "the access token is empty");
+        Ok(token)
+    }
+}
+
 pub fn fetch_cmd(a: &FetchArgs) -> Result<Value> {
-    let stats = snerf_stream::fetch_blocking(&a.url, &a.pin, &a.token, &a.out).with_context(|| format!("fetching {}", a.url))?;
+    let token = a.token.resolve()?;
+    let stats = snerf_stream::fetch_blocking(&a.url, &a.pin, &token, &a.out).with_context(|| format!("fetching {}", a.url))?;
     eprintln!("fetched {} -> {} ({:?})", a.url, a.out.display(), stats);
-    Ok(json!({ "command": "fetch", "url": a.url, "out": a.out, "stats": format!("{stats:?}") }))
+    Ok(json!({ "command": "fetch", "url": a.url, "out": crate::cli::pj(&a.out), "stats": format!("{stats:?}") }))
 }
 
 pub fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {
     let r = snerf_stream::bench::run(asset, &snerf_stream::bench::BenchOptions { rounds: rounds.max(1), ..Default::default() })?;
     eprintln!("{r}");
-    Ok(json!({ "command": "bench stream", "asset": asset, "report": r.to_string() }))
+    Ok(json!({ "command": "bench stream", "asset": crate::cli::pj(asset), "report": r.to_string() }))
 }

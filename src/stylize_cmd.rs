@@ -15,6 +15,7 @@ use snerf_trainer::{checkpoint, run};
 
 use crate::bake_cmd::run_dataset;
 use crate::cli::{bar, load_model, DataOpts};
+use snerf_files::guard::{check_output, Input};
 
 const STYLIZER_HELP: &str = "Stylizer: arbitrary (default; Magenta arbitrary stylization, any picture is a style), \
 preset:N (one of 26 built-in styles, N in 0..26; no style image needed), onnx:FILE (any image-to-image ONNX \
@@ -26,7 +27,7 @@ pub struct StylizerArgs {
     #[arg(long, default_value = "arbitrary", help = STYLIZER_HELP)]
     pub stylizer: String,
     /// Style strength in [0,1] (arbitrary: blends the style embedding with the content's own).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::args::unit_f32)]
     pub strength: f32,
     /// Gatys: VGG-16 weights as safetensors in torchvision's layout (features.N.weight/bias).
     /// Get them in Python: torchvision.models.vgg16(weights="IMAGENET1K_V1").features.state_dict(),
@@ -34,7 +35,7 @@ pub struct StylizerArgs {
     #[arg(long)]
     pub gatys_weights: Option<PathBuf>,
     /// Gatys: optimization steps per image.
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(1, 100000, ""))]
     pub gatys_steps: usize,
     /// Model directory (default $SNERF_MODELS or ~/.cache/snerf/models).
     #[arg(long)]
@@ -91,6 +92,11 @@ pub fn to_rgb8(img: &Image) -> image::RgbImage {
 }
 
 pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
+    let mut inputs = vec![Input::File(&a.content)];
+    if let Some(s) = &a.style {
+        inputs.push(Input::File(s));
+    }
+    check_output("--out", &a.out, &inputs)?;
     let content = read_image(&a.content)?;
     let t0 = Instant::now();
     let s = a.s.build(a.style.as_deref())?;
@@ -100,7 +106,7 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
     let secs = t1.elapsed().as_secs_f64();
     checkpoint::write_png_atomic(&a.out, &to_rgb8(&out))?;
     eprintln!("{} -> {} with {} ({:.2} s; model load {:.2} s)", a.content.display(), a.out.display(), s.name(), secs, load);
-    Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": a.out, "seconds": secs, "load_seconds": load }))
+    Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::cli::pj(&a.out), "seconds": secs, "load_seconds": load }))
 }
 
 #[derive(Args, Debug)]
@@ -117,22 +123,22 @@ pub struct StylizeArgs {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Rounds of render -> stylize -> train (the paper uses 5; 1 is the one-shot baseline).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = crate::args::int_in::<usize>(1, 100, ""))]
     pub rounds: usize,
     /// Training steps per round.
-    #[arg(long, default_value_t = 300)]
+    #[arg(long, default_value_t = 300, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
     pub steps_per_round: u64,
     /// Longer side of the images handed to the stylizer (0: the training resolution).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::args::int_in::<usize>(0, 4096, "0 = the training resolution; the stylizer holds the whole image in memory"))]
     pub style_res: usize,
     /// Use this many training views, evenly spaced (0: all).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub views: usize,
     /// Freeze density and the shared layers; stylize colour only (the paper's ablation).
     #[arg(long)]
     pub appearance_only: bool,
     /// Frames of the novel path for the per-round consistency measurement (0: skip).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
     pub consistency_frames: usize,
     #[command(flatten)]
     pub s: StylizerArgs,
@@ -186,6 +192,19 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         None => run_dataset(&a.run)?,
     };
     let data = a.opts.load(&data_path)?;
+    // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.
+    for (what, p) in [("RUN", Some(&a.run)), ("--out", Some(&a.out)), ("--style", a.style.as_ref()), ("--data", Some(&data_path))] {
+        if let Some(p) = p.filter(|p| p.to_str().is_none()) {
+            bail!("{what} {}: the stylized run records this path, and its JSON holds UTF-8 names only; rename it", p.display());
+        }
+    }
+    // The stylized run is a run of its own: never the realistic run's directory (its
+    // checkpoint would be overwritten), never inside the dataset.
+    let mut inputs = vec![Input::Tree(&a.run), Input::Tree(&data.root)];
+    if let Some(s) = &a.style {
+        inputs.push(Input::File(s));
+    }
+    check_output("--out", &a.out, &inputs)?;
     let ck_path = run::checkpoint_path(&a.run);
     if !ck_path.exists() {
         bail!("{}: no checkpoint here; run `snerf train` first", a.run.display());
@@ -203,8 +222,8 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         style: a.style.as_deref().map(absolute).unwrap_or_default(),
         stylizer: a.s.stylizer.clone(),
         strength: a.s.strength,
-        rounds: a.rounds.max(1),
-        steps_per_round: a.steps_per_round.max(1),
+        rounds: a.rounds,
+        steps_per_round: a.steps_per_round,
         style_res: a.style_res,
         views: a.views,
         appearance_only: a.appearance_only,
@@ -217,7 +236,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     if !quiet {
         eprintln!("stylized run in {} ({} rounds, {:.0} s); per-round images in {}", a.out.display(), state.rounds_done, wall.elapsed().as_secs_f64(), a.out.join("rounds").display());
     }
-    Ok(json!({ "command": "stylize", "out": a.out, "state": state, "wall_seconds": wall.elapsed().as_secs_f64() }))
+    Ok(json!({ "command": "stylize", "out": crate::cli::pj(&a.out), "state": state, "wall_seconds": wall.elapsed().as_secs_f64() }))
 }
 
 /// The style a stylizer without a style image (a preset, a GAN) paints in, as a picture:
@@ -252,7 +271,7 @@ pub struct ConsistencyArgs {
     #[arg(long)]
     pub one_round: Option<PathBuf>,
     /// Frames of the novel path.
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
     pub frames: usize,
     /// Where to write consistency.json, consistency.md and consistency.png (default: SRUN).
     #[arg(long)]
@@ -321,6 +340,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     pb.finish_and_clear();
 
     let out = a.out.clone().unwrap_or_else(|| a.srun.clone());
+    check_output("--out", &out, &[Input::Tree(&data.root)])?;
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     let table = consistency::markdown_table(&methods);
     let pf = &methods[1];
@@ -359,7 +379,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
     let v = json!({
         "command": "consistency",
-        "srun": a.srun,
+        "srun": crate::cli::pj(&a.srun),
         "frames": a.frames,
         "coverage": path.coverage(),
         "methods": methods,

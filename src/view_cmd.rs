@@ -17,20 +17,19 @@ pub struct ViewArgs {
     /// Server certificate fingerprint (SHA-256, printed by `snerf serve`) for quic:// URLs.
     #[arg(long)]
     pub pin: Option<String>,
-    /// Access token (printed by `snerf serve`) for quic:// URLs.
-    #[arg(long)]
-    pub token: Option<String>,
+    #[command(flatten)]
+    pub token: crate::stream_cmd::TokenArgs,
     /// Window size WxH.
     #[arg(long, default_value = "1280x720")]
     pub size: String,
     /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = 50.0, value_parser = crate::args::fov_degrees)]
     pub fov: f32,
     /// Render left and right eyes side by side (the layout VR compositors and phone headsets take).
     #[arg(long)]
     pub stereo: bool,
     /// Eye separation in world units for --stereo.
-    #[arg(long, default_value_t = 0.064)]
+    #[arg(long, default_value_t = 0.064, value_parser = crate::args::non_negative_f32)]
     pub ipd: f32,
     /// Head poses from a file (JSON list of {"c2w": rows, "time": optional}), one per frame.
     #[arg(long)]
@@ -39,13 +38,13 @@ pub struct ViewArgs {
     #[arg(long)]
     pub no_vsync: bool,
     /// Present this many frames, then exit (with --screenshot: save the last one).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::args::int_in::<u64>(1, 1000000000, ""))]
     pub frames: Option<u64>,
     /// Save the last frame here (PNG) when exiting after --frames.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
     /// Seconds for one pass through a dynamic asset's time.
-    #[arg(long, default_value_t = 4.0)]
+    #[arg(long, default_value_t = 4.0, value_parser = crate::args::positive_f32)]
     pub loop_seconds: f32,
 }
 
@@ -106,11 +105,17 @@ impl AssetSource for LiveSource {
 
 pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
     let (w, h) = crate::cli::parse_size(&a.size)?;
+    if let Some(shot) = &a.screenshot {
+        if !a.asset.starts_with("quic://") {
+            snerf_files::check_output("--screenshot", shot, &[snerf_files::Input::File(std::path::Path::new(&a.asset))])?;
+        }
+    }
     let source: Box<dyn AssetSource> = if a.asset.starts_with("quic://") {
-        let (Some(pin), Some(token)) = (&a.pin, &a.token) else {
-            bail!("{}: a quic:// asset needs --pin FINGERPRINT and --token TOKEN (both printed by `snerf serve`)", a.asset);
+        let Some(pin) = &a.pin else {
+            bail!("{}: a quic:// asset needs --pin FINGERPRINT and an access token (both printed by `snerf serve`)", a.asset);
         };
-        let live = snerf_stream::LiveAsset::connect(&a.asset, pin, token)?;
+        let token = a.token.resolve()?;
+        let live = snerf_stream::LiveAsset::connect(&a.asset, pin, &token)?;
         Box::new(LiveSource { live, sent: false, grids: Vec::new(), generation: 0 })
     } else {
         Box::new(FileSource::open(&a.asset)?)
@@ -141,7 +146,7 @@ pub struct BenchViewArgs {
     #[arg(long, default_value = "1280x720")]
     pub size: String,
     /// Frames timed on the GPU (median reported).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
     pub frames: usize,
     /// Also time stereo 2x(1920x1080), the VR case.
     #[arg(long)]
@@ -154,5 +159,5 @@ pub fn bench_view(a: &BenchViewArgs) -> Result<Value> {
     let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
     let r = snerf_viewer::bench_view_with(&asset, &opts)?;
     eprintln!("{r}");
-    Ok(json!({ "command": "bench view", "asset": a.asset, "report": r }))
+    Ok(json!({ "command": "bench view", "asset": crate::cli::pj(&a.asset), "report": r }))
 }

@@ -18,7 +18,6 @@
 use crate::marching_cubes::Mesh;
 use anyhow::{bail, ensure, Context, Result};
 use serde_json::{json, Value};
-use std::io::Write;
 use std::path::Path;
 
 /// How `COLOR_0` is stored. Colours are taken as linear RGB and clamped to [0, 1].
@@ -601,30 +600,4 @@ fn prepare(mesh: &Mesh, xf: &Affine) -> Result<Prepared> {
     Ok(out)
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let file = path
-        .file_name()
-        .with_context(|| format!("{} is not a file path", path.display()))?;
-    let tmp = dir.join(format!(
-        ".{}.{}.tmp",
-        file.to_string_lossy(),
-        std::process::id()
-    ));
-    let result = (|| -> Result<()> {
-        let mut f =
-            std::fs::File::create(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        drop(f);
-        std::fs::rename(&tmp, path)
-            .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("writing {}", path.display()))
-}
+use snerf_files::write_atomic;

@@ -7,8 +7,7 @@
 //! bytes before it.
 
 use std::fs;
-use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{bail, ensure, Context, Result};
 use serde::{Deserialize, Serialize};
@@ -74,6 +73,15 @@ fn push_f32s(buf: &mut Vec<u8>, xs: &[f32]) {
 
 pub fn save(trainer: &Trainer, path: &Path) -> Result<()> {
     let m = &trainer.model;
+    // A checkpoint that could not be loaded again, or a diverged field, must not replace the
+    // last good one.
+    trainer.cfg.validate()?;
+    ensure!(
+        m.field.params.iter().all(|p| p.is_finite()),
+        "the field diverged (non-finite parameters at step {}); {} keeps its last good state",
+        trainer.step,
+        path.display()
+    );
     let header = Header {
         cfg: trainer.cfg.clone(),
         space: m.space.clone(),
@@ -119,6 +127,7 @@ pub fn load(path: &Path) -> Result<Checkpoint> {
     ensure!(hlen <= body.len() - 20, "{name}: header length {hlen} exceeds the file");
     let header: Header =
         serde_json::from_slice(&bytes[20..20 + hlen]).with_context(|| format!("{name}: bad checkpoint header"))?;
+    header.cfg.validate().with_context(|| format!("{name}: bad checkpoint header"))?;
     let field = Field::new(header.cfg.field.clone(), 0).with_context(|| format!("{name}: bad field config"))?;
     ensure!(
         field.params.len() == header.params,
@@ -154,23 +163,7 @@ pub fn load(path: &Path) -> Result<Checkpoint> {
     })
 }
 
-/// Write bytes to `path` via a temp file in the same directory and a rename, so a crash
-/// never leaves a half-written file under the final name.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = tmp_path(path);
-    {
-        let mut f = fs::File::create(&tmp).with_context(|| format!("{}: cannot create", tmp.display()))?;
-        f.write_all(bytes).with_context(|| format!("{}: write failed", tmp.display()))?;
-        f.sync_all().ok();
-    }
-    fs::rename(&tmp, path).with_context(|| format!("{}: cannot move into place", path.display()))
-}
-
-pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
-    let mut bytes = serde_json::to_vec_pretty(value)?;
-    bytes.push(b'\n');
-    write_atomic(path, &bytes)
-}
+pub use snerf_files::{write_atomic, write_json_atomic};
 
 pub fn write_png_atomic(path: &Path, img: &image::RgbImage) -> Result<()> {
     let mut bytes = Vec::new();
@@ -178,8 +171,3 @@ pub fn write_png_atomic(path: &Path, img: &image::RgbImage) -> Result<()> {
     write_atomic(path, &bytes)
 }
 
-fn tmp_path(path: &Path) -> PathBuf {
-    let mut name = path.file_name().map(|n| n.to_os_string()).unwrap_or_default();
-    name.push(format!(".{}.tmp", std::process::id()));
-    path.with_file_name(name)
-}

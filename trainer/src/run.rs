@@ -32,10 +32,18 @@ pub fn checkpoint_path(dir: &Path) -> PathBuf {
     dir.join(checkpoint::FILE_NAME)
 }
 
-/// Start a new run or resume the one in `opts.dir`.
+/// Start a new run or resume the one in `dir`. Hold `DirLock::acquire(dir)` around the
+/// whole run so no other process trains into the same directory.
 pub fn open(data: &Dataset, cfg: TrainConfig, dir: &Path, resume: bool) -> Result<Trainer> {
     let ck = checkpoint_path(dir);
-    if resume && ck.exists() {
+    if resume && !ck.exists() {
+        anyhow::bail!(
+            "{}: nothing to resume (no {}); drop --resume to start a new run there",
+            dir.display(),
+            checkpoint::FILE_NAME
+        );
+    }
+    if resume {
         let c = checkpoint::load(&ck)?;
         anyhow::ensure!(
             c.model.space.kind == data.kind && c.model.space.dynamic == data.dynamic,
@@ -68,7 +76,13 @@ fn progress(t: &Trainer, o: &RunOptions) -> f64 {
     a.max(b)
 }
 
+/// Steps after which a run that has not met the scene once stops (its cameras miss the
+/// scene's bounds, or every pixel is empty).
+const BLIND_STEPS: u64 = 50;
+
 /// Train until the budget is spent, measuring the curve and checkpointing on the way.
+/// Ctrl-C (with `snerf_files::interrupt` installed) saves a checkpoint and returns
+/// `Interrupted`; a diverged loss returns an error and keeps the last good checkpoint.
 pub fn run(
     t: &mut Trainer,
     data: &Dataset,
@@ -92,13 +106,43 @@ pub fn run(
             samples_per_second: last.samples as f64 / last.seconds.max(1e-9),
         });
     };
+    let _graceful = snerf_files::interrupt::Graceful::enter();
+    let first_step = t.step;
     loop {
         let p = progress(t, opts);
         if p >= 1.0 {
             break;
         }
+        if snerf_files::interrupt::requested() {
+            measure(t, &recent);
+            save(t, data, opts)?;
+            return Err(snerf_files::interrupt::Interrupted(format!(
+                "checkpoint saved at step {} ({:.1} s of training) in {}; continue with --resume",
+                t.step,
+                t.train_seconds,
+                opts.dir.display()
+            ))
+            .into());
+        }
         let s = t.step(p);
         recent = s;
+        if !s.loss.is_finite() {
+            anyhow::bail!(
+                "training diverged at step {} (loss {}); lower the learning rates (--lr-planes, --lr-mlp). \
+                 {} keeps the last good checkpoint, if any",
+                t.step,
+                s.loss,
+                opts.dir.display()
+            );
+        }
+        if t.samples_seen == 0 && t.step >= first_step + BLIND_STEPS {
+            anyhow::bail!(
+                "{} steps without a single sample inside the scene's bounds: no training ray meets the \
+                 scene (check the camera poses and scale of {})",
+                t.step - first_step,
+                data.root.display()
+            );
+        }
         on_step(t, &s, progress(t, opts));
         if t.train_seconds >= next_eval {
             measure(t, &s);

@@ -92,6 +92,48 @@ impl TrainConfig {
     }
 }
 
+impl TrainConfig {
+    /// Reject settings no run can use (a hand-edited or foreign checkpoint, a bad flag), so
+    /// they fail with a message instead of a panic deep inside a step.
+    pub fn validate(&self) -> Result<()> {
+        let pos = |name: &str, v: f32| {
+            anyhow::ensure!(v.is_finite() && v > 0.0, "training setting {name} must be a positive number (is {v})");
+            Ok(())
+        };
+        let nonneg = |name: &str, v: f32| {
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "training setting {name} must be a number >= 0 (is {v})");
+            Ok(())
+        };
+        let count = |name: &str, v: usize, max: usize| {
+            anyhow::ensure!((1..=max).contains(&v), "training setting {name} must be in 1..={max} (is {v})");
+            Ok(())
+        };
+        pos("lr_planes", self.lr_planes)?;
+        pos("lr_mlp", self.lr_mlp)?;
+        pos("lr_final", self.lr_final)?;
+        nonneg("distortion", self.distortion)?;
+        nonneg("tv", self.tv)?;
+        count("batch_rays", self.batch_rays, 1 << 20)?;
+        count("max_batch_rays", self.max_batch_rays, 1 << 20)?;
+        anyhow::ensure!(self.batch_samples <= 1 << 24, "training setting batch_samples must be at most {} (is {})", 1 << 24, self.batch_samples);
+        count("chunk_rays", self.chunk_rays, 1 << 16)?;
+        count("occupancy_res", self.occupancy_res, 1024)?;
+        count("steps_per_diagonal", self.steps_per_diagonal, 1 << 16)?;
+        count("occupancy_every", self.occupancy_every as usize, 1 << 20)?;
+        let f = &self.field;
+        anyhow::ensure!(!f.resolutions.is_empty() && f.resolutions.len() <= 8, "training setting field.resolutions must have 1..=8 levels");
+        for &r in f.resolutions.iter().chain(&f.time_resolutions) {
+            count("a plane resolution", r as usize, 4096)?;
+        }
+        anyhow::ensure!(
+            f.time_resolutions.is_empty() || f.time_resolutions.len() == f.resolutions.len(),
+            "training setting field.time_resolutions must be empty or have one entry per level"
+        );
+        anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden % 4 == 0, "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
+        Ok(())
+    }
+}
+
 /// What a renderer needs: the scene mapping, the field and its occupancy grid.
 #[derive(Clone, Debug)]
 pub struct Model {
@@ -147,7 +189,12 @@ impl StepStats {
     }
 }
 
+/// PSNR of an MSE on [0,1] colours, capped at 120 dB for a perfect fit. A non-finite MSE
+/// (a diverged field) stays NaN: it must never read as a perfect score.
 pub fn mse_to_psnr(mse: f64) -> f64 {
+    if !mse.is_finite() {
+        return f64::NAN;
+    }
     -10.0 * mse.max(1e-12).log10()
 }
 
@@ -172,6 +219,7 @@ impl Trainer {
     /// Rebuild a trainer around saved state (resume) and the dataset's training views.
     pub fn from_parts(data: &Dataset, cfg: TrainConfig, model: Model, adam: Adam) -> Result<Trainer> {
         anyhow::ensure!(!data.train.is_empty(), "{}: no training views", data.root.display());
+        cfg.validate()?;
         let views = data.train.clone();
         let mut cum = Vec::with_capacity(views.len());
         let mut total = 0usize;

@@ -9,35 +9,25 @@ use crate::{build_scene, SceneKind, SceneSpec, Source};
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
+use snerf_files::atomic::TempPath;
+use snerf_files::guard::{self, Ownership};
+use std::path::Path;
 use std::time::Instant;
 
-/// True when `dir` holds a dataset written by this crate (or is empty), so it may be replaced.
-fn replaceable(dir: &Path) -> Result<bool> {
-    if !dir.exists() {
-        return Ok(true);
+/// Refuse to replace a directory unless this command provably wrote all of it.
+fn check_replaceable(dir: &Path) -> Result<()> {
+    match guard::ownership(dir)? {
+        Ownership::Missing | Ownership::Empty | Ownership::Owned => Ok(()),
+        Ownership::Foreign(why) => bail!(
+            "{} exists and snerf cannot replace it: {why}. `snerf scene` replaces only a dataset it \
+             wrote itself and nobody changed since; move it away or choose another --out",
+            dir.display()
+        ),
     }
-    if !dir.is_dir() {
-        return Ok(false);
-    }
-    let mut entries =
-        std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?;
-    if entries.next().is_none() {
-        return Ok(true);
-    }
-    Ok(dir.join("transforms_train.json").is_file())
 }
 
-fn sibling(out: &Path, tag: &str) -> PathBuf {
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "dataset".into());
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    parent.join(format!(".{name}.{tag}-{}", std::process::id()))
+fn file_name(p: &Path) -> String {
+    p.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_else(|| "dataset".into())
 }
 
 struct Job {
@@ -58,16 +48,13 @@ pub fn write(spec: &SceneSpec, out_dir: &Path, progress: &dyn Fn(usize, usize)) 
     if spec.train_views == 0 {
         bail!("at least one train view is needed");
     }
+    if spec.test_views == 0 {
+        bail!("at least one test view is needed (training scores itself on held-out views)");
+    }
     if spec.supersample == 0 || spec.supersample > 16 {
         bail!("supersample must be in 1..=16 (got {})", spec.supersample);
     }
-    if !replaceable(out_dir)? {
-        bail!(
-            "{} exists and is not an empty directory or a snerf dataset (no transforms_train.json); \
-             refusing to overwrite it",
-            out_dir.display()
-        );
-    }
+    check_replaceable(out_dir)?;
     let built = build_scene(&spec.source, spec.seed)?;
     let dynamic = built.is_dynamic();
 
@@ -113,37 +100,28 @@ pub fn write(spec: &SceneSpec, out_dir: &Path, progress: &dyn Fn(usize, usize)) 
         });
     }
 
-    // Temporary directory.
-    let tmp = sibling(out_dir, "snerf-tmp");
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).with_context(|| format!("cannot clear {}", tmp.display()))?;
-    }
-    let result = write_into(&tmp, spec, &built, &jobs, progress);
-    if let Err(e) = result {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(e);
-    }
+    // Render into a temp directory beside the output; it is removed on failure or Ctrl-C.
+    let tmp = TempPath::for_target(out_dir)?;
+    write_into(tmp.path(), spec, &built, &jobs, progress)?;
+    guard::write_manifest(tmp.path(), "snerf scene")?;
 
-    // Move into place: old dataset aside, new one in, old one removed.
-    let old = sibling(out_dir, "snerf-old");
-    if out_dir.exists() {
-        if old.exists() {
-            std::fs::remove_dir_all(&old).ok();
-        }
-        std::fs::rename(out_dir, &old)
+    // Move into place: old dataset aside, new one in, old one removed. Ownership is checked
+    // again: the user may have added files while the views rendered.
+    check_replaceable(out_dir)?;
+    let old = TempPath::for_target(&out_dir.with_file_name(format!("{}.old", file_name(out_dir))))?;
+    let had_old = out_dir.exists();
+    if had_old {
+        std::fs::rename(out_dir, old.path())
             .with_context(|| format!("cannot move the old {} aside", out_dir.display()))?;
     }
-    if let Err(e) = std::fs::rename(&tmp, out_dir) {
-        if old.exists() {
-            let _ = std::fs::rename(&old, out_dir);
+    if let Err(e) = std::fs::rename(tmp.path(), out_dir) {
+        if had_old {
+            let _ = std::fs::rename(old.path(), out_dir);
         }
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(e)
-            .with_context(|| format!("cannot move the new dataset to {}", out_dir.display()));
+        return Err(e).with_context(|| format!("cannot move the new dataset to {}", out_dir.display()));
     }
-    if old.exists() {
-        std::fs::remove_dir_all(&old).ok();
-    }
+    tmp.keep();
+    drop(old); // removes the old dataset
 
     let triangles = match &built.content {
         Content::Static(g) => g.tris.len(),

@@ -8,7 +8,10 @@
 //! loadable by every command that takes a run), `stylize.json` (options, the source run, and
 //! one record per finished round: wall time, fit, style distance, consistency) and
 //! `rounds/round_N.png` (renders beside their stylized targets). Both files are replaced
-//! atomically after each round, so a killed run resumes at its last finished round.
+//! atomically after each round, so a killed run resumes at its last finished round. Ctrl-C
+//! (with `snerf_files::interrupt` installed) stops between training steps and saves the round
+//! so far in `partial/` (field, optimizer, stylized targets, step), from which the same
+//! command continues that round. The directory is locked while a run uses it.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -20,6 +23,8 @@ use snerf_trainer::checkpoint;
 use snerf_trainer::eval::{eval_background, render_camera};
 use snerf_trainer::render::WorkspacePool;
 use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
+
+mod partial;
 
 use crate::consistency::{self, PathGeometry};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer};
@@ -111,6 +116,9 @@ pub fn run(
     out: &Path,
     progress: &mut dyn Progress,
 ) -> Result<StylizeState> {
+    anyhow::ensure!(opts.rounds >= 1 && opts.steps_per_round >= 1, "a stylization needs at least one round of at least one step");
+    let _lock = snerf_files::DirLock::acquire(out)?;
+    let _graceful = snerf_files::interrupt::Graceful::enter();
     std::fs::create_dir_all(out.join("rounds")).with_context(|| format!("{}: cannot create", out.display()))?;
     let ck_path = out.join(checkpoint::FILE_NAME);
     // Resume when the directory holds a run with the same options.
@@ -156,43 +164,77 @@ pub fn run(
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
-        // (1) render the training views from the current field
-        progress.phase(round + 1, opts.rounds, "render", views.len() as u64);
-        let t0 = Instant::now();
-        let mut renders = Vec::with_capacity(views.len());
-        for (i, v) in views.iter().enumerate() {
-            let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
-            renders.push(Image { width: r.width, height: r.height, data: r.rgb });
-            progress.tick(i as u64 + 1, "");
-        }
-        let render_seconds = t0.elapsed().as_secs_f64();
-        // (2) stylize each render independently
-        progress.phase(round + 1, opts.rounds, "stylize", views.len() as u64);
-        let t0 = Instant::now();
-        let mut stylized = Vec::with_capacity(views.len());
-        for (i, r) in renders.iter().enumerate() {
-            let s = stylize_at(stylizer, r, opts.style_res)
-                .with_context(|| format!("round {}: stylizing training view {}", round + 1, views[i].path.display()))?;
-            stylized.push(s);
-            progress.tick(i as u64 + 1, "");
-        }
-        let stylize_seconds = t0.elapsed().as_secs_f64();
-        write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized)?;
+        let resumed = partial::load(out, round + 1, data, opts)?;
+        let (stylized, render_seconds, stylize_seconds, first_step, trained_before, mut loss_ema) = match resumed {
+            Some(p) => {
+                let p: partial::Resumed = p;
+                trainer = p.trainer;
+                wall += p.round_wall;
+                (p.targets, p.render_seconds, p.stylize_seconds, p.steps_done, p.train_seconds, p.loss_ema)
+            }
+            None => {
+                // (1) render the training views from the current field
+                progress.phase(round + 1, opts.rounds, "render", views.len() as u64);
+                let t0 = Instant::now();
+                let mut renders = Vec::with_capacity(views.len());
+                for (i, v) in views.iter().enumerate() {
+                    let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
+                    renders.push(Image { width: r.width, height: r.height, data: r.rgb });
+                    progress.tick(i as u64 + 1, "");
+                }
+                let render_seconds = t0.elapsed().as_secs_f64();
+                // (2) stylize each render independently
+                progress.phase(round + 1, opts.rounds, "stylize", views.len() as u64);
+                let t0 = Instant::now();
+                let mut stylized = Vec::with_capacity(views.len());
+                for (i, r) in renders.iter().enumerate() {
+                    let s = stylize_at(stylizer, r, opts.style_res).with_context(|| {
+                        format!("round {}: stylizing training view {}", round + 1, views[i].path.display())
+                    })?;
+                    stylized.push(s);
+                    progress.tick(i as u64 + 1, "");
+                }
+                let stylize_seconds = t0.elapsed().as_secs_f64();
+                write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized)?;
+                (stylized, render_seconds, stylize_seconds, 0, 0.0, None)
+            }
+        };
         // (3) train on random rays across the stylized views
         let targets: Vec<View> = views.iter().zip(&stylized).map(|(v, s)| stylized_view(v, s)).collect();
         trainer.set_views(targets)?;
         progress.phase(round + 1, opts.rounds, "train", opts.steps_per_round);
         let t0 = Instant::now();
-        let mut loss_ema: Option<f64> = None;
-        for s in 0..opts.steps_per_round {
+        for s in first_step..opts.steps_per_round {
+            if snerf_files::interrupt::requested() {
+                let p = partial::Partial {
+                    round: round + 1,
+                    steps_done: s,
+                    render_seconds,
+                    stylize_seconds,
+                    train_seconds: trained_before + t0.elapsed().as_secs_f64(),
+                    loss_ema,
+                    round_wall: t_round.elapsed().as_secs_f64(),
+                };
+                partial::save(out, &p, &trainer, &stylized)?;
+                return Err(snerf_files::interrupt::Interrupted(format!(
+                    "round {} saved at step {s} of {} in {}; run the same command again to continue it",
+                    round + 1,
+                    opts.steps_per_round,
+                    out.display()
+                ))
+                .into());
+            }
             let st = trainer.step(s as f64 / opts.steps_per_round.max(1) as f64);
+            if !st.loss.is_finite() {
+                bail!("round {}: training diverged at step {s} (loss {}); {} keeps the last finished round", round + 1, st.loss, out.display());
+            }
             let l = loss_ema.map(|l| 0.9 * l + 0.1 * st.loss).unwrap_or(st.loss);
             loss_ema = Some(l);
             if s % 5 == 0 || s + 1 == opts.steps_per_round {
                 progress.tick(s + 1, &format!("fit {:.2} dB", mse_to_psnr(l)));
             }
         }
-        let train_seconds = t0.elapsed().as_secs_f64();
+        let train_seconds = trained_before + t0.elapsed().as_secs_f64();
         // measure (not counted as round time)
         wall += t_round.elapsed().as_secs_f64();
         progress.phase(round + 1, opts.rounds, "measure", 1);
@@ -227,6 +269,7 @@ pub fn run(
         // the other order could claim a round whose field was never saved.
         checkpoint::save(&trainer, &ck_path)?;
         checkpoint::write_json_atomic(&state_path(out), &state)?;
+        partial::clear(out);
     }
     Ok(state)
 }

@@ -1,6 +1,7 @@
 //! snerf-stream: QUIC streaming of baked snerf assets (protocol `snerf/1`, see PROTOCOL.md).
 //!
-//! - `server`: `serve` / `serve_blocking` / `start` / `spawn` — a quinn endpoint serving a
+//! - `server`: `serve` / `serve_blocking` (`_with`: a callback gets the ready server's
+//!   address, fingerprint and token as data) / `start` / `spawn` — a quinn endpoint serving a
 //!   directory of `.snerf` files or one file, token-authenticated, self-signed certificate.
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
@@ -14,8 +15,10 @@
 #![allow(clippy::manual_is_multiple_of)]
 
 pub mod bench;
+mod cache;
 pub mod client;
 pub mod live;
+mod pending;
 pub mod plan;
 pub mod proto;
 pub mod server;
@@ -26,7 +29,7 @@ pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptio
 pub use live::LiveAsset;
 pub use proto::{Pose, ALPN, DEFAULT_PORT, PROTOCOL_VERSION};
 pub use server::{
-    serve, serve_blocking, spawn, start, Congestion, Limits, ServeOptions, ServerHandle,
-    ServerStats,
+    serve, serve_blocking, serve_blocking_with, serve_with, spawn, start, Congestion, Limits,
+    ServeOptions, ServerHandle, ServerStats,
 };
 pub use url::{parse_url, resolve};

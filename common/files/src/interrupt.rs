@@ -1,0 +1,82 @@
+//! Ctrl-C and SIGTERM. A long job (training, stylization) marks itself with `Graceful`: the
+//! first signal then only sets a flag, which the job polls at safe points (between steps) to
+//! save its state and stop with `Interrupted`. Outside such a job, or on a second signal, the
+//! process removes its live temp files and exits at once (130 for SIGINT, 143 for SIGTERM).
+//!
+//! Signals arrive on an ordinary thread (signal-hook's iterator), not in a signal handler,
+//! so the cleanup may allocate and take locks.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::Once;
+
+static REQUESTED: AtomicBool = AtomicBool::new(false);
+static GRACEFUL: AtomicUsize = AtomicUsize::new(0);
+static INSTALL: Once = Once::new();
+
+/// Exit status of a process stopped by SIGINT (the shell's convention, 128 + 2).
+pub const EXIT_INTERRUPTED: u8 = 130;
+
+/// Take over SIGINT and SIGTERM for this process (idempotent). Servers that shut down on
+/// their own signal handling should not call this.
+pub fn install() {
+    INSTALL.call_once(|| {
+        use signal_hook::consts::{SIGINT, SIGTERM};
+        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+            return; // keep the default behaviour: the process dies, the next run sweeps
+        };
+        std::thread::Builder::new()
+            .name("snerf-signals".into())
+            .spawn(move || {
+                for sig in signals.forever() {
+                    let graceful = GRACEFUL.load(Ordering::SeqCst) > 0;
+                    if graceful && !REQUESTED.swap(true, Ordering::SeqCst) {
+                        eprintln!(
+                            "\nsnerf: interrupted; saving at the next safe point (press Ctrl-C again to quit at once)"
+                        );
+                        continue;
+                    }
+                    crate::atomic::remove_live_temps();
+                    std::process::exit(128 + sig);
+                }
+            })
+            .ok();
+    });
+}
+
+/// True once a signal asked a graceful job to stop.
+pub fn requested() -> bool {
+    REQUESTED.load(Ordering::SeqCst)
+}
+
+/// While one lives, the first Ctrl-C asks the job to stop instead of killing the process.
+pub struct Graceful(());
+
+impl Graceful {
+    pub fn enter() -> Graceful {
+        GRACEFUL.fetch_add(1, Ordering::SeqCst);
+        Graceful(())
+    }
+}
+
+impl Drop for Graceful {
+    fn drop(&mut self) {
+        GRACEFUL.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// The error a job returns after it stopped on request and saved what it had.
+#[derive(Debug)]
+pub struct Interrupted(pub String);
+
+impl std::fmt::Display for Interrupted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "interrupted: {}", self.0)
+    }
+}
+
+impl std::error::Error for Interrupted {}
+
+/// Whether an error chain ends in `Interrupted` (the command line exits 130 for it).
+pub fn is_interrupted(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.is::<Interrupted>())
+}

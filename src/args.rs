@@ -1,0 +1,108 @@
+//! Validated argument types shared by every command: numbers are finite and in range when
+//! they are parsed, so NaN or a 120 GB allocation never reaches the pipeline. Each parser
+//! names the accepted range in its error, which clap prints with the flag.
+
+use std::ops::RangeInclusive;
+
+fn number<T: std::str::FromStr>(s: &str) -> Result<T, String> {
+    s.trim().parse::<T>().map_err(|_| format!("'{s}' is not a number"))
+}
+
+/// A finite f64 in `range`.
+fn f64_in(s: &str, range: RangeInclusive<f64>, what: &str) -> Result<f64, String> {
+    let v: f64 = number(s)?;
+    if !v.is_finite() || !range.contains(&v) {
+        return Err(format!("'{s}': must be {what}"));
+    }
+    Ok(v)
+}
+
+/// > 0 and finite (learning rates, timeouts, minutes).
+pub fn positive(s: &str) -> Result<f64, String> {
+    let v = f64_in(s, 0.0..=1e12, "a finite number greater than 0")?;
+    if v == 0.0 {
+        return Err(format!("'{s}': must be a finite number greater than 0"));
+    }
+    Ok(v)
+}
+
+pub fn positive_f32(s: &str) -> Result<f32, String> {
+    let v = positive(s)?;
+    if v > f32::MAX as f64 {
+        return Err(format!("'{s}': too large"));
+    }
+    Ok(v as f32)
+}
+
+/// >= 0 and finite (loss weights, tolerances).
+pub fn non_negative(s: &str) -> Result<f64, String> {
+    f64_in(s, 0.0..=1e12, "a finite number >= 0")
+}
+
+pub fn non_negative_f32(s: &str) -> Result<f32, String> {
+    non_negative(s).map(|v| v as f32)
+}
+
+/// In [0, 1] (strengths, opacities).
+pub fn unit_f32(s: &str) -> Result<f32, String> {
+    f64_in(s, 0.0..=1.0, "a number in [0, 1]").map(|v| v as f32)
+}
+
+/// Field of view in degrees, (0, 180).
+pub fn fov_degrees(s: &str) -> Result<f32, String> {
+    let v = f64_in(s, 0.0..=179.0, "an angle in degrees between 0 and 179")?;
+    if v < 1.0 {
+        return Err(format!("'{s}': must be an angle in degrees between 1 and 179"));
+    }
+    Ok(v as f32)
+}
+
+/// An integer in `lo..=hi`, with the reason for the bound in the error.
+pub fn int_in<T>(lo: u64, hi: u64, why: &'static str) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+where
+    T: TryFrom<u64>,
+{
+    move |s: &str| {
+        let v: u64 = number(s)?;
+        if v < lo || v > hi {
+            return Err(format!("'{s}': must be in {lo}..={hi}{}", if why.is_empty() { String::new() } else { format!(" ({why})") }));
+        }
+        T::try_from(v).map_err(|_| format!("'{s}': out of range"))
+    }
+}
+
+/// Worker threads: 1 ..= 4 × this machine's cores (more only adds overhead; 100 000 threads
+/// would take the machine down before any work starts).
+pub fn threads(s: &str) -> Result<usize, String> {
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let max = 4 * cores;
+    let v: usize = number(s)?;
+    if v == 0 || v > max {
+        return Err(format!("'{s}': must be in 1..={max} (4 x the {cores} cores of this machine)"));
+    }
+    Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_finite_and_out_of_range_numbers_are_refused() {
+        for bad in ["NaN", "nan", "inf", "-inf", "1e400", "-1", "0", "abc", ""] {
+            assert!(positive(bad).is_err(), "{bad}");
+        }
+        assert_eq!(positive("0.04"), Ok(0.04));
+        assert!(positive_f32("1e39").is_err());
+        assert!(non_negative("NaN").is_err());
+        assert_eq!(non_negative("0"), Ok(0.0));
+        assert!(unit_f32("1.5").is_err());
+        assert!(fov_degrees("180").is_err() && fov_degrees("0").is_err());
+        let f = int_in::<usize>(1, 10, "why");
+        assert!(f("0").unwrap_err().contains("why"));
+        assert_eq!(f("10"), Ok(10));
+        assert!(f("-3").is_err());
+        assert!(threads("100000").is_err());
+        assert_eq!(threads("1"), Ok(1));
+    }
+}
