@@ -317,3 +317,104 @@ fn non_utf8_paths_do_not_panic() {
     ok(snerf().args(["--json", "inspect"]).arg(&asset).output().unwrap());
     ok(snerf().args(["--json", "render"]).arg(&asset).args(["--frames", "2", "--size", "16x16", "--out"]).arg(d.join(std::ffi::OsStr::from_bytes(b"f\xff"))).output().unwrap());
 }
+
+fn wait_for(path: &Path, secs: u64) {
+    let t0 = Instant::now();
+    while !path.exists() {
+        assert!(t0.elapsed() < Duration::from_secs(secs), "{} did not appear", path.display());
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn ctrl_c_in_stylize_saves_the_round_and_the_same_command_continues_it() {
+    let d = tmp("stylize-int");
+    let ds = d.join("ds");
+    dataset(&ds, 6, "16x16");
+    let run = d.join("run");
+    train(&ds, &run, 3);
+    let srun = d.join("srun");
+    let style = ds.join("test/r_000.png");
+    let cmd = |json: bool| {
+        let mut c = snerf();
+        if json {
+            c.arg("--json");
+        }
+        c.arg("stylize")
+            .arg(&run)
+            .arg("--out")
+            .arg(&srun)
+            .args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "300", "--consistency-frames", "0", "--style"])
+            .arg(&style);
+        c
+    };
+    let child = cmd(false).stderr(Stdio::piped()).spawn().unwrap();
+    // the round's sheet is written just before its training steps start
+    wait_for(&srun.join("rounds/round_1.png"), 120);
+    std::thread::sleep(Duration::from_millis(700));
+    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("round 1 saved at step"), "{stderr}");
+    let partial: serde_json::Value = serde_json::from_slice(&bytes(&srun.join("partial/partial.json"))).unwrap();
+    let done = partial["steps_done"].as_u64().unwrap();
+    assert!(done > 0 && done < 300, "{partial}");
+    // the same command finishes the round from there and clears the partial state
+    let v = ok(cmd(true).output().unwrap());
+    assert_eq!(v["state"]["rounds_done"].as_u64(), Some(1), "{v}");
+    assert!(!srun.join("partial").exists());
+    assert!(srun.join("checkpoint.snerfck").exists());
+}
+
+#[test]
+fn serve_json_and_a_token_from_a_file_or_the_environment() {
+    let d = tmp("serve");
+    let ds = d.join("ds");
+    dataset(&ds, 6, "16x16");
+    let run = d.join("run");
+    train(&ds, &run, 2);
+    let assets = d.join("assets");
+    std::fs::create_dir_all(&assets).unwrap();
+    ok(snerf()
+        .args(["--json", "bake"])
+        .arg(&run)
+        .arg("--out")
+        .arg(assets.join("a.snerf"))
+        .args(["--resolution", "32", "--eval-views", "0", "--visibility-views", "4"])
+        .output()
+        .unwrap());
+    let token_file = d.join("token");
+    std::fs::write(&token_file, "a-long-secret-token-0123456789\n").unwrap();
+    let mut server = snerf()
+        .args(["--json", "serve"])
+        .arg(&assets)
+        .args(["--listen", "127.0.0.1:0", "--state"])
+        .arg(d.join("state"))
+        .arg("--token-file")
+        .arg(&token_file)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(server.stdout.take().unwrap()), &mut line).unwrap();
+    let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
+    assert!(ready["token"].is_null(), "a token from the user's file is not printed: {ready}");
+    assert!(!line.contains("a-long-secret"), "{line}");
+    let addr = ready["address"].as_str().unwrap();
+    let pin = ready["fingerprint"].as_str().unwrap();
+    let url = format!("quic://{addr}/a.snerf");
+    let fetched = d.join("f1.snerf");
+    ok(snerf().args(["--json", "fetch", &url, "--pin", pin, "--token-file"]).arg(&token_file).arg("--out").arg(&fetched).output().unwrap());
+    assert_eq!(bytes(&fetched), bytes(&assets.join("a.snerf")));
+    let fetched2 = d.join("f2.snerf");
+    ok(snerf().args(["--json", "fetch", &url, "--pin", pin, "--out"]).arg(&fetched2).env("SNERF_TOKEN", "a-long-secret-token-0123456789").output().unwrap());
+    assert_eq!(bytes(&fetched2), bytes(&fetched));
+    fails(snerf().args(["fetch", &url, "--pin", pin, "--out"]).arg(d.join("f3")).env_remove("SNERF_TOKEN").output().unwrap(), &["--token-file", "SNERF_TOKEN"]);
+    assert!(Command::new("kill").args(["-INT", &server.id().to_string()]).status().unwrap().success());
+    let out = server.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("a-long-secret"), "the banner does not print a token from a file: {stderr}");
+    assert!(stderr.contains("fingerprint"), "{stderr}");
+}
