@@ -21,6 +21,9 @@ pub enum BenchCmd {
     /// QUIC streaming on loopback: fetch throughput against a plain TCP copy of the same
     /// bytes, and time to the first view.
     Stream(BenchStreamArgs),
+    /// Held-out quality over many real glTF models (train for each budget, score, compare
+    /// with a baseline build): table, quality.json and curves.svg.
+    Quality(crate::bench_quality::BenchQualityArgs),
     /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
     /// reference renderer at the same size, in the same run.
     View(crate::view_cmd::BenchViewArgs),
@@ -65,6 +68,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::Stylize(a) => stylize(a),
         BenchCmd::View(a) => crate::view_cmd::bench_view(a),
         BenchCmd::Stream(a) => crate::stream_cmd::bench_stream(&a.asset, a.rounds),
+        BenchCmd::Quality(a) => crate::bench_quality::run(a),
     }
 }
 

@@ -491,6 +491,7 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
     Ok(json!({
         "command": "train",
         "run": pj(out),
+        "peak_rss_mb": crate::bake_cmd::peak_rss_mb(),
         "wall_seconds": wall.elapsed().as_secs_f64(),
         "metrics": metrics,
     }))

@@ -3,6 +3,7 @@
 mod args;
 mod bake_cmd;
 mod bench;
+mod bench_quality;
 mod cli;
 mod demo;
 mod stream_cmd;

@@ -59,10 +59,20 @@ impl TrainConfig {
     /// only for dynamic scenes.
     pub fn for_dataset(data: &Dataset) -> TrainConfig {
         let max_dim = data.train.iter().map(|v| v.intrinsics.width.max(v.intrinsics.height)).max().unwrap_or(128);
-        // About two plane cells per pixel across the object / the contracted inner cube;
-        // forward-facing NDC spans exactly the image, so one cell per pixel.
-        let per_pixel = if data.kind == SceneKind::Forward { 1 } else { 2 };
-        let finest = (per_pixel * max_dim).next_power_of_two().clamp(128, 512);
+        let finest = match (data.kind, data.dynamic, pixels_across_box(data)) {
+            // A static object: one plane cell per pixel that the views see across the scene's
+            // box (the median view). Finer cells than the views sample are constrained by no
+            // single pixel, only by how pixels of different views happen to overlap, and the
+            // field fills them with detail that fits the training views and no other (on
+            // unseen models: train 43.7 dB against held-out 37.9 dB at two cells per pixel).
+            (SceneKind::Object, false, Some(px)) => ((px / 16.0).ceil() as u32 * 16).clamp(64, 512),
+            // About two plane cells per pixel across the object / the contracted inner cube;
+            // forward-facing NDC spans exactly the image, so one cell per pixel.
+            _ => {
+                let per_pixel = if data.kind == SceneKind::Forward { 1 } else { 2 };
+                (per_pixel * max_dim).next_power_of_two().clamp(128, 512)
+            }
+        };
         let resolutions = vec![finest / 8, finest / 4, finest / 2, finest];
         let time_resolutions = if data.dynamic {
             let frames = data.train.len().clamp(8, 400) as u32;
@@ -132,6 +142,31 @@ impl TrainConfig {
         anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden % 4 == 0, "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
         Ok(())
     }
+}
+
+/// How many pixels the scene's box spans across in the median training view: the finest detail
+/// the views sample. None where it does not apply (forward-facing NDC spans the image; an
+/// unbounded scene's inner cube is seen from inside) or cannot be told.
+pub fn pixels_across_box(data: &Dataset) -> Option<f32> {
+    if data.kind != SceneKind::Object {
+        return None;
+    }
+    let space = SceneSpace::from_dataset(data).ok()?;
+    let side = 2.0 / space.scale;
+    let mut px: Vec<f32> = data
+        .train
+        .iter()
+        .map(|v| {
+            let d = crate::space::norm(crate::space::sub(crate::space::position(v), space.center));
+            side * v.intrinsics.fx.max(v.intrinsics.fy) / d
+        })
+        .filter(|p| p.is_finite() && *p > 0.0)
+        .collect();
+    if px.is_empty() {
+        return None;
+    }
+    px.sort_by(f32::total_cmp);
+    Some(px[px.len() / 2])
 }
 
 /// What a renderer needs: the scene mapping, the field and its occupancy grid.
