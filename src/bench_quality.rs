@@ -211,7 +211,8 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
     for m in models {
         let name = m["model"].as_str().unwrap_or("?");
         if let Some(e) = m["error"].as_str() {
-            md.push_str(&format!("| {name} | skipped: {e} |\n"));
+            let short: String = e.chars().take(100).collect();
+            md.push_str(&format!("| {name} | skipped: {short}{} |\n", if e.len() > short.len() { "…" } else { "" }));
             continue;
         }
         for r in m["runs"].as_array().into_iter().flatten() {

@@ -48,6 +48,16 @@ pub struct ServeArgs {
     /// Data streams in flight per client.
     #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub max_streams: usize,
+    /// Seconds a new connection has to finish its handshake and authenticate (slow, lossy
+    /// links may need more).
+    #[arg(long, default_value_t = 3.0, value_parser = crate::args::positive)]
+    pub auth_timeout: f64,
+    /// Connections still authenticating, per source address (the oldest is dropped beyond it).
+    #[arg(long, default_value_t = 32, value_parser = crate::args::int_in::<usize>(1, 100000, ""))]
+    pub max_pending_per_ip: usize,
+    /// Memory for cached assets, MB (least recently used ones are dropped beyond it).
+    #[arg(long, default_value_t = 1024, value_parser = crate::args::int_in::<u64>(1, 1 << 20, ""))]
+    pub cache_mb: u64,
     /// Congestion control: cubic (best on loopback/LAN) or bbr (10x faster under random loss, e.g. Wi-Fi).
     #[arg(long, default_value = "cubic")]
     pub congestion: String,
@@ -63,13 +73,16 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
     o.key = a.key.clone();
     o.token_file = a.token_file.clone();
     o.limits = Limits {
-        max_clients: a.max_clients.max(1),
-        max_message: a.max_message.max(1024),
-        idle_timeout: Duration::from_secs_f64(a.idle_timeout.max(0.1)),
-        stall_timeout: Duration::from_secs_f64(a.stall_timeout.max(0.1)),
-        send_budget: a.send_budget.max(64 << 10),
-        max_streams: a.max_streams.max(1),
+        max_clients: a.max_clients,
+        max_message: a.max_message,
+        idle_timeout: Duration::from_secs_f64(a.idle_timeout.min(86400.0)),
+        stall_timeout: Duration::from_secs_f64(a.stall_timeout.min(86400.0)),
+        send_budget: a.send_budget,
+        max_streams: a.max_streams,
         congestion: a.congestion.parse::<Congestion>()?,
+        auth_timeout: Duration::from_secs_f64(a.auth_timeout),
+        max_pending_per_ip: a.max_pending_per_ip,
+        cache_bytes: a.cache_mb << 20,
         ..Limits::default()
     };
     let path = crate::cli::pj(&a.path);

@@ -9,8 +9,7 @@ use std::path::Path;
 use anyhow::Result;
 use serde::Serialize;
 use snerf_asset::quantize::decode_density;
-use snerf_asset::render::model_to_world;
-use snerf_asset::{Asset, Kind, EMPTY};
+use snerf_asset::{Asset, EMPTY};
 
 use crate::gltf_export::{write_glb, write_glb_frames, FlipbookOptions, GlbStats, GltfOptions};
 use crate::marching_cubes::{extract_blocks, Mesh};
@@ -53,32 +52,9 @@ fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
-/// Grid point -> world point, undoing the contraction (unbounded) or NDC (forward).
+/// Grid point -> world point (the one mapping every client uses, in `snerf_asset::render`).
 pub fn grid_to_world(asset: &Asset, g: [f32; 3]) -> [f32; 3] {
-    let h = &asset.header;
-    let m = match h.kind {
-        Kind::Object => g,
-        Kind::Unbounded => {
-            let c = g.map(|x| x * 2.0);
-            let m = c[0].abs().max(c[1].abs()).max(c[2].abs());
-            if m <= 1.0 {
-                c
-            } else {
-                // inverse of MERF's L∞ contraction: |p|∞ = 1 / (2 - m), other axes scale alike
-                let r = 1.0 / (2.0 - m.min(1.999));
-                c.map(|x| if x.abs() == m { x.signum() * r } else { x / m * r })
-            }
-        }
-        Kind::Forward => {
-            let n = h.space.ndc.expect("forward assets carry NDC parameters");
-            let p = [g[0] * n.xy_extent, g[1] * n.xy_extent, g[2]];
-            let ax = -n.fx / (n.width * 0.5);
-            let ay = -n.fy / (n.height * 0.5);
-            let z = 2.0 * n.near / (p[2] - 1.0).min(-1e-3);
-            [p[0] * z / ax, p[1] * z / ay, z]
-        }
-    };
-    model_to_world(h, m)
+    snerf_asset::render::grid_to_world(&asset.header, g)
 }
 
 /// Marching cubes over one keyframe at opacity level `iso`, in world coordinates.

@@ -429,6 +429,44 @@ pub fn model_to_world(h: &Header, m: V3) -> V3 {
     [w[0] + s.center[0], w[1] + s.center[1], w[2] + s.center[2]]
 }
 
+/// Grid point -> model -> world: object identity; forward NDC inverse; unbounded inverse
+/// contraction (clamped so points at the far shell stay finite).
+pub fn grid_to_world(h: &Header, g: [f32; 3]) -> [f32; 3] {
+    let m = match h.kind {
+        Kind::Object => g,
+        Kind::Forward => match h.space.ndc {
+            None => g,
+            Some(n) => {
+                let e = n.xy_extent;
+                let (nx, ny, nz) = (g[0] * e, g[1] * e, g[2].min(0.999));
+                // ndc_z = 1 + 2 near / z  =>  z = 2 near / (ndc_z - 1)
+                let z = 2.0 * n.near / (nz - 1.0);
+                let ax = -n.fx / (n.width * 0.5);
+                let ay = -n.fy / (n.height * 0.5);
+                [nx * z / ax, ny * z / ay, z]
+            }
+        },
+        Kind::Unbounded => {
+            let c = g.map(|x| 2.0 * x);
+            let mc = c[0].abs().max(c[1].abs()).max(c[2].abs());
+            if mc <= 1.0 {
+                c
+            } else {
+                let mc = mc.min(1.999);
+                let big = 1.0 / (2.0 - mc);
+                c.map(|x| {
+                    if x.abs() >= mc {
+                        big * x.signum()
+                    } else {
+                        x * big
+                    }
+                })
+            }
+        }
+    };
+    model_to_world(h, m)
+}
+
 /// Camera `i` of `n` on a preview path. Object/unbounded: a circle of radius 3 model units
 /// at 30° elevation in the model's xz-plane (model +y up), looking at the model origin.
 /// Forward: a circle of radius 0.1/scale world units around the reference camera (model

@@ -8,7 +8,7 @@ use sha2::{Digest, Sha256};
 use snerf_asset::chunk::{
     chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP,
 };
-use snerf_asset::{Asset, Header, Kind, EMPTY};
+use snerf_asset::{Asset, Header, EMPTY};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -257,43 +257,7 @@ fn cell_centre_radius(h: &Header, g: usize, cell: usize) -> ([f32; 3], f32) {
     (wc, r)
 }
 
-/// Grid point -> model -> world: object identity; forward NDC inverse; unbounded inverse
-/// contraction (clamped so points at the far shell stay finite).
-pub fn grid_to_world(h: &Header, g: [f32; 3]) -> [f32; 3] {
-    let m = match h.kind {
-        Kind::Object => g,
-        Kind::Forward => match h.space.ndc {
-            None => g,
-            Some(n) => {
-                let e = n.xy_extent;
-                let (nx, ny, nz) = (g[0] * e, g[1] * e, g[2].min(0.999));
-                // ndc_z = 1 + 2 near / z  =>  z = 2 near / (ndc_z - 1)
-                let z = 2.0 * n.near / (nz - 1.0);
-                let ax = -n.fx / (n.width * 0.5);
-                let ay = -n.fy / (n.height * 0.5);
-                [nx * z / ax, ny * z / ay, z]
-            }
-        },
-        Kind::Unbounded => {
-            let c = g.map(|x| 2.0 * x);
-            let mc = c[0].abs().max(c[1].abs()).max(c[2].abs());
-            if mc <= 1.0 {
-                c
-            } else {
-                let mc = mc.min(1.999);
-                let big = 1.0 / (2.0 - mc);
-                c.map(|x| {
-                    if x.abs() >= mc {
-                        big * x.signum()
-                    } else {
-                        x * big
-                    }
-                })
-            }
-        }
-    };
-    snerf_asset::render::model_to_world(h, m)
-}
+pub use snerf_asset::render::grid_to_world;
 
 /// Record bytes of a set of chunks.
 pub fn records_len(a: &ServedAsset, idx: &[u32]) -> u64 {
@@ -316,7 +280,7 @@ pub(crate) fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use snerf_asset::{AssetBuilder, Keyframe, ViewMlp};
+    use snerf_asset::{AssetBuilder, Keyframe, Kind, ViewMlp};
 
     fn asset(kind: Kind, dynamic: bool) -> ServedAsset {
         let mut h = Header::new(kind, 32, 8);
