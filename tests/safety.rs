@@ -206,7 +206,7 @@ fn stale_temp_files_are_swept_and_resume_is_honest() {
     let user_file = run.join("notes.4999999.tmp");
     std::fs::write(&user_file, b"mine").unwrap();
     // a conflicting architecture on resume is refused, not ignored
-    fails(snerf().arg("train").arg(&ds).arg("--out").arg(&run).args(["--resume", "--steps", "5", "--resolution", "64"]).output().unwrap(), &["--resolution", "resumed"]);
+    fails(snerf().arg("train").arg(&ds).arg("--out").arg(&run).args(["--resume", "--steps", "5", "--resolution", "128"]).output().unwrap(), &["--resolution", "resumed"]);
     train_resume(&ds, &run, 5);
     for s in &stale {
         assert!(!s.exists(), "{} should have been swept", s.display());
