@@ -218,20 +218,6 @@ fn train_resume(data: &Path, run: &Path, steps: u32) {
     ok(snerf().args(["--json", "train"]).arg(data).arg("--out").arg(run).args(["--resume", "--steps", &steps.to_string()]).output().unwrap());
 }
 
-/// The checkpoint's checksum (FNV-style over 8-byte words), as `checkpoint.rs` computes it.
-fn checksum(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut chunks = bytes.chunks_exact(8);
-    for c in &mut chunks {
-        h ^= u64::from_le_bytes(c.try_into().unwrap());
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    for &b in chunks.remainder() {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
 
 #[test]
 fn impossible_inputs_are_refused_not_accepted_silently() {
@@ -251,7 +237,7 @@ fn impossible_inputs_are_refused_not_accepted_silently() {
     nb.extend_from_slice(&(hbytes.len() as u64).to_le_bytes());
     nb.extend_from_slice(&hbytes);
     nb.extend_from_slice(&b[20 + hlen..b.len() - 8]);
-    let sum = checksum(&nb);
+    let sum = snerf_trainer::checkpoint::checksum(&nb);
     nb.extend_from_slice(&sum.to_le_bytes());
     std::fs::write(&ck, &nb).unwrap();
     fails(snerf().arg("train").arg(&ds).arg("--out").arg(&run).args(["--resume", "--steps", "4"]).output().unwrap(), &["chunk_rays"]);

@@ -50,7 +50,8 @@ pub struct Checkpoint {
 }
 
 /// FNV-1a over 8-byte words (fast enough for hundreds of MB, catches flips and truncation).
-fn checksum(bytes: &[u8]) -> u64 {
+/// The checkpoint's integrity checksum (FNV-style over 8-byte words).
+pub fn checksum(bytes: &[u8]) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut chunks = bytes.chunks_exact(8);
     for c in &mut chunks {

@@ -167,10 +167,10 @@ pub fn run(
         let resumed = partial::load(out, round + 1, data, opts)?;
         let (stylized, render_seconds, stylize_seconds, first_step, trained_before, mut loss_ema) = match resumed {
             Some(p) => {
-                let p: partial::Resumed = p;
-                trainer = p.trainer;
+                let partial::Resumed { trainer: t, targets, saved: p } = p;
+                trainer = t;
                 wall += p.round_wall;
-                (p.targets, p.render_seconds, p.stylize_seconds, p.steps_done, p.train_seconds, p.loss_ema)
+                (targets, p.render_seconds, p.stylize_seconds, p.steps_done, p.train_seconds, p.loss_ema)
             }
             None => {
                 // (1) render the training views from the current field

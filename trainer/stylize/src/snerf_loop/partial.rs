@@ -30,12 +30,7 @@ pub struct Partial {
 pub struct Resumed {
     pub trainer: Trainer,
     pub targets: Vec<Image>,
-    pub steps_done: u64,
-    pub render_seconds: f64,
-    pub stylize_seconds: f64,
-    pub train_seconds: f64,
-    pub loss_ema: Option<f64>,
-    pub round_wall: f64,
+    pub saved: Partial,
 }
 
 fn dir(out: &Path) -> PathBuf {
@@ -83,14 +78,5 @@ pub fn load(out: &Path, round: usize, data: &Dataset, opts: &StylizeOptions) -> 
     trainer.train_seconds = ck.train_seconds;
     trainer.samples_seen = ck.samples_seen;
     trainer.curve = ck.curve;
-    Ok(Some(Resumed {
-        trainer,
-        targets,
-        steps_done: p.steps_done,
-        render_seconds: p.render_seconds,
-        stylize_seconds: p.stylize_seconds,
-        train_seconds: p.train_seconds,
-        loss_ema: p.loss_ema,
-        round_wall: p.round_wall,
-    }))
+    Ok(Some(Resumed { trainer, targets, saved: p }))
 }
