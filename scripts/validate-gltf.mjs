@@ -13,8 +13,10 @@ import { readFileSync, existsSync } from 'node:fs';
 import { dirname, join, resolve, basename } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-const repo = resolve(dirname(fileURLToPath(import.meta.url)), '..');
-const dir = resolve(process.env.GLTF_VALIDATOR_DIR || join(repo, 'target', 'test-assets', 'gltf-validator'));
+// `snerf export-gltf --validate` pipes this script to node on stdin and always sets
+// GLTF_VALIDATOR_DIR; run from a checkout, the default is beside the script.
+const dir = resolve(process.env.GLTF_VALIDATOR_DIR
+  || join(resolve(dirname(fileURLToPath(import.meta.url)), '..'), 'target', 'test-assets', 'gltf-validator'));
 const file = process.argv[2];
 if (!file) {
   console.error('usage: node scripts/validate-gltf.mjs FILE.glb');

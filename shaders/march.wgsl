@@ -59,11 +59,8 @@ struct Sample {
 // bindings 5.. (atlas textures, sampler) come with the atlas snippet
 
 const EMPTY: u32 = 0xffffffffu;
-const MAX_OPTICAL_DEPTH: f32 = 80.0;
-const UNBOUNDED_NEAR: f32 = 0.02;
-const UNBOUNDED_FAR: f32 = 1000.0;
-const NDC_MIN_DZ: f32 = 1.0e-6;
-const MAX_ITERS: u32 = 1048576u;
+// MAX_OPTICAL_DEPTH, UNBOUNDED_NEAR, UNBOUNDED_FAR, NDC_MIN_DZ and MAX_ITERS are prepended
+// from snerf_geometry::march (the one definition the trainer and the CPU reference use).
 const PI: f32 = 3.14159265358979;
 
 // ---- compositing state (render.rs `Accum`) ----

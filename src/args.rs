@@ -73,6 +73,43 @@ where
 
 /// Worker threads: 1 ..= 4 × this machine's cores (more only adds overhead; 100 000 threads
 /// would take the machine down before any work starts).
+/// A direction "x,y,z" (finite, not zero), returned unit length; also the axis names
+/// "+x", "-y", "+z", ….
+pub fn direction(s: &str) -> Result<[f32; 3], String> {
+    let t = s.trim();
+    let axis = |i: usize, sign: f32| {
+        let mut v = [0.0f32; 3];
+        v[i] = sign;
+        v
+    };
+    let named = match t.to_ascii_lowercase().as_str() {
+        "x" | "+x" => Some(axis(0, 1.0)),
+        "-x" => Some(axis(0, -1.0)),
+        "y" | "+y" => Some(axis(1, 1.0)),
+        "-y" => Some(axis(1, -1.0)),
+        "z" | "+z" => Some(axis(2, 1.0)),
+        "-z" => Some(axis(2, -1.0)),
+        _ => None,
+    };
+    if let Some(v) = named {
+        return Ok(v);
+    }
+    let parts: Vec<&str> = t.split(',').collect();
+    let bad = || format!("'{s}': must be an axis (+x, -y, z, ...) or three finite numbers x,y,z, not all 0");
+    if parts.len() != 3 {
+        return Err(bad());
+    }
+    let mut v = [0.0f32; 3];
+    for (o, p) in v.iter_mut().zip(&parts) {
+        *o = p.trim().parse::<f32>().map_err(|_| bad())?;
+    }
+    let n = v.iter().map(|x| x * x).sum::<f32>().sqrt();
+    if !n.is_finite() || n == 0.0 {
+        return Err(bad());
+    }
+    Ok(v.map(|x| x / n))
+}
+
 pub fn threads(s: &str) -> Result<usize, String> {
     let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let max = 4 * cores;
@@ -89,6 +126,11 @@ mod tests {
 
     #[test]
     fn non_finite_and_out_of_range_numbers_are_refused() {
+        assert_eq!(direction("+z"), Ok([0.0, 0.0, 1.0]));
+        assert_eq!(direction("0, -2, 0"), Ok([0.0, -1.0, 0.0]));
+        for bad in ["0,0,0", "1,2", "NaN,0,1", "inf,0,0", "up"] {
+            assert!(direction(bad).is_err(), "{bad}");
+        }
         for bad in ["NaN", "nan", "inf", "-inf", "1e400", "-1", "0", "abc", ""] {
             assert!(positive(bad).is_err(), "{bad}");
         }

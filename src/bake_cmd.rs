@@ -49,6 +49,11 @@ pub struct BakeArgs {
     /// Held-out views on which to measure what baking loses (0: skip).
     #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<usize>(0, 10000, ""))]
     pub eval_views: usize,
+    /// The scene's world up direction (an axis like +z or x,y,z). Default: the mean up of
+    /// the training cameras, stored by `snerf train`. Every viewer keeps it upright and the
+    /// preview orbit turns around it.
+    #[arg(long, value_parser = crate::args::direction)]
+    pub up: Option<[f32; 3]>,
     #[command(flatten)]
     pub opts: DataOpts,
 }
@@ -101,6 +106,7 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
         min_alpha: a.min_alpha,
         visibility_views: a.visibility_views,
         reuse_tolerance: a.reuse_tolerance,
+        up: a.up,
     };
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
     let (asset, report) = bake(&model, &pool, &data.train, bg, &opts, &|what, done, total| {
@@ -172,8 +178,9 @@ pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
 pub struct RenderArgs {
     /// A baked asset file (.snerf).
     pub file: PathBuf,
-    /// `orbit`, or a JSON file: a list of cameras {"c2w": 3x4 rows (OpenGL convention),
-    /// "fx", "fy", "cx", "cy", "width", "height", optional "time"}.
+    /// `orbit` (the asset's preview orbit, upright about the scene's up), or a nerfstudio
+    /// `camera_path.json` (camera_to_world, fov; an optional per-camera "time" for 4D assets).
+    /// Every render writes the path it used to OUT/camera_path.json.
     #[arg(long, default_value = "orbit")]
     pub path: String,
     /// Frames on the orbit (dynamic assets play their time once around).
@@ -191,19 +198,6 @@ pub struct RenderArgs {
     pub gpu: bool,
 }
 
-#[derive(serde::Deserialize)]
-struct PathCamera {
-    c2w: [[f32; 4]; 3],
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
-    width: u32,
-    height: u32,
-    #[serde(default)]
-    time: Option<f32>,
-}
-
 /// The cameras (and times) of `--path`.
 pub fn render_path(asset: &Asset, path: &str, frames: usize, size: (u32, u32)) -> Result<Vec<(Camera, f32)>> {
     let (t0, t1) = asset.header.time_range.map(|r| (r[0], r[1])).unwrap_or((0.0, 0.0));
@@ -216,29 +210,24 @@ pub fn render_path(asset: &Asset, path: &str, frames: usize, size: (u32, u32)) -
             })
             .collect());
     }
-    let p = Path::new(path);
-    let bytes = std::fs::read(p).with_context(|| format!("--path {path}: cannot read (use `orbit` or a JSON camera file)"))?;
-    let cams: Vec<PathCamera> = serde_json::from_slice(&bytes).with_context(|| format!("{path}: not a JSON list of cameras"))?;
-    if cams.is_empty() {
-        bail!("{path}: no cameras");
-    }
-    cams.into_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            if !(1..=8192).contains(&c.width) || !(1..=8192).contains(&c.height) {
-                bail!("{path}: camera {i}: size {}x{} out of range", c.width, c.height);
-            }
-            let finite = c.c2w.iter().flatten().chain([&c.fx, &c.fy, &c.cx, &c.cy]).all(|v| v.is_finite());
-            if !finite || c.fx <= 0.0 || c.fy <= 0.0 {
-                bail!("{path}: camera {i}: fx and fy must be positive and every number finite (fx {}, fy {})", c.fx, c.fy);
-            }
-            if c.time.is_some_and(|t| !t.is_finite()) {
-                bail!("{path}: camera {i}: time is not a finite number");
-            }
-            let cam = Camera { c2w: c.c2w, fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy, width: c.width, height: c.height };
-            Ok((cam, c.time.unwrap_or(t0)))
+    let text = std::fs::read_to_string(path).with_context(|| format!("--path {path}: cannot read (use `orbit` or a camera_path.json)"))?;
+    let cams = snerf_geometry::camera_path::parse(&text, size, 40.0).map_err(|e| anyhow::anyhow!("{path}: {e}"))?;
+    Ok(cams.iter().map(|c| (c.pinhole(), c.time.unwrap_or(t0))).collect())
+}
+
+/// The cameras of a render as a nerfstudio camera_path.json.
+fn camera_path_json(cams: &[(Camera, f32)], dynamic: bool) -> String {
+    let path: Vec<snerf_geometry::camera_path::PathCamera> = cams
+        .iter()
+        .map(|(c, t)| snerf_geometry::camera_path::PathCamera {
+            c2w: c.c2w,
+            fov_y: 2.0 * (0.5 * c.height as f32 / c.fy).atan().to_degrees(),
+            width: c.width,
+            height: c.height,
+            time: dynamic.then_some(*t),
         })
-        .collect()
+        .collect();
+    snerf_geometry::camera_path::to_json(&path, 24.0)
 }
 
 /// Pixels one `snerf render` may produce in all (frames x width x height): 2^28, a thousand
@@ -293,12 +282,15 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
     let secs = t0.elapsed().as_secs_f64();
     let preview = a.out.join("preview.png");
     asset_render::contact_strip(&frames[..frames.len().min(8)], &preview)?;
+    let path_file = a.out.join("camera_path.json");
+    snerf_files::atomic::write_atomic(&path_file, camera_path_json(&cams, asset.header.is_dynamic()).as_bytes())?;
     eprintln!("rendered {} frames in {:.1} s ({:.0} ms/frame, {renderer}) -> {}", cams.len(), secs, secs * 1e3 / cams.len() as f64, a.out.display());
     Ok(json!({
         "command": "render",
         "file": pj(&a.file),
         "frames": files.iter().map(pj).collect::<Vec<_>>(),
         "preview": pj(&preview),
+        "camera_path": pj(&path_file),
         "seconds": secs,
         "renderer": renderer,
     }))
@@ -370,8 +362,8 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
     }))
 }
 
-/// Median and 90th-percentile distance (in voxels) from the field's expected-depth surface
-/// points of the held-out views to the exported mesh.
+/// The field's surface against the exported mesh (`snerf_baker::checks`), on the run's
+/// held-out views.
 fn surface_agreement(asset: &Asset, mesh: &snerf_baker::marching_cubes::Mesh, run: &Path, data: Option<&Path>, opts: &DataOpts) -> Result<Value> {
     let data_path = match data {
         Some(d) => d.to_path_buf(),
@@ -380,54 +372,17 @@ fn surface_agreement(asset: &Asset, mesh: &snerf_baker::marching_cubes::Mesh, ru
     let data = opts.load(&data_path)?;
     let (model, pool) = load_model(run)?;
     let views = if data.test.is_empty() { &data.train } else { &data.test };
-    let bg = asset.header.background;
-    let mut points = Vec::new();
-    for v in views.iter().take(8) {
-        let r = eval::render_camera(&model, &pool, &v.c2w, &v.intrinsics, v.time, bg);
-        for p in 0..r.opacity.len() {
-            if r.opacity[p] < 0.9 {
-                continue;
-            }
-            let (x, y) = (p % r.width, p / r.width);
-            if let Some(ray) = model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time) {
-                points.push(model.space.march_to_world(&ray, r.depth[p]));
-            }
-        }
-    }
-    if points.is_empty() {
-        bail!("{}: the field covers no pixel of the held-out views; nothing to compare", run.display());
-    }
-    // one voxel in world units (exact for objects; at the centre for other kinds)
-    let voxel = 2.0 / asset.header.res as f32 / asset.header.space.scale;
-    let mut d: Vec<f32> = snerf_baker::mesh_export::distances_to_mesh(mesh, &points, voxel * 2.0)
-        .into_iter()
-        .map(|x| x / voxel)
-        .collect();
-    d.sort_by(|a, b| a.total_cmp(b));
-    let q = |f: f64| d[((d.len() - 1) as f64 * f) as usize];
-    let far = d.iter().filter(|x| !x.is_finite()).count();
+    let s = snerf_baker::checks::surface_agreement(asset, mesh, &model, &pool, views).with_context(|| format!("{}", run.display()))?;
     eprintln!(
         "mesh vs field depth over {} surface points: median {:.2} voxels, 90th percentile {:.2} voxels",
-        d.len(),
-        q(0.5),
-        q(0.9)
+        s.points, s.median_voxels, s.p90_voxels
     );
-    Ok(json!({ "points": d.len(), "median_voxels": q(0.5), "p90_voxels": q(0.9), "beyond_6_voxels": far }))
+    Ok(serde_json::to_value(s)?)
 }
 
-/// Run the Khronos glTF validator through node (scripts/validate-gltf.mjs).
+/// Run the Khronos glTF validator (`snerf_baker::checks::validate_glb`) and print its counts.
 pub fn validate_glb(path: &Path) -> Result<Value> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/validate-gltf.mjs");
-    let out = std::process::Command::new("node")
-        .arg(&script)
-        .arg(path)
-        .env("GLTF_VALIDATOR_DIR", Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-assets/gltf-validator"))
-        .output()
-        .context("running node (needed for --validate; install Node.js and `npm install gltf-validator`)")?;
-    let report: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|_| json!({ "raw": String::from_utf8_lossy(&out.stdout) }));
-    if out.status.code() == Some(2) {
-        bail!("glTF validator unavailable: {}", String::from_utf8_lossy(&out.stderr).trim());
-    }
+    let report = snerf_baker::checks::validate_glb(path)?;
     eprintln!(
         "glTF validator: {} errors, {} warnings",
         report.pointer("/numErrors").or(report.pointer("/issues/numErrors")).unwrap_or(&json!("?")),

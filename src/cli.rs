@@ -575,5 +575,19 @@ pub fn turntable(
         pb.inc(1);
     }
     pb.finish_and_clear();
+    // The path itself, as nerfstudio's camera_path.json: `snerf render --path` of a baked
+    // asset (or nerfstudio) renders the same cameras.
+    let path: Vec<snerf_geometry::camera_path::PathCamera> = cams
+        .iter()
+        .enumerate()
+        .map(|(i, c2w)| snerf_geometry::camera_path::PathCamera {
+            c2w: *c2w,
+            fov_y: 2.0 * (0.5 * k.height as f32 / k.fy).atan().to_degrees(),
+            width: k.width,
+            height: k.height,
+            time: data.dynamic.then(|| i as f32 / cams.len().max(2) as f32),
+        })
+        .collect();
+    snerf_files::atomic::write_atomic(&out.join("camera_path.json"), snerf_geometry::camera_path::to_json(&path, 24.0).as_bytes())?;
     Ok(files)
 }

@@ -178,6 +178,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         visibility_views: 32,
         reuse_tolerance: 0.03,
         eval_views: 4,
+        up: None,
         opts: cli::DataOpts::default(),
     })?;
     let rendered = crate::bake_cmd::render_cmd(&crate::bake_cmd::RenderArgs {

@@ -31,7 +31,8 @@ pub struct ViewArgs {
     /// Eye separation in world units for --stereo.
     #[arg(long, default_value_t = 0.064, value_parser = crate::args::non_negative_f32)]
     pub ipd: f32,
-    /// Head poses from a file (JSON list of {"c2w": rows, "time": optional}), one per frame.
+    /// Head poses from a file (a nerfstudio camera_path.json, or a JSON list of {"c2w": rows,
+    /// "time": optional}), one per frame.
     #[arg(long)]
     pub poses: Option<PathBuf>,
     /// Turn vsync off (frames as fast as they render).

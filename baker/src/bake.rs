@@ -18,13 +18,13 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use serde::Serialize;
-use snerf_asset::header::{DensityRange, Header, Keyframe, Kind, March, Ndc, Space};
+use snerf_asset::header::{DensityRange, Header, Keyframe, March, Orbit};
 use snerf_asset::mlp::ViewMlp;
 use snerf_asset::quantize::{decode_voxel, encode_voxel};
 use snerf_asset::Asset;
 use snerf_data::{SceneKind, View};
 use snerf_trainer::eval::render_camera;
-use snerf_trainer::occupancy::unbounded_dt;
+use snerf_geometry::unbounded_dt;
 use snerf_trainer::render::{values_batch, WorkspacePool};
 use snerf_trainer::space::{dot, norm, sub, Vec3};
 use snerf_trainer::train::Model;
@@ -48,11 +48,13 @@ pub struct BakeOptions {
     /// over one step moved by more than this, and no colour or feature moved by more than
     /// this times the voxel's opacity (colour where nothing is opaque is never seen).
     pub reuse_tolerance: f32,
+    /// The scene's world up direction, overriding the one the training cameras imply.
+    pub up: Option<[f32; 3]>,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 256, block: 8, keyframes: 12, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.03 }
+        BakeOptions { res: 256, block: 8, keyframes: 12, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.03, up: None }
     }
 }
 
@@ -213,13 +215,13 @@ pub fn bake(
     }
     report.atlas_blocks = atlas_blocks;
 
-    let mut header = Header::new(kind_of(space.kind), res, b);
-    header.space = Space {
-        center: space.center,
-        rot: space.rot,
-        scale: space.scale,
-        ndc: space.ndc.map(|n| Ndc { fx: n.fx, fy: n.fy, width: n.width, height: n.height, near: n.near, xy_extent: n.xy_extent }),
-    };
+    let mut header = Header::new(space.kind, res, b);
+    header.space = space.frame;
+    header.view = space.orbit.map(|o| match opts.up {
+        Some(up) => reorient(o, up),
+        None => o,
+    });
+    header.floor = header.view.and_then(|o| floor_height(&header, &grids[0], o.up()));
     header.atlas_blocks = atlas_blocks as u32;
     header.density = range;
     header.march = March { step, t_terminate: snerf_trainer::render::T_TERMINATE };
@@ -258,18 +260,59 @@ enum Evaluated {
     Kept(Vec<u8>),
 }
 
-fn kind_of(k: SceneKind) -> Kind {
-    match k {
-        SceneKind::Object => Kind::Object,
-        SceneKind::Forward => Kind::Forward,
-        SceneKind::Unbounded => Kind::Unbounded,
+/// Height along `up` (world units, from the world origin) of the scene's floor: the lowest
+/// occupied cells — the 1st percentile of their centres' heights, so a stray floater below
+/// does not count — among those in the central region (all of an object; the inner cube of
+/// an unbounded scene, whose outer shell reaches far below any floor a person stands on).
+pub fn floor_height(h: &Header, grid: &[u32], up: [f32; 3]) -> Option<f32> {
+    let g = h.grid_dim();
+    let mut heights: Vec<f32> = Vec::new();
+    for (c, &b) in grid.iter().enumerate() {
+        if b == snerf_asset::EMPTY {
+            continue;
+        }
+        let centre = [c % g, (c / g) % g, c / (g * g)].map(|i| -1.0 + (i as f32 + 0.5) * 2.0 / g as f32);
+        if h.kind == snerf_geometry::SceneKind::Unbounded && centre.iter().any(|x| x.abs() > 0.5) {
+            continue;
+        }
+        let w = h.space.grid_to_world(h.kind, centre);
+        let y = dot(w, up);
+        if y.is_finite() {
+            heights.push(y);
+        }
+    }
+    if heights.is_empty() {
+        return None;
+    }
+    heights.sort_by(|a, b| a.total_cmp(b));
+    Some(heights[heights.len() / 100])
+}
+
+/// The orbit turned upright about `up` (a user's `--up`): same centre and radius, the first
+/// frame on the same side, elevation measured from the new horizontal plane.
+pub fn reorient(o: Orbit, up: [f32; 3]) -> Orbit {
+    use snerf_geometry::camera::horizontal;
+    use snerf_geometry::vec::{add, cross, normalize, scale};
+    let up = normalize(up);
+    match o {
+        Orbit::Around { center, start, radius, elevation, up: old } => {
+            let eye_dir = add(scale(start, elevation.cos()), scale(old, elevation.sin()));
+            let elevation = dot(eye_dir, up).clamp(-1.0, 1.0).asin();
+            Orbit::Around { center, up, start: horizontal(up, eye_dir), radius, elevation }
+        }
+        Orbit::Ellipse { center, right: old_right, target, rx, ry, .. } => {
+            let fwd = normalize(sub(target, center));
+            let r = cross(fwd, up);
+            let right = if norm(r) > 1e-3 { normalize(r) } else { old_right };
+            Orbit::Ellipse { center, right, up: cross(right, fwd), target, rx, ry }
+        }
     }
 }
 
 /// The march-space step length at a grid point (what σ multiplies there).
 fn march_delta(kind: SceneKind, step: f32, g: &Vec3, space: &snerf_trainer::space::SceneSpace) -> f32 {
     match kind {
-        SceneKind::Unbounded => unbounded_dt(step, &space.grid_to_march(*g)),
+        SceneKind::Unbounded => unbounded_dt(step, space.grid_to_march(*g)),
         _ => step,
     }
 }

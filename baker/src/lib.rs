@@ -7,6 +7,7 @@
 //! turn the baked density and colour into a mesh for engines.
 
 pub mod bake;
+pub mod checks;
 pub mod faithfulness;
 pub mod gltf_export;
 pub mod marching_cubes;

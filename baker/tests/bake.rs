@@ -54,6 +54,14 @@ fn static_object_bakes_faithfully_and_without_time_data() {
     let occupied = asset.grids[0].iter().filter(|&&c| c != snerf_asset::EMPTY).count();
     assert!(occupied < g * g * g / 2, "{occupied} of {} cells kept", g * g * g);
     assert!(report.dropped_transparent > 0, "{report:?}");
+    // the capture's up and the floor travel with the asset
+    let up = asset.header.view.expect("the asset carries its up and preview orbit").up();
+    let cams_up = snerf_geometry::camera::mean_up(data.train.iter().map(|v| &v.c2w));
+    assert!(snerf_geometry::vec::dot(up, cams_up) > 0.999, "asset up {up:?} vs cameras' {cams_up:?}");
+    let floor = asset.header.floor.expect("the asset carries its floor");
+    let centre = snerf_geometry::vec::dot(asset.header.space.center, up);
+    let half = 1.0 / asset.header.space.scale;
+    assert!(floor < centre && floor > centre - 1.75 * half, "floor {floor} vs centre height {centre} (box half {half})");
     let f = faithfulness::measure(&t.model, &t.pool, &asset, &data.test, 4).unwrap();
     eprintln!("{f:#?}\n{report:#?}");
     assert!(f.mean_baked_vs_field >= 30.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);

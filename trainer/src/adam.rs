@@ -36,10 +36,13 @@ pub fn sanitize(g: f32) -> f32 {
 /// update. Every parallel block touches a disjoint index range of every buffer.
 #[derive(Clone, Copy)]
 struct Shared(*mut f32);
+// SAFETY: the pointers are only dereferenced inside the update functions, at indices that
+// no two parallel blocks share, while the `&mut` borrows they came from are held.
 unsafe impl Send for Shared {}
 unsafe impl Sync for Shared {}
 #[derive(Clone, Copy)]
 struct SharedFlags(*mut u8);
+// SAFETY: as for `Shared`.
 unsafe impl Send for SharedFlags {}
 unsafe impl Sync for SharedFlags {}
 
@@ -69,6 +72,10 @@ impl Adam {
 
     /// Dense update of `params[range]` with learning rate `lr`.
     pub fn update_dense(&mut self, params: &mut [f32], grads: &mut [&mut Vec<f32>], range: std::ops::Range<usize>, lr: f32) {
+        // The raw-pointer reads below rely on these bounds; checked here, once per call, so
+        // this safe function cannot touch memory outside any buffer whatever it is given.
+        assert!(range.end <= params.len() && range.end <= self.m.len(), "Adam range {range:?} beyond {} parameters", params.len().min(self.m.len()));
+        assert!(grads.iter().all(|g| g.len() >= range.end), "a gradient buffer is shorter than the update range {range:?}");
         let step = self.step_size(lr);
         let bufs: Vec<Shared> = grads.iter_mut().map(|g| Shared(g.as_mut_ptr())).collect();
         let start = range.start;
@@ -84,7 +91,8 @@ impl Adam {
                 for i in 0..p.len() {
                     let mut g = 0.0f32;
                     for b in &bufs {
-                        // SAFETY: index off+i is inside every buffer and only this block uses it.
+                        // SAFETY: off+i < range.end <= every buffer's length (asserted above), and
+                        // only this parallel block uses index off+i.
                         unsafe {
                             let slot = b.0.add(off + i);
                             g += *slot;
@@ -106,10 +114,14 @@ impl Adam {
         cell: usize,
         lr: f32,
     ) -> usize {
+        let cells = flags.first().map(|f| f.len()).unwrap_or(0);
+        // Bounds for the raw-pointer accesses below, checked once per call (see update_dense).
+        assert!(flags.iter().all(|f| f.len() == cells), "flag buffers of different lengths");
+        assert!(cells * cell <= params.len() && cells * cell <= self.m.len(), "{cells} cells of {cell} beyond {} parameters", params.len().min(self.m.len()));
+        assert!(grads.iter().all(|g| g.len() >= cells * cell), "a gradient buffer is shorter than {cells} cells of {cell}");
         let step = self.step_size(lr);
         let bufs: Vec<Shared> = grads.iter_mut().map(|g| Shared(g.as_mut_ptr())).collect();
         let fl: Vec<SharedFlags> = flags.iter_mut().map(|f| SharedFlags(f.as_mut_ptr())).collect();
-        let cells = flags.first().map(|f| f.len()).unwrap_or(0);
         let this = Adam { m: Vec::new(), v: Vec::new(), ..*self };
         const BLOCK: usize = 1 << 10; // cells per parallel block
         params[..cells * cell]
@@ -123,7 +135,8 @@ impl Adam {
                     let ci = bi * BLOCK + j;
                     let mut hit = false;
                     for f in &fl {
-                        // SAFETY: cell ci belongs to this block only.
+                        // SAFETY: ci < cells = every flag buffer's length (asserted above), and
+                        // cell ci belongs to this parallel block only.
                         unsafe {
                             let s = f.0.add(ci);
                             hit |= *s != 0;
@@ -138,6 +151,8 @@ impl Adam {
                         let k = j * cell + c;
                         let mut g = 0.0f32;
                         for b in &bufs {
+                            // SAFETY: ci*cell + c < cells*cell <= every gradient buffer's
+                            // length (asserted above); cell ci belongs to this block only.
                             unsafe {
                                 let slot = b.0.add(ci * cell + c);
                                 g += *slot;

@@ -1,67 +1,55 @@
 //! Camera paths for turntables and novel-view sequences, derived from the training cameras.
+//! The path itself is `snerf_geometry::Orbit` (one definition for the trainer, the baked
+//! asset and every viewer); this module only chooses its parameters from a capture.
 
 use snerf_data::{SceneKind, View};
+pub use snerf_geometry::look_at;
+use snerf_geometry::camera::{forward_axis, horizontal, mean_up, position};
+use snerf_geometry::vec::{add, cross, dot, norm, normalize, scale, sub, Vec3};
+use snerf_geometry::{Orbit, Space};
 
-use crate::space::{add, cross, norm, normalize, position, scale, sub, SceneSpace, Vec3};
+use crate::space::SceneSpace;
 
-/// Camera-to-world (OpenGL convention) looking from `eye` at `target`.
-pub fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> [[f32; 4]; 3] {
-    let back = normalize(sub(eye, target));
-    let mut right = cross(up, back);
-    if norm(right) < 1e-6 {
-        right = cross([1.0, 0.0, 0.0], back);
-    }
-    let right = normalize(right);
-    let up = cross(back, right);
-    [
-        [right[0], up[0], back[0], eye[0]],
-        [right[1], up[1], back[1], eye[1]],
-        [right[2], up[2], back[2], eye[2]],
-    ]
-}
-
-/// `n` cameras on a closed path that suits the scene: an orbit around the centre at the
-/// training cameras' mean distance and elevation (object, unbounded), or a small circle in
-/// front of the mean pose looking at the scene (forward-facing).
-pub fn orbit(space: &SceneSpace, views: &[View], n: usize) -> Vec<[[f32; 4]; 3]> {
-    let mean_up = normalize(views.iter().fold([0.0; 3], |a, v| add(a, [v.c2w[0][1], v.c2w[1][1], v.c2w[2][1]])));
-    match space.kind {
+/// The preview orbit of a capture: around its centre at the cameras' mean distance and
+/// elevation, upright about the cameras' mean up (or `up` when given) — objects from at
+/// least 20° above; forward-facing scenes: a small ellipse in front of the mean pose
+/// looking at the near content.
+pub fn preview_orbit(kind: SceneKind, frame: &Space, views: &[&View], up: Option<Vec3>) -> Orbit {
+    let up = up.map(normalize).unwrap_or_else(|| mean_up(views.iter().map(|v| &v.c2w)));
+    let n = views.len().max(1) as f32;
+    match kind {
         SceneKind::Forward => {
-            let c = views.iter().fold([0.0; 3], |a, v| add(a, position(v)));
-            let c = scale(c, 1.0 / views.len() as f32);
-            let fwd = normalize(views.iter().fold([0.0; 3], |a, v| add(a, [-v.c2w[0][2], -v.c2w[1][2], -v.c2w[2][2]])));
-            let spread = views.iter().map(|v| norm(sub(position(v), c))).fold(0.0f32, f32::max).max(1e-3);
-            // look at a point at the near-content depth: 1/(0.75 scale) is the near bound
-            let depth = 1.0 / (0.75 * space.scale) * 2.0;
-            let target = add(c, scale(fwd, depth));
-            let right = normalize(cross(fwd, mean_up));
-            let up = cross(right, fwd);
-            (0..n)
-                .map(|i| {
-                    let a = i as f32 / n as f32 * std::f32::consts::TAU;
-                    let eye = add(c, add(scale(right, spread * a.cos()), scale(up, 0.6 * spread * a.sin())));
-                    look_at(eye, target, mean_up)
-                })
-                .collect()
+            let c = scale(views.iter().fold([0.0; 3], |a, v| add(a, position(&v.c2w))), 1.0 / n);
+            let fwd = normalize(views.iter().fold([0.0; 3], |a, v| add(a, forward_axis(&v.c2w))));
+            let spread = views.iter().map(|v| norm(sub(position(&v.c2w), c))).fold(0.0f32, f32::max).max(1e-3);
+            // look at a point at twice the near-content depth (1/(0.75 scale) is the near bound)
+            let depth = 1.0 / (0.75 * frame.scale) * 2.0;
+            let right = normalize(cross(fwd, up));
+            let up_in_plane = cross(right, fwd);
+            Orbit::Ellipse { center: c, right, up: up_in_plane, target: add(c, scale(fwd, depth)), rx: spread, ry: 0.6 * spread }
         }
-        _ => {
-            let center = space.center;
-            let rel: Vec<Vec3> = views.iter().map(|v| sub(position(v), center)).collect();
-            let radius = rel.iter().map(|r| norm(*r)).sum::<f32>() / rel.len() as f32;
-            let height = rel.iter().map(|r| crate::space::dot(*r, mean_up)).sum::<f32>() / rel.len() as f32;
+        SceneKind::Object | SceneKind::Unbounded => {
+            let center = frame.center;
+            let rel: Vec<Vec3> = views.iter().map(|v| sub(position(&v.c2w), center)).collect();
+            let radius = (rel.iter().map(|r| norm(*r)).sum::<f32>() / n).max(1e-6);
+            let height = rel.iter().map(|r| dot(*r, up)).sum::<f32>() / n;
             let elev = (height / radius).clamp(-0.9, 0.9).asin();
             // objects look best from a little above; unbounded scenes keep the capture height
-            let elev = if space.kind == SceneKind::Object { elev.max(0.35) } else { elev };
-            let e1 = normalize(cross(mean_up, [0.3, 0.1, 0.9]));
-            let e2 = cross(mean_up, e1);
-            (0..n)
-                .map(|i| {
-                    let a = i as f32 / n as f32 * std::f32::consts::TAU;
-                    let horiz = add(scale(e1, a.cos()), scale(e2, a.sin()));
-                    let dir = add(scale(horiz, elev.cos()), scale(mean_up, elev.sin()));
-                    look_at(add(center, scale(dir, radius)), center, mean_up)
-                })
-                .collect()
+            let elevation = if kind == SceneKind::Object { elev.max(0.35) } else { elev };
+            // First frame: the first training camera's side of the scene, so the same
+            // capture in any world frame starts from the same place.
+            let start = horizontal(up, rel.first().copied().unwrap_or([0.3, 0.1, 0.9]));
+            Orbit::Around { center, up, start, radius, elevation }
         }
     }
+}
+
+/// `n` cameras on a closed path that suits the scene (its stored preview orbit, or one
+/// derived from `views` for spaces saved without it).
+pub fn orbit(space: &SceneSpace, views: &[View], n: usize) -> Vec<[[f32; 4]; 3]> {
+    let o = space.orbit.unwrap_or_else(|| {
+        let refs: Vec<&View> = views.iter().collect();
+        preview_orbit(space.kind, &space.frame, &refs, None)
+    });
+    o.path(n)
 }

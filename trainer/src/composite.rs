@@ -11,9 +11,10 @@
 //! (the middle term is a suffix sum, accumulated back to front), and dL/dσ_k = δ_k dL/ds_k
 //! where s_k is not clamped. Everything stays finite for σ in [0, 1e30], δ in [0, 1e30].
 
-/// Optical depth per sample is clamped here: exp(-S_MAX) is 0 in f32 already, and the clamp
-/// keeps σδ finite when both are huge (1e10 * 1e30 overflows f32).
-pub const S_MAX: f32 = 1.0e4;
+/// Optical depth per sample is clamped here, at the same value as every other marcher (the
+/// baked renderers must composite exactly like the trainer): exp(-S_MAX) is 0 in f32, and
+/// the clamp keeps σδ finite when both are huge (1e10 * 1e30 overflows f32).
+pub const S_MAX: f32 = snerf_geometry::march::MAX_OPTICAL_DEPTH;
 
 /// Channel count of the composited vector: rgb (3) + features (4) + 1 (opacity, "acc").
 pub const V: usize = 8;

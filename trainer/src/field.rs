@@ -255,7 +255,7 @@ impl Field {
     #[inline]
     pub fn prefetch(&self, g: &[f32; 3], t: f32) {
         #[cfg(target_arch = "x86_64")]
-        unsafe {
+        {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             for level in &self.layout.planes {
                 for p in level {
@@ -263,7 +263,11 @@ impl Field {
                     let (iv, _) = plane_coord(g, t, p.axes.1, p.rv);
                     let base = p.offset + (iv * p.ru + iu) * C;
                     for off in [base, base + C, base + p.ru * C, base + p.ru * C + C] {
-                        _mm_prefetch::<_MM_HINT_T0>(self.params.as_ptr().add(off) as *const i8);
+                        if off < self.params.len() {
+                            // SAFETY: `off` is in bounds (checked), so `add` stays inside the
+                            // allocation; a prefetch has no architectural effect.
+                            unsafe { _mm_prefetch::<_MM_HINT_T0>(self.params.as_ptr().add(off) as *const i8) };
+                        }
                     }
                 }
             }

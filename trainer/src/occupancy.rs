@@ -100,7 +100,7 @@ impl Occupancy {
             SceneKind::Forward => self.step,
             SceneKind::Unbounded => {
                 let p = space.grid_to_march(*g);
-                unbounded_dt(self.step, &p)
+                unbounded_dt(self.step, p)
             }
         }
     }
@@ -116,7 +116,7 @@ impl Occupancy {
         match space.kind {
             SceneKind::Unbounded => {
                 let p = [ray.o[0] + t * ray.d[0], ray.o[1] + t * ray.d[1], ray.o[2] + t * ray.d[2]];
-                unbounded_dt(self.step, &p)
+                unbounded_dt(self.step, p)
             }
             _ => self.step / grid_speed(space, ray),
         }
@@ -142,7 +142,7 @@ impl Occupancy {
             }
             let p = [ray.o[0] + t * ray.d[0], ray.o[1] + t * ray.d[1], ray.o[2] + t * ray.d[2]];
             let g = space.to_grid(p);
-            let dt = if affine { self.step / speed } else { unbounded_dt(self.step, &p) };
+            let dt = if affine { self.step / speed } else { unbounded_dt(self.step, p) };
             match self.cell(&g) {
                 Some(c) if self.occ[c] != 0 => {
                     out.push(Sample { g, delta: dt * dlen, t });
@@ -184,13 +184,7 @@ impl Occupancy {
     }
 }
 
-/// Unbounded scenes: constant step in contracted space, i.e. growing with |p|∞² outside
-/// the unit cube (the contraction's radial derivative is 1/|p|²).
-#[inline]
-pub fn unbounded_dt(step: f32, p: &Vec3) -> f32 {
-    let m = p[0].abs().max(p[1].abs()).max(p[2].abs()).max(1.0);
-    (2.0 * step * m * m).min(1.0e3)
-}
+pub use snerf_geometry::unbounded_dt;
 
 /// Grid-space direction of a ray (affine kinds; inside the unit cube for unbounded).
 #[inline]
@@ -198,7 +192,7 @@ fn grid_dir(space: &SceneSpace, ray: &Ray) -> Vec3 {
     match space.kind {
         SceneKind::Object => ray.d,
         SceneKind::Forward => {
-            let e = space.ndc.map(|n| 1.0 / n.xy_extent).unwrap_or(1.0);
+            let e = space.frame.ndc.map(|n| 1.0 / n.xy_extent).unwrap_or(1.0);
             [ray.d[0] * e, ray.d[1] * e, ray.d[2]]
         }
         SceneKind::Unbounded => [ray.d[0] * 0.5, ray.d[1] * 0.5, ray.d[2] * 0.5],

@@ -11,71 +11,26 @@
 
 use serde::{Deserialize, Serialize};
 use snerf_data::{Dataset, Intrinsics, SceneKind, View};
+pub use snerf_geometry::camera::{forward_axis as c2w_forward, position as c2w_position};
+pub use snerf_geometry::march::{UNBOUNDED_FAR, UNBOUNDED_NEAR};
+pub use snerf_geometry::vec::{add, cross, dot, mat_vec, norm, normalize, scale, sub, Vec3, IDENTITY};
+pub use snerf_geometry::{box_hit, contract, uncontract, Ndc, Orbit, Space};
 
-pub type Vec3 = [f32; 3];
-
-#[inline]
-pub fn dot(a: Vec3, b: Vec3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-pub fn sub(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline]
-pub fn add(a: Vec3, b: Vec3) -> Vec3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-#[inline]
-pub fn scale(a: Vec3, s: f32) -> Vec3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-#[inline]
-pub fn norm(a: Vec3) -> f32 {
-    dot(a, a).sqrt()
-}
-#[inline]
-pub fn normalize(a: Vec3) -> Vec3 {
-    let n = norm(a);
-    if n > 0.0 {
-        scale(a, 1.0 / n)
-    } else {
-        [0.0, 0.0, -1.0]
-    }
-}
-#[inline]
-pub fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-#[inline]
-fn mat_vec(m: &[[f32; 3]; 3], v: Vec3) -> Vec3 {
-    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
-}
-
-/// Forward-facing scenes: NDC of the (recentred) reference camera.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Ndc {
-    pub fx: f32,
-    pub fy: f32,
-    pub width: f32,
-    pub height: f32,
-    pub near: f32,
-    /// x/y margin: NDC x,y of rays from off-centre cameras exceed ±1 a little.
-    pub xy_extent: f32,
-}
-
-/// The mapping world -> model -> grid for one scene. Stored in checkpoints and baked assets.
+/// The mapping world -> model -> grid for one scene, and where to look at it from.
+/// Stored in checkpoints (JSON; `frame`'s fields sit at the top level as they always have).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SceneSpace {
     pub kind: SceneKind,
     pub dynamic: bool,
-    /// model = rot * (world - center) * scale (before NDC for forward scenes).
-    pub center: Vec3,
-    pub rot: [[f32; 3]; 3],
-    pub scale: f32,
-    pub ndc: Option<Ndc>,
+    /// model = scale · rot · (world - center) (before NDC for forward scenes).
+    #[serde(flatten)]
+    pub frame: Space,
     /// Time range of the training frames; times outside it are clamped by the field.
     pub time_range: (f32, f32),
+    /// The capture's preview orbit around its up direction (from the training cameras);
+    /// bakes carry it so every client's turntable and start view match the trainer's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orbit: Option<Orbit>,
 }
 
 /// A ray in model (march) space.
@@ -90,11 +45,6 @@ pub struct Ray {
     pub time: f32,
 }
 
-/// Far end of unbounded rays in model units: the contraction is within 1e-3 of its limit.
-pub const UNBOUNDED_FAR: f32 = 1.0e3;
-/// Unbounded rays start this far from the camera (model units).
-pub const UNBOUNDED_NEAR: f32 = 0.02;
-
 impl SceneSpace {
     /// Choose the mapping from the dataset: its kind, its box hint, or its camera layout.
     pub fn from_dataset(data: &Dataset) -> anyhow::Result<SceneSpace> {
@@ -108,7 +58,7 @@ impl SceneSpace {
         } else {
             (0.0, 1.0)
         };
-        let identity = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let identity = IDENTITY;
         let (center, rot, scale, ndc) = match data.kind {
             SceneKind::Object | SceneKind::Unbounded => {
                 let (center, half) = match data.aabb {
@@ -154,68 +104,38 @@ impl SceneSpace {
                 (center, rot, s, Some(ndc))
             }
         };
-        Ok(SceneSpace { kind: data.kind, dynamic: data.dynamic, center, rot, scale, ndc, time_range })
+        let frame = Space { center, rot, scale, ndc };
+        let orbit = Some(crate::camera_path::preview_orbit(data.kind, &frame, &views, None));
+        Ok(SceneSpace { kind: data.kind, dynamic: data.dynamic, frame, time_range, orbit })
     }
 
     /// The identity mapping: world = model, with `kind`'s grid mapping (a unit box for
     /// objects, the contraction for unbounded scenes). For tests and synthetic setups.
     pub fn identity(kind: SceneKind, dynamic: bool) -> SceneSpace {
-        SceneSpace {
-            kind,
-            dynamic,
-            center: [0.0; 3],
-            rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-            scale: 1.0,
-            ndc: None,
-            time_range: (0.0, 1.0),
-        }
+        SceneSpace { kind, dynamic, frame: Space::identity(), time_range: (0.0, 1.0), orbit: None }
     }
 
     /// World point to model point.
     #[inline]
     pub fn to_model(&self, p: Vec3) -> Vec3 {
-        scale(mat_vec(&self.rot, sub(p, self.center)), self.scale)
+        self.frame.to_model(p)
     }
 
-    /// Model point back to world (inverse of [`to_model`]; rot is orthonormal).
+    /// Model point back to world (inverse of [`SceneSpace::to_model`]).
     pub fn to_world(&self, m: Vec3) -> Vec3 {
-        let r = &self.rot;
-        let m = scale(m, 1.0 / self.scale);
-        let w = [
-            r[0][0] * m[0] + r[1][0] * m[1] + r[2][0] * m[2],
-            r[0][1] * m[0] + r[1][1] * m[1] + r[2][1] * m[2],
-            r[0][2] * m[0] + r[1][2] * m[1] + r[2][2] * m[2],
-        ];
-        add(w, self.center)
+        self.frame.to_world(m)
     }
 
     /// March-space point to grid coordinates in [-1,1]³.
     #[inline]
     pub fn to_grid(&self, p: Vec3) -> Vec3 {
-        match self.kind {
-            SceneKind::Object => p,
-            SceneKind::Forward => {
-                let e = self.ndc.map(|n| 1.0 / n.xy_extent).unwrap_or(1.0);
-                [p[0] * e, p[1] * e, p[2]]
-            }
-            SceneKind::Unbounded => {
-                let c = contract(p);
-                [c[0] * 0.5, c[1] * 0.5, c[2] * 0.5]
-            }
-        }
+        self.frame.march_to_grid(self.kind, p)
     }
 
     /// Grid point back to march space (for occupancy and baking); unbounded grid points on
     /// the outer shell map to very far (but finite) points.
     pub fn grid_to_march(&self, g: Vec3) -> Vec3 {
-        match self.kind {
-            SceneKind::Object => g,
-            SceneKind::Forward => {
-                let e = self.ndc.map(|n| n.xy_extent).unwrap_or(1.0);
-                [g[0] * e, g[1] * e, g[2]]
-            }
-            SceneKind::Unbounded => uncontract([g[0] * 2.0, g[1] * 2.0, g[2] * 2.0]),
-        }
+        self.frame.grid_to_march(self.kind, g)
     }
 
     /// Normalized time for the field: training time range mapped to [0,1], clamped.
@@ -239,48 +159,14 @@ impl SceneSpace {
     pub fn ray(&self, c2w: &[[f32; 4]; 3], k: &Intrinsics, px: f32, py: f32, time: Option<f32>) -> Option<Ray> {
         let (xu, yu) = undistort((px - k.cx) / k.fx, (py - k.cy) / k.fy, &k.distortion);
         // OpenGL camera: x right, y up, looking down -z.
-        let dc = [xu, -yu, -1.0];
-        let dw = normalize([
-            c2w[0][0] * dc[0] + c2w[0][1] * dc[1] + c2w[0][2] * dc[2],
-            c2w[1][0] * dc[0] + c2w[1][1] * dc[1] + c2w[1][2] * dc[2],
-            c2w[2][0] * dc[0] + c2w[2][1] * dc[1] + c2w[2][2] * dc[2],
-        ]);
+        let dw = snerf_geometry::camera::camera_dir_to_world(c2w, [xu, -yu, -1.0]);
         let ow = [c2w[0][3], c2w[1][3], c2w[2][3]];
         self.world_ray(ow, dw, time)
     }
 
     pub fn world_ray(&self, ow: Vec3, dw: Vec3, time: Option<f32>) -> Option<Ray> {
-        if !(ow.iter().chain(dw.iter()).all(|x| x.is_finite())) {
-            return None;
-        }
-        let o = self.to_model(ow);
-        let d = normalize(mat_vec(&self.rot, dw));
-        let time = self.field_time(time);
-        match self.kind {
-            SceneKind::Object => {
-                let (t0, t1) = box_hit(o, d, 1.0)?;
-                Some(Ray { o, d, t0: t0.max(0.0), t1, dir: dw, time })
-            }
-            SceneKind::Unbounded => Some(Ray { o, d, t0: UNBOUNDED_NEAR, t1: UNBOUNDED_FAR, dir: dw, time }),
-            SceneKind::Forward => {
-                let n = self.ndc.as_ref()?;
-                if d[2] >= -1e-6 {
-                    return None;
-                }
-                // Shift the origin to the near plane z = -near, then project (NeRF's ndc_rays).
-                let t = -(n.near + o[2]) / d[2];
-                let o = add(o, scale(d, t));
-                let ax = -n.fx / (n.width * 0.5);
-                let ay = -n.fy / (n.height * 0.5);
-                let o_ndc = [ax * o[0] / o[2], ay * o[1] / o[2], 1.0 + 2.0 * n.near / o[2]];
-                let d_ndc = [
-                    ax * (d[0] / d[2] - o[0] / o[2]),
-                    ay * (d[1] / d[2] - o[1] / o[2]),
-                    -2.0 * n.near / o[2],
-                ];
-                Some(Ray { o: o_ndc, d: d_ndc, t0: 0.0, t1: 1.0, dir: dw, time })
-            }
-        }
+        let r = self.frame.march_ray(self.kind, ow, dw)?;
+        Some(Ray { o: r.o, d: r.d, t0: r.t0, t1: r.t1, dir: dw, time: self.field_time(time) })
     }
 }
 
@@ -293,76 +179,7 @@ impl SceneSpace {
 
     /// A march-space point (model space, or NDC for forward-facing scenes) in world space.
     pub fn march_point_to_world(&self, p: Vec3) -> Vec3 {
-        let m = match (self.kind, self.ndc.as_ref()) {
-            (SceneKind::Forward, Some(n)) => {
-                let ax = -n.fx / (n.width * 0.5);
-                let ay = -n.fy / (n.height * 0.5);
-                // NDC z = 1 + 2 near / z  =>  z = 2 near / (z_ndc - 1); z_ndc -> 1 is infinity.
-                let z = 2.0 * n.near / (p[2] - 1.0).min(-1e-6);
-                [p[0] * z / ax, p[1] * z / ay, z]
-            }
-            _ => p,
-        };
-        self.to_world(m)
-    }
-}
-
-/// MERF's L∞ contraction: identity in the unit cube, everything else into [-2,2]³.
-#[inline]
-pub fn contract(p: Vec3) -> Vec3 {
-    // A NaN coordinate (from a degenerate camera) is treated as 0, never propagated.
-    let p = p.map(|x| if x.is_nan() { 0.0 } else { x });
-    let m = p[0].abs().max(p[1].abs()).max(p[2].abs());
-    if m <= 1.0 {
-        return p;
-    }
-    if !m.is_finite() {
-        // Points at infinity land on the outer shell.
-        return p.map(|x| if x.is_infinite() { 2.0 * x.signum() } else { 0.0 });
-    }
-    let mut out = [0.0f32; 3];
-    for i in 0..3 {
-        out[i] = if p[i].abs() == m { (2.0 - 1.0 / m) * p[i].signum() } else { p[i] / m };
-    }
-    out
-}
-
-/// Inverse of [`contract`] for points with |c|∞ < 2.
-pub fn uncontract(c: Vec3) -> Vec3 {
-    let m = c[0].abs().max(c[1].abs()).max(c[2].abs());
-    if m <= 1.0 {
-        return c;
-    }
-    let r = 1.0 / (2.0 - m.min(2.0 - 1e-6)); // |p|∞
-    let mut out = [0.0f32; 3];
-    for i in 0..3 {
-        out[i] = if c[i].abs() == m { r * c[i].signum() } else { c[i] * r };
-    }
-    out
-}
-
-/// Slab test against the cube [-h,h]³.
-pub fn box_hit(o: Vec3, d: Vec3, h: f32) -> Option<(f32, f32)> {
-    let mut t0 = f32::NEG_INFINITY;
-    let mut t1 = f32::INFINITY;
-    for i in 0..3 {
-        let inv = 1.0 / d[i];
-        let (a, b) = ((-h - o[i]) * inv, (h - o[i]) * inv);
-        let (a, b) = if a < b { (a, b) } else { (b, a) };
-        if a.is_nan() || b.is_nan() {
-            // d[i] == 0: inside the slab or not at all
-            if o[i].abs() > h {
-                return None;
-            }
-            continue;
-        }
-        t0 = t0.max(a);
-        t1 = t1.min(b);
-    }
-    if t1 > t0.max(0.0) {
-        Some((t0, t1))
-    } else {
-        None
+        self.frame.march_to_world(self.kind, p)
     }
 }
 
@@ -400,11 +217,11 @@ pub fn undistort(xd: f32, yd: f32, k: &[f32; 4]) -> (f32, f32) {
 }
 
 pub fn position(v: &View) -> Vec3 {
-    [v.c2w[0][3], v.c2w[1][3], v.c2w[2][3]]
+    c2w_position(&v.c2w)
 }
 
 fn forward_axis(v: &View) -> Vec3 {
-    normalize([-v.c2w[0][2], -v.c2w[1][2], -v.c2w[2][2]])
+    c2w_forward(&v.c2w)
 }
 
 /// Centre of interest = the point nearest to all optical axes (least squares); half size =

@@ -152,12 +152,12 @@ pub fn pixels_across_box(data: &Dataset) -> Option<f32> {
         return None;
     }
     let space = SceneSpace::from_dataset(data).ok()?;
-    let side = 2.0 / space.scale;
+    let side = 2.0 / space.frame.scale;
     let mut px: Vec<f32> = data
         .train
         .iter()
         .map(|v| {
-            let d = crate::space::norm(crate::space::sub(crate::space::position(v), space.center));
+            let d = crate::space::norm(crate::space::sub(crate::space::position(v), space.frame.center));
             side * v.intrinsics.fx.max(v.intrinsics.fy) / d
         })
         .filter(|p| p.is_finite() && *p > 0.0)
@@ -309,7 +309,7 @@ impl Trainer {
         let occ = &self.model.occ;
         let space = &self.model.space;
         let res = occ.res;
-        let cell_world = 2.0 / res as f32 / space.scale * 0.87; // half-diagonal of a cell
+        let cell_world = 2.0 / res as f32 / space.frame.scale * 0.87; // half-diagonal of a cell
         let extra = if space.dynamic { 3.0 } else { 1.0 };
         let views = &self.views;
         let allowed: Vec<bool> = (0..res * res * res)

@@ -7,11 +7,11 @@
 //! direction at 4 octaves (24).
 
 use crate::field::Rng;
+use snerf_geometry::view_mlp::{dense, encode};
 
-pub const VIN: usize = 7 + 3 + 24;
-pub const VH: usize = 16;
-pub const VOUT: usize = 3;
-const OCTAVES: usize = 4;
+pub const VIN: usize = snerf_geometry::view_mlp::INPUTS;
+pub const VH: usize = snerf_geometry::view_mlp::HIDDEN;
+pub const VOUT: usize = snerf_geometry::view_mlp::OUTPUTS;
 
 #[derive(Clone, Copy, Debug)]
 pub struct ViewLayout {
@@ -58,50 +58,18 @@ impl ViewLayout {
 
     /// Assemble the MLP input from composited diffuse rgb + features and a unit direction.
     pub fn input(diffuse_feat: &[f32], dir: &[f32; 3]) -> [f32; VIN] {
-        let mut x = [0.0f32; VIN];
-        x[..7].copy_from_slice(&diffuse_feat[..7]);
-        x[7..10].copy_from_slice(dir);
-        let mut k = 10;
-        for o in 0..OCTAVES {
-            let f = (1u32 << o) as f32 * std::f32::consts::PI;
-            for d in dir {
-                let (s, c) = (f * d).sin_cos();
-                x[k] = s;
-                x[k + 1] = c;
-                k += 2;
-            }
-        }
-        x
+        let mut df = [0.0f32; 7];
+        df.copy_from_slice(&diffuse_feat[..7]);
+        encode(&df, *dir)
     }
 
     pub fn forward(&self, p: &[f32], x: [f32; VIN]) -> ([f32; VOUT], ViewCache) {
         let mut h1 = [0.0f32; VH];
-        for j in 0..VH {
-            let w = &p[self.w1 + j * VIN..self.w1 + (j + 1) * VIN];
-            let mut a = p[self.b1 + j];
-            for i in 0..VIN {
-                a += w[i] * x[i];
-            }
-            h1[j] = a.max(0.0);
-        }
+        dense(&p[self.w1..self.b1], &p[self.b1..self.w2], &x, &mut h1, true);
         let mut h2 = [0.0f32; VH];
-        for j in 0..VH {
-            let w = &p[self.w2 + j * VH..self.w2 + (j + 1) * VH];
-            let mut a = p[self.b2 + j];
-            for i in 0..VH {
-                a += w[i] * h1[i];
-            }
-            h2[j] = a.max(0.0);
-        }
+        dense(&p[self.w2..self.b2], &p[self.b2..self.w3], &h1, &mut h2, true);
         let mut out = [0.0f32; VOUT];
-        for (k, o) in out.iter_mut().enumerate() {
-            let w = &p[self.w3 + k * VH..self.w3 + (k + 1) * VH];
-            let mut a = p[self.b3 + k];
-            for i in 0..VH {
-                a += w[i] * h2[i];
-            }
-            *o = a;
-        }
+        dense(&p[self.w3..self.b3], &p[self.b3..self.end], &h2, &mut out, false);
         (out, ViewCache { x, h1, h2 })
     }
 

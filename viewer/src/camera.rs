@@ -1,71 +1,26 @@
 //! Viewer cameras: the start view of an asset, orbit/fly controls, stereo eye offsets and
 //! pose files (a JSON list of camera-to-world matrices + times, e.g. a recorded head path).
 
-use anyhow::{anyhow, ensure, Result};
+use anyhow::{anyhow, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-use snerf_asset::render::model_to_world;
-use snerf_asset::{Camera, Header, Kind};
+use snerf_asset::{Camera, Header};
+use snerf_geometry::camera::horizontal;
+use snerf_geometry::vec::{add, cross, dot, norm, normalize, scale as mul, sub};
 
 pub type V3 = [f32; 3];
-
-fn add(a: V3, b: V3) -> V3 {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn mul(a: V3, s: f32) -> V3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-fn dot(a: V3, b: V3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalize(a: V3) -> V3 {
-    let n = dot(a, a).sqrt();
-    if n > 0.0 && n.is_finite() {
-        mul(a, 1.0 / n)
-    } else {
-        [0.0, 0.0, -1.0]
-    }
-}
-/// rot^T v: model direction -> world direction.
-fn model_dir(h: &Header, v: V3) -> V3 {
-    let r = &h.space.rot;
-    [
-        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
-        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
-        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
-    ]
-}
 
 /// Pinhole intrinsics for a `width` x `height` image with vertical field of view `fov_y`
 /// degrees, and a camera-to-world matrix.
 pub fn camera_from_c2w(c2w: [[f32; 4]; 3], width: u32, height: u32, fov_y: f32) -> Camera {
-    let f = 0.5 * height as f32 / (0.5 * fov_y.to_radians()).tan();
-    Camera {
-        c2w,
-        fx: f,
-        fy: f,
-        cx: 0.5 * width as f32,
-        cy: 0.5 * height as f32,
-        width,
-        height,
-    }
+    Camera::from_fov(c2w, width, height, fov_y)
 }
 
-/// The viewer's start camera: `snerf_asset::orbit` frame 0 (object/unbounded: 3 model units
-/// out at 30° elevation looking at the centre; forward: the reference camera).
+/// The viewer's start camera: the asset's orbit start view (object/unbounded: the orbit's
+/// first frame, upright about the scene's up; forward: the mean capture pose).
 pub fn initial_camera(h: &Header, width: u32, height: u32, fov_y: f32) -> Camera {
-    snerf_asset::orbit(h, 1, 0, width, height, fov_y)
+    camera_from_c2w(h.orbit().start_c2w(), width, height, fov_y)
 }
 
 /// Left/right eye cameras: `c2w` moved by ∓ipd/2 along its right axis (first column);
@@ -104,39 +59,18 @@ impl PoseSample {
     }
 }
 
-/// Read a pose file: `[{"c2w": [[..4], [..4], [..4]], "time": 0.5}, ...]`.
+/// Read a pose file: a nerfstudio `camera_path.json` (what `snerf render` and turntables
+/// write), or a list `[{"c2w": [[..4], [..4], [..4]], "time": 0.5}, ...]`.
 pub fn load_poses(path: impl AsRef<Path>) -> Result<Vec<PoseSample>> {
     let path = path.as_ref();
     let text = std::fs::read_to_string(path)
         .map_err(|e| anyhow!("{}: cannot read pose file: {}", path.display(), e))?;
-    let poses: Vec<PoseSample> = serde_json::from_str(&text).map_err(|e| {
-        anyhow!(
-            "{}: not a pose file (JSON list of {{c2w, time}}): {}",
-            path.display(),
-            e
-        )
-    })?;
-    ensure!(
-        !poses.is_empty(),
-        "{}: pose file has no poses",
-        path.display()
-    );
-    for (i, p) in poses.iter().enumerate() {
-        ensure!(
-            p.c2w.len() == 3 || p.c2w.len() == 4,
-            "{}: pose {} has {} rows (need 3 or 4 rows of 4)",
-            path.display(),
-            i,
-            p.c2w.len()
-        );
-        ensure!(
-            p.c2w.iter().flatten().all(|x| x.is_finite()) && p.time.is_none_or(|t| t.is_finite()),
-            "{}: pose {} has non-finite values",
-            path.display(),
-            i
-        );
-    }
-    Ok(poses)
+    let cams = snerf_geometry::camera_path::parse(&text, (1, 1), 60.0)
+        .map_err(|e| anyhow!("{}: {}", path.display(), e))?;
+    Ok(cams
+        .iter()
+        .map(|c| PoseSample { c2w: c.c2w.to_vec(), time: c.time })
+        .collect())
 }
 
 /// Orbit + fly camera. The eye sits at `target + dist · dir(yaw, pitch)` and looks at the
@@ -154,22 +88,16 @@ pub struct Controller {
 }
 
 impl Controller {
-    /// Start at `initial_camera`'s view of the asset.
+    /// Start at `initial_camera`'s view of the asset, upright about the asset's up.
     pub fn new(h: &Header) -> Controller {
-        let up = normalize(model_dir(h, [0.0, 1.0, 0.0]));
-        let back0 = normalize(model_dir(h, [0.0, 0.0, 1.0]));
-        let right0 = normalize(model_dir(h, [1.0, 0.0, 0.0]));
-        let s = h.space.scale.max(1e-12);
-        let (target, dist, pitch) = match h.kind {
-            Kind::Forward => {
-                let eye = model_to_world(h, [0.0; 3]);
-                let dist = 1.0 / s;
-                (sub(eye, mul(back0, dist)), dist, 0.0)
-            }
-            Kind::Object | Kind::Unbounded => {
-                (model_to_world(h, [0.0; 3]), 3.0 / s, 30f32.to_radians())
-            }
-        };
+        let o = h.orbit();
+        let up = normalize(o.up());
+        let (eye, target) = o.start();
+        let back = normalize(sub(eye, target));
+        let back0 = horizontal(up, back);
+        let right0 = normalize(cross(up, back0));
+        let pitch = dot(back, up).clamp(-1.0, 1.0).asin();
+        let dist = norm(sub(eye, target)).max(1e-6);
         Controller {
             target,
             dist,

@@ -8,7 +8,7 @@ use std::fmt;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use snerf_asset::{Asset, Camera, Frame, Header, Kind, ViewMlp, EMPTY};
+use snerf_asset::{Asset, Camera, Frame, Header, ViewMlp, EMPTY};
 
 pub const MARCH_WGSL: &str = include_str!("../../shaders/march.wgsl");
 pub const ATLAS_LOAD_WGSL: &str = include_str!("../../shaders/atlas_load.wgsl");
@@ -373,29 +373,11 @@ struct Params {
     inv_tex: [f32; 4],
 }
 
-/// Keyframes around `t` and the blend weight, as `Asset::time_slot` (same clamping, NaN ->
-/// first frame).
+/// Keyframes around `t` and the blend weight (`snerf_geometry::time_slot`, as the CPU
+/// reference uses).
 pub fn time_slot(h: &Header, t: f32) -> (usize, usize, f32) {
-    let frames = match &h.frames {
-        Some(f) if !f.is_empty() => f,
-        _ => return (0, 0, 0.0),
-    };
-    let last = frames.len() - 1;
-    // NaN and t <= first keyframe both give frame 0.
-    if t.partial_cmp(&frames[0].time) != Some(std::cmp::Ordering::Greater) {
-        return (0, 0, 0.0);
-    }
-    if t >= frames[last].time {
-        return (last, last, 0.0);
-    }
-    let k = frames.partition_point(|f| f.time <= t);
-    let (a, b) = (frames[k - 1].time, frames[k].time);
-    let w = if b > a {
-        ((t - a) / (b - a)).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (k - 1, k, w)
+    let s = snerf_geometry::time_slot(h.frames.as_deref().unwrap_or(&[]), |k| k.time, t);
+    (s.k0, s.k1, s.w)
 }
 
 /// Output buffers for one image (all views side by side).
@@ -1112,17 +1094,15 @@ pub(crate) fn read_buffer<T: bytemuck::Pod>(
 
 /// The march shader source of one variant (kind, static/dynamic, atlas access).
 pub fn shader_source(h: &Header, hardware_filter: bool) -> String {
-    let kind = match h.kind {
-        Kind::Object => 0,
-        Kind::Forward => 1,
-        Kind::Unbounded => 2,
-    };
+    // The march constants come from snerf-geometry, so the shader cannot drift from the
+    // CPU reference and the trainer.
     format!(
-        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}\n{}",
-        kind,
+        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}",
+        h.kind.shader_index(),
         h.num_frames() > 1,
         h.block,
         WG,
+        snerf_geometry::march::wgsl_prelude(),
         MARCH_WGSL,
         if hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL }
     )

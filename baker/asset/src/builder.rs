@@ -95,6 +95,21 @@ impl AssetBuilder {
         out
     }
 
+    /// Store a block at every cell of `frame` from a per-voxel function of global voxel
+    /// indices (a dense asset; tests and synthetic scenes).
+    pub fn fill_from_fn(&mut self, frame: usize, voxel: impl Fn([usize; 3]) -> [u8; CHANNELS]) -> Result<()> {
+        let g = self.header.grid_dim();
+        for z in 0..g {
+            for y in 0..g {
+                for x in 0..g {
+                    let blk = self.block_from_fn([x, y, z], &voxel);
+                    self.set_block(frame, [x, y, z], &blk)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub fn finish(mut self) -> Result<Asset> {
         self.header.atlas_blocks = self.blocks;
         let asset = Asset {

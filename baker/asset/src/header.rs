@@ -22,45 +22,10 @@ pub const MIN_STEP: f32 = 1.0e-4;
 /// |logit| bound so that exp(logit) stays finite in f32 (exp(88.7) overflows).
 pub const MAX_ABS_LOGIT: f32 = 80.0;
 
-/// How march-space points map onto the grid (see `render` for the exact formulas).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Kind {
-    /// Bounded object: grid = model box [-1,1]^3.
-    Object,
-    /// Forward-facing: grid = NDC of the reference camera (x,y divided by `xy_extent`).
-    Forward,
-    /// Unbounded 360°: grid = MERF L∞ contraction / 2.
-    Unbounded,
-}
-
-/// NDC parameters of the forward-facing reference camera (from the trainer, not the viewer's camera).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Ndc {
-    pub fx: f32,
-    pub fy: f32,
-    pub width: f32,
-    pub height: f32,
-    pub near: f32,
-    pub xy_extent: f32,
-}
-
-/// World -> model mapping: model = scale * rot * (world - center).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Space {
-    pub center: [f32; 3],
-    /// Row-major, orthonormal.
-    pub rot: [[f32; 3]; 3],
-    pub scale: f32,
-    /// Present exactly for `Kind::Forward`.
-    pub ndc: Option<Ndc>,
-}
-
-impl Space {
-    pub fn identity() -> Space {
-        Space { center: [0.0; 3], rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], scale: 1.0, ndc: None }
-    }
-}
+/// How march-space points map onto the grid (`snerf_geometry::space` has the formulas).
+pub use snerf_geometry::SceneKind as Kind;
+/// NDC of the forward-facing reference camera, and the world -> model similarity.
+pub use snerf_geometry::{Ndc, Orbit, Space};
 
 /// Density quantization range: code c in 0..=255 means logit = min + c/255 * (max - min).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -117,6 +82,16 @@ pub struct Header {
     /// Dynamic assets only: keyframe times, sorted. Static assets have one implicit frame 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames: Option<Vec<Keyframe>>,
+    /// The scene's world up direction and its preview orbit, from the capture's cameras
+    /// (`snerf_geometry::camera`): every client's start view, turntable and "upright" come
+    /// from here. Assets written before it existed get [`Header::orbit`]'s fallback.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub view: Option<Orbit>,
+    /// Height of the scene's floor along the view's up direction (world units from the world
+    /// origin), for clients that stand a person on it (headsets). Baked from the lowest
+    /// occupied cells.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub floor: Option<f32>,
 }
 
 impl Header {
@@ -135,6 +110,36 @@ impl Header {
             view_mlp: MlpShape::default(),
             time_range: None,
             frames: None,
+            view: None,
+            floor: None,
+        }
+    }
+
+    /// The scene's preview orbit and up direction: the stored one, or for assets without it
+    /// the one implied by the model frame (model +y up; objects and unbounded scenes: 3
+    /// model units out at 30°; forward: a small circle around the reference camera).
+    pub fn orbit(&self) -> Orbit {
+        if let Some(o) = self.view {
+            return o;
+        }
+        let s = &self.space;
+        let up = s.dir_to_world([0.0, 1.0, 0.0]);
+        match self.kind {
+            Kind::Forward => Orbit::Ellipse {
+                center: s.to_world([0.0; 3]),
+                right: s.dir_to_world([1.0, 0.0, 0.0]),
+                up,
+                target: s.to_world([0.0, 0.0, -2.0 / 0.75]),
+                rx: 0.1 / s.scale,
+                ry: 0.1 / s.scale,
+            },
+            Kind::Object | Kind::Unbounded => Orbit::Around {
+                center: s.to_world([0.0; 3]),
+                up,
+                start: s.dir_to_world([0.0, 0.0, 1.0]),
+                radius: 3.0 / s.scale,
+                elevation: 30f32.to_radians(),
+            },
         }
     }
 
@@ -216,6 +221,19 @@ impl Header {
         );
         ensure!(self.background.iter().all(|x| x.is_finite()), "header background is not finite");
         self.validate_space()?;
+        if let Some(o) = &self.view {
+            let unit = |v: [f32; 3]| v.iter().all(|x| x.is_finite()) && (v.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-3;
+            let ok = match *o {
+                Orbit::Around { center, up, start, radius, elevation } => {
+                    center.iter().all(|x| x.is_finite()) && unit(up) && unit(start) && radius.is_finite() && radius > 0.0 && elevation.is_finite()
+                }
+                Orbit::Ellipse { center, right, up, target, rx, ry } => {
+                    center.iter().chain(&target).all(|x| x.is_finite()) && unit(right) && unit(up) && rx.is_finite() && ry.is_finite()
+                }
+            };
+            ensure!(ok, "header view {:?} needs finite values, unit directions and a positive radius", o);
+        }
+        ensure!(self.floor.is_none_or(f32::is_finite), "header floor {:?} is not finite", self.floor);
         match (&self.time_range, &self.frames) {
             (None, None) => {}
             (Some(r), Some(frames)) => {

@@ -3,11 +3,12 @@
 //! arithmetic as the trainer's `view_mlp`, so baked weights mean the same thing here.
 
 use anyhow::{ensure, Result};
+use snerf_geometry::view_mlp;
 
-pub const MLP_IN: usize = 34;
-pub const MLP_HIDDEN: usize = 16;
-pub const MLP_OUT: usize = 3;
-pub const MLP_OCTAVES: usize = 4;
+pub const MLP_IN: usize = view_mlp::INPUTS;
+pub const MLP_HIDDEN: usize = view_mlp::HIDDEN;
+pub const MLP_OUT: usize = view_mlp::OUTPUTS;
+pub const MLP_OCTAVES: usize = view_mlp::OCTAVES;
 /// Total f32 count in the `VMLP` chunk.
 pub const MLP_FLOATS: usize =
     MLP_HIDDEN * MLP_IN + MLP_HIDDEN + MLP_HIDDEN * MLP_HIDDEN + MLP_HIDDEN + MLP_OUT * MLP_HIDDEN + MLP_OUT;
@@ -68,49 +69,18 @@ impl ViewMlp {
     /// Input vector: composited diffuse rgb + 4 features, unit world direction, then
     /// sin/cos of each direction component at frequencies 2^o·π, o = 0..4.
     pub fn input(diffuse_feat: &[f32; 7], dir: [f32; 3]) -> [f32; MLP_IN] {
-        let mut x = [0.0f32; MLP_IN];
-        x[..7].copy_from_slice(diffuse_feat);
-        x[7..10].copy_from_slice(&dir);
-        let mut k = 10;
-        for o in 0..MLP_OCTAVES {
-            let f = (1u32 << o) as f32 * std::f32::consts::PI;
-            for d in dir {
-                let (s, c) = (f * d).sin_cos();
-                x[k] = s;
-                x[k + 1] = c;
-                k += 2;
-            }
-        }
-        x
+        view_mlp::encode(diffuse_feat, dir)
     }
 
     /// relu(W1 x + b1) -> relu(W2 h + b2) -> W3 h + b3. Written with zips so a malformed
     /// (wrong-length) weight vector gives a wrong answer, never a panic.
     pub fn forward(&self, x: &[f32; MLP_IN]) -> [f32; MLP_OUT] {
         let mut h1 = [0.0f32; MLP_HIDDEN];
-        for ((h, w), b) in h1.iter_mut().zip(self.w1.chunks_exact(MLP_IN)).zip(&self.b1) {
-            let mut a = *b;
-            for (wi, xi) in w.iter().zip(x) {
-                a += wi * xi;
-            }
-            *h = a.max(0.0);
-        }
+        view_mlp::dense(&self.w1, &self.b1, x, &mut h1, true);
         let mut h2 = [0.0f32; MLP_HIDDEN];
-        for ((h, w), b) in h2.iter_mut().zip(self.w2.chunks_exact(MLP_HIDDEN)).zip(&self.b2) {
-            let mut a = *b;
-            for (wi, xi) in w.iter().zip(&h1) {
-                a += wi * xi;
-            }
-            *h = a.max(0.0);
-        }
+        view_mlp::dense(&self.w2, &self.b2, &h1, &mut h2, true);
         let mut out = [0.0f32; MLP_OUT];
-        for ((o, w), b) in out.iter_mut().zip(self.w3.chunks_exact(MLP_HIDDEN)).zip(&self.b3) {
-            let mut a = *b;
-            for (wi, xi) in w.iter().zip(&h2) {
-                a += wi * xi;
-            }
-            *o = a;
-        }
+        view_mlp::dense(&self.w3, &self.b3, &h2, &mut out, false);
         out
     }
 }

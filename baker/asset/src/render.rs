@@ -17,29 +17,15 @@ use crate::mlp::ViewMlp;
 use crate::quantize::quantize_unit;
 use crate::sample::TimeSlot;
 
-/// Optical depth per sample is clamped here: exp(-80) is ~1e-35, fully opaque for f32, and
-/// the clamp keeps σδ finite for huge σ (and keeps a shader's exp() in range).
-pub const MAX_OPTICAL_DEPTH: f32 = 80.0;
-/// Unbounded rays: march from here to `UNBOUNDED_FAR` in model units (as the trainer).
-pub const UNBOUNDED_NEAR: f32 = 0.02;
-pub const UNBOUNDED_FAR: f32 = 1.0e3;
-/// Forward rays pointing this little towards -z never reach the NDC volume.
-pub const NDC_MIN_DZ: f32 = 1.0e-6;
-/// Loop guard: a valid header bounds samples per ray far below this (step >= 1e-4).
-const MAX_ITERS: usize = 1 << 20;
+pub use snerf_geometry::march::{MAX_ITERS, MAX_OPTICAL_DEPTH, UNBOUNDED_FAR, UNBOUNDED_NEAR};
+pub use snerf_geometry::ndc::NDC_MIN_DZ;
+pub use snerf_geometry::{contract, unbounded_dt};
+use snerf_geometry::vec::norm;
+use snerf_geometry::{box_hit, MarchRay};
 
 /// A pinhole camera. c2w is camera-to-world (OpenGL: x right, y up, looking down -z),
 /// rows of [R | t].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Camera {
-    pub c2w: [[f32; 4]; 3],
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    pub width: u32,
-    pub height: u32,
-}
+pub use snerf_geometry::Pinhole as Camera;
 
 /// A rendered image: rgb is row-major H x W x 3; depth (march-space ray parameter,
 /// opacity-normalized, 0 where empty) and opacity are H x W.
@@ -64,101 +50,9 @@ pub struct PixelResult {
 
 type V3 = [f32; 3];
 
-#[inline]
-fn dot(a: V3, b: V3) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline]
-fn norm(a: V3) -> f32 {
-    dot(a, a).sqrt()
-}
-#[inline]
-fn normalize(a: V3) -> V3 {
-    let n = norm(a);
-    if n > 0.0 {
-        [a[0] / n, a[1] / n, a[2] / n]
-    } else {
-        [0.0, 0.0, -1.0]
-    }
-}
-#[inline]
-fn cross(a: V3, b: V3) -> V3 {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-#[inline]
-fn mat_vec(m: &[[f32; 3]; 3], v: V3) -> V3 {
-    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
-}
-/// rot^T * v (rot is orthonormal, so this is the inverse rotation).
-#[inline]
-fn mat_t_vec(m: &[[f32; 3]; 3], v: V3) -> V3 {
-    [
-        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
-        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
-        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
-    ]
-}
-
 /// World origin and unit world direction of pixel (px, py), through the pixel centre.
 pub fn camera_ray(cam: &Camera, px: u32, py: u32) -> (V3, V3) {
-    let dc = [(px as f32 + 0.5 - cam.cx) / cam.fx, -(py as f32 + 0.5 - cam.cy) / cam.fy, -1.0];
-    let m = &cam.c2w;
-    let dw = normalize([
-        m[0][0] * dc[0] + m[0][1] * dc[1] + m[0][2] * dc[2],
-        m[1][0] * dc[0] + m[1][1] * dc[1] + m[1][2] * dc[2],
-        m[2][0] * dc[0] + m[2][1] * dc[1] + m[2][2] * dc[2],
-    ]);
-    ([m[0][3], m[1][3], m[2][3]], dw)
-}
-
-/// Slab test against [-1,1]^3; (t_enter, t_exit) with t_exit > max(t_enter, 0).
-pub fn box_hit(o: V3, d: V3) -> Option<(f32, f32)> {
-    let mut t0 = f32::NEG_INFINITY;
-    let mut t1 = f32::INFINITY;
-    for i in 0..3 {
-        let inv = 1.0 / d[i];
-        let (a, b) = ((-1.0 - o[i]) * inv, (1.0 - o[i]) * inv);
-        let (a, b) = if a < b { (a, b) } else { (b, a) };
-        if a.is_nan() || b.is_nan() {
-            // d[i] == 0: inside the slab for all t, or never
-            if !(o[i].abs() <= 1.0) {
-                return None;
-            }
-            continue;
-        }
-        t0 = t0.max(a);
-        t1 = t1.min(b);
-    }
-    if t1 > t0.max(0.0) {
-        Some((t0, t1))
-    } else {
-        None
-    }
-}
-
-/// MERF's L∞ contraction (identity in the unit cube, (2 - 1/m) on the shell of size m).
-#[inline]
-pub fn contract(p: V3) -> V3 {
-    let p = p.map(|x| if x.is_nan() { 0.0 } else { x });
-    let m = p[0].abs().max(p[1].abs()).max(p[2].abs());
-    if m <= 1.0 {
-        return p;
-    }
-    if !m.is_finite() {
-        return p.map(|x| if x.is_infinite() { 2.0 * x.signum() } else { 0.0 });
-    }
-    let mut c = [0.0f32; 3];
-    for i in 0..3 {
-        c[i] = if p[i].abs() == m { (2.0 - 1.0 / m) * p[i].signum() } else { p[i] / m };
-    }
-    c
-}
-
-/// Unbounded step: constant in contracted space, so it grows with |p|∞² outside the cube.
-#[inline]
-pub fn unbounded_dt(step: f32, p: V3) -> f32 {
-    let m = p[0].abs().max(p[1].abs()).max(p[2].abs()).max(1.0);
-    (2.0 * step * m * m).min(UNBOUNDED_FAR)
+    cam.ray(px, py)
 }
 
 /// Front-to-back compositing state.
@@ -237,7 +131,7 @@ fn march_affine(
     let t_term = asset.header.march.t_terminate;
     let cells = asset.grid_dim();
     let mut i = i_start;
-    for _ in 0..MAX_ITERS {
+    for _ in 0..MAX_ITERS as usize {
         let t = t_base + (i as f32 + 0.5) * dt;
         if !(t < t_end) {
             break;
@@ -271,7 +165,7 @@ fn march_unbounded(asset: &Asset, slot: &TimeSlot, o: V3, d: V3, acc: &mut Accum
     let t_term = asset.header.march.t_terminate;
     let at = |t: f32| [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
     let mut t = UNBOUNDED_NEAR + 0.5 * unbounded_dt(step, at(UNBOUNDED_NEAR));
-    for _ in 0..MAX_ITERS {
+    for _ in 0..MAX_ITERS as usize {
         if !(t < UNBOUNDED_FAR) {
             break;
         }
@@ -292,27 +186,16 @@ fn march_unbounded(asset: &Asset, slot: &TimeSlot, o: V3, d: V3, acc: &mut Accum
 /// Render one world-space ray (origin `ow`, direction `dw`, normalized here) at `time`.
 pub fn render_ray(asset: &Asset, ow: V3, dw: V3, time: f32) -> PixelResult {
     let h = &asset.header;
-    let dw = normalize(dw);
+    let dw = snerf_geometry::vec::normalize(dw);
     let mut acc = Accum::new();
-    if ow.iter().chain(dw.iter()).all(|x| x.is_finite()) {
+    if let Some(r) = h.space.march_ray(h.kind, ow, dw) {
         let slot = asset.time_slot(time);
-        let s = &h.space;
-        let rel = [ow[0] - s.center[0], ow[1] - s.center[1], ow[2] - s.center[2]];
-        let o = mat_vec(&s.rot, rel).map(|x| x * s.scale);
-        let d = normalize(mat_vec(&s.rot, dw));
         let step = h.march.step;
-        match h.kind {
-            Kind::Object => {
-                if let Some((t0, t1)) = box_hit(o, d) {
-                    march_affine(asset, &slot, o, d, t0.max(0.0), t1, step, step, 0, &mut acc);
-                }
-            }
-            Kind::Forward => {
-                if let Some(n) = s.ndc {
-                    march_forward(asset, &slot, o, d, &n, &mut acc);
-                }
-            }
-            Kind::Unbounded => march_unbounded(asset, &slot, o, d, &mut acc),
+        match (h.kind, h.space.ndc) {
+            (Kind::Object, _) => march_affine(asset, &slot, r.o, r.d, r.t0, r.t1, step, step, 0, &mut acc),
+            (Kind::Forward, Some(n)) => march_forward(asset, &slot, &r, &n, &mut acc),
+            (Kind::Forward, None) => {}
+            (Kind::Unbounded, _) => march_unbounded(asset, &slot, r.o, r.d, &mut acc),
         }
     }
     shade(asset, &acc, dw)
@@ -320,32 +203,21 @@ pub fn render_ray(asset: &Asset, ow: V3, dw: V3, time: f32) -> PixelResult {
 
 /// Forward-facing: NeRF's ndc_rays on the model ray, then an affine march over t in [0,1]
 /// restricted to where the grid ray is inside [-1,1]^3 (outside samples contribute nothing).
-fn march_forward(asset: &Asset, slot: &TimeSlot, o: V3, d: V3, n: &crate::header::Ndc, acc: &mut Accum) {
-    if d[2] >= -NDC_MIN_DZ {
-        return;
-    }
-    let t = -(n.near + o[2]) / d[2];
-    let o = [o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]];
-    let ax = -n.fx / (n.width * 0.5);
-    let ay = -n.fy / (n.height * 0.5);
-    let o_ndc = [ax * o[0] / o[2], ay * o[1] / o[2], 1.0 + 2.0 * n.near / o[2]];
-    let d_ndc = [ax * (d[0] / d[2] - o[0] / o[2]), ay * (d[1] / d[2] - o[1] / o[2]), -2.0 * n.near / o[2]];
-    let e = n.xy_extent;
-    let go = [o_ndc[0] / e, o_ndc[1] / e, o_ndc[2]];
-    let gd = [d_ndc[0] / e, d_ndc[1] / e, d_ndc[2]];
+fn march_forward(asset: &Asset, slot: &TimeSlot, r: &MarchRay, n: &crate::header::Ndc, acc: &mut Accum) {
+    let (go, gd) = (n.to_grid(r.o), n.to_grid(r.d));
     if !go.iter().chain(gd.iter()).all(|x| x.is_finite()) {
         return;
     }
     let speed = norm(gd);
     let dt = asset.header.march.step / speed;
-    let delta = dt * norm(d_ndc);
+    let delta = dt * norm(r.d);
     if !(dt > 0.0 && dt.is_finite() && delta.is_finite()) {
         return;
     }
-    let Some((tb0, tb1)) = box_hit(go, gd) else { return };
+    let Some((tb0, tb1)) = box_hit(go, gd, 1.0) else { return };
     // First lattice index at or just before the box entry (outside points are skipped).
     let i_start = ((tb0.max(0.0) / dt - 0.5).floor().max(0.0)) as usize;
-    march_affine(asset, slot, go, gd, 0.0, tb1.min(1.0), dt, delta, i_start, acc);
+    march_affine(asset, slot, go, gd, 0.0, tb1.min(r.t1), dt, delta, i_start, acc);
 }
 
 /// Final pixel colour: diffuse + opacity·specular + T·background, clamped to [0,1].
@@ -424,82 +296,18 @@ pub fn contact_strip(frames: &[Frame], path: impl AsRef<Path>) -> Result<()> {
 
 /// Model point -> world point (inverse of model = scale·rot·(world - center)).
 pub fn model_to_world(h: &Header, m: V3) -> V3 {
-    let s = &h.space;
-    let w = mat_t_vec(&s.rot, m.map(|x| x / s.scale));
-    [w[0] + s.center[0], w[1] + s.center[1], w[2] + s.center[2]]
+    h.space.to_world(m)
 }
 
 /// Grid point -> model -> world: object identity; forward NDC inverse; unbounded inverse
 /// contraction (clamped so points at the far shell stay finite).
 pub fn grid_to_world(h: &Header, g: [f32; 3]) -> [f32; 3] {
-    let m = match h.kind {
-        Kind::Object => g,
-        Kind::Forward => match h.space.ndc {
-            None => g,
-            Some(n) => {
-                let e = n.xy_extent;
-                let (nx, ny, nz) = (g[0] * e, g[1] * e, g[2].min(0.999));
-                // ndc_z = 1 + 2 near / z  =>  z = 2 near / (ndc_z - 1)
-                let z = 2.0 * n.near / (nz - 1.0);
-                let ax = -n.fx / (n.width * 0.5);
-                let ay = -n.fy / (n.height * 0.5);
-                [nx * z / ax, ny * z / ay, z]
-            }
-        },
-        Kind::Unbounded => {
-            let c = g.map(|x| 2.0 * x);
-            let mc = c[0].abs().max(c[1].abs()).max(c[2].abs());
-            if mc <= 1.0 {
-                c
-            } else {
-                let mc = mc.min(1.999);
-                let big = 1.0 / (2.0 - mc);
-                c.map(|x| {
-                    if x.abs() >= mc {
-                        big * x.signum()
-                    } else {
-                        x * big
-                    }
-                })
-            }
-        }
-    };
-    model_to_world(h, m)
+    h.space.grid_to_world(h.kind, g)
 }
 
-/// Camera `i` of `n` on a preview path. Object/unbounded: a circle of radius 3 model units
-/// at 30° elevation in the model's xz-plane (model +y up), looking at the model origin.
-/// Forward: a circle of radius 0.1/scale world units around the reference camera (model
-/// origin, looking down model -z), keeping its orientation, as LLFF spiral paths do.
-/// `fov_y` is the vertical field of view in degrees.
+/// Camera `i` of `n` on the asset's preview orbit ([`Header::orbit`]: from the capture's
+/// cameras, around the scene's own up direction). `fov_y` is the vertical field of view in
+/// degrees.
 pub fn orbit(h: &Header, n: usize, i: usize, width: u32, height: u32, fov_y: f32) -> Camera {
-    let a = 2.0 * std::f32::consts::PI * i as f32 / n.max(1) as f32;
-    let f = 0.5 * height as f32 / (0.5 * fov_y.to_radians()).tan();
-    let rot = &h.space.rot;
-    let (pos_m, right_m, up_m, back_m) = match h.kind {
-        Kind::Forward => {
-            let r = 0.1; // model units: 0.1/scale in world units
-            ([r * a.cos(), r * a.sin(), 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0])
-        }
-        Kind::Object | Kind::Unbounded => {
-            let el = 30f32.to_radians();
-            let p = [3.0 * el.cos() * a.sin(), 3.0 * el.sin(), 3.0 * el.cos() * a.cos()];
-            let back = normalize(p); // camera looks down -z = towards the origin
-            let right = normalize(cross([0.0, 1.0, 0.0], back));
-            let up = cross(back, right);
-            (p, right, up, back)
-        }
-    };
-    // Directions map to world by rot^T (no scale); positions by the full inverse transform.
-    let pos = model_to_world(h, pos_m);
-    let (x, y, z) = (mat_t_vec(rot, right_m), mat_t_vec(rot, up_m), mat_t_vec(rot, back_m));
-    Camera {
-        c2w: [[x[0], y[0], z[0], pos[0]], [x[1], y[1], z[1], pos[1]], [x[2], y[2], z[2], pos[2]]],
-        fx: f,
-        fy: f,
-        cx: 0.5 * width as f32,
-        cy: 0.5 * height as f32,
-        width,
-        height,
-    }
+    Camera::from_fov(h.orbit().c2w(i, n), width, height, fov_y)
 }

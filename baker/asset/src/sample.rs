@@ -14,12 +14,7 @@ pub struct Loc {
 }
 
 /// Which keyframes a time falls between, and how far: value = (1-w)*k0 + w*k1.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TimeSlot {
-    pub k0: usize,
-    pub k1: usize,
-    pub w: f32,
-}
+pub use snerf_geometry::TimeSlot;
 
 impl Asset {
     /// Cell and block-local coordinate of grid point `g`; None outside [-1,1]^3 (or NaN).
@@ -110,22 +105,7 @@ impl Asset {
 
     /// The keyframes around time `t` (clamped at both ends; static assets: frame 0).
     pub fn time_slot(&self, t: f32) -> TimeSlot {
-        let frames = match &self.header.frames {
-            Some(f) if !f.is_empty() => f,
-            _ => return TimeSlot { k0: 0, k1: 0, w: 0.0 },
-        };
-        let last = frames.len() - 1;
-        if !(t > frames[0].time) {
-            return TimeSlot { k0: 0, k1: 0, w: 0.0 }; // also NaN
-        }
-        if t >= frames[last].time {
-            return TimeSlot { k0: last, k1: last, w: 0.0 };
-        }
-        // first frame with time > t; t > frames[0] so k >= 1, and t < frames[last] so k <= last
-        let k = frames.partition_point(|f| f.time <= t);
-        let (a, b) = (frames[k - 1].time, frames[k].time);
-        let w = if b > a { ((t - a) / (b - a)).clamp(0.0, 1.0) } else { 0.0 };
-        TimeSlot { k0: k - 1, k1: k, w }
+        snerf_geometry::time_slot(self.header.frames.as_deref().unwrap_or(&[]), |k| k.time, t)
     }
 
     /// Values at a located point for a time slot; None when every side involved is empty.

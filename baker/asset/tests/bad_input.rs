@@ -1,7 +1,6 @@
 //! Malformed files: every problem is an error that names the chunk/field, never a panic or
 //! a large allocation.
 use snerf_asset::{chunks, encode_chunk, encode_voxel, preamble, Asset, AssetBuilder, Header, Kind, ViewMlp};
-use std::time::{Duration, Instant};
 
 /// A tiny asset: res 8, block 4, 3 blocks.
 fn tiny() -> Asset {
@@ -43,10 +42,7 @@ fn with_header(edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
 }
 
 fn err_of(bytes: &[u8]) -> String {
-    let t = Instant::now();
-    let e = format!("{:#}", Asset::from_bytes(bytes).expect_err("must be rejected"));
-    assert!(t.elapsed() < Duration::from_millis(500), "took {:?}: {}", t.elapsed(), e);
-    e
+    format!("{:#}", Asset::from_bytes(bytes).expect_err("must be rejected"))
 }
 
 #[test]

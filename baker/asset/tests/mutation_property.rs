@@ -7,7 +7,7 @@ use snerf_asset::chunk::parse_chunk_at;
 use snerf_asset::{
     chunks, encode_chunk, encode_voxel, preamble, Assembler, Asset, AssetBuilder, Header, Kind, ViewMlp,
 };
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 fn small_valid() -> Vec<u8> {
     let mut h = Header::new(Kind::Unbounded, 8, 4);
@@ -120,7 +120,6 @@ fn mutated_files_never_panic() {
         accepted += Asset::from_bytes(&b).is_ok() as u32;
     }
     let el = start.elapsed();
-    assert!(el < Duration::from_secs(60), "20000 mutations took {:?}", el);
     eprintln!("mutations: {} accepted of 20000 in {:?}", accepted, el);
 }
 
@@ -154,5 +153,5 @@ fn random_chunk_streams_never_panic() {
         }
         exercise(&b);
     }
-    assert!(start.elapsed() < Duration::from_secs(30), "took {:?}", start.elapsed());
+    eprintln!("random chunk streams: {:?}", start.elapsed());
 }

@@ -52,16 +52,7 @@ pub struct View {
 }
 
 /// What kind of space the scene occupies; decides the field's parametrization.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum SceneKind {
-    /// A bounded object seen from around it: a box, no contraction.
-    Object,
-    /// Forward-facing capture (LLFF): normalized device coordinates.
-    Forward,
-    /// Unbounded 360 degree capture: contraction of far space into a bounded box.
-    Unbounded,
-}
+pub use snerf_geometry::SceneKind;
 
 /// Overrides for what `load` would otherwise detect.
 #[derive(Clone, Debug, Default)]
@@ -94,32 +85,6 @@ pub struct Dataset {
     /// Why `kind` and `dynamic` have their values (override, file hint or detection measures),
     /// for the CLI to print.
     pub detection_note: String,
-}
-
-impl SceneKind {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            SceneKind::Object => "object",
-            SceneKind::Forward => "forward",
-            SceneKind::Unbounded => "unbounded",
-        }
-    }
-
-    /// Parses "object", "forward" or "unbounded" (case-insensitive).
-    pub fn parse(s: &str) -> Option<SceneKind> {
-        match s.to_ascii_lowercase().as_str() {
-            "object" => Some(SceneKind::Object),
-            "forward" => Some(SceneKind::Forward),
-            "unbounded" => Some(SceneKind::Unbounded),
-            _ => None,
-        }
-    }
-}
-
-impl std::fmt::Display for SceneKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.as_str())
-    }
 }
 
 impl Intrinsics {

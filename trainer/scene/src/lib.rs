@@ -81,15 +81,7 @@ pub enum CameraPath {
 }
 
 /// The scene kind written to `scene_kind` in the transforms files.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SceneKind {
-    /// Bounded object, 360 degree views.
-    Object,
-    /// Forward-facing (LLFF-like).
-    Forward,
-    /// Unbounded 360 degree scene.
-    Unbounded,
-}
+pub use snerf_geometry::SceneKind;
 
 #[derive(Clone, Debug)]
 pub struct SceneSpec {

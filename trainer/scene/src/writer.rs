@@ -5,7 +5,7 @@ use crate::camera::{layout_for, poses, times, Layout, View};
 use crate::math::{v3, Rng};
 use crate::procedural::{Built, Content};
 use crate::raster::{render, Camera};
-use crate::{build_scene, SceneKind, SceneSpec, Source};
+use crate::{build_scene, SceneSpec, Source};
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 use serde_json::{json, Value};
@@ -235,12 +235,3 @@ fn write_into(
     Ok(())
 }
 
-impl SceneKind {
-    pub fn as_str(&self) -> &'static str {
-        match self {
-            SceneKind::Object => "object",
-            SceneKind::Forward => "forward",
-            SceneKind::Unbounded => "unbounded",
-        }
-    }
-}

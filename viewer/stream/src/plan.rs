@@ -264,15 +264,8 @@ pub fn records_len(a: &ServedAsset, idx: &[u32]) -> u64 {
     idx.iter().map(|&i| a.record_len(i)).sum::<u64>()
 }
 
-fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn norm(a: [f32; 3]) -> f32 {
-    dot(a, a).sqrt()
-}
+use snerf_geometry::vec::{dot, norm, sub};
+
 pub(crate) fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
     norm(sub(a, b))
 }
@@ -436,7 +429,7 @@ mod tests {
         h.space.ndc = None;
         for g in [[0.1, 0.2, -0.3], [0.75, 0.1, -0.2], [-0.2, -0.9, 0.4]] {
             let w = grid_to_world(&h, g);
-            let c = snerf_asset::render::contract(w);
+            let c = snerf_geometry::contract(w);
             for i in 0..3 {
                 assert!(
                     (c[i] / 2.0 - g[i]).abs() < 1e-4,

@@ -389,7 +389,7 @@ impl Shared {
 
     /// Run `f` on the asset cache and publish its size in the stats.
     fn cached<R>(&self, f: impl FnOnce(&mut AssetCache<ServedAsset>) -> R) -> R {
-        let mut c = self.cache.lock().unwrap();
+        let mut c = self.cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let r = f(&mut c);
         self.stats.cache_bytes.store(c.bytes(), Ordering::Relaxed);
         self.stats

@@ -1,0 +1,185 @@
+//! Cameras: pinhole rays, look-at, the one orbit every turntable and start view uses, and
+//! the scene's up direction.
+//!
+//! Camera-to-world matrices are 3 rows of [R | t] in the OpenGL convention (x right, y up,
+//! looking down -z), as in nerfstudio / Blender `transform_matrix` files.
+
+use serde::{Deserialize, Serialize};
+
+use crate::vec::{add, cross, dot, norm, normalize, scale, sub, Vec3};
+
+pub type C2w = [[f32; 4]; 3];
+
+/// Camera position (the translation column).
+pub fn position(c2w: &C2w) -> Vec3 {
+    [c2w[0][3], c2w[1][3], c2w[2][3]]
+}
+/// Camera up axis in world space (the second column).
+pub fn up_axis(c2w: &C2w) -> Vec3 {
+    [c2w[0][1], c2w[1][1], c2w[2][1]]
+}
+/// Viewing direction in world space (minus the third column), unit.
+pub fn forward_axis(c2w: &C2w) -> Vec3 {
+    normalize([-c2w[0][2], -c2w[1][2], -c2w[2][2]])
+}
+
+/// A pinhole camera with its image size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pinhole {
+    pub c2w: C2w,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Pinhole {
+    /// Square pixels, principal point at the centre, vertical field of view `fov_y` degrees.
+    pub fn from_fov(c2w: C2w, width: u32, height: u32, fov_y: f32) -> Pinhole {
+        let f = 0.5 * height as f32 / (0.5 * fov_y.to_radians()).tan();
+        Pinhole { c2w, fx: f, fy: f, cx: 0.5 * width as f32, cy: 0.5 * height as f32, width, height }
+    }
+
+    /// World origin and unit world direction through the centre of pixel (px, py).
+    pub fn ray(&self, px: u32, py: u32) -> (Vec3, Vec3) {
+        let dc = [(px as f32 + 0.5 - self.cx) / self.fx, -(py as f32 + 0.5 - self.cy) / self.fy, -1.0];
+        (position(&self.c2w), camera_dir_to_world(&self.c2w, dc))
+    }
+}
+
+/// A camera-space direction in world space (unit).
+pub fn camera_dir_to_world(c2w: &C2w, dc: Vec3) -> Vec3 {
+    let m = c2w;
+    normalize([
+        m[0][0] * dc[0] + m[0][1] * dc[1] + m[0][2] * dc[2],
+        m[1][0] * dc[0] + m[1][1] * dc[1] + m[1][2] * dc[2],
+        m[2][0] * dc[0] + m[2][1] * dc[1] + m[2][2] * dc[2],
+    ])
+}
+
+/// Camera-to-world looking from `eye` at `target` with `up` as close to the image's up as
+/// the view allows.
+pub fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> C2w {
+    let back = normalize(sub(eye, target));
+    let mut right = cross(up, back);
+    if norm(right) < 1e-6 {
+        right = cross([1.0, 0.0, 0.0], back);
+    }
+    let right = normalize(right);
+    let up = cross(back, right);
+    [
+        [right[0], up[0], back[0], eye[0]],
+        [right[1], up[1], back[1], eye[1]],
+        [right[2], up[2], back[2], eye[2]],
+    ]
+}
+
+/// The scene's up direction from its cameras: the mean of their up axes. People hold
+/// cameras upright, and Blender/nerf_synthetic (+z up), nerfstudio and COLMAP-derived (+y
+/// or -y up) captures all agree with this where a fixed axis would be wrong for some.
+/// Falls back to +y when the cameras' ups cancel out.
+pub fn mean_up<'a>(c2ws: impl IntoIterator<Item = &'a C2w>) -> Vec3 {
+    let s = c2ws.into_iter().fold([0.0; 3], |a, m| add(a, up_axis(m)));
+    if norm(s) > 1e-6 {
+        normalize(s)
+    } else {
+        [0.0, 1.0, 0.0]
+    }
+}
+
+/// A unit vector perpendicular to `up`, the same for every capture of one scene up to the
+/// scene's own rotation about `up` (used as the direction of an orbit's first frame).
+pub fn horizontal(up: Vec3, hint: Vec3) -> Vec3 {
+    let h = sub(hint, scale(up, dot(hint, up)));
+    if norm(h) > 1e-4 {
+        normalize(h)
+    } else {
+        normalize(cross(up, [0.3, 0.1, 0.9]))
+    }
+}
+
+/// A closed camera path, defined once for every turntable, preview and start view: the
+/// trainer's field turntable, `snerf render` of a baked asset, the demo and the viewers all
+/// evaluate this, so they see the scene from the same places.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "path", rename_all = "lowercase")]
+pub enum Orbit {
+    /// Objects and unbounded scenes: a circle around `center` at `elevation` radians above
+    /// the plane ⟂ `up`, starting in direction `start` (unit, ⟂ up), looking at the centre.
+    Around { center: Vec3, up: Vec3, start: Vec3, radius: f32, elevation: f32 },
+    /// Forward-facing scenes: an ellipse around `center` in the plane spanned by `right`
+    /// and `up` (radii `rx`, `ry`), looking at `target`.
+    Ellipse { center: Vec3, right: Vec3, up: Vec3, target: Vec3, rx: f32, ry: f32 },
+}
+
+impl Orbit {
+    /// The world up direction of the path (what a viewer keeps upright).
+    pub fn up(&self) -> Vec3 {
+        match *self {
+            Orbit::Around { up, .. } | Orbit::Ellipse { up, .. } => up,
+        }
+    }
+
+    /// Camera `i` of `n` on the path.
+    pub fn c2w(&self, i: usize, n: usize) -> C2w {
+        let a = std::f32::consts::TAU * i as f32 / n.max(1) as f32;
+        match *self {
+            Orbit::Around { center, up, start, radius, elevation } => {
+                let side = cross(up, start);
+                let horiz = add(scale(start, a.cos()), scale(side, a.sin()));
+                let dir = add(scale(horiz, elevation.cos()), scale(up, elevation.sin()));
+                look_at(add(center, scale(dir, radius)), center, up)
+            }
+            Orbit::Ellipse { center, right, up, target, rx, ry } => {
+                let eye = add(center, add(scale(right, rx * a.cos()), scale(up, ry * a.sin())));
+                look_at(eye, target, up)
+            }
+        }
+    }
+
+    /// Where a viewer opens: (eye, target). Around: frame 0 of the orbit; Ellipse: the
+    /// centre of the ellipse (the mean capture pose) looking at the target.
+    pub fn start(&self) -> (Vec3, Vec3) {
+        match *self {
+            Orbit::Around { center, .. } => (position(&self.c2w(0, 1)), center),
+            Orbit::Ellipse { center, target, .. } => (center, target),
+        }
+    }
+
+    /// The start view as a camera-to-world matrix.
+    pub fn start_c2w(&self) -> C2w {
+        let (eye, target) = self.start();
+        look_at(eye, target, self.up())
+    }
+
+    /// `n` cameras around the path.
+    pub fn path(&self, n: usize) -> Vec<C2w> {
+        (0..n).map(|i| self.c2w(i, n)).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orbit_is_upright_and_looks_at_the_centre() {
+        for up in [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], normalize([0.2, 0.9, -0.1])] {
+            let start = horizontal(up, [1.0, 0.0, 0.0]);
+            let o = Orbit::Around { center: [1.0, 2.0, 3.0], up, start, radius: 4.0, elevation: 0.5 };
+            for m in o.path(7) {
+                let eye = position(&m);
+                assert!((norm(sub(eye, [1.0, 2.0, 3.0])) - 4.0).abs() < 1e-4);
+                assert!((dot(sub(eye, [1.0, 2.0, 3.0]), up) / 4.0 - 0.5f32.sin()).abs() < 1e-4);
+                // image x axis is horizontal: no roll
+                assert!(dot([m[0][0], m[1][0], m[2][0]], up).abs() < 1e-5);
+                assert!(dot(up_axis(&m), up) > 0.0);
+            }
+        }
+        let ups = [look_at([0.0, -3.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0]), look_at([3.0, 0.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0])];
+        let u = mean_up(ups.iter());
+        assert!(u[2] > 0.9, "{u:?}");
+    }
+}

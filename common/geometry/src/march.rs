@@ -1,0 +1,70 @@
+//! Constants every marcher shares (trainer, CPU reference, GPU shader, block planner), and
+//! the WGSL prelude generated from them so the shader never holds a copy.
+
+use crate::ndc::NDC_MIN_DZ;
+use crate::vec::Vec3;
+
+/// Optical depth per sample is clamped here: exp(-1e4) is exactly 0 in f32 (an opaque sample
+/// hides everything behind it, to the last bit, in every marcher), and the clamp keeps σ·δ
+/// finite when both are huge (1e10 · 1e30 overflows f32). Its gradient is 0 above the clamp,
+/// where opacity's own derivative exp(-σδ) is already 0.
+pub const MAX_OPTICAL_DEPTH: f32 = 1.0e4;
+/// Unbounded rays start this far from the camera (model units)…
+pub const UNBOUNDED_NEAR: f32 = 0.02;
+/// …and end here: the contraction is within 1e-3 of its limit.
+pub const UNBOUNDED_FAR: f32 = 1.0e3;
+/// Loop guard for a marcher: a valid asset bounds samples per ray far below this.
+pub const MAX_ITERS: u32 = 1 << 20;
+
+/// Slab test against the cube [-h,h]³: (t_enter, t_exit) with t_exit > max(t_enter, 0).
+pub fn box_hit(o: Vec3, d: Vec3, h: f32) -> Option<(f32, f32)> {
+    let mut t0 = f32::NEG_INFINITY;
+    let mut t1 = f32::INFINITY;
+    for i in 0..3 {
+        let inv = 1.0 / d[i];
+        let (a, b) = ((-h - o[i]) * inv, (h - o[i]) * inv);
+        let (a, b) = if a < b { (a, b) } else { (b, a) };
+        if a.is_nan() || b.is_nan() {
+            // d[i] == 0: inside the slab for all t, or never
+            if !(o[i].abs() <= h) {
+                return None;
+            }
+            continue;
+        }
+        t0 = t0.max(a);
+        t1 = t1.min(b);
+    }
+    if t1 > t0.max(0.0) {
+        Some((t0, t1))
+    } else {
+        None
+    }
+}
+
+/// WGSL declarations of the shared constants, prepended to `shaders/march.wgsl`.
+pub fn wgsl_prelude() -> String {
+    format!(
+        "const MAX_OPTICAL_DEPTH: f32 = {:?};\nconst UNBOUNDED_NEAR: f32 = {:?};\nconst UNBOUNDED_FAR: f32 = {:?};\nconst NDC_MIN_DZ: f32 = {:e};\nconst MAX_ITERS: u32 = {}u;\n",
+        MAX_OPTICAL_DEPTH, UNBOUNDED_NEAR, UNBOUNDED_FAR, NDC_MIN_DZ, MAX_ITERS
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prelude_is_valid_wgsl_literals() {
+        let p = wgsl_prelude();
+        assert!(p.contains("const MAX_OPTICAL_DEPTH: f32 = 10000.0;"), "{p}");
+        assert!(p.contains("const NDC_MIN_DZ: f32 = 1e-6;"), "{p}");
+        assert!(p.contains("const MAX_ITERS: u32 = 1048576u;"), "{p}");
+    }
+
+    #[test]
+    fn box_hit_cases() {
+        assert_eq!(box_hit([0.0, 0.0, 3.0], [0.0, 0.0, -1.0], 1.0), Some((2.0, 4.0)));
+        assert_eq!(box_hit([0.0, 2.0, 3.0], [0.0, 0.0, -1.0], 1.0), None);
+        assert_eq!(box_hit([0.0, 0.0, 3.0], [0.0, 0.0, 1.0], 1.0), None);
+    }
+}
