@@ -78,6 +78,25 @@ fn padded(lo: f64, hi: f64, log: bool) -> (f64, f64) {
     (lo - 0.06 * span, hi + 0.06 * span)
 }
 
+/// Ticks of a log axis: 1-2-5 per decade, or every integer mantissa when that gives fewer
+/// than three (plotters' own log ticks are whole decades, so a short run gets none).
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let decades = (lo.log10().floor() as i32)..=(hi.log10().ceil() as i32);
+    let pick = |mantissas: &[f64]| -> Vec<f64> {
+        decades.clone().flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e))).filter(|&v| v >= lo && v <= hi).collect()
+    };
+    let t = pick(&[1.0, 2.0, 5.0]);
+    if t.len() >= 3 {
+        return t;
+    }
+    let t = pick(&[1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    if t.len() >= 3 {
+        return t;
+    }
+    // narrower than a mantissa step: evenly spaced
+    (0..5).map(|i| lo + (hi - lo) * (i as f64 + 0.5) / 5.0).collect()
+}
+
 /// Draw `plot` on `root` (any backend, any size).
 pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> Result<()> {
     font::register();
@@ -97,7 +116,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> R
         .x_label_area_size((44.0 * scale) as u32)
         .y_label_area_size((64.0 * scale) as u32);
     if plot.log_x {
-        let chart = builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1).map_err(err)?;
+        let chart = builder.build_cartesian_2d((x0..x1).log_scale().with_key_points(log_ticks(x0, x1)), y0..y1).map_err(err)?;
         body(chart, plot, scale)
     } else {
         let chart = builder.build_cartesian_2d(x0..x1, y0..y1).map_err(err)?;
@@ -120,7 +139,8 @@ where
         .y_label_formatter(&fy)
         .label_style(label_font.clone())
         .axis_desc_style(label_font)
-        .light_line_style(RGBColor(238, 238, 238))
+        .max_light_lines(2)
+        .light_line_style(RGBColor(240, 240, 240))
         .bold_line_style(RGBColor(215, 215, 215))
         .axis_style(BLACK.stroke_width(1))
         .draw()
@@ -226,6 +246,14 @@ mod tests {
         assert_eq!(short(25.125), "25.1");
         assert_eq!(short(0.0123), "0.012");
         assert_eq!(short(18_000.0), "18k");
+    }
+
+    #[test]
+    fn a_short_log_axis_still_has_ticks() {
+        assert_eq!(log_ticks(1.0, 300.0), vec![1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0]);
+        let t = log_ticks(2.0, 4.2);
+        assert!(t.len() >= 3 && t.iter().all(|&v| (2.0..=4.2).contains(&v)), "{t:?}");
+        assert_eq!(log_ticks(3.1, 3.2).len(), 5);
     }
 
     #[test]
