@@ -124,9 +124,9 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> R
     }
 }
 
-fn body<'a, DB: DrawingBackend + 'a, X: 'a>(mut chart: ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>, plot: &Plot, scale: f64) -> Result<()>
+fn body<'a, DB: DrawingBackend + 'a, X>(mut chart: ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>, plot: &Plot, scale: f64) -> Result<()>
 where
-    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64> + 'a,
 {
     let label_font = (FAMILY, 14.0 * scale).into_font();
     let fx = |v: &f64| short(*v);
