@@ -162,9 +162,15 @@ where
                 PathElement::new(vec![(x, y), (x + 18, y)], style).into_dyn()
             }
         };
+        // A dashed line beside a solid one of the same run is its secondary metric (the
+        // title says which): one legend entry per run keeps the legend off the curves.
+        let secondary = s.dashed && plot.series.iter().any(|o| o.run == s.run && !o.dashed && !o.points.is_empty());
         if s.dashed {
             let d = (7.0 * scale) as i32;
-            chart.draw_series(DashedLineSeries::new(pts.clone(), d, d * 2 / 3, style)).map_err(err)?.label(label).legend(legend);
+            let drawn = chart.draw_series(DashedLineSeries::new(pts.clone(), d, d * 2 / 3, style)).map_err(err)?;
+            if !secondary {
+                drawn.label(label).legend(legend);
+            }
         } else {
             chart.draw_series(LineSeries::new(pts.clone(), style)).map_err(err)?.label(label).legend(legend);
         }
@@ -215,7 +221,9 @@ pub fn png(plot: &Plot, w: u32, h: u32) -> Result<Vec<u8>> {
     let img = rgb(plot, w, h)?;
     let mut out = Vec::new();
     image::ImageEncoder::write_image(
-        image::codecs::png::PngEncoder::new(&mut out),
+        // fast deflate: a running job redraws its report at each curve point, and flat-colour
+        // plots compress well at any level
+        image::codecs::png::PngEncoder::new_with_quality(&mut out, image::codecs::png::CompressionType::Fast, image::codecs::png::FilterType::Adaptive),
         img.as_raw(),
         w,
         h,

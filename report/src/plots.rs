@@ -100,7 +100,7 @@ pub fn build(sources: &[Source]) -> Vec<Plot> {
 
 fn training_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
     let curves = curves(sources);
-    let mut psnr = Plot::new("psnr", "Held-out PSNR against training time", "training seconds (log)", "PSNR (dB)", true);
+    let mut psnr = Plot::new("psnr", "Held-out PSNR (solid) and train PSNR (dashed) against training time", "training seconds (log)", "PSNR (dB)", true);
     psnr.table.header = ["run", "steps", "training s", "held-out PSNR", "best held-out", "train PSNR", "train − held-out"].map(String::from).to_vec();
     let mut tput = Plot::new("throughput", "Training throughput", "training seconds (log)", "samples/s", true);
     tput.table.header = ["run", "training s", "samples/s (last)", "samples/s (mean)"].map(String::from).to_vec();
@@ -112,7 +112,7 @@ fn training_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         let last_train = c.train.last().copied();
         let best = c.test.iter().map(|p| p[1]).fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
         let short = c.test.len() <= 1;
-        psnr.series.push(series(&c.run, "test_psnr", format!("{} held-out", c.run), col, false, short, c.test.clone()));
+        psnr.series.push(series(&c.run, "test_psnr", c.run.clone(), col, false, short, c.test.clone()));
         if !c.train.is_empty() {
             psnr.series.push(series(&c.run, "train_psnr", format!("{} train", c.run), col, true, short, c.train.clone()));
         }
@@ -172,7 +172,7 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         let run = &s.label;
         fit.series.push(series(run, "fit_psnr", run.clone(), col, false, true, pairs(recs, "wall_seconds", "fit_psnr")));
         style.series.push(series(run, "style_distance", run.clone(), col, false, true, pairs(recs, "wall_seconds", "style_distance")));
-        cons.series.push(series(run, "short_range", format!("{run} short range"), col, false, true, pairs(recs, "wall_seconds", "short_range")));
+        cons.series.push(series(run, "short_range", run.clone(), col, false, true, pairs(recs, "wall_seconds", "short_range")));
         cons.series.push(series(run, "long_range", format!("{run} long range"), col, true, true, pairs(recs, "wall_seconds", "long_range")));
         for r in recs.as_array().into_iter().flatten() {
             let head = vec![run.clone(), fmt(num(&r["round"]), 0), fmt(num(&r["wall_seconds"]), 1)];
