@@ -66,6 +66,7 @@ pub enum Cmd {
     Fetch(crate::stream_cmd::FetchArgs),
     /// Error against run time, as pictures: plots, report.md, report.html and report.json from
     /// train runs, stylize runs, bakes and `bench quality` outputs.
+    #[command(long_about = crate::report_cmd::REPORT_HELP)]
     Report(crate::report_cmd::ReportArgs),
     /// Two runs of the same data side by side: curves on one axis, differences at equal times.
     Compare(crate::report_cmd::CompareArgs),

@@ -16,7 +16,7 @@ use crate::cli::pj;
 /// Where a run keeps its own report.
 pub const RUN_REPORT_DIR: &str = "report";
 
-const REPORT_HELP: &str = "Reads the records of any runs given (kind told from the files present): training runs \
+pub const REPORT_HELP: &str = "Reads the records of any runs given (kind told from the files present): training runs \
 (RUN/metrics.json, and RUN/eval/eval.json for SSIM), stylization runs (SRUN/stylize.json, and SRUN/consistency.json for \
 the per-frame baseline and the realistic field's floor), bakes (the --json output of `snerf bake`, or the directory of \
 `snerf bake --sweep`), and `snerf bench quality` outputs (quality.json). A directory holding none of these is searched \
@@ -29,7 +29,6 @@ and floor as horizontal lines;\n\
 - per bake resolution: faithfulness (dB against the field) and test-PSNR drop against file size.";
 
 #[derive(Args, Debug)]
-#[command(long_about = REPORT_HELP)]
 pub struct ReportArgs {
     /// Runs and records: run directories, bake summaries, sweep or benchmark directories.
     #[arg(required = true)]
