@@ -56,6 +56,8 @@ struct Curve {
 
 fn curves(sources: &[Source]) -> Vec<Curve> {
     let mut out = Vec::new();
+    // two benchmarks (a baseline and a new build) hold the same model names
+    let benchmarks = sources.iter().filter(|s| s.kind == SourceKind::Quality).count();
     for s in sources {
         match s.kind {
             SourceKind::Train => {
@@ -73,7 +75,10 @@ fn curves(sources: &[Source]) -> Vec<Curve> {
             SourceKind::Quality => {
                 for model in s.data["models"].as_array().into_iter().flatten() {
                     for r in model["runs"].as_array().into_iter().flatten() {
-                        let name = format!("{} ({} s)", model["model"].as_str().unwrap_or("?"), fmt(num(&r["seconds"]), 0));
+                        let mut name = format!("{} ({} s)", model["model"].as_str().unwrap_or("?"), fmt(num(&r["seconds"]), 0));
+                        if benchmarks > 1 {
+                            name = format!("{}: {name}", s.label);
+                        }
                         let test: Vec<[f64; 2]> =
                             r["curve"].as_array().into_iter().flatten().filter_map(|p| Some([num(&p[0])?, num(&p[1])?])).collect();
                         let ssim = num(&r["eval_ssim"]).zip(test.last().map(|p| p[0])).map(|(v, t)| [t, v]);
