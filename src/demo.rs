@@ -310,6 +310,14 @@ fn contact_sheet(
         let p = eval_dir.join(format!("{}.png", report.views[i].name));
         triptychs.push(image::open(&p).with_context(|| format!("{}: cannot read", p.display()))?.to_rgb8());
     }
+    // small views are scaled up so the first band is as tall as a readable plot
+    let sum_h: u32 = triptychs.iter().map(|t| t.height()).sum();
+    if sum_h > 0 && sum_h < 320 {
+        for t in triptychs.iter_mut() {
+            let (w, h) = (t.width() * 320 / sum_h, t.height() * 320 / sum_h);
+            *t = image::imageops::resize(t, w.max(1), h.max(1), image::imageops::FilterType::Triangle);
+        }
+    }
     let consistency_img = image::open(consistency).ok().map(|c| c.to_rgb8());
     let tiles: Vec<Vec<image::RgbImage>> = turntables
         .iter()
@@ -331,9 +339,18 @@ fn contact_sheet(
         image::imageops::overlay(&mut band, &snerf_report::draw::rgb(p, width - trip_w, trip_h)?, trip_w as i64, 0);
     }
     bands.push(band);
-    // 2: turntables, whole rows of frames (a short last row is centred)
-    let per_row = (width / tw.max(1)).max(1) as usize;
+    // 2: turntables in whole rows: as few rows as the frames need at their size, the
+    // frames scaled so a row spans the sheet (a short last row is centred)
     for frames in &tiles {
+        let n = frames.len().max(1) as u32;
+        let rows = (n * tw).div_ceil(width).max(1);
+        let per_row = n.div_ceil(rows) as usize;
+        let (tw, th) = (width / per_row as u32, (th * width / per_row as u32 / tw.max(1)).max(1));
+        let scaled: Vec<image::RgbImage> = frames
+            .iter()
+            .map(|t| if t.dimensions() == (tw, th) { t.clone() } else { image::imageops::resize(t, tw, th, image::imageops::FilterType::Triangle) })
+            .collect();
+        let frames = &scaled;
         let nrows = frames.len().div_ceil(per_row) as u32;
         let mut block = image::RgbImage::from_pixel(width, (nrows * th).max(1), image::Rgb([24, 24, 24]));
         for (i, t) in frames.iter().enumerate() {
