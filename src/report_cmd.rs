@@ -141,7 +141,11 @@ impl LiveReport {
     fn write(&mut self, run: &Path, source: Source) {
         let t0 = Instant::now();
         let title = format!("{} — {}", source.label, if source.kind == snerf_report::SourceKind::Train { "training" } else { "stylization" });
-        let r = snerf_report::write_report(&[source], &run.join(RUN_REPORT_DIR), &pages::Options { title, compare: None, svg: true });
+        let dir = run.join(RUN_REPORT_DIR);
+        let opts = pages::Options { title, compare: None, svg: true };
+        // a defect in drawing must not cost a training run
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| snerf_report::write_report(&[source], &dir, &opts)))
+            .unwrap_or_else(|_| Err(anyhow::anyhow!("drawing panicked")));
         self.seconds += t0.elapsed().as_secs_f64();
         self.writes += 1;
         if let Err(e) = r {

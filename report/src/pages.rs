@@ -67,6 +67,18 @@ const STYLE: &str = "body{font-family:sans-serif;margin:2em;color:#222}section{m
 table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}\
 td:first-child,th:first-child{text-align:left}th{background:#f3f3f3}.src{font-size:13px;color:#555}";
 
+/// The sources as JSON; JSON holds UTF-8 only, so a path that is not is written lossily
+/// rather than failing after the drawing is done.
+fn sources_json(sources: &[Source]) -> Value {
+    let lossy = |p: &Path| Value::String(p.to_string_lossy().into_owned());
+    Value::Array(
+        sources
+            .iter()
+            .map(|s| json!({ "kind": s.kind, "label": s.label, "path": lossy(&s.path), "files": s.files.iter().map(|f| lossy(f)).collect::<Vec<_>>() }))
+            .collect(),
+    )
+}
+
 /// Build the plots of `sources` and write the report into `dir` (created if missing).
 pub fn write_report(sources: &[Source], dir: &Path, opts: &Options) -> Result<Written> {
     let plots = plots::build(sources);
@@ -145,7 +157,7 @@ pub fn write_plots(sources: &[Source], plots: &[Plot], dir: &Path, opts: &Option
     let doc = json!({
         "command": "report",
         "title": opts.title,
-        "sources": sources,
+        "sources": sources_json(sources),
         "plots": plots_json,
         "compare": if opts.compare.is_some() { Value::Array(compare_json) } else { Value::Null },
     });

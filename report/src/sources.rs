@@ -27,7 +27,7 @@ pub enum SourceKind {
 }
 
 /// One run (or benchmark) as read from disk, with the record files it came from.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug)]
 pub struct Source {
     pub kind: SourceKind,
     /// The name in legends and tables (unique within a report).
@@ -37,7 +37,6 @@ pub struct Source {
     pub files: Vec<PathBuf>,
     /// The records, as read: train `{metrics, eval}`, stylize `{state, consistency}`,
     /// bake `{bakes: [bake summary, ...]}`, quality: the `quality.json` document.
-    #[serde(skip)]
     pub data: Value,
 }
 
