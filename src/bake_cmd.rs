@@ -28,23 +28,23 @@ pub struct BakeArgs {
     pub data: Option<PathBuf>,
     /// Voxels per axis of the baked grid (192: the built-in object at 128² in 18 MB, 0.6 dB
     /// below the field; 256: 34 MB, 0.1 dB; see BENCH.md).
-    #[arg(long, default_value_t = 192, value_parser = crate::args::int_in::<u32>(16, 2048, ""))]
+    #[arg(long, default_value_t = BakeOptions::default().res, value_parser = crate::args::int_in::<u32>(16, 2048, ""))]
     pub resolution: u32,
     /// Voxels per block edge (blocks are the unit of storage and streaming).
-    #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<u32>(4, 64, ""))]
+    #[arg(long, default_value_t = BakeOptions::default().block, value_parser = crate::args::int_in::<u32>(4, 64, ""))]
     pub block: u32,
     /// Keyframes of a dynamic scene, evenly spaced over its time range.
-    #[arg(long, default_value_t = 12, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
+    #[arg(long, default_value_t = BakeOptions::default().keyframes, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub keyframes: usize,
     /// Keep a block when some voxel reaches this opacity over one march step.
-    #[arg(long, default_value_t = 0.005, value_parser = crate::args::unit_f32)]
+    #[arg(long, default_value_t = BakeOptions::default().min_alpha, value_parser = crate::args::unit_f32)]
     pub min_alpha: f32,
     /// Dynamic scenes: share a block with the previous keyframe when no voxel's opacity (and
     /// no seen colour) moved by more than this.
-    #[arg(long, default_value_t = 0.03, value_parser = crate::args::unit_f32)]
+    #[arg(long, default_value_t = BakeOptions::default().reuse_tolerance, value_parser = crate::args::unit_f32)]
     pub reuse_tolerance: f32,
     /// Training views for the visibility test (0 keeps hidden blocks too).
-    #[arg(long, default_value_t = 32, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
+    #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
     /// Held-out views on which to measure what baking loses (0: skip).
     #[arg(long, default_value_t = 8, value_parser = crate::args::int_in::<usize>(0, 10000, ""))]
@@ -54,8 +54,27 @@ pub struct BakeArgs {
     /// preview orbit turns around it.
     #[arg(long, value_parser = crate::args::direction)]
     pub up: Option<[f32; 3]>,
+    /// Bake at each of these resolutions (e.g. 128,192,256) instead of --resolution: --out is
+    /// then a directory with res-N/asset.snerf and res-N/bake.json per resolution, sweep.json,
+    /// and report/ (faithfulness and test-PSNR drop against file size).
+    #[arg(long, value_delimiter = ',', value_parser = crate::args::int_in::<u32>(16, 2048, ""))]
+    pub sweep: Vec<u32>,
     #[command(flatten)]
     pub opts: DataOpts,
+}
+
+impl BakeArgs {
+    /// The command line's defaults for baking `run` into `out` (what `snerf bake RUN --out
+    /// OUT` would use): callers such as the demo start from these instead of restating them.
+    pub fn defaults(run: &Path, out: &Path) -> BakeArgs {
+        #[derive(clap::Parser)]
+        struct Cmd {
+            #[command(flatten)]
+            bake: BakeArgs,
+        }
+        let cmd: Cmd = clap::Parser::parse_from([std::ffi::OsStr::new("bake"), run.as_os_str(), "--out".as_ref(), out.as_os_str()]);
+        cmd.bake
+    }
 }
 
 /// The dataset a run was trained on, from its config.json (or, for a stylization run, from
@@ -98,9 +117,62 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     let data = a.opts.load(&data_path)?;
     crate::cli::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let (model, pool) = load_model(&a.run)?;
+    if !a.sweep.is_empty() {
+        return sweep(a, &data, &model, &pool);
+    }
+    bake_one(a, a.resolution, &a.out, &data, &model, &pool, wall)
+}
+
+/// `snerf bake --sweep`: one bake per resolution, each as a plain bake would write it, and
+/// the sweep's summary and pictures (what each resolution costs in size and in dB).
+fn sweep(a: &BakeArgs, data: &snerf_trainer::data::Dataset, model: &train::Model, pool: &snerf_trainer::render::WorkspacePool) -> Result<Value> {
+    let wall = Instant::now();
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
+    let mut res = a.sweep.clone();
+    res.sort_unstable();
+    res.dedup();
+    let mut bakes = Vec::new();
+    let doc = |bakes: &[Value]| {
+        json!({ "command": "bake sweep", "run": pj(&a.run), "out": pj(&a.out), "resolutions": res, "bakes": bakes, "seconds": wall.elapsed().as_secs_f64() })
+    };
+    for &r in &res {
+        eprintln!("sweep: resolution {r}");
+        let dir = a.out.join(format!("res-{r}"));
+        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        let v = bake_one(a, r, &dir.join("asset.snerf"), data, model, pool, Instant::now())?;
+        snerf_files::write_json_atomic(&dir.join("bake.json"), &v)?;
+        bakes.push(v);
+        // after every resolution, so a long sweep shows its progress on disk
+        snerf_files::write_json_atomic(&a.out.join(snerf_report::sources::SWEEP), &doc(&bakes))?;
+    }
+    let mut v = doc(&bakes);
+    let source = snerf_report::Source::bakes(&label(&a.run), &a.out, bakes);
+    let title = format!("{}: bake sweep {:?}", label(&a.run), res);
+    let report = a.out.join("report");
+    snerf_report::write_report(&[source], &report, &snerf_report::Options { title, compare: None, svg: true })?;
+    v["report"] = pj(&report);
+    eprintln!("sweep of {} resolutions in {:.1} s; pictures in {}", res.len(), wall.elapsed().as_secs_f64(), report.display());
+    Ok(v)
+}
+
+fn label(run: &Path) -> String {
+    let p = std::fs::canonicalize(run).unwrap_or_else(|_| run.to_path_buf());
+    p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into())
+}
+
+/// One bake of `model` at `res` voxels per axis into `out`; the bake's JSON summary.
+fn bake_one(
+    a: &BakeArgs,
+    res: u32,
+    out: &Path,
+    data: &snerf_trainer::data::Dataset,
+    model: &train::Model,
+    pool: &snerf_trainer::render::WorkspacePool,
+    wall: Instant,
+) -> Result<Value> {
     let bg = eval::eval_background(train::views_have_alpha(&data.train));
     let opts = BakeOptions {
-        res: a.resolution,
+        res,
         block: a.block,
         keyframes: a.keyframes,
         min_alpha: a.min_alpha,
@@ -109,30 +181,30 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
         up: a.up,
     };
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
-    let (asset, report) = bake(&model, &pool, &data.train, bg, &opts, &|what, done, total| {
+    let (asset, report) = bake(model, pool, &data.train, bg, &opts, &|what, done, total| {
         pb.set_message(what.to_string());
         pb.set_length(total);
         pb.set_position(done);
     })?;
     pb.finish_and_clear();
     let bake_seconds = wall.elapsed().as_secs_f64();
-    asset.write(&a.out)?;
-    let file_bytes = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
+    asset.write(out)?;
+    let file_bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
     let summary = asset.summary(file_bytes);
     let faith = if a.eval_views > 0 {
         let views = if data.test.is_empty() { &data.train } else { &data.test };
-        Some(snerf_baker::faithfulness::measure(&model, &pool, &asset, views, a.eval_views)?)
+        Some(snerf_baker::faithfulness::measure(model, pool, &asset, views, a.eval_views)?)
     } else {
         None
     };
     eprintln!(
         "baked {} -> {}: {:.2} MB, {} blocks of {}³ at {}³, {:.1} s, peak memory {:.0} MB",
         a.run.display(),
-        a.out.display(),
+        out.display(),
         file_bytes as f64 / 1e6,
         report.atlas_blocks,
         a.block,
-        a.resolution,
+        res,
         bake_seconds,
         peak_rss_mb().unwrap_or(f64::NAN)
     );
@@ -149,7 +221,7 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     Ok(json!({
         "command": "bake",
         "run": pj(&a.run),
-        "out": pj(&a.out),
+        "out": pj(out),
         "bake_seconds": bake_seconds,
         "peak_rss_mb": peak_rss_mb(),
         "report": report,

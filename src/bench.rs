@@ -27,6 +27,20 @@ pub enum BenchCmd {
     /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
     /// reference renderer at the same size, in the same run.
     View(crate::view_cmd::BenchViewArgs),
+    /// What `snerf report` costs: the whole report of the runs given, and one redraw of a
+    /// run's own report as `snerf train` does it at each curve point, projected onto a
+    /// 5-minute training run.
+    Report(BenchReportArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchReportArgs {
+    /// Runs and records, as for `snerf report` (e.g. a directory holding 10 runs).
+    #[arg(required = true)]
+    pub paths: Vec<PathBuf>,
+    /// Repetitions of each measurement (the median is reported).
+    #[arg(long, default_value_t = 5, value_parser = crate::args::int_in::<usize>(1, 1000, ""))]
+    pub reps: usize,
 }
 
 #[derive(Args, Debug)]
@@ -69,7 +83,67 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::View(a) => crate::view_cmd::bench_view(a),
         BenchCmd::Stream(a) => crate::stream_cmd::bench_stream(&a.asset, a.rounds),
         BenchCmd::Quality(a) => crate::bench_quality::run(a),
+        BenchCmd::Report(a) => report(a),
     }
+}
+
+fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    xs[xs.len() / 2]
+}
+
+fn report(a: &BenchReportArgs) -> Result<Value> {
+    use std::time::Instant;
+    let scratch = std::env::temp_dir().join(format!("snerf-bench-report-{}", std::process::id()));
+    let result = (|| -> Result<Value> {
+        // the whole command: read every record, draw, write the pages
+        let mut whole = Vec::new();
+        let mut sources = Vec::new();
+        for _ in 0..a.reps {
+            let t0 = Instant::now();
+            sources = snerf_report::load_all(&a.paths)?;
+            let opts = snerf_report::Options { title: "bench".into(), compare: None, svg: true };
+            snerf_report::write_report(&sources, &scratch.join("all"), &opts)?;
+            whole.push(t0.elapsed().as_secs_f64());
+        }
+        // one redraw of a training run's own report, as at each new curve point
+        let train = sources.iter().find(|s| s.kind == snerf_report::SourceKind::Train);
+        let mut live = crate::report_cmd::LiveReport::new();
+        let mut per_write = None;
+        if let Some(s) = train {
+            let run = scratch.join("run");
+            std::fs::create_dir_all(&run)?;
+            for _ in 0..a.reps {
+                live.train(&run, s.data["metrics"].clone());
+            }
+            per_write = Some(live.seconds / live.writes.max(1) as f64);
+        }
+        // a 5-minute run gains a curve point at each of EVAL_AT up to 300 s, at 300 s, and at the end
+        let writes_5min = snerf_trainer::run::EVAL_AT.iter().filter(|&&t| t < 300.0).count() + 2;
+        let overhead = per_write.map(|w| w * writes_5min as f64 / 300.0);
+        let v = json!({
+            "command": "bench report",
+            "sources": sources.len(),
+            "plots": snerf_report::plots::build(&sources).len(),
+            "report_seconds_median": median(whole.clone()),
+            "report_seconds": whole,
+            "run_redraw_seconds": per_write,
+            "redraws_in_5_minutes": writes_5min,
+            "overhead_of_5_minute_run": overhead,
+        });
+        eprintln!(
+            "snerf report on {} sources: {:.3} s (median of {}); one redraw of a run's report {}; {} redraws add {} to a 5-minute training run",
+            sources.len(),
+            median(whole),
+            a.reps,
+            per_write.map(|w| format!("{:.3} s", w)).unwrap_or("n/a (no training run given)".into()),
+            writes_5min,
+            overhead.map(|o| format!("{:.3}%", 100.0 * o)).unwrap_or("n/a".into())
+        );
+        Ok(v)
+    })();
+    let _ = std::fs::remove_dir_all(&scratch);
+    result
 }
 
 fn stylize(a: &BenchStylizeArgs) -> Result<Value> {

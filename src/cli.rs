@@ -64,6 +64,12 @@ pub enum Cmd {
     Serve(crate::stream_cmd::ServeArgs),
     /// Download a baked asset from `snerf serve` (resumable, checksum-verified).
     Fetch(crate::stream_cmd::FetchArgs),
+    /// Error against run time, as pictures: plots, report.md, report.html and report.json from
+    /// train runs, stylize runs, bakes and `bench quality` outputs.
+    #[command(long_about = crate::report_cmd::REPORT_HELP)]
+    Report(crate::report_cmd::ReportArgs),
+    /// Two runs of the same data side by side: curves on one axis, differences at equal times.
+    Compare(crate::report_cmd::CompareArgs),
     /// The whole path on built-in data: scene -> train -> eval -> turntable + contact sheet.
     Demo(crate::demo::DemoArgs),
     /// Benchmarks that print numbers (see BENCH.md).
@@ -288,6 +294,8 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::View(a) => crate::view_cmd::view_cmd(&a)?,
         Cmd::Serve(a) => crate::stream_cmd::serve_cmd(&a, cli.json)?,
         Cmd::Fetch(a) => crate::stream_cmd::fetch_cmd(&a)?,
+        Cmd::Report(a) => crate::report_cmd::report_cmd(&a, cli.json)?,
+        Cmd::Compare(a) => crate::report_cmd::compare_cmd(&a, cli.json)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,
         Cmd::Bench(b) => crate::bench::run(&b)?,
     };
@@ -460,7 +468,15 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
     }
     let pb = bar(1000, "{spinner} {bar:30} {percent:>3}% [{elapsed}<{eta}] {msg}");
     let mut ema: Option<(f64, f64)> = None;
+    // RUN/report/ is redrawn whenever the curve gains a point (2, 5, 10, ... s, then every
+    // minute), so a user looking at a running job sees its curve.
+    let mut live = crate::report_cmd::LiveReport::new();
+    let mut drawn = trainer.curve.len();
     run::run(&mut trainer, data, opts, &mut |t, s, p| {
+        if t.curve.len() != drawn {
+            drawn = t.curve.len();
+            live.train(out, run::metrics_json(t));
+        }
         let sps = s.samples as f64 / s.seconds.max(1e-9);
         let e = ema.map(|(l, r)| (0.9 * l + 0.1 * s.loss, 0.9 * r + 0.1 * sps)).unwrap_or((s.loss, sps));
         ema = Some(e);
@@ -477,6 +493,7 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
     })?;
     pb.finish_and_clear();
     let metrics = run::metrics_json(&trainer);
+    live.train(out, metrics.clone());
     let last = trainer.curve.last();
     if !quiet {
         eprintln!(
@@ -493,6 +510,7 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
         "run": pj(out),
         "peak_rss_mb": crate::bake_cmd::peak_rss_mb(),
         "wall_seconds": wall.elapsed().as_secs_f64(),
+        "report": { "dir": pj(out.join(crate::report_cmd::RUN_REPORT_DIR)), "writes": live.writes, "seconds": live.seconds },
         "metrics": metrics,
     }))
 }

@@ -51,6 +51,9 @@ pub struct DemoArgs {
 
 const MARKER: &str = "snerf-demo.json";
 
+/// Frames of the novel path on which consistency is measured (per round and at the end).
+const CONSISTENCY_FRAMES: usize = 16;
+
 fn prepare_dir(out: &Path) -> Result<()> {
     if out.exists() {
         let empty = std::fs::read_dir(out).map(|mut d| d.next().is_none()).unwrap_or(false);
@@ -104,6 +107,11 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     std::fs::create_dir_all(&eval_dir)?;
     let report = eval::evaluate(&model, &pool, &data.test, has_alpha, Some(&eval_dir))?;
     eprintln!("      test PSNR {:.2} dB, SSIM {:.4}", report.mean_psnr, report.mean_ssim);
+    // as `snerf eval` records it, so the report finds the SSIM
+    checkpoint::write_json_atomic(
+        &eval_dir.join("eval.json"),
+        &json!({ "command": "eval", "run": pj(&run_dir), "split": "test", "report": report, "images": pj(&eval_dir) }),
+    )?;
     eprintln!("[4/8] rendering a {}-frame turntable", a.frames);
     let frames = cli::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;
 
@@ -136,7 +144,9 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         style_res: 0,
         views: 0,
         appearance_only: false,
-        consistency_frames: 0,
+        // as many frames as the consistency step below, so the per-round curve and the
+        // per-frame baseline are measured on the same path
+        consistency_frames: CONSISTENCY_FRAMES,
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,
@@ -153,7 +163,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             srun: srun.clone(),
             data: Some(data_dir.clone()),
             one_round: None,
-            frames: 16,
+            frames: CONSISTENCY_FRAMES,
             out: None,
             opts: cli::DataOpts::default(),
         },
@@ -168,18 +178,9 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     eprintln!("[7/8] baking the stylized field and rendering the baked asset");
     let asset_path = a.out.join("stylized.snerf");
     let baked = crate::bake_cmd::bake_cmd(&crate::bake_cmd::BakeArgs {
-        run: srun.clone(),
-        out: asset_path.clone(),
         data: Some(data_dir.clone()),
-        resolution: 192,
-        block: 8,
-        keyframes: 12,
-        min_alpha: 0.005,
-        visibility_views: 32,
-        reuse_tolerance: 0.03,
         eval_views: 4,
-        up: None,
-        opts: cli::DataOpts::default(),
+        ..crate::bake_cmd::BakeArgs::defaults(&srun, &asset_path)
     })?;
     let rendered = crate::bake_cmd::render_cmd(&crate::bake_cmd::RenderArgs {
         file: asset_path.clone(),
@@ -207,9 +208,16 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         validate: false,
         opts: cli::DataOpts::default(),
     })?;
+    // error against run time: the training curve, the rounds, the bake, as pictures
+    let bake_json = a.out.join("bake.json");
+    checkpoint::write_json_atomic(&bake_json, &baked)?;
+    let sources = snerf_report::load_all(&[run_dir.clone(), srun.clone(), bake_json])?;
+    let plots = snerf_report::plots::build(&sources);
+    let title = format!("snerf demo: the '{}' scene", a.scene);
+    snerf_report::write_plots(&sources, &plots, &a.out, &snerf_report::Options { title, compare: None, svg: true })?;
     let sheet = a.out.join("contact_sheet.png");
     let consistency_png = srun.join("consistency.png");
-    contact_sheet(&eval_dir, &report, &[&frames, &sframes], &consistency_png, &sheet)?;
+    contact_sheet(&eval_dir, &report, &[&frames, &sframes], &consistency_png, &plots, &sheet)?;
     let summary = json!({
         "command": "demo",
         "scene": scene,
@@ -222,18 +230,21 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         "baked_render": rendered,
         "gltf": exported,
         "contact_sheet": pj(&sheet),
+        "report": pj(a.out.join(snerf_report::pages::HTML)),
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
     checkpoint::write_json_atomic(&a.out.join("summary.json"), &summary)?;
     eprintln!(
         "done in {:.0} s: test PSNR {:.2} dB; stylized, baked ({}) and exported ({}).\n\
-         Look at {} (prediction | truth | depth; the realistic and the stylized turntables; style | realistic | per-frame | SNeRF).\n\
+         Look at {} (prediction | truth | depth beside the training curve; the realistic and the stylized turntables; the \
+         stylization rounds; style | realistic | per-frame | SNeRF) and {}.\n\
          View the baked asset: snerf view {}",
         t0.elapsed().as_secs_f64(),
         report.mean_psnr,
         asset_path.display(),
         glb.display(),
         sheet.display(),
+        a.out.join(snerf_report::pages::HTML).display(),
         asset_path.display()
     );
     let display = std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
@@ -270,43 +281,102 @@ fn demo_style_image() -> image::RgbImage {
     })
 }
 
-/// Top: three evaluation triptychs (prediction | truth | depth); below: the turntables
-/// (realistic, then stylized); last: the consistency sheet.
-fn contact_sheet(eval_dir: &Path, report: &eval::EvalReport, turntables: &[&[PathBuf]], consistency: &Path, out: &Path) -> Result<()> {
-    let mut rows: Vec<image::RgbImage> = Vec::new();
+/// The contact sheet, full width everywhere: the evaluation triptychs (prediction | truth |
+/// depth) beside the training curve; the realistic and the stylized turntables; the
+/// per-round stylization curves side by side; the consistency sheet. Its width is the
+/// consistency sheet's (or eight turntable frames), so the turntables fill whole rows.
+fn contact_sheet(
+    eval_dir: &Path,
+    report: &eval::EvalReport,
+    turntables: &[&[PathBuf]],
+    consistency: &Path,
+    plots: &[snerf_report::Plot],
+    out: &Path,
+) -> Result<()> {
+    let bg = image::Rgb([255, 255, 255]);
+    let plot = |id: &str| plots.iter().find(|p| p.id == id);
+    let mut triptychs: Vec<image::RgbImage> = Vec::new();
     let n = report.views.len();
     for i in [0, n / 2, n.saturating_sub(1)].into_iter().take(n.min(3)) {
         let p = eval_dir.join(format!("{}.png", report.views[i].name));
-        rows.push(image::open(&p).with_context(|| format!("{}: cannot read", p.display()))?.to_rgb8());
+        triptychs.push(image::open(&p).with_context(|| format!("{}: cannot read", p.display()))?.to_rgb8());
+    }
+    // small views are scaled up so the first band is as tall as a readable plot
+    let sum_h: u32 = triptychs.iter().map(|t| t.height()).sum();
+    if sum_h > 0 && sum_h < 320 {
+        for t in triptychs.iter_mut() {
+            let (w, h) = (t.width() * 320 / sum_h, t.height() * 320 / sum_h);
+            *t = image::imageops::resize(t, w.max(1), h.max(1), image::imageops::FilterType::Triangle);
+        }
     }
     let consistency_img = image::open(consistency).ok().map(|c| c.to_rgb8());
-    // as wide as the widest picture, so the turntables get full rows
-    let width = rows.iter().chain(consistency_img.iter()).map(|r| r.width()).max().unwrap_or(0);
-    let mut tile_rows: Vec<image::RgbImage> = Vec::new();
-    for frames in turntables {
-        let tiles: Vec<image::RgbImage> =
-            frames.iter().map(|f| image::open(f).map(|i| i.to_rgb8())).collect::<Result<_, _>>()?;
-        let (tw, th) = tiles.first().map(|t| (t.width(), t.height())).unwrap_or((1, 1));
-        let per_row = (width / tw.max(1)).max(1) as usize;
-        let nrows = tiles.len().div_ceil(per_row) as u32;
-        let mut block = image::RgbImage::from_pixel(width.max(tw), (nrows * th).max(1), image::Rgb([24, 24, 24]));
-        for (i, t) in tiles.iter().enumerate() {
-            let (cx, cy) = ((i % per_row) as u32 * tw, (i / per_row) as u32 * th);
-            image::imageops::overlay(&mut block, t, cx as i64, cy as i64);
-        }
-        tile_rows.push(block);
-    }
-    if let Some(c) = consistency_img {
-        tile_rows.push(c);
-    }
-    let all: Vec<&image::RgbImage> = rows.iter().chain(tile_rows.iter()).collect();
-    let w = all.iter().map(|r| r.width()).max().unwrap_or(1);
-    let h: u32 = all.iter().map(|r| r.height()).sum();
-    let mut sheet = image::RgbImage::from_pixel(w.max(1), h.max(1), image::Rgb([24, 24, 24]));
+    let tiles: Vec<Vec<image::RgbImage>> = turntables
+        .iter()
+        .map(|frames| frames.iter().map(|f| image::open(f).map(|i| i.to_rgb8())).collect::<Result<Vec<_>, _>>())
+        .collect::<Result<_, _>>()?;
+    let (tw, th) = tiles.iter().flatten().next().map(|t| (t.width(), t.height())).unwrap_or((128, 128));
+    let trip_w = triptychs.iter().map(|t| t.width()).max().unwrap_or(0);
+    let width = consistency_img.as_ref().map(|c| c.width()).unwrap_or(8 * tw).max(trip_w + 320).max(tw);
+    let mut bands: Vec<image::RgbImage> = Vec::new();
+    // 1: triptychs | training curve
+    let trip_h: u32 = triptychs.iter().map(|t| t.height()).sum::<u32>().max(320);
+    let mut band = image::RgbImage::from_pixel(width, trip_h, bg);
     let mut y = 0;
-    for r in all {
-        image::imageops::overlay(&mut sheet, r, 0, y as i64);
-        y += r.height();
+    for t in &triptychs {
+        image::imageops::overlay(&mut band, t, 0, y as i64);
+        y += t.height();
+    }
+    if let Some(p) = plot("psnr") {
+        image::imageops::overlay(&mut band, &snerf_report::draw::rgb(p, width - trip_w, trip_h)?, trip_w as i64, 0);
+    }
+    bands.push(band);
+    // 2: turntables in whole rows: as few rows as the frames need at their size, the
+    // frames scaled so a row spans the sheet (a short last row is centred)
+    for frames in &tiles {
+        let n = frames.len().max(1) as u32;
+        let rows = (n * tw).div_ceil(width).max(1);
+        let per_row = n.div_ceil(rows) as usize;
+        let (tw, th) = (width / per_row as u32, (th * width / per_row as u32 / tw.max(1)).max(1));
+        let scaled: Vec<image::RgbImage> = frames
+            .iter()
+            .map(|t| if t.dimensions() == (tw, th) { t.clone() } else { image::imageops::resize(t, tw, th, image::imageops::FilterType::Triangle) })
+            .collect();
+        let frames = &scaled;
+        let nrows = frames.len().div_ceil(per_row) as u32;
+        let mut block = image::RgbImage::from_pixel(width, (nrows * th).max(1), image::Rgb([24, 24, 24]));
+        for (i, t) in frames.iter().enumerate() {
+            let row = i / per_row;
+            let in_row = (frames.len() - row * per_row).min(per_row) as u32;
+            let x0 = (width - in_row * tw) / 2;
+            image::imageops::overlay(&mut block, t, (x0 + (i % per_row) as u32 * tw) as i64, (row as u32 * th) as i64);
+        }
+        bands.push(block);
+    }
+    // 3: the stylization rounds, side by side
+    let round_plots: Vec<&snerf_report::Plot> =
+        ["stylize_consistency", "stylize_style", "stylize_fit"].iter().filter_map(|id| plot(id)).filter(|p| !p.is_empty()).take(2).collect();
+    if !round_plots.is_empty() {
+        let h = 320;
+        let mut band = image::RgbImage::from_pixel(width, h, bg);
+        let w = width / round_plots.len() as u32;
+        for (i, p) in round_plots.iter().enumerate() {
+            let wi = if i + 1 == round_plots.len() { width - w * i as u32 } else { w };
+            image::imageops::overlay(&mut band, &snerf_report::draw::rgb(p, wi, h)?, (w * i as u32) as i64, 0);
+        }
+        bands.push(band);
+    }
+    // 4: style | realistic | per-frame | SNeRF
+    if let Some(c) = consistency_img {
+        let mut band = image::RgbImage::from_pixel(width, c.height(), bg);
+        image::imageops::overlay(&mut band, &c, ((width - c.width()) / 2) as i64, 0);
+        bands.push(band);
+    }
+    let h: u32 = bands.iter().map(|b| b.height()).sum();
+    let mut sheet = image::RgbImage::from_pixel(width, h.max(1), bg);
+    let mut y = 0;
+    for b in &bands {
+        image::imageops::overlay(&mut sheet, b, 0, y as i64);
+        y += b.height();
     }
     checkpoint::write_png_atomic(out, &sheet)
 }

@@ -6,6 +6,7 @@ mod bench;
 mod bench_quality;
 mod cli;
 mod demo;
+mod report_cmd;
 mod stream_cmd;
 mod stylize_cmd;
 mod view_cmd;

@@ -146,10 +146,12 @@ pub struct StylizeArgs {
     pub opts: DataOpts,
 }
 
-/// Progress bars for the rounds.
+/// Progress bars for the rounds, and the run's report redrawn after each round.
 struct Bars {
     pb: ProgressBar,
     quiet: bool,
+    out: PathBuf,
+    live: crate::report_cmd::LiveReport,
 }
 
 impl Progress for Bars {
@@ -179,6 +181,16 @@ impl Progress for Bars {
                 fmt_opt(r.long_range, 5)
             ));
         }
+        // stylize.json on disk holds the rounds before this one (it is rewritten after this call)
+        let mut state: Value = std::fs::read(snerf_loop::state_path(&self.out))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or_else(|| json!({ "records": [] }));
+        let mut records: Vec<Value> = state["records"].as_array().cloned().unwrap_or_default();
+        records.retain(|x| x["round"].as_u64().is_some_and(|n| (n as usize) < r.round));
+        records.push(serde_json::to_value(r).unwrap_or(Value::Null));
+        state["records"] = Value::Array(records);
+        self.live.stylize(&self.out, state);
     }
 }
 
@@ -230,13 +242,25 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         consistency_frames: a.consistency_frames,
     };
     let wall = Instant::now();
-    let mut bars = Bars { pb: bar(1, "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}"), quiet };
+    let mut bars = Bars {
+        pb: bar(1, "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}"),
+        quiet,
+        out: a.out.clone(),
+        live: crate::report_cmd::LiveReport::new(),
+    };
     let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), embedder.as_ref(), &style_img, &a.out, &mut bars)?;
     bars.pb.finish_and_clear();
+    bars.live.stylize(&a.out, serde_json::to_value(&state)?);
     if !quiet {
         eprintln!("stylized run in {} ({} rounds, {:.0} s); per-round images in {}", a.out.display(), state.rounds_done, wall.elapsed().as_secs_f64(), a.out.join("rounds").display());
     }
-    Ok(json!({ "command": "stylize", "out": crate::cli::pj(&a.out), "state": state, "wall_seconds": wall.elapsed().as_secs_f64() }))
+    Ok(json!({
+        "command": "stylize",
+        "out": crate::cli::pj(&a.out),
+        "state": state,
+        "wall_seconds": wall.elapsed().as_secs_f64(),
+        "report": { "dir": crate::cli::pj(a.out.join(crate::report_cmd::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
+    }))
 }
 
 /// The style a stylizer without a style image (a preset, a GAN) paints in, as a picture:
@@ -389,6 +413,11 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "table": table,
     });
     checkpoint::write_json_atomic(&out.join("consistency.json"), &v)?;
+    if out == a.srun {
+        // the run's report gains the per-frame baseline and the realistic floor
+        let st: Value = serde_json::to_value(&state)?;
+        crate::report_cmd::LiveReport::new().stylize(&a.srun, st);
+    }
     if !quiet {
         eprintln!("{md}");
     }

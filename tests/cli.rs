@@ -170,7 +170,17 @@ fn demo_writes_pictures_and_a_summary() {
     assert_eq!(info["summary"]["frames"].as_u64(), Some(1), "{info}");
     // a file that is not an asset: a clear error naming it
     fails(snerf().args(["inspect"]).arg(out.join("summary.json")).output().unwrap(), &["summary.json"]);
-    assert!(out.join("contact_sheet.png").exists());
+    // the sheet has the training curve beside the held-out views (no empty band), and the
+    // report of the whole path is beside it
+    let sheet = image::open(out.join("contact_sheet.png")).unwrap().to_rgb8();
+    let blue = (sheet.width() / 2..sheet.width()).flat_map(|x| (0..96).map(move |y| (x, y))).filter(|&(x, y)| sheet.get_pixel(x, y).0 == [31, 119, 180]).count();
+    assert!(blue > 100, "the training curve is drawn right of the held-out views ({blue} pixels of its colour)");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let ids: Vec<&str> = report["plots"].as_array().unwrap().iter().map(|p| p["id"].as_str().unwrap()).collect();
+    for id in ["psnr", "ssim", "stylize_fit", "bake_faithfulness"] {
+        assert!(ids.contains(&id), "{id} in {ids:?}");
+    }
+    assert!(std::fs::read_to_string(out.join("report.html")).unwrap().contains("data:image/png;base64,"));
     assert!(out.join("turntable/frame_003.png").exists());
     assert!(out.join("summary.json").exists());
     // running it again over its own output works; over someone else's directory it refuses

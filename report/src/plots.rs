@@ -1,0 +1,240 @@
+//! Which plots a set of sources gives, with the exact numbers of their records.
+//!
+//! Every point is a pair of numbers copied from a record (no unit conversion, no
+//! smoothing): the axes format them for reading, `report.json` keeps them as they were.
+
+use std::collections::BTreeMap;
+
+use serde_json::Value;
+
+use crate::model::{HLine, Plot, Series, Table};
+use crate::sources::{Source, SourceKind};
+
+fn num(v: &Value) -> Option<f64> {
+    v.as_f64().filter(|x| x.is_finite())
+}
+
+fn fmt(v: Option<f64>, digits: usize) -> String {
+    v.map(|x| format!("{x:.digits$}")).unwrap_or_else(|| "—".into())
+}
+
+/// Colours by line owner: a run keeps its colour on every plot.
+#[derive(Default)]
+struct Colors(BTreeMap<String, usize>, usize);
+
+impl Colors {
+    fn of(&mut self, run: &str) -> usize {
+        if let Some(&c) = self.0.get(run) {
+            return c;
+        }
+        let c = self.1;
+        self.1 += 1;
+        self.0.insert(run.to_string(), c);
+        c
+    }
+}
+
+fn series(run: &str, metric: &str, label: String, color: usize, dashed: bool, markers: bool, points: Vec<[f64; 2]>) -> Series {
+    Series { run: run.into(), metric: metric.into(), label, color, dashed, markers, points }
+}
+
+/// (x, y) pairs of a list of objects, skipping entries where either is missing.
+fn pairs(list: &Value, x: &str, y: &str) -> Vec<[f64; 2]> {
+    list.as_array().into_iter().flatten().filter_map(|p| Some([num(&p[x])?, num(&p[y])?])).collect()
+}
+
+/// One training curve, as the plots need it (a train run, or one run of a quality benchmark).
+struct Curve {
+    run: String,
+    test: Vec<[f64; 2]>,
+    train: Vec<[f64; 2]>,
+    throughput: Vec<[f64; 2]>,
+    /// (training seconds, SSIM) where an evaluation measured it.
+    ssim: Option<[f64; 2]>,
+    steps: Option<f64>,
+}
+
+fn curves(sources: &[Source]) -> Vec<Curve> {
+    let mut out = Vec::new();
+    // two benchmarks (a baseline and a new build) hold the same model names
+    let benchmarks = sources.iter().filter(|s| s.kind == SourceKind::Quality).count();
+    for s in sources {
+        match s.kind {
+            SourceKind::Train => {
+                let m = &s.data["metrics"];
+                let ssim = num(&s.data["eval"]["report"]["mean_ssim"]).zip(num(&m["train_seconds"])).map(|(v, t)| [t, v]);
+                out.push(Curve {
+                    run: s.label.clone(),
+                    test: pairs(&m["curve"], "train_seconds", "test_psnr"),
+                    train: pairs(&m["curve"], "train_seconds", "train_psnr"),
+                    throughput: pairs(&m["curve"], "train_seconds", "samples_per_second"),
+                    ssim,
+                    steps: num(&m["step"]),
+                });
+            }
+            SourceKind::Quality => {
+                for model in s.data["models"].as_array().into_iter().flatten() {
+                    for r in model["runs"].as_array().into_iter().flatten() {
+                        let mut name = format!("{} ({} s)", model["model"].as_str().unwrap_or("?"), fmt(num(&r["seconds"]), 0));
+                        if benchmarks > 1 {
+                            name = format!("{}: {name}", s.label);
+                        }
+                        let test: Vec<[f64; 2]> =
+                            r["curve"].as_array().into_iter().flatten().filter_map(|p| Some([num(&p[0])?, num(&p[1])?])).collect();
+                        let ssim = num(&r["eval_ssim"]).zip(test.last().map(|p| p[0])).map(|(v, t)| [t, v]);
+                        out.push(Curve { run: name, test, train: Vec::new(), throughput: Vec::new(), ssim, steps: None });
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+/// All plots the sources give, in reading order; empty plots are left out.
+pub fn build(sources: &[Source]) -> Vec<Plot> {
+    let mut colors = Colors::default();
+    let mut plots = Vec::new();
+    plots.extend(training_plots(sources, &mut colors));
+    plots.extend(stylize_plots(sources, &mut colors));
+    plots.extend(bake_plots(sources, &mut colors));
+    plots.retain(|p| !p.is_empty());
+    plots
+}
+
+fn training_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
+    let curves = curves(sources);
+    let mut psnr = Plot::new("psnr", "Held-out PSNR (solid) and train PSNR (dashed) against training time", "training seconds (log)", "PSNR (dB)", true);
+    psnr.table.header = ["run", "steps", "training s", "held-out PSNR", "best held-out", "train PSNR", "train − held-out"].map(String::from).to_vec();
+    let mut tput = Plot::new("throughput", "Training throughput", "training seconds (log)", "samples/s", true);
+    tput.table.header = ["run", "training s", "samples/s (last)", "samples/s (mean)"].map(String::from).to_vec();
+    let mut ssim = Plot::new("ssim", "Held-out SSIM at the end of training", "training seconds (log)", "SSIM", true);
+    ssim.table.header = ["run", "training s", "SSIM"].map(String::from).to_vec();
+    for c in &curves {
+        let col = colors.of(&c.run);
+        let last_test = c.test.last().copied();
+        let last_train = c.train.last().copied();
+        let best = c.test.iter().map(|p| p[1]).fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))));
+        let short = c.test.len() <= 1;
+        psnr.series.push(series(&c.run, "test_psnr", c.run.clone(), col, false, short, c.test.clone()));
+        if !c.train.is_empty() {
+            psnr.series.push(series(&c.run, "train_psnr", format!("{} train", c.run), col, true, short, c.train.clone()));
+        }
+        psnr.table.rows.push(vec![
+            c.run.clone(),
+            fmt(c.steps, 0),
+            fmt(last_test.or(last_train).map(|p| p[0]), 1),
+            fmt(last_test.map(|p| p[1]), 2),
+            fmt(best, 2),
+            fmt(last_train.map(|p| p[1]), 2),
+            fmt(last_train.zip(last_test).map(|(a, b)| a[1] - b[1]), 2),
+        ]);
+        if !c.throughput.is_empty() {
+            tput.series.push(series(&c.run, "samples_per_second", c.run.clone(), col, false, c.throughput.len() <= 1, c.throughput.clone()));
+            let mean = c.throughput.iter().map(|p| p[1]).sum::<f64>() / c.throughput.len() as f64;
+            let last = c.throughput.last().copied();
+            tput.table.rows.push(vec![c.run.clone(), fmt(last.map(|p| p[0]), 1), fmt(last.map(|p| p[1]), 0), format!("{mean:.0}")]);
+        }
+        if let Some(p) = c.ssim {
+            ssim.series.push(series(&c.run, "ssim", c.run.clone(), col, false, true, vec![p]));
+            ssim.table.rows.push(vec![c.run.clone(), format!("{:.1}", p[0]), format!("{:.4}", p[1])]);
+        }
+    }
+    vec![psnr, ssim, tput]
+}
+
+/// The per-frame baseline and the realistic field's floor, from `consistency.json`.
+fn references(s: &Source, field: &str, what: &str) -> Vec<HLine> {
+    let mut out = Vec::new();
+    for m in s.data["consistency"]["methods"].as_array().into_iter().flatten() {
+        let name = m["method"].as_str().unwrap_or("");
+        let role = if name.starts_with("Per-frame") {
+            0
+        } else if name.starts_with("Realistic") {
+            1
+        } else {
+            continue;
+        };
+        if let Some(y) = num(&m[field]) {
+            let who = if role == 0 { "per-frame stylization" } else { "realistic field" };
+            out.push(HLine { run: s.label.clone(), label: format!("{}: {who}{what}", s.label), y, role });
+        }
+    }
+    out
+}
+
+fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
+    let mut fit = Plot::new("stylize_fit", "Fit to the stylized views per round", "wall seconds", "fit PSNR (dB)", false);
+    let mut style = Plot::new("stylize_style", "Style distance per round (lower: more stylized)", "wall seconds", "style distance", false);
+    let mut cons = Plot::new("stylize_consistency", "Consistency error per round (short range solid, long range dashed)", "wall seconds", "warped-frame MSE", false);
+    fit.table.header = ["run", "round", "wall s", "fit PSNR"].map(String::from).to_vec();
+    style.table.header = ["run", "round", "wall s", "style distance"].map(String::from).to_vec();
+    cons.table.header = ["run", "round", "wall s", "short range", "long range"].map(String::from).to_vec();
+    for s in sources.iter().filter(|s| s.kind == SourceKind::Stylize) {
+        let col = colors.of(&s.label);
+        let recs = &s.data["state"]["records"];
+        let run = &s.label;
+        fit.series.push(series(run, "fit_psnr", run.clone(), col, false, true, pairs(recs, "wall_seconds", "fit_psnr")));
+        style.series.push(series(run, "style_distance", run.clone(), col, false, true, pairs(recs, "wall_seconds", "style_distance")));
+        cons.series.push(series(run, "short_range", run.clone(), col, false, true, pairs(recs, "wall_seconds", "short_range")));
+        cons.series.push(series(run, "long_range", format!("{run} long range"), col, true, true, pairs(recs, "wall_seconds", "long_range")));
+        for r in recs.as_array().into_iter().flatten() {
+            let head = vec![run.clone(), fmt(num(&r["round"]), 0), fmt(num(&r["wall_seconds"]), 1)];
+            fit.table.rows.push([head.clone(), vec![fmt(num(&r["fit_psnr"]), 2)]].concat());
+            if num(&r["style_distance"]).is_some() {
+                style.table.rows.push([head.clone(), vec![fmt(num(&r["style_distance"]), 4)]].concat());
+            }
+            if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
+                cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
+            }
+        }
+        style.hlines.extend(references(s, "style_distance", ""));
+        cons.hlines.extend(references(s, "short_range", ", short range"));
+        cons.hlines.extend(references(s, "long_range", ", long range"));
+    }
+    for p in [&mut style, &mut cons] {
+        for h in &p.hlines {
+            p.table.rows.push(vec![h.label.clone(), "—".into(), "—".into(), fmt(Some(h.y), 5)]);
+        }
+        if p.id == "stylize_consistency" {
+            for r in p.table.rows.iter_mut().filter(|r| r.len() == 4) {
+                r.push(String::new());
+            }
+        }
+    }
+    vec![fit, style, cons]
+}
+
+fn bake_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
+    let mut faith = Plot::new("bake_faithfulness", "Baked asset against the field", "file size (bytes)", "baked vs field (dB)", false);
+    let mut drop = Plot::new("bake_drop", "Held-out PSNR that baking costs", "file size (bytes)", "test PSNR drop (dB)", false);
+    let header = ["run", "resolution", "file MB", "baked vs field (dB)", "test PSNR drop (dB)", "bake s"].map(String::from).to_vec();
+    faith.table.header = header.clone();
+    drop.table.header = header;
+    for s in sources.iter().filter(|s| s.kind == SourceKind::Bake) {
+        let col = colors.of(&s.label);
+        let mut bakes: Vec<&Value> = s.data["bakes"].as_array().into_iter().flatten().collect();
+        bakes.sort_by(|a, b| num(&a["asset"]["bytes"]["total"]).partial_cmp(&num(&b["asset"]["bytes"]["total"])).unwrap_or(std::cmp::Ordering::Equal));
+        let point = |b: &Value, y: &str| Some([num(&b["asset"]["bytes"]["total"])?, num(&b["faithfulness"][y])?]);
+        let f: Vec<[f64; 2]> = bakes.iter().filter_map(|b| point(b, "mean_baked_vs_field")).collect();
+        let d: Vec<[f64; 2]> = bakes.iter().filter_map(|b| point(b, "drop_db")).collect();
+        faith.series.push(series(&s.label, "mean_baked_vs_field", s.label.clone(), col, false, true, f));
+        drop.series.push(series(&s.label, "drop_db", s.label.clone(), col, false, true, d));
+        for b in bakes {
+            let row = vec![
+                s.label.clone(),
+                fmt(num(&b["report"]["res"]).or(num(&b["asset"]["res"])), 0),
+                fmt(num(&b["asset"]["bytes"]["total"]).map(|x| x / 1e6), 2),
+                fmt(num(&b["faithfulness"]["mean_baked_vs_field"]), 2),
+                fmt(num(&b["faithfulness"]["drop_db"]), 2),
+                fmt(num(&b["bake_seconds"]), 1),
+            ];
+            faith.table.rows.push(row.clone());
+            drop.table.rows.push(row);
+        }
+    }
+    // one table serves both plots
+    drop.table = Table::default();
+    vec![faith, drop]
+}
