@@ -284,20 +284,14 @@ pub fn render_path(asset: &Asset, path: &str, frames: usize, size: (u32, u32)) -
     }
     let text = std::fs::read_to_string(path).with_context(|| format!("--path {path}: cannot read (use `orbit` or a camera_path.json)"))?;
     let cams = snerf_geometry::camera_path::parse(&text, size, 40.0).map_err(|e| anyhow::anyhow!("{path}: {e}"))?;
-    Ok(cams.iter().map(|c| (c.pinhole(), c.time.unwrap_or(t0))).collect())
+    Ok(cams.iter().map(|c| (c.cam, c.time.unwrap_or(t0))).collect())
 }
 
 /// The cameras of a render as a nerfstudio camera_path.json.
 fn camera_path_json(cams: &[(Camera, f32)], dynamic: bool) -> String {
     let path: Vec<snerf_geometry::camera_path::PathCamera> = cams
         .iter()
-        .map(|(c, t)| snerf_geometry::camera_path::PathCamera {
-            c2w: c.c2w,
-            fov_y: 2.0 * (0.5 * c.height as f32 / c.fy).atan().to_degrees(),
-            width: c.width,
-            height: c.height,
-            time: dynamic.then_some(*t),
-        })
+        .map(|(c, t)| snerf_geometry::camera_path::PathCamera { cam: *c, time: dynamic.then_some(*t) })
         .collect();
     snerf_geometry::camera_path::to_json(&path, 24.0)
 }

@@ -599,10 +599,7 @@ pub fn turntable(
         .iter()
         .enumerate()
         .map(|(i, c2w)| snerf_geometry::camera_path::PathCamera {
-            c2w: *c2w,
-            fov_y: 2.0 * (0.5 * k.height as f32 / k.fy).atan().to_degrees(),
-            width: k.width,
-            height: k.height,
+            cam: snerf_geometry::Pinhole { c2w: *c2w, fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy, width: k.width, height: k.height },
             time: data.dynamic.then(|| i as f32 / cams.len().max(2) as f32),
         })
         .collect();

@@ -69,7 +69,7 @@ pub fn load_poses(path: impl AsRef<Path>) -> Result<Vec<PoseSample>> {
         .map_err(|e| anyhow!("{}: {}", path.display(), e))?;
     Ok(cams
         .iter()
-        .map(|c| PoseSample { c2w: c.c2w.to_vec(), time: c.time })
+        .map(|c| PoseSample { c2w: c.cam.c2w.to_vec(), time: c.time })
         .collect())
 }
 

@@ -9,26 +9,24 @@
 //! ```
 //! `camera_to_world` is OpenGL (x right, y up, looking down -z), `fov` the vertical field of
 //! view in degrees. `time` (optional, snerf's addition) is the scene time of a 4D asset. A
-//! plain list of `{"c2w": 3 or 4 rows of 4, "time"}` (snerf's older pose file) reads too.
+//! plain list of `{"c2w": 3 or 4 rows of 4, "time"}` (snerf's older pose file, optionally with
+//! "fx", "fy", "cx", "cy", "width", "height") reads too.
 
 use serde::{Deserialize, Serialize};
 
-use crate::camera::{C2w, Pinhole};
+use crate::camera::Pinhole;
 
-/// One camera of a path.
+/// One camera of a path: a pinhole camera and the scene time it shows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PathCamera {
-    pub c2w: C2w,
-    /// Vertical field of view, degrees.
-    pub fov_y: f32,
-    pub width: u32,
-    pub height: u32,
+    pub cam: Pinhole,
     pub time: Option<f32>,
 }
 
 impl PathCamera {
-    pub fn pinhole(&self) -> Pinhole {
-        Pinhole::from_fov(self.c2w, self.width, self.height, self.fov_y)
+    /// Vertical field of view in degrees.
+    pub fn fov_y(&self) -> f32 {
+        2.0 * (0.5 * self.cam.height as f32 / self.cam.fy).atan().to_degrees()
     }
 }
 
@@ -64,6 +62,12 @@ struct PoseEntry {
     c2w: Vec<[f32; 4]>,
     #[serde(default)]
     time: Option<f32>,
+    fx: Option<f32>,
+    fy: Option<f32>,
+    cx: Option<f32>,
+    cy: Option<f32>,
+    width: Option<u32>,
+    height: Option<u32>,
 }
 
 /// Parse a camera path. `default_size` and `default_fov_y` fill what a pose list lacks.
@@ -83,7 +87,10 @@ pub fn parse(text: &str, default_size: (u32, u32), default_fov_y: f32) -> Result
                 }
                 let m = &k.camera_to_world;
                 let c2w = [[m[0], m[1], m[2], m[3]], [m[4], m[5], m[6], m[7]], [m[8], m[9], m[10], m[11]]];
-                Ok(PathCamera { c2w, fov_y: k.fov, width: p.render_width, height: p.render_height, time: k.time })
+                if !(k.fov > 0.0 && k.fov < 180.0) {
+                    return Err(format!("camera {i}: fov {} must be in (0, 180) degrees", k.fov));
+                }
+                Ok(PathCamera { cam: Pinhole::from_fov(c2w, p.render_width, p.render_height, k.fov), time: k.time })
             })
             .collect::<Result<Vec<_>, _>>()?
     } else {
@@ -96,22 +103,29 @@ pub fn parse(text: &str, default_size: (u32, u32), default_fov_y: f32) -> Result
                     return Err(format!("pose {i} has {} rows (need 3 or 4 rows of 4)", p.c2w.len()));
                 }
                 let c2w = [p.c2w[0], p.c2w[1], p.c2w[2]];
-                Ok(PathCamera { c2w, fov_y: default_fov_y, width: default_size.0, height: default_size.1, time: p.time })
+                let (w, h) = (p.width.unwrap_or(default_size.0), p.height.unwrap_or(default_size.1));
+                let mut cam = Pinhole::from_fov(c2w, w, h, default_fov_y);
+                cam.fx = p.fx.unwrap_or(cam.fx);
+                cam.fy = p.fy.unwrap_or(cam.fy);
+                cam.cx = p.cx.unwrap_or(cam.cx);
+                cam.cy = p.cy.unwrap_or(cam.cy);
+                Ok(PathCamera { cam, time: p.time })
             })
             .collect::<Result<Vec<_>, _>>()?
     };
     if cams.is_empty() {
         return Err("no cameras".into());
     }
-    for (i, c) in cams.iter().enumerate() {
-        if !c.c2w.iter().flatten().all(|x| x.is_finite()) || c.time.is_some_and(|t| !t.is_finite()) {
+    for (i, PathCamera { cam: c, time }) in cams.iter().enumerate() {
+        let numbers = c.c2w.iter().flatten().chain([&c.fx, &c.fy, &c.cx, &c.cy]);
+        if !numbers.into_iter().all(|x| x.is_finite()) || time.is_some_and(|t| !t.is_finite()) {
             return Err(format!("camera {i} has non-finite values"));
         }
-        if !(c.fov_y > 0.0 && c.fov_y < 180.0) {
-            return Err(format!("camera {i}: fov {} must be in (0, 180) degrees", c.fov_y));
+        if !(c.fx > 0.0 && c.fy > 0.0) {
+            return Err(format!("camera {i}: fx and fy must be positive (fx {}, fy {})", c.fx, c.fy));
         }
         if !(1..=16384).contains(&c.width) || !(1..=16384).contains(&c.height) {
-            return Err(format!("render size {}x{} out of range", c.width, c.height));
+            return Err(format!("camera {i}: size {}x{} out of range", c.width, c.height));
         }
     }
     Ok(cams)
@@ -119,7 +133,7 @@ pub fn parse(text: &str, default_size: (u32, u32), default_fov_y: f32) -> Result
 
 /// A nerfstudio `camera_path.json` for `cams` (all of one size), played at `fps`.
 pub fn to_json(cams: &[PathCamera], fps: f32) -> String {
-    let (w, h) = cams.first().map(|c| (c.width, c.height)).unwrap_or((1, 1));
+    let (w, h) = cams.first().map(|c| (c.cam.width, c.cam.height)).unwrap_or((1, 1));
     let p = NsPath {
         camera_type: perspective(),
         render_width: w,
@@ -129,10 +143,9 @@ pub fn to_json(cams: &[PathCamera], fps: f32) -> String {
         camera_path: cams
             .iter()
             .map(|c| {
-                let m = c.c2w;
-                let mut flat: Vec<f32> = m.iter().flatten().copied().collect();
+                let mut flat: Vec<f32> = c.cam.c2w.iter().flatten().copied().collect();
                 flat.extend([0.0, 0.0, 0.0, 1.0]);
-                NsKeyframe { camera_to_world: flat, fov: c.fov_y, aspect: Some(c.width as f32 / c.height as f32), time: c.time }
+                NsKeyframe { camera_to_world: flat, fov: c.fov_y(), aspect: Some(c.cam.width as f32 / c.cam.height as f32), time: c.time }
             })
             .collect(),
     };
@@ -147,20 +160,24 @@ mod tests {
     #[test]
     fn round_trip_and_the_older_pose_list() {
         let cams: Vec<PathCamera> = (0..3)
-            .map(|i| PathCamera {
-                c2w: look_at([i as f32, 1.0, 3.0], [0.0; 3], [0.0, 1.0, 0.0]),
-                fov_y: 40.0,
-                width: 64,
-                height: 48,
-                time: (i == 1).then_some(0.5),
-            })
+            .map(|i| PathCamera { cam: Pinhole::from_fov(look_at([i as f32, 1.0, 3.0], [0.0; 3], [0.0, 1.0, 0.0]), 64, 48, 40.0), time: (i == 1).then_some(0.5) })
             .collect();
         let text = to_json(&cams, 24.0);
         assert!(text.contains("\"camera_to_world\"") && text.contains("\"render_width\": 64"));
-        assert_eq!(parse(&text, (1, 1), 1.0).unwrap(), cams);
+        let back = parse(&text, (1, 1), 1.0).unwrap();
+        for (a, b) in back.iter().zip(&cams) {
+            assert_eq!((a.cam.c2w, a.cam.width, a.cam.height, a.time), (b.cam.c2w, b.cam.width, b.cam.height, b.time));
+            assert!((a.cam.fy - b.cam.fy).abs() < 1e-3 && (a.cam.cx - b.cam.cx).abs() < 1e-6);
+        }
         let list = r#"[{"c2w": [[1,0,0,0],[0,1,0,0],[0,0,1,2]], "time": 0.25}]"#;
         let p = parse(list, (32, 16), 50.0).unwrap();
-        assert_eq!((p[0].width, p[0].height, p[0].fov_y, p[0].time), (32, 16, 50.0, Some(0.25)));
+        assert_eq!((p[0].cam.width, p[0].cam.height, p[0].time), (32, 16, Some(0.25)));
+        assert!((p[0].fov_y() - 50.0).abs() < 1e-3);
+        let with_k = r#"[{"c2w": [[1,0,0,0],[0,1,0,0],[0,0,1,2]], "fx": 20, "fy": 21, "cx": 8, "cy": 7, "width": 16, "height": 14}]"#;
+        let k = parse(with_k, (1, 1), 50.0).unwrap()[0].cam;
+        assert_eq!((k.fx, k.fy, k.cx, k.cy, k.width, k.height), (20.0, 21.0, 8.0, 7.0, 16, 14));
+        let e = parse(&with_k.replace("\"fx\": 20", "\"fx\": 0"), (1, 1), 50.0).unwrap_err();
+        assert!(e.contains("fx"), "{e}");
         for bad in ["[]", "{}", r#"{"render_width":1,"render_height":1,"camera_path":[{"camera_to_world":[1,2],"fov":40}]}"#, r#"[{"c2w": [[1,0,0,0]]}]"#] {
             assert!(parse(bad, (1, 1), 40.0).is_err(), "{bad}");
         }

@@ -17,6 +17,10 @@
 //! - `time`: which keyframes bracket a time.
 //! - `view_mlp`: the view-dependent colour MLP's input encoding and layers.
 
+// `!(x < y)` is deliberate: it sends NaN down the safe branch (a degenerate ray misses,
+// a NaN time is the first frame), which `x >= y` would not.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod camera;
 pub mod camera_path;
 pub mod contract;
