@@ -137,6 +137,8 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         views: 0,
         appearance_only: false,
         consistency_frames: 0,
+        fuse_views: crate::stylize_cmd::DEFAULT_FUSE_VIEWS,
+        target_step: crate::stylize_cmd::DEFAULT_TARGET_STEP,
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

@@ -109,6 +109,11 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
     Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::cli::pj(&a.out), "seconds": secs, "load_seconds": load }))
 }
 
+/// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
+pub const DEFAULT_FUSE_VIEWS: usize = 4;
+/// Step from the render toward the fused stylization each round.
+pub const DEFAULT_TARGET_STEP: f32 = 0.5;
+
 #[derive(Args, Debug)]
 pub struct StylizeArgs {
     /// A trained (realistic) run directory.
@@ -142,11 +147,11 @@ pub struct StylizeArgs {
     pub consistency_frames: usize,
     /// Fuse each stylized target with this many nearest training views, reprojected through
     /// the field's depth (per-pixel median), so every surface point gets one colour (0: off).
-    #[arg(long, default_value_t = 4, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
+    #[arg(long, default_value_t = DEFAULT_FUSE_VIEWS, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
     pub fuse_views: usize,
     /// Each round's target is render + STEP × (stylized − render): a damped step from the
     /// current render toward the stylization (1: the stylization itself).
-    #[arg(long, default_value_t = 0.5, value_parser = crate::args::unit_f32)]
+    #[arg(long, default_value_t = DEFAULT_TARGET_STEP, value_parser = crate::args::unit_f32)]
     pub target_step: f32,
     #[command(flatten)]
     pub s: StylizerArgs,
