@@ -388,8 +388,8 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`; {}; warped-frame MSE (RGB in [0,1]) over covered, \
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
-         Style distance: sliced Wasserstein (Oklab units) between the scene pixels of 8 path frames and the style \
-         picture, colour + texture (5×5 patches at 3 scales); it separates the realistic field from per-frame \
+         Style distance: sliced Wasserstein between the scene pixels of 8 path frames and the style picture, \
+         colour (Oklab) + texture (contrast-normalized 5×5 patches at 3 scales); it separates the realistic field from per-frame \
          stylization by {:.2}× ({}).\n\nContact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },

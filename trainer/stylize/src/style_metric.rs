@@ -6,12 +6,15 @@
 //! - Colour: sliced Wasserstein-2 distance between the Oklab pixels of the two images
 //!   (Oklab: a perceptual space where Euclidean distance follows perceived difference).
 //! - Texture: at 3 scales (full, 1/2, 1/4 resolution), sliced Wasserstein-2 distance between
-//!   5×5 Oklab patches with each patch's own mean taken out, so texture is scored apart from
-//!   colour: stroke shape, contrast and direction.
+//!   5×5 Oklab patches with each patch's own mean taken out and its contrast normalized
+//!   (divided by its RMS + `CONTRAST_EPS`), so texture is scored apart from colour and from
+//!   overall contrast: the shapes of strokes and edges, their direction and how often flat
+//!   areas occur (a flat patch stays near 0). Without the normalization a stylizer that
+//!   paints with more contrast than the painting scores *farther* than the unstylized scene.
 //!
 //! Sliced Wasserstein: project both sample sets on fixed random unit directions, sort, and
 //! compare the two 1-D distributions quantile by quantile; the distance is the root mean
-//! square difference over directions and quantiles (Oklab units). It is 0 for identical
+//! square difference over directions and quantiles. It is 0 for identical
 //! inputs and symmetric, and everything random (directions, the subsample of patches) comes
 //! from fixed seeds, so it is deterministic.
 //!
@@ -29,11 +32,14 @@ const COLOR_DIRS: usize = 32;
 const PATCH_DIRS: usize = 64;
 /// Quantiles compared per direction.
 const QUANTILES: usize = 128;
+/// Patches flatter than about this (Oklab RMS) count as flat.
+pub const CONTRAST_EPS: f32 = 0.02;
 /// At most this many samples per set (fixed-seed subsample beyond).
 const MAX_COLOR: usize = 20000;
 const MAX_PATCHES: usize = 4096;
 
-/// Distances in Oklab units; `total` = colour + mean texture over the scales.
+/// `color` in Oklab units, `texture` in contrast-normalized units; `total` = colour + mean
+/// texture over the scales.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StyleScore {
     pub total: f64,
@@ -170,6 +176,9 @@ impl Lab {
                 for (k, val) in v.iter_mut().enumerate() {
                     *val -= mean[k % 3];
                 }
+                let rms = (v.iter().map(|x| x * x).sum::<f32>() / v.len() as f32).sqrt();
+                let s = 1.0 / (rms + CONTRAST_EPS);
+                v.iter_mut().for_each(|x| *x *= s);
                 out.push(v);
             }
         }
