@@ -147,6 +147,8 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         // as many frames as the consistency step below, so the per-round curve and the
         // per-frame baseline are measured on the same path
         consistency_frames: CONSISTENCY_FRAMES,
+        fuse_views: crate::stylize_cmd::DEFAULT_FUSE_VIEWS,
+        target_step: crate::stylize_cmd::DEFAULT_TARGET_STEP,
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

@@ -70,7 +70,7 @@ impl StylizerArgs {
 
 #[derive(Args, Debug)]
 pub struct StylizeImageArgs {
-    /// The content image (PNG or JPEG).
+    /// The content image (PNG, JPEG or WebP).
     pub content: PathBuf,
     /// The style image.
     #[arg(long)]
@@ -109,6 +109,11 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
     Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::cli::pj(&a.out), "seconds": secs, "load_seconds": load }))
 }
 
+/// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
+pub const DEFAULT_FUSE_VIEWS: usize = 4;
+/// Step from the render toward the fused stylization each round.
+pub const DEFAULT_TARGET_STEP: f32 = 0.5;
+
 #[derive(Args, Debug)]
 pub struct StylizeArgs {
     /// A trained (realistic) run directory.
@@ -140,6 +145,14 @@ pub struct StylizeArgs {
     /// Frames of the novel path for the per-round consistency measurement (0: skip).
     #[arg(long, default_value_t = 16, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
     pub consistency_frames: usize,
+    /// Fuse each stylized target with this many nearest training views, reprojected through
+    /// the field's depth (per-pixel median), so every surface point gets one colour (0: off).
+    #[arg(long, default_value_t = DEFAULT_FUSE_VIEWS, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
+    pub fuse_views: usize,
+    /// Each round's target is render + STEP × (stylized − render): a damped step from the
+    /// current render toward the stylization (1: the stylization itself).
+    #[arg(long, default_value_t = DEFAULT_TARGET_STEP, value_parser = crate::args::unit_f32)]
+    pub target_step: f32,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -169,13 +182,14 @@ impl Progress for Bars {
     fn round_done(&mut self, r: &RoundRecord) {
         if !self.quiet {
             self.pb.println(format!(
-                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {}, consistency short {} long {}",
+                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {} (embedding {}), consistency short {} long {}",
                 r.round,
                 r.wall_seconds,
                 r.render_seconds,
                 r.stylize_seconds,
                 r.train_seconds,
                 r.fit_psnr,
+                fmt_opt(r.style_swd.map(|s| s.total), 4),
                 fmt_opt(r.style_distance, 3),
                 fmt_opt(r.short_range, 5),
                 fmt_opt(r.long_range, 5)
@@ -240,6 +254,8 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         views: a.views,
         appearance_only: a.appearance_only,
         consistency_frames: a.consistency_frames,
+        fuse_views: a.fuse_views,
+        target_step: a.target_step,
     };
     let wall = Instant::now();
     let mut bars = Bars {
@@ -336,6 +352,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
     pb.set_message("realistic geometry");
     let path = PathGeometry::new(&realistic, &pool, &data, a.frames)?;
+    let style_samples = path.style_reference(&style_img);
     pb.inc(1);
     pb.set_message("per-frame baseline");
     let mut per_frame = Vec::with_capacity(path.realistic.len());
@@ -349,17 +366,17 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     // The unstylized field is the floor of the warp error (resampling, aliasing) and shows
     // how far from the style the scene starts.
     let mut methods = vec![
-        MethodScores::of("Realistic field (no stylization)", &path, &path.realistic, style_ref)?,
-        MethodScores::of("Per-frame image stylization", &path, &per_frame, style_ref)?,
+        MethodScores::of("Realistic field (no stylization)", &path, &path.realistic, style_ref, &style_samples)?,
+        MethodScores::of("Per-frame image stylization", &path, &per_frame, style_ref, &style_samples)?,
     ];
     let mut one_round_frames = None;
     if let Some(r1) = &a.one_round {
         let (m1, p1) = load_model(r1)?;
         let frames = path.render(&m1, &p1);
-        methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, style_ref)?);
+        methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, style_ref, &style_samples)?);
         one_round_frames = Some(frames);
     }
-    methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, style_ref)?);
+    methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, style_ref, &style_samples)?);
     pb.inc(1);
     pb.finish_and_clear();
 
@@ -373,7 +390,11 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "short_range": sn.short_range / pf.short_range,
         "long_range": sn.long_range / pf.long_range,
         "style_distance": sn.style_distance.zip(pf.style_distance).map(|(a, b)| a / b),
+        "style_swd": sn.style_swd.total / pf.style_swd.total,
     });
+    // The style metric is only worth reading when it separates the unstylized scene from a
+    // stylized one: the realistic field must be well farther from the style than per-frame.
+    let realistic_over_per_frame = methods[0].style_swd.total / pf.style_swd.total;
     // contact sheet: style | realistic | per-frame | (1 round) | SNeRF, for two frames far apart
     let far = (a.frames - 1).min(7.max(a.frames / 2));
     let style_tile = &style_img;
@@ -390,7 +411,10 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let md = format!(
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`; {}; warped-frame MSE (RGB in [0,1]) over covered, \
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
-         SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×.\n\nContact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
+         SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
+         Style distance: sliced Wasserstein between the scene pixels of 8 path frames and the style picture, \
+         colour (Oklab) + texture (contrast-normalized 5×5 patches at 3 scales); it separates the realistic field from per-frame \
+         stylization by {:.2}× ({}).\n\nContact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
         consistency::path_description(data.kind, a.frames),
@@ -398,6 +422,9 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         table,
         sn.short_range / pf.short_range,
         sn.long_range / pf.long_range,
+        sn.style_swd.total / pf.style_swd.total,
+        realistic_over_per_frame,
+        if realistic_over_per_frame >= 1.5 { "valid: at least 1.5×" } else { "below 1.5×: style distances on this pair do not tell much" },
         if one_round_frames.is_some() { " | 1 round" } else { "" },
     );
     std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
@@ -408,6 +435,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "coverage": path.coverage(),
         "methods": methods,
         "snerf_over_per_frame": ratios,
+        "style_metric_realistic_over_per_frame": realistic_over_per_frame,
         "rounds": state.records,
         "seconds": t0.elapsed().as_secs_f64(),
         "table": table,

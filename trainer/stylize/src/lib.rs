@@ -5,11 +5,18 @@
 //! - `snerf_loop`: Algorithm 1 of SNeRF — render the training views from the field, stylize
 //!   each, train the field on random rays across them, repeat; every round checkpointed.
 //! - `consistency`: the paper's cross-view consistency (warped-frame error, short and long
-//!   range) and style distance, for SNeRF and the per-frame baseline.
+//!   range) and style distances, for SNeRF and the per-frame baseline.
+//! - `style_metric`: a weight-free style distance (sliced Wasserstein over Oklab colours and
+//!   texture patches) that no stylizer aims at.
+//! - `fusion`: multi-view fusion of the stylized targets through the field's depth.
+//! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then
 //! stylizes, then trains, each phase with every core.
 
 pub mod consistency;
+pub mod fusion;
+pub mod paintings;
 pub mod snerf_loop;
+pub mod style_metric;
 pub mod stylizer;

@@ -1,8 +1,16 @@
 //! Algorithm 1 of SNeRF: starting from a field trained on realistic views, repeat T rounds of
 //! (1) render every training view from the current field, (2) stylize each render on its own
 //! with an image stylizer, (3) train the field on random rays across the stylized views.
-//! Because each render comes from a field that was already pulled towards one consistent
-//! style, the stylized views agree with one another more every round.
+//!
+//! A feed-forward stylizer repaints every view from scratch each round, so its views
+//! disagree about the same surface point and a field trained on them memorizes that
+//! disagreement, round after round. Two things anchor the targets (DESIGN: "targets that
+//! move less each round"): (2a) `fusion` makes each target the median of what the view and
+//! its nearest views (reprojected through the current field's depth) painted at the same
+//! surface point, so the field is asked for one colour per point; (2b) the target is a
+//! damped step from the current render toward that fused stylization
+//! (`render + target_step × (fused − render)`), so the loop is a damped fixed-point
+//! iteration: the style accumulates over the rounds, the per-round disagreement does not.
 //!
 //! A stylization run lives in its own directory (`SRUN`): `checkpoint.snerfck` (the field,
 //! loadable by every command that takes a run), `stylize.json` (options, the source run, and
@@ -27,6 +35,7 @@ use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
 mod partial;
 
 use crate::consistency::{self, PathGeometry};
+use crate::fusion::{self, ViewGeometry};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer};
 
 pub const STATE_FILE: &str = "stylize.json";
@@ -49,6 +58,16 @@ pub struct StylizeOptions {
     pub appearance_only: bool,
     /// Frames of the novel path used for the per-round consistency measurement (0: skip).
     pub consistency_frames: usize,
+    /// Neighbouring training views each target is fused with (0: no fusion).
+    #[serde(default)]
+    pub fuse_views: usize,
+    /// Step from the current render toward the (fused) stylized target, in (0, 1].
+    #[serde(default = "full_step")]
+    pub target_step: f32,
+}
+
+fn full_step() -> f32 {
+    1.0
 }
 
 /// One finished round: the users' "error against run time".
@@ -68,6 +87,13 @@ pub struct RoundRecord {
     /// Warped-frame MSE along the novel path, frames (i, i+1) and (i, i+7).
     pub short_range: Option<f64>,
     pub long_range: Option<f64>,
+    /// The weight-free style distance (`style_metric`) of the path's scene pixels to the
+    /// style picture; None without a consistency path.
+    #[serde(default)]
+    pub style_swd: Option<crate::style_metric::StyleScore>,
+    /// Fraction of scene pixels whose target was fused with at least one neighbour.
+    #[serde(default)]
+    pub fused_fraction: Option<f64>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -117,6 +143,7 @@ pub fn run(
     progress: &mut dyn Progress,
 ) -> Result<StylizeState> {
     anyhow::ensure!(opts.rounds >= 1 && opts.steps_per_round >= 1, "a stylization needs at least one round of at least one step");
+    anyhow::ensure!(opts.target_step > 0.0 && opts.target_step <= 1.0, "the target step must be in (0, 1], not {}", opts.target_step);
     let _lock = snerf_files::DirLock::acquire(out)?;
     let _graceful = snerf_files::interrupt::Graceful::enter();
     std::fs::create_dir_all(out.join("rounds")).with_context(|| format!("{}: cannot create", out.display()))?;
@@ -161,24 +188,29 @@ pub fn run(
     } else {
         None
     };
+    let style_samples = path.as_ref().map(|p| p.style_reference(style));
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
         let resumed = partial::load(out, round + 1, data, opts)?;
-        let (stylized, render_seconds, stylize_seconds, first_step, trained_before, mut loss_ema) = match resumed {
+        let (stylized, render_seconds, stylize_seconds, first_step, trained_before, mut loss_ema, fused_fraction) = match resumed {
             Some(p) => {
                 let partial::Resumed { trainer: t, targets, saved: p } = p;
                 trainer = t;
                 wall += p.round_wall;
-                (targets, p.render_seconds, p.stylize_seconds, p.steps_done, p.train_seconds, p.loss_ema)
+                (targets, p.render_seconds, p.stylize_seconds, p.steps_done, p.train_seconds, p.loss_ema, None)
             }
             None => {
                 // (1) render the training views from the current field
                 progress.phase(round + 1, opts.rounds, "render", views.len() as u64);
                 let t0 = Instant::now();
                 let mut renders = Vec::with_capacity(views.len());
+                let mut geoms = Vec::with_capacity(views.len());
                 for (i, v) in views.iter().enumerate() {
                     let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
+                    if opts.fuse_views > 0 {
+                        geoms.push(ViewGeometry::from_render(&trainer.model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity));
+                    }
                     renders.push(Image { width: r.width, height: r.height, data: r.rgb });
                     progress.tick(i as u64 + 1, "");
                 }
@@ -194,9 +226,21 @@ pub fn run(
                     stylized.push(s);
                     progress.tick(i as u64 + 1, "");
                 }
+                // (2a) fuse each target with its neighbours; (2b) a damped step toward it
+                let (fused, fused_fraction) = if opts.fuse_views > 0 {
+                    let (f, frac) = fusion::fuse(&stylized, &geoms, opts.fuse_views);
+                    (f, Some(frac))
+                } else {
+                    (stylized.clone(), None)
+                };
+                let targets: Vec<Image> = if opts.target_step < 1.0 {
+                    renders.iter().zip(&fused).map(|(r, f)| fusion::step_toward(r, f, opts.target_step)).collect()
+                } else {
+                    fused
+                };
                 let stylize_seconds = t0.elapsed().as_secs_f64();
-                write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized)?;
-                (stylized, render_seconds, stylize_seconds, 0, 0.0, None)
+                write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized, &targets)?;
+                (targets, render_seconds, stylize_seconds, 0, 0.0, None, fused_fraction)
             }
         };
         // (3) train on random rays across the stylized views
@@ -239,15 +283,16 @@ pub fn run(
         wall += t_round.elapsed().as_secs_f64();
         progress.phase(round + 1, opts.rounds, "measure", 1);
         let style = embedder.zip(style_embedding.as_deref());
-        let (style_distance, short_range, long_range) = match &path {
+        let (style_distance, short_range, long_range, style_swd) = match &path {
             Some(p) => {
                 let frames = p.render(&trainer.model, &trainer.pool);
                 let d = style.map(|(e, s)| consistency::style_distance_frames(e, &p.masked(&frames), s)).transpose()?;
-                (d, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)))
+                let swd = style_samples.as_ref().map(|s| p.style_score(&frames, s));
+                (d, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)), swd)
             }
             None => {
                 let d = style.map(|(e, s)| style_distance_of(&trainer.model, &trainer.pool, data, bg, e, s)).transpose()?;
-                (d, None, None)
+                (d, None, None, None)
             }
         };
         let record = RoundRecord {
@@ -260,6 +305,8 @@ pub fn run(
             style_distance,
             short_range,
             long_range,
+            style_swd,
+            fused_fraction,
         };
         progress.round_done(&record);
         state.records.push(record);
@@ -359,13 +406,14 @@ pub fn style_distance_of(
     Ok(sum / picked.len().max(1) as f64)
 }
 
-/// `rounds/round_N.png`: up to 4 views, render above stylized target.
-fn write_round_sheet(path: &Path, renders: &[Image], stylized: &[Image]) -> Result<()> {
+/// `rounds/round_N.png`: up to 4 views: render, the stylizer's output, the training target.
+fn write_round_sheet(path: &Path, renders: &[Image], stylized: &[Image], targets: &[Image]) -> Result<()> {
     let n = renders.len().min(4);
     let picked: Vec<usize> = (0..n).map(|i| i * renders.len() / n.max(1)).collect();
     let rows: Vec<Vec<&Image>> = vec![
         picked.iter().map(|&i| &renders[i]).collect(),
         picked.iter().map(|&i| &stylized[i]).collect(),
+        picked.iter().map(|&i| &targets[i]).collect(),
     ];
     checkpoint::write_png_atomic(path, &consistency::grid_image(&rows))
 }

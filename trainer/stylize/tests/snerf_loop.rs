@@ -67,6 +67,8 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         views: 12,
         appearance_only,
         consistency_frames: 10,
+        fuse_views: 4,
+        target_step: 0.5,
     }
 }
 
@@ -93,6 +95,8 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     assert_eq!(s.rounds_done, 2);
     assert_eq!(s.records.len(), 2);
     assert!(s.records.iter().all(|r| r.short_range.is_some_and(|x| x.is_finite())), "{:?}", s.records);
+    assert!(s.records.iter().all(|r| r.style_swd.is_some_and(|x| x.total.is_finite() && x.total > 0.0)), "{:?}", s.records);
+    assert!(s.records.iter().all(|r| r.fused_fraction.is_some_and(|f| f > 0.3)), "{:?}", s.records);
     assert!(out.join("rounds/round_2.png").exists());
     // a finished run re-run with the same options does nothing more
     let again = snerf_loop::run(&o2, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).unwrap();

@@ -102,7 +102,7 @@ fn corrupt_truncated_text_and_missing_files_are_refused() {
 
     let text = dir.path().join("style.png");
     std::fs::write(&text, "not an image").unwrap();
-    expect_error(&text, "not a PNG or JPEG");
+    expect_error(&text, "not a PNG, JPEG or WebP");
 
     expect_error(&dir.path().join("missing.png"), "cannot read");
 }

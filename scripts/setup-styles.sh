@@ -1,0 +1,124 @@
+#!/usr/bin/env bash
+# Fetch real paintings to use as styles in tests and benchmarks, from Debian's
+# gcompris-qt-data (GPL-3.0-or-later packaging of public-domain works from the WebMuseum):
+# its `paintings` puzzle ships each painting as tiles inside a Qt resource file
+# (/usr/share/gcompris-qt/rcc/paintings.rcc). One tile of each painting below is taken out,
+# verified by SHA-256 and put in the style directory the Rust side reads:
+#   $SNERF_STYLES, else ${XDG_CACHE_HOME:-$HOME/.cache}/snerf/styles
+#   gogh_auvert_3.webp                  Vincent van Gogh, Village Street in Auvers (1890)
+#   renoir-moulin_de_la_galette-2.webp  Pierre-Auguste Renoir, Bal du moulin de la Galette (1876)
+#   kandinky_3.webp                     Wassily Kandinsky, Composition VIII (1923)
+# Idempotent: does nothing when the files are already there with the right hashes. Uses the
+# installed package when present, else `apt-get download` (no root needed) into a temporary
+# directory. Exits non-zero only when the paintings cannot be obtained.
+set -euo pipefail
+
+STYLES_DIR="${SNERF_STYLES:-${XDG_CACHE_HOME:-$HOME/.cache}/snerf/styles}"
+RCC_IN_PACKAGE=usr/share/gcompris-qt/rcc/paintings.rcc
+RCC_SHA256=1276d4f9c26f94ec130833c03bea5185f61b4f986df6981182cdb1be69e9db98
+# Same constants as trainer/stylize/src/paintings.rs.
+declare -A SHA256=(
+  [gogh_auvert_3.webp]=1aefb708e7c36a0e4c7c718e8cd2fd37d8321d7a4018d916f149314e4d4bfb98
+  [renoir-moulin_de_la_galette-2.webp]=297bdebac908b464b7b76a3555cbfa2192816bc660859dadc6041caae5f55617
+  [kandinky_3.webp]=f9518aa6512a0e454a22e850f77d43ed7509e8a098fb5dad5ad22c10fd32e51b
+)
+
+log() { echo "setup-styles: $*" >&2; }
+
+PY=python3
+command -v "$PY" >/dev/null 2>&1 || PY=python
+
+file_ok() { # path expected-hash
+  [[ -f "$1" ]] && [[ "$(sha256sum "$1" | cut -d' ' -f1)" == "$2" ]]
+}
+
+all_present() {
+  local name
+  for name in "${!SHA256[@]}"; do
+    file_ok "$STYLES_DIR/$name" "${SHA256[$name]}" || return 1
+  done
+}
+
+# Qt resource file (rcc, format 1-3) reader: writes the named files found anywhere in it.
+extract_rcc() { # rcc-file out-dir names...
+  "$PY" - "$@" <<'PYEOF'
+import struct, sys, zlib, os
+path, out, wanted = sys.argv[1], sys.argv[2], set(sys.argv[3:])
+b = open(path, 'rb').read()
+if b[:4] != b'qres':
+    sys.exit(f"{path}: not a Qt resource file")
+ver, tree, data, names = struct.unpack('>IIII', b[4:20])
+node = 22 if ver >= 2 else 14
+def name(off):
+    n, _ = struct.unpack('>HI', b[names + off:names + off + 6])
+    return b[names + off + 6:names + off + 6 + 2 * n].decode('utf-16-be')
+found = set()
+stack = [0]
+while stack:
+    i = stack.pop()
+    o = tree + i * node
+    noff, flags = struct.unpack('>IH', b[o:o + 6])
+    if flags & 2:
+        cnt, first = struct.unpack('>II', b[o + 6:o + 14])
+        stack.extend(range(first, first + cnt))
+        continue
+    nm = name(noff)
+    if nm not in wanted:
+        continue
+    doff, = struct.unpack('>I', b[o + 10:o + 14])
+    sz, = struct.unpack('>I', b[data + doff:data + doff + 4])
+    blob = b[data + doff + 4:data + doff + 4 + sz]
+    if flags & 1:
+        blob = zlib.decompress(blob[4:])
+    elif flags & 4:
+        sys.exit(f"{path}: {nm} is zstd-compressed; not supported")
+    with open(os.path.join(out, nm), 'wb') as f:
+        f.write(blob)
+    found.add(nm)
+missing = wanted - found
+if missing:
+    sys.exit(f"{path}: missing {', '.join(sorted(missing))}")
+PYEOF
+}
+
+fetch_paintings() {
+  local tmp rcc
+  tmp="$(mktemp -d)"
+  # shellcheck disable=SC2064
+  trap "rm -rf '$tmp'" EXIT
+  if file_ok "/$RCC_IN_PACKAGE" "$RCC_SHA256"; then
+    rcc="/$RCC_IN_PACKAGE"
+  else
+    log "downloading Debian package gcompris-qt-data (44 MB)"
+    if ! (cd "$tmp" && apt-get download gcompris-qt-data >/dev/null 2>&1); then
+      # An old package list may not know the package yet.
+      (apt-get update -qq >/dev/null 2>&1 || true)
+      (cd "$tmp" && apt-get download gcompris-qt-data >/dev/null) || { log "error: apt-get download gcompris-qt-data failed"; return 1; }
+    fi
+    dpkg-deb --fsys-tarfile "$tmp"/gcompris-qt-data_*.deb | tar -x -C "$tmp" "./$RCC_IN_PACKAGE"
+    rcc="$tmp/$RCC_IN_PACKAGE"
+    if ! file_ok "$rcc" "$RCC_SHA256"; then
+      log "warning: paintings.rcc differs from the known version ($(sha256sum "$rcc" | cut -d' ' -f1)); checking the paintings themselves"
+    fi
+  fi
+  mkdir -p "$tmp/out" "$STYLES_DIR"
+  extract_rcc "$rcc" "$tmp/out" "${!SHA256[@]}"
+  local name
+  for name in "${!SHA256[@]}"; do
+    if ! file_ok "$tmp/out/$name" "${SHA256[$name]}"; then
+      log "error: $name has SHA-256 $(sha256sum "$tmp/out/$name" | cut -d' ' -f1), expected ${SHA256[$name]}"
+      return 1
+    fi
+    cp "$tmp/out/$name" "$STYLES_DIR/.$name.tmp"
+    mv -f "$STYLES_DIR/.$name.tmp" "$STYLES_DIR/$name"
+  done
+}
+
+if all_present; then
+  log "paintings already in $STYLES_DIR"
+else
+  fetch_paintings || exit 1
+  all_present || { log "error: paintings in $STYLES_DIR still fail verification"; exit 1; }
+  log "paintings installed in $STYLES_DIR"
+fi
+echo "$STYLES_DIR"

@@ -1,0 +1,233 @@
+//! Multi-view fusion of stylized targets. A feed-forward stylizer paints every view on its
+//! own, so the same surface point gets a different colour in each view; trained on that, a
+//! field memorizes the disagreement (or averages it into mud). Fusion makes each target
+//! agree with its neighbours before the field sees it: every scene pixel of view i is
+//! carried, through the current field's depth, to the same surface point in each of the K
+//! nearest training views (skipping views where that point is hidden or off-screen), and the
+//! target becomes the per-channel median of the view's own colour and those reprojected
+//! colours. A surface point then has (about) one target colour, whatever view shows it.
+
+use rayon::prelude::*;
+use snerf_data::Intrinsics;
+use snerf_trainer::space::{dot, norm, sub, Vec3};
+
+use crate::stylizer::Image;
+
+/// A pixel counts as a scene pixel above this opacity.
+const COVERED: f32 = 0.5;
+/// Relative depth tolerance of the occlusion test.
+const OCCLUSION_TOL: f32 = 0.03;
+
+/// One training view's camera and the surface point the current field shows at each pixel.
+pub struct ViewGeometry {
+    pub c2w: [[f32; 4]; 3],
+    pub intr: Intrinsics,
+    /// World point per pixel, None where the pixel shows no surface.
+    pub points: Vec<Option<Vec3>>,
+}
+
+impl ViewGeometry {
+    /// From a render's depth and opacity (`render_camera`), through the model's space.
+    pub fn from_render(
+        space: &snerf_trainer::space::SceneSpace,
+        c2w: &[[f32; 4]; 3],
+        intr: &Intrinsics,
+        time: Option<f32>,
+        depth: &[f32],
+        opacity: &[f32],
+    ) -> ViewGeometry {
+        let w = intr.width as usize;
+        let points = (0..depth.len())
+            .map(|p| {
+                if opacity[p] <= COVERED {
+                    return None;
+                }
+                let ray = space.ray(c2w, intr, (p % w) as f32 + 0.5, (p / w) as f32 + 0.5, time)?;
+                let x = space.march_to_world(&ray, depth[p]);
+                x.iter().all(|v| v.is_finite()).then_some(x)
+            })
+            .collect();
+        ViewGeometry { c2w: *c2w, intr: *intr, points }
+    }
+
+    fn origin(&self) -> Vec3 {
+        [self.c2w[0][3], self.c2w[1][3], self.c2w[2][3]]
+    }
+
+    /// Continuous pixel coordinates and distance of a world point; None behind the camera.
+    fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
+        let m = &self.c2w;
+        let d = sub(p, self.origin());
+        let xc = dot(d, [m[0][0], m[1][0], m[2][0]]);
+        let yc = dot(d, [m[0][1], m[1][1], m[2][1]]);
+        let zc = dot(d, [m[0][2], m[1][2], m[2][2]]);
+        if zc >= -1e-6 {
+            return None;
+        }
+        let k = &self.intr;
+        Some((k.cx + k.fx * xc / -zc, k.cy + k.fy * -yc / -zc, norm(d)))
+    }
+
+    /// The colour of `img` (this view's image) at world point `x` when this view sees it.
+    fn sample_visible(&self, img: &Image, x: Vec3) -> Option<[f32; 3]> {
+        let (w, h) = (self.intr.width as usize, self.intr.height as usize);
+        let (u, v, dist) = self.project(x)?;
+        if !(u >= 0.5 && v >= 0.5 && u <= w as f32 - 0.5 && v <= h as f32 - 0.5) {
+            return None;
+        }
+        let q = (v as usize).min(h - 1) * w + (u as usize).min(w - 1);
+        let seen = self.points[q]?;
+        if (norm(sub(seen, self.origin())) - dist).abs() > OCCLUSION_TOL * dist {
+            return None;
+        }
+        Some(bilinear(img, u - 0.5, v - 0.5))
+    }
+}
+
+fn bilinear(img: &Image, x: f32, y: f32) -> [f32; 3] {
+    let x0 = (x.floor().max(0.0) as usize).min(img.width - 1);
+    let y0 = (y.floor().max(0.0) as usize).min(img.height - 1);
+    let x1 = (x0 + 1).min(img.width - 1);
+    let y1 = (y0 + 1).min(img.height - 1);
+    let (fx, fy) = ((x - x0 as f32).clamp(0.0, 1.0), (y - y0 as f32).clamp(0.0, 1.0));
+    let px = |xx: usize, yy: usize| &img.data[(yy * img.width + xx) * 3..(yy * img.width + xx) * 3 + 3];
+    [0, 1, 2].map(|c| {
+        let a = px(x0, y0)[c] * (1.0 - fx) + px(x1, y0)[c] * fx;
+        let b = px(x0, y1)[c] * (1.0 - fx) + px(x1, y1)[c] * fx;
+        a * (1.0 - fy) + b * fy
+    })
+}
+
+/// The `k` views nearest to each view (by camera centre).
+pub fn neighbours(geoms: &[ViewGeometry], k: usize) -> Vec<Vec<usize>> {
+    (0..geoms.len())
+        .map(|i| {
+            let mut d: Vec<(f32, usize)> =
+                (0..geoms.len()).filter(|&j| j != i).map(|j| (norm(sub(geoms[i].origin(), geoms[j].origin())), j)).collect();
+            d.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            d.into_iter().take(k).map(|(_, j)| j).collect()
+        })
+        .collect()
+}
+
+fn median(v: &mut [f32]) -> f32 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Fuse each view's target with its `k` nearest views' targets (see the module doc).
+/// Pixels that show no surface keep their own colour. Returns the fused targets and the
+/// fraction of scene pixels that had at least one neighbour's colour.
+pub fn fuse(targets: &[Image], geoms: &[ViewGeometry], k: usize) -> (Vec<Image>, f64) {
+    assert_eq!(targets.len(), geoms.len());
+    if k == 0 || targets.len() < 2 {
+        return (targets.to_vec(), 0.0);
+    }
+    let nb = neighbours(geoms, k);
+    let results: Vec<(Image, usize, usize)> = (0..targets.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut out = targets[i].clone();
+            let (mut scene, mut helped) = (0usize, 0usize);
+            let mut vals: [Vec<f32>; 3] = Default::default();
+            for (p, pt) in geoms[i].points.iter().enumerate() {
+                let Some(x) = pt else { continue };
+                scene += 1;
+                for (c, v) in vals.iter_mut().enumerate() {
+                    v.clear();
+                    v.push(targets[i].data[p * 3 + c]);
+                }
+                for &j in &nb[i] {
+                    if let Some(rgb) = geoms[j].sample_visible(&targets[j], *x) {
+                        for c in 0..3 {
+                            vals[c].push(rgb[c]);
+                        }
+                    }
+                }
+                if vals[0].len() > 1 {
+                    helped += 1;
+                    for (c, v) in vals.iter_mut().enumerate() {
+                        out.data[p * 3 + c] = median(v);
+                    }
+                }
+            }
+            (out, scene, helped)
+        })
+        .collect();
+    let scene: usize = results.iter().map(|r| r.1).sum();
+    let helped: usize = results.iter().map(|r| r.2).sum();
+    (results.into_iter().map(|r| r.0).collect(), helped as f64 / scene.max(1) as f64)
+}
+
+/// `render + step * (target - render)`, per pixel: a damped step from the current render
+/// toward the stylized target (step 1: the target itself).
+pub fn step_toward(render: &Image, target: &Image, step: f32) -> Image {
+    let data = render.data.iter().zip(&target.data).map(|(r, t)| r + step * (t - r)).collect();
+    Image { width: target.width, height: target.height, data }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_odd_and_even() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+    }
+
+    fn cam_at(x: f32) -> [[f32; 4]; 3] {
+        // looking down -z from (x, 0, 5)
+        [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 5.0]]
+    }
+
+    /// Three cameras over a plane z = 0; each sees the plane; the middle one's target has an
+    /// outlier stripe that its two neighbours do not: fusion removes it.
+    #[test]
+    fn fusion_takes_the_median_of_views_of_the_same_point() {
+        let (w, h) = (32usize, 32usize);
+        let intr = Intrinsics { width: w as u32, height: h as u32, fx: 40.0, fy: 40.0, cx: 16.0, cy: 16.0, distortion: [0.0; 4] };
+        let mut geoms = Vec::new();
+        let mut targets = Vec::new();
+        for (vi, cx) in [-0.3f32, 0.0, 0.3].into_iter().enumerate() {
+            let c2w = cam_at(cx);
+            let mut points = Vec::new();
+            let mut data = Vec::new();
+            for y in 0..h {
+                for x in 0..w {
+                    let xc = (x as f32 + 0.5 - 16.0) / 40.0;
+                    let yc = -(y as f32 + 0.5 - 16.0) / 40.0;
+                    // ray (xc, yc, -1) from (cx, 0, 5) hits z = 0 at t = 5
+                    let p = [cx + 5.0 * xc, 5.0 * yc, 0.0];
+                    points.push(Some(p));
+                    // a colour that is a function of the surface point (smooth)...
+                    let mut rgb = [0.5 + 0.2 * p[0], 0.5 + 0.2 * p[1], 0.5];
+                    // ...except an outlier stripe in the middle view
+                    if vi == 1 && (12..20).contains(&x) {
+                        rgb = [1.0, 0.0, 0.0];
+                    }
+                    data.extend_from_slice(&rgb);
+                }
+            }
+            geoms.push(ViewGeometry { c2w, intr, points });
+            targets.push(Image { width: w, height: h, data });
+        }
+        let (fused, helped) = fuse(&targets, &geoms, 2);
+        assert!(helped > 0.8, "{helped}");
+        let p = 16 * w + 16;
+        let got = &fused[1].data[p * 3..p * 3 + 3];
+        let x = geoms[1].points[p].unwrap();
+        let want = [0.5 + 0.2 * x[0], 0.5 + 0.2 * x[1], 0.5];
+        for c in 0..3 {
+            assert!((got[c] - want[c]).abs() < 0.01, "fused {got:?}, surface colour {want:?}");
+        }
+        // nothing to fuse with: unchanged
+        let (same, _) = fuse(&targets, &geoms, 0);
+        assert_eq!(same[1].data, targets[1].data);
+    }
+}
