@@ -120,8 +120,11 @@ fn report_of_real_train_stylize_and_bake_runs() {
         .output()
         .unwrap());
     let (a, b) = (d.join("run-a"), d.join("run-b"));
-    let ta = ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&a).args(["--steps", "40"]).output().unwrap());
-    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&b).args(["--steps", "25", "--lr-planes", "0.02"]).output().unwrap());
+    // Three seconds each, not a step count: the curve is measured at 2 s and at the end, so
+    // both runs cover a common span of time however fast the machine is (two runs of a few
+    // steps each could end before their first measurement and share no time to compare at).
+    let ta = ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&a).args(["--minutes", "0.05"]).output().unwrap());
+    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&b).args(["--minutes", "0.05", "--lr-planes", "0.02"]).output().unwrap());
     ok(snerf().args(["--json", "eval"]).arg(&a).arg(&data).output().unwrap());
     // the run's own report, written by `snerf train` as it went and at the end
     assert!(ta["report"]["writes"].as_u64().unwrap() >= 1, "{}", ta["report"]);
