@@ -207,7 +207,9 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
     md.push('\n');
     md.push_str(&"|---".repeat(12 + baseline.is_some() as usize));
     md.push_str("|\n");
-    let mut per_budget: std::collections::BTreeMap<i64, (Vec<f64>, Vec<f64>, Vec<f64>)> = Default::default();
+    // per budget: (eval PSNR, gap, Δ vs baseline) of every model
+    type Columns = (Vec<f64>, Vec<f64>, Vec<f64>);
+    let mut per_budget: std::collections::BTreeMap<i64, Columns> = Default::default();
     for m in models {
         let name = m["model"].as_str().unwrap_or("?");
         if let Some(e) = m["error"].as_str() {

@@ -45,7 +45,8 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
     let p = |x: &Path| x.to_string_lossy().to_string();
     // (base arguments, flags with the valid values worth trying; cheap values only, so a
     // case never runs for long)
-    let table: Vec<(Vec<String>, Vec<(&str, Vec<&str>)>)> = vec![
+    type Row<'a> = (Vec<String>, Vec<(&'a str, Vec<&'a str>)>);
+    let table: Vec<Row> = vec![
         (
             vec!["train".into(), p(ds), "--out".into(), p(&out.join("r")), "--minutes".into(), "0.01".into()],
             vec![
@@ -127,15 +128,15 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
     ];
     let (base, flags) = &table[(rng.next() % table.len() as u64) as usize];
     let mut args = vec!["--json".to_string()];
-    if rng.next() % 4 == 0 {
+    if rng.next().is_multiple_of(4) {
         args.extend(["--threads".to_string(), rng.pick(&["1", "2", "0", "100000", "NaN"]).to_string()]);
     }
     args.extend(base.iter().cloned());
     for (flag, valid) in flags {
-        if rng.next() % 2 == 0 {
+        if rng.next().is_multiple_of(2) {
             continue;
         }
-        let v = if rng.next() % 3 == 0 { rng.pick(WILD) } else { rng.pick(valid) };
+        let v = if rng.next().is_multiple_of(3) { rng.pick(WILD) } else { rng.pick(valid) };
         args.push(flag.to_string());
         args.push(v.to_string());
     }

@@ -177,7 +177,7 @@ pub fn bake(
                     Evaluated::Kept(bytes)
                 });
                 let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                if n % 64 == 0 {
+                if n.is_multiple_of(64) {
                     progress(&format!("bake frame {}/{frames}", f + 1), n, cells.len() as u64);
                 }
                 r

@@ -418,7 +418,7 @@ impl Bin {
             v["target"] = json!(t);
         }
         self.data.extend_from_slice(&bytes);
-        while self.data.len() % 4 != 0 {
+        while !self.data.len().is_multiple_of(4) {
             self.data.push(0);
         }
         self.views.push(v);
@@ -544,7 +544,7 @@ fn prepare(mesh: &Mesh, xf: &Affine) -> Result<Prepared> {
         mesh.colors.len()
     );
     ensure!(
-        mesh.indices.len() % 3 == 0,
+        mesh.indices.len().is_multiple_of(3),
         "index count {} is not a multiple of 3",
         mesh.indices.len()
     );

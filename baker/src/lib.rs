@@ -6,6 +6,9 @@
 //! scores the baked asset against the field it came from. `marching_cubes` + `gltf_export`
 //! turn the baked density and colour into a mesh for engines.
 
+// Index loops over parallel per-voxel arrays read as the formulas they implement.
+#![allow(clippy::needless_range_loop)]
+
 pub mod bake;
 pub mod checks;
 pub mod faithfulness;

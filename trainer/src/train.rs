@@ -139,7 +139,7 @@ impl TrainConfig {
             f.time_resolutions.is_empty() || f.time_resolutions.len() == f.resolutions.len(),
             "training setting field.time_resolutions must be empty or have one entry per level"
         );
-        anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden % 4 == 0, "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
+        anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden.is_multiple_of(4), "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
         Ok(())
     }
 }

@@ -14,6 +14,10 @@
 //! The stylizer and the field never hold the machine at once: a round renders, then
 //! stylizes, then trains, each phase with every core.
 
+// Index loops over parallel image/channel arrays read as the formulas they implement, and
+// the GEMM keeps BLAS's argument list.
+#![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
+
 pub mod consistency;
 pub mod fusion;
 pub mod paintings;

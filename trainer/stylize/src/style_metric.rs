@@ -55,6 +55,8 @@ pub struct StyleSamples {
 }
 
 /// sRGB in [0,1] -> Oklab (Björn Ottosson's matrices).
+// The matrices as published, digit for digit: a check against the source is a text match.
+#[allow(clippy::excessive_precision)]
 pub fn oklab(rgb: [f32; 3]) -> [f32; 3] {
     let lin = |c: f32| {
         let c = c.clamp(0.0, 1.0);

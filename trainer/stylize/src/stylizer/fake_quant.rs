@@ -60,6 +60,8 @@ impl EvalOp for FakeQuantI8 {
         let input = args_1!(inputs);
         let xs = input.try_as_plain_ram()?;
         let xs = xs.as_slice::<f32>()?;
+        // SAFETY: every element of `output` is written below (one per input element) before
+        // the tensor is read or returned.
         let mut output = unsafe { Tensor::uninitialized::<f32>(input.shape())? };
         {
             let mut view = output.try_as_plain_ram_mut()?;

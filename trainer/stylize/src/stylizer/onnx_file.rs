@@ -39,7 +39,7 @@ impl ValueRange {
         }
     }
 
-    fn from_model(self, v: f32) -> f32 {
+    fn to_unit(self, v: f32) -> f32 {
         match self {
             ValueRange::ZeroOne => v,
             ValueRange::MinusOneOne => (v + 1.0) * 0.5,
@@ -134,7 +134,7 @@ impl OnnxFileStylizer {
             (false, false) => return Err(bad()),
         };
         for v in &mut values {
-            *v = self.range.from_model(*v);
+            *v = self.range.to_unit(*v);
         }
         Ok(match layout {
             Layout::Nchw => from_chw(&values, shape[3], shape[2]),

@@ -87,6 +87,7 @@ mod tests {
         let a: Vec<f32> = (0..m * k).map(|i| (i % 13) as f32 * 0.1 - 0.5).collect();
         let b: Vec<f32> = (0..k * n).map(|i| (i % 7) as f32 * 0.2 - 0.3).collect();
         let mut c = vec![1.0f32; m * n];
+        // SAFETY: a is m x k, b is k x n, c is m x n, row-major views of live vectors.
         unsafe {
             gemm(
                 m,

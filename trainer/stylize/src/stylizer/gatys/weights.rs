@@ -115,7 +115,7 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
 fn find_tensor(st: &SafeTensors, suffix: &str) -> Result<(String, Vec<f32>, Vec<usize>)> {
     let key = [format!("features.{suffix}"), suffix.to_string()]
         .into_iter()
-        .find(|k| st.names().iter().any(|n| *n == k))
+        .find(|k| st.names().contains(&k))
         .with_context(|| {
             let mut names: Vec<&String> = st.names();
             names.sort();
