@@ -49,6 +49,22 @@ impl Pinhole {
     }
 }
 
+/// Where world point `p` lands in a pinhole camera (`c2w`, focal lengths and principal point
+/// in pixels): continuous pixel coordinates (pixel x covers [x, x+1)) and the distance from
+/// the camera centre; None behind the camera. The inverse of [`Pinhole::ray`].
+pub fn project(c2w: &C2w, fx: f32, fy: f32, cx: f32, cy: f32, p: Vec3) -> Option<(f32, f32, f32)> {
+    let m = c2w;
+    let d = sub(p, position(m));
+    // camera axes are the columns of the rotation
+    let xc = dot(d, [m[0][0], m[1][0], m[2][0]]);
+    let yc = dot(d, [m[0][1], m[1][1], m[2][1]]);
+    let zc = dot(d, [m[0][2], m[1][2], m[2][2]]);
+    if zc >= -1e-6 {
+        return None;
+    }
+    Some((cx + fx * xc / -zc, cy + fy * -yc / -zc, norm(d)))
+}
+
 /// A camera-space direction in world space (unit).
 pub fn camera_dir_to_world(c2w: &C2w, dc: Vec3) -> Vec3 {
     let m = c2w;
@@ -180,6 +196,11 @@ mod tests {
         }
         let ups = [look_at([0.0, -3.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0]), look_at([3.0, 0.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0])];
         let u = mean_up(ups.iter());
+        // project is the inverse of ray: a point on a pixel's ray lands in that pixel's centre
+        let cam = Pinhole::from_fov(ups[0], 32, 24, 50.0);
+        let (o, d) = cam.ray(7, 5);
+        let (x, y, dist) = project(&cam.c2w, cam.fx, cam.fy, cam.cx, cam.cy, add(o, scale(d, 2.5))).unwrap();
+        assert!((x - 7.5).abs() < 1e-3 && (y - 5.5).abs() < 1e-3 && (dist - 2.5).abs() < 1e-4, "{x} {y} {dist}");
         assert!(u[2] > 0.9, "{u:?}");
     }
 }

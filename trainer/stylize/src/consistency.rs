@@ -16,7 +16,7 @@ use snerf_data::{Dataset, Intrinsics, SceneKind};
 use snerf_trainer::camera_path::orbit;
 use snerf_trainer::eval::{eval_background, render_camera};
 use snerf_trainer::render::WorkspacePool;
-use snerf_trainer::space::{dot, norm, sub, Vec3};
+use snerf_trainer::space::{norm, sub, Vec3};
 use snerf_trainer::train::{views_have_alpha, Model};
 
 use crate::style_metric::{self, StyleSamples, StyleScore};
@@ -94,19 +94,10 @@ impl PathGeometry {
     /// Project a world point into camera `i`: continuous pixel coordinates (pixel x spans
     /// [x, x+1)) and the distance from the camera centre; None behind the camera.
     fn project(&self, i: usize, p: Vec3) -> Option<(f32, f32, f32)> {
-        let m = &self.cams[i];
-        let o = [m[0][3], m[1][3], m[2][3]];
-        let d = sub(p, o);
-        // camera axes are the columns of the rotation
-        let xc = dot(d, [m[0][0], m[1][0], m[2][0]]);
-        let yc = dot(d, [m[0][1], m[1][1], m[2][1]]);
-        let zc = dot(d, [m[0][2], m[1][2], m[2][2]]);
-        if zc >= -1e-6 {
-            return None;
-        }
         let k = &self.intr;
-        Some((k.cx + k.fx * xc / -zc, k.cy + k.fy * -yc / -zc, norm(d)))
+        snerf_geometry::camera::project(&self.cams[i], k.fx, k.fy, k.cx, k.cy, p)
     }
+
 
     /// Mean squared error between frame j = i + gap and frame i warped into it, over all
     /// pairs and all covered, non-occluded pixels. NaN if no pixel qualifies.

@@ -9,7 +9,7 @@
 
 use rayon::prelude::*;
 use snerf_data::Intrinsics;
-use snerf_trainer::space::{dot, norm, sub, Vec3};
+use snerf_trainer::space::{norm, sub, Vec3};
 
 use crate::stylizer::Image;
 
@@ -56,17 +56,10 @@ impl ViewGeometry {
 
     /// Continuous pixel coordinates and distance of a world point; None behind the camera.
     fn project(&self, p: Vec3) -> Option<(f32, f32, f32)> {
-        let m = &self.c2w;
-        let d = sub(p, self.origin());
-        let xc = dot(d, [m[0][0], m[1][0], m[2][0]]);
-        let yc = dot(d, [m[0][1], m[1][1], m[2][1]]);
-        let zc = dot(d, [m[0][2], m[1][2], m[2][2]]);
-        if zc >= -1e-6 {
-            return None;
-        }
         let k = &self.intr;
-        Some((k.cx + k.fx * xc / -zc, k.cy + k.fy * -yc / -zc, norm(d)))
+        snerf_geometry::camera::project(&self.c2w, k.fx, k.fy, k.cx, k.cy, p)
     }
+
 
     /// The colour of `img` (this view's image) at world point `x` when this view sees it.
     fn sample_visible(&self, img: &Image, x: Vec3) -> Option<[f32; 3]> {
