@@ -6,7 +6,6 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use serde_json::{json, Value};
 use snerf_trainer::data::LoadOptions;
-use snerf_trainer::field::{C, OUT};
 use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
@@ -164,21 +163,6 @@ fn stylize(a: &BenchStylizeArgs) -> Result<Value> {
     Ok(json!({ "command": "bench stylize", "tract": tract, "onnxruntime": ort }))
 }
 
-/// FLOPs per sample of the field (encode, decoder, both directions), counting an FMA as 2.
-fn field_flops_per_sample(cfg: &snerf_trainer::field::FieldConfig) -> (f64, f64) {
-    let planes = cfg.planes() as f64;
-    let levels = cfg.levels() as f64;
-    let (inp, h, out) = ((cfg.levels() * C) as f64, cfg.hidden as f64, OUT as f64);
-    let c = C as f64;
-    // bilinear: 4 corners x C FMAs; product over planes: C mults
-    let enc = levels * planes * (4.0 * c * 2.0 + c);
-    let dec = 2.0 * (inp * h + h * out);
-    // backward: decoder dW and dX (2x forward), encoder scatter (same as forward + products)
-    let fwd = enc + dec;
-    let bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
-    (fwd, bwd)
-}
-
 fn train(a: &BenchTrainArgs) -> Result<Value> {
     let data = snerf_trainer::data::load(&a.data, &LoadOptions::default())?;
     let cfg = TrainConfig::for_dataset(&data);
@@ -203,7 +187,7 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
     }
     let sps = sum.samples as f64 / sum.seconds;
     let thread_ns: u64 = sum.phase_ns.iter().sum();
-    let (fwd, bwd) = field_flops_per_sample(&t.model.field.cfg);
+    let (fwd, bwd) = t.model.field.cfg.flops_per_sample();
     let field_ns: u64 = sum.phase_ns[1] + sum.phase_ns[2] + sum.phase_ns[4] + sum.phase_ns[5];
     let threads = rayon::current_num_threads() as f64;
     let field_gflops = sum.samples as f64 * (fwd + bwd) / (field_ns as f64 * 1e-9 / threads);
