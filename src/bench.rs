@@ -107,7 +107,7 @@ fn report(a: &BenchReportArgs) -> Result<Value> {
         }
         // one redraw of a training run's own report, as at each new curve point
         let train = sources.iter().find(|s| s.kind == snerf_report::SourceKind::Train);
-        let mut live = crate::report_cmd::LiveReport::new();
+        let mut live = snerf_report::live::LiveReport::new();
         let mut per_write = None;
         if let Some(s) = train {
             let run = scratch.join("run");

@@ -7,8 +7,10 @@ mod bench_quality;
 mod cli;
 mod demo;
 mod report_cmd;
+mod scene_cmd;
 mod stream_cmd;
 mod stylize_cmd;
+mod train_cmd;
 mod view_cmd;
 
 use std::process::ExitCode;

@@ -7,7 +7,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 use serde_json::{json, Value};
 use snerf_asset::Asset;
-use snerf_viewer::{AssetSource, AssetUpdate, FileSource, ViewOptions};
+use snerf_viewer::{AssetSource, FileSource, StreamSource, ViewOptions};
 
 #[derive(Args, Debug)]
 #[command(after_help = snerf_viewer::keys_help())]
@@ -18,7 +18,7 @@ pub struct ViewArgs {
     #[arg(long)]
     pub pin: Option<String>,
     #[command(flatten)]
-    pub token: crate::stream_cmd::TokenArgs,
+    pub token: crate::args::TokenArgs,
     /// Window size WxH.
     #[arg(long, default_value = "1280x720")]
     pub size: String,
@@ -49,63 +49,8 @@ pub struct ViewArgs {
     pub loop_seconds: f32,
 }
 
-/// A streamed asset as a window source: the whole (partial) asset once it can be drawn,
-/// then the blocks and grids as they arrive.
-struct LiveSource {
-    live: snerf_stream::LiveAsset,
-    sent: bool,
-    grids: Vec<Vec<u32>>,
-    generation: u64,
-}
-
-impl AssetSource for LiveSource {
-    fn poll(&mut self) -> Option<AssetUpdate> {
-        let g = self.live.generation();
-        if self.sent && g == self.generation {
-            return None;
-        }
-        if !self.sent {
-            let whole = self.live.with_asset(|a| a.clone())?;
-            self.live.take_new_blocks();
-            self.grids = whole.grids.clone();
-            self.sent = true;
-            self.generation = g;
-            return Some(AssetUpdate::Whole(Box::new(whole)));
-        }
-        // a changed keyframe grid first, then the new blocks
-        let changed = self.live.with_asset(|a| {
-            a.grids.iter().enumerate().find(|(f, grid)| self.grids.get(*f) != Some(*grid)).map(|(f, grid)| (f, grid.clone()))
-        })?;
-        if let Some((f, entries)) = changed {
-            if self.grids.len() <= f {
-                self.grids.resize(f + 1, Vec::new());
-            }
-            self.grids[f] = entries.clone();
-            return Some(AssetUpdate::Grid { frame: f as u32, entries });
-        }
-        self.generation = g;
-        let new = self.live.take_new_blocks();
-        if new.is_empty() {
-            return None;
-        }
-        let blocks = self.live.with_asset(|a| new.iter().filter_map(|&i| a.block(i).map(|b| (i, b.to_vec()))).collect())?;
-        Some(AssetUpdate::Blocks(blocks))
-    }
-
-    fn set_pose(&mut self, eye: [f32; 3], forward: [f32; 3]) {
-        self.live.set_pose(eye, forward);
-    }
-
-    fn status(&self) -> Option<String> {
-        if let Some(e) = self.live.error() {
-            return Some(format!("stream error: {e}"));
-        }
-        (!self.live.is_complete()).then(|| format!("streaming: {:.1} MB", self.live.bytes_received() as f64 / 1e6))
-    }
-}
-
 pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
-    let (w, h) = crate::cli::parse_size(&a.size)?;
+    let (w, h) = crate::args::parse_size(&a.size)?;
     if let Some(shot) = &a.screenshot {
         if !a.asset.starts_with("quic://") {
             snerf_files::check_output("--screenshot", shot, &[snerf_files::Input::File(std::path::Path::new(&a.asset))])?;
@@ -116,8 +61,7 @@ pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
             bail!("{}: a quic:// asset needs --pin FINGERPRINT and an access token (both printed by `snerf serve`)", a.asset);
         };
         let token = a.token.resolve()?;
-        let live = snerf_stream::LiveAsset::connect(&a.asset, pin, &token)?;
-        Box::new(LiveSource { live, sent: false, grids: Vec::new(), generation: 0 })
+        Box::new(StreamSource::connect(&a.asset, pin, &token)?)
     } else {
         Box::new(FileSource::open(&a.asset)?)
     };
@@ -156,9 +100,9 @@ pub struct BenchViewArgs {
 
 pub fn bench_view(a: &BenchViewArgs) -> Result<Value> {
     let asset = Asset::read(&a.asset)?;
-    let (w, h) = crate::cli::parse_size(&a.size)?;
+    let (w, h) = crate::args::parse_size(&a.size)?;
     let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
     let r = snerf_viewer::bench_view_with(&asset, &opts)?;
     eprintln!("{r}");
-    Ok(json!({ "command": "bench view", "asset": crate::cli::pj(&a.asset), "report": r }))
+    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r }))
 }
