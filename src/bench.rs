@@ -9,6 +9,8 @@ use snerf_trainer::data::LoadOptions;
 use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
+mod quality;
+
 #[derive(Subcommand, Debug)]
 pub enum BenchCmd {
     /// End-to-end training throughput (gradient-carrying samples per second) and where the
@@ -22,10 +24,10 @@ pub enum BenchCmd {
     Stream(BenchStreamArgs),
     /// Held-out quality over many real glTF models (train for each budget, score, compare
     /// with a baseline build): table, quality.json and curves.svg.
-    Quality(crate::bench_quality::BenchQualityArgs),
+    Quality(quality::BenchQualityArgs),
     /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
     /// reference renderer at the same size, in the same run.
-    View(crate::view_cmd::BenchViewArgs),
+    View(BenchViewArgs),
     /// What `snerf report` costs: the whole report of the runs given, and one redraw of a
     /// run's own report as `snerf train` does it at each curve point, projected onto a
     /// 5-minute training run.
@@ -79,9 +81,9 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
     match cmd {
         BenchCmd::Train(a) => train(a),
         BenchCmd::Stylize(a) => stylize(a),
-        BenchCmd::View(a) => crate::view_cmd::bench_view(a),
-        BenchCmd::Stream(a) => crate::stream_cmd::bench_stream(&a.asset, a.rounds),
-        BenchCmd::Quality(a) => crate::bench_quality::run(a),
+        BenchCmd::View(a) => bench_view(a),
+        BenchCmd::Stream(a) => bench_stream(&a.asset, a.rounds),
+        BenchCmd::Quality(a) => quality::run(a),
         BenchCmd::Report(a) => report(a),
     }
 }
@@ -234,4 +236,34 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
         "threads": threads,
         "train_psnr": snerf_trainer::train::mse_to_psnr(sum.loss),
     }))
+}
+
+#[derive(Args, Debug)]
+pub struct BenchViewArgs {
+    /// A baked asset file.
+    pub asset: PathBuf,
+    /// Frame size WxH.
+    #[arg(long, default_value = "1280x720")]
+    pub size: String,
+    /// Frames timed on the GPU (median reported).
+    #[arg(long, default_value_t = 10, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
+    pub frames: usize,
+    /// Also time stereo 2x(1920x1080), the VR case.
+    #[arg(long)]
+    pub stereo: bool,
+}
+
+fn bench_view(a: &BenchViewArgs) -> Result<Value> {
+    let asset = snerf_asset::Asset::read(&a.asset)?;
+    let (w, h) = crate::args::parse_size(&a.size)?;
+    let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
+    let r = snerf_viewer::bench_view_with(&asset, &opts)?;
+    eprintln!("{r}");
+    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r }))
+}
+
+fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {
+    let r = snerf_stream::bench::run(asset, &snerf_stream::bench::BenchOptions { rounds: rounds.max(1), ..Default::default() })?;
+    eprintln!("{r}");
+    Ok(json!({ "command": "bench stream", "asset": crate::args::pj(asset), "report": r.to_string() }))
 }

@@ -1,8 +1,9 @@
 //! The command line's top: the subcommand enum, composed of the argument structs each
 //! command module owns, and the dispatch to their functions. No command module imports this
 //! one; they share only `args`, so the modules of `src/` import one way: `cli` at the top,
-//! `demo` and `bench` (which drive other commands' entry points) below it, the command
-//! modules below those, and `args` and the library crates at the bottom.
+//! `demo` below it (it runs the whole path, so it calls the other commands' entry points
+//! with their own arguments), the command modules below that, and `args` and the library
+//! crates at the bottom.
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};

@@ -3,7 +3,6 @@
 mod args;
 mod bake_cmd;
 mod bench;
-mod bench_quality;
 mod cli;
 mod demo;
 mod report_cmd;

@@ -126,9 +126,3 @@ pub fn fetch_cmd(a: &FetchArgs) -> Result<Value> {
     eprintln!("fetched {} -> {} ({:?})", a.url, a.out.display(), stats);
     Ok(json!({ "command": "fetch", "url": a.url, "out": crate::args::pj(&a.out), "stats": format!("{stats:?}") }))
 }
-
-pub fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {
-    let r = snerf_stream::bench::run(asset, &snerf_stream::bench::BenchOptions { rounds: rounds.max(1), ..Default::default() })?;
-    eprintln!("{r}");
-    Ok(json!({ "command": "bench stream", "asset": crate::args::pj(asset), "report": r.to_string() }))
-}

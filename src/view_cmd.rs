@@ -1,12 +1,10 @@
-//! `snerf view FILE | quic://HOST:PORT/ASSET` (the wgpu window), `snerf bench view`, and the
-//! GPU side of `snerf render --gpu`.
+//! `snerf view FILE | quic://HOST:PORT/ASSET` (the wgpu window).
 
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use clap::Args;
 use serde_json::{json, Value};
-use snerf_asset::Asset;
 use snerf_viewer::{AssetSource, FileSource, StreamSource, ViewOptions};
 
 #[derive(Args, Debug)]
@@ -81,28 +79,4 @@ pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
     };
     snerf_viewer::run_window(source, opts)?;
     Ok(json!({ "command": "view", "asset": a.asset }))
-}
-
-#[derive(Args, Debug)]
-pub struct BenchViewArgs {
-    /// A baked asset file.
-    pub asset: PathBuf,
-    /// Frame size WxH.
-    #[arg(long, default_value = "1280x720")]
-    pub size: String,
-    /// Frames timed on the GPU (median reported).
-    #[arg(long, default_value_t = 10, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
-    pub frames: usize,
-    /// Also time stereo 2x(1920x1080), the VR case.
-    #[arg(long)]
-    pub stereo: bool,
-}
-
-pub fn bench_view(a: &BenchViewArgs) -> Result<Value> {
-    let asset = Asset::read(&a.asset)?;
-    let (w, h) = crate::args::parse_size(&a.size)?;
-    let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
-    let r = snerf_viewer::bench_view_with(&asset, &opts)?;
-    eprintln!("{r}");
-    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r }))
 }
