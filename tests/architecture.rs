@@ -27,7 +27,7 @@ fn snerf_dependencies(dir: &Path) -> Vec<String> {
         .skip(1)
         .take_while(|l| !l.trim_start().starts_with('['))
         .filter_map(|l| l.trim().strip_prefix("snerf-"))
-        .filter_map(|l| l.split(|c: char| c == ' ' || c == '=').next())
+        .filter_map(|l| l.split([' ', '=']).next())
         .map(str::to_string)
         .collect();
     deps.sort();

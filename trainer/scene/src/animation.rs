@@ -208,11 +208,11 @@ impl Rig {
                     continue;
                 }
                 for (a, d) in pos.iter_mut().zip(dp) {
-                    *a = *a + *d * wk;
+                    *a += *d * wk;
                 }
                 if let (Some(n), Some(dn)) = (nrm.as_mut(), dn) {
                     for (a, d) in n.iter_mut().zip(dn) {
-                        *a = *a + *d * wk;
+                        *a += *d * wk;
                     }
                 }
             }
@@ -280,7 +280,7 @@ impl Rig {
                     let [a, b, c] = t.map(|i| g.positions[i as usize]);
                     let f = (b - a).cross(c - a);
                     for &i in t {
-                        acc[(i - base) as usize] = acc[(i - base) as usize] + f;
+                        acc[(i - base) as usize] += f;
                     }
                 }
                 for (i, n) in acc.into_iter().enumerate() {
