@@ -313,41 +313,10 @@ pub fn turntable_cmd(a: &TurntableArgs) -> Result<Value> {
     Ok(json!({ "command": "turntable", "frames": frames.iter().map(pj).collect::<Vec<_>>(), "out": pj(&a.out) }))
 }
 
-/// Render `n` frames on an orbit into `out/frame_NNN.png`; returns the file names.
-pub fn turntable(
-    model: &train::Model,
-    pool: &snerf_trainer::render::WorkspacePool,
-    data: &Dataset,
-    n: usize,
-    out: &Path,
-) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
-    let cams = snerf_trainer::camera_path::orbit(&model.space, &data.train, n.max(1));
-    let k = data.test.first().unwrap_or(&data.train[0]).intrinsics;
-    let bg = eval::eval_background(train::views_have_alpha(&data.train));
-    let pb = bar(cams.len() as u64, "{spinner} turntable {bar:30} {pos}/{len} [{elapsed}]");
-    let mut files = Vec::new();
-    for (i, c2w) in cams.iter().enumerate() {
-        // dynamic scenes play their time once around the orbit
-        let time = data.dynamic.then(|| i as f32 / cams.len().max(2) as f32);
-        let r = eval::render_camera(model, pool, c2w, &k, time, bg);
-        let img = eval::side_by_side(&[&r.rgb], r.width, r.height);
-        let f = out.join(format!("frame_{i:03}.png"));
-        checkpoint::write_png_atomic(&f, &img)?;
-        files.push(f);
-        pb.inc(1);
-    }
+/// `snerf_trainer::camera_path::render_turntable` with a progress bar.
+pub fn turntable(model: &train::Model, pool: &snerf_trainer::render::WorkspacePool, data: &Dataset, n: usize, out: &Path) -> Result<Vec<PathBuf>> {
+    let pb = bar(n.max(1) as u64, "{spinner} turntable {bar:30} {pos}/{len} [{elapsed}]");
+    let files = snerf_trainer::camera_path::render_turntable(model, pool, data, n, out, &mut |done, _| pb.set_position(done as u64))?;
     pb.finish_and_clear();
-    // The path itself, as nerfstudio's camera_path.json: `snerf render --path` of a baked
-    // asset (or nerfstudio) renders the same cameras.
-    let path: Vec<snerf_geometry::camera_path::PathCamera> = cams
-        .iter()
-        .enumerate()
-        .map(|(i, c2w)| snerf_geometry::camera_path::PathCamera {
-            cam: snerf_geometry::Pinhole { c2w: *c2w, fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy, width: k.width, height: k.height },
-            time: data.dynamic.then(|| i as f32 / cams.len().max(2) as f32),
-        })
-        .collect();
-    snerf_files::atomic::write_atomic(&out.join("camera_path.json"), snerf_geometry::camera_path::to_json(&path, 24.0).as_bytes())?;
     Ok(files)
 }
