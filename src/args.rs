@@ -1,8 +1,20 @@
-//! Validated argument types shared by every command: numbers are finite and in range when
-//! they are parsed, so NaN or a 120 GB allocation never reaches the pipeline. Each parser
-//! names the accepted range in its error, which clap prints with the flag.
+//! What every command shares, and the only module of the command line that the command
+//! modules import: validated value parsers (numbers are finite and in range when they are
+//! parsed, so NaN or a 120 GB allocation never reaches the pipeline; each parser names the
+//! accepted range in its error, which clap prints with the flag), the argument groups
+//! several commands flatten in (`DataOpts`, `TokenArgs`), and the small output helpers every
+//! command's summary and progress use.
 
 use std::ops::RangeInclusive;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::Value;
+use snerf_files::guard::{check_output, Input};
+use snerf_trainer::data::{self, Dataset, LoadOptions, SceneKind};
+use snerf_trainer::run_dir::RunDir;
 
 fn number<T: std::str::FromStr>(s: &str) -> Result<T, String> {
     s.trim().parse::<T>().map_err(|_| format!("'{s}' is not a number"))
@@ -118,6 +130,121 @@ pub fn threads(s: &str) -> Result<usize, String> {
         return Err(format!("'{s}': must be in 1..={max} (4 x the {cores} cores of this machine)"));
     }
     Ok(v)
+}
+
+/// Image sizes `WxH`.
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size '{s}': expected WxH, e.g. 128x128"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size '{s}': bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size '{s}': bad height"))?;
+    if !(8..=8192).contains(&w) || !(8..=8192).contains(&h) {
+        bail!("--size '{s}': width and height must be in 8..=8192");
+    }
+    Ok((w, h))
+}
+
+#[derive(Args, Debug, Clone, Default)]
+pub struct DataOpts {
+    /// Override the detected scene kind: object | forward | unbounded.
+    #[arg(long)]
+    pub kind: Option<String>,
+    /// Treat the scene as static even if frames carry times.
+    #[arg(long = "static")]
+    pub force_static: bool,
+    /// Integer image downscale factor.
+    #[arg(long, value_parser = crate::args::int_in::<u32>(1, 64, ""))]
+    pub downscale: Option<u32>,
+    /// For LLFF/COLMAP/single-file data: every n-th image is held out for testing.
+    #[arg(long, value_parser = crate::args::int_in::<usize>(2, 100000, ""))]
+    pub holdout_every: Option<usize>,
+}
+
+impl DataOpts {
+    pub fn load(&self, path: &Path) -> Result<Dataset> {
+        let kind = match self.kind.as_deref() {
+            None => None,
+            Some(k) => Some(parse_kind(k)?),
+        };
+        let opts = LoadOptions {
+            kind,
+            dynamic: if self.force_static { Some(false) } else { None },
+            holdout_every: self.holdout_every,
+            downscale: self.downscale,
+        };
+        data::load(path, &opts)
+    }
+}
+
+fn parse_kind(k: &str) -> Result<SceneKind> {
+    Ok(match k {
+        "object" => SceneKind::Object,
+        "forward" => SceneKind::Forward,
+        "unbounded" => SceneKind::Unbounded,
+        _ => bail!("unknown scene kind '{k}' (use object, forward or unbounded)"),
+    })
+}
+
+/// How a client gets the server's access token. A token on the command line shows in `ps`
+/// and shell history, so a file or the environment is preferred.
+#[derive(Args, Debug, Clone, Default)]
+pub struct TokenArgs {
+    /// Access token (printed by `snerf serve`). Visible to other users in `ps`; prefer
+    /// --token-file or $SNERF_TOKEN.
+    #[arg(long)]
+    pub token: Option<String>,
+    /// File holding the access token (e.g. the server's state directory `token` file).
+    #[arg(long, conflicts_with = "token")]
+    pub token_file: Option<PathBuf>,
+}
+
+pub const TOKEN_ENV: &str = "SNERF_TOKEN";
+
+impl TokenArgs {
+    /// --token, else --token-file, else $SNERF_TOKEN.
+    pub fn resolve(&self) -> Result<String> {
+        let token = if let Some(t) = &self.token {
+            t.clone()
+        } else if let Some(f) = &self.token_file {
+            std::fs::read_to_string(f).with_context(|| format!("--token-file {}: cannot read", f.display()))?.trim().to_string()
+        } else if let Ok(t) = std::env::var(TOKEN_ENV) {
+            t.trim().to_string()
+        } else {
+            anyhow::bail!("no access token: pass --token-file FILE, set ${TOKEN_ENV}, or --token T (all printed by `snerf serve`)");
+        };
+        anyhow::ensure!(!token.is_empty(), "the access token is empty");
+        Ok(token)
+    }
+}
+
+/// A path as a JSON string. JSON holds UTF-8 only; a path that is not is written lossily
+/// rather than failing after the work is done.
+pub fn pj(p: impl AsRef<Path>) -> Value {
+    Value::String(p.as_ref().to_string_lossy().into_owned())
+}
+
+/// A progress bar drawn on stderr.
+pub fn bar(len: u64, template: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len);
+    pb.set_style(ProgressStyle::with_template(template).unwrap().progress_chars("=> "));
+    pb
+}
+
+/// `check_output` with a run's files and a dataset tree as the inputs.
+pub fn guard_run_output(flag: &str, out: &Path, run: &Path, data_root: Option<&Path>) -> Result<()> {
+    let files = RunDir::new(run).files();
+    let mut inputs: Vec<Input> = files.iter().map(|f| Input::File(f)).collect();
+    if let Some(d) = data_root {
+        inputs.push(Input::Tree(d));
+    }
+    check_output(flag, out, &inputs)
+}
+
+/// Peak resident memory of this process so far (Linux), in MB.
+pub fn peak_rss_mb() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
 }
 
 #[cfg(test)]

@@ -12,7 +12,8 @@ use snerf_asset::Asset;
 use snerf_baker::bake::{bake, BakeOptions};
 use snerf_trainer::{eval, train};
 
-use crate::cli::{bar, load_model, parse_size, pj, DataOpts};
+use crate::args::{bar, parse_size, peak_rss_mb, pj, DataOpts};
+use snerf_trainer::run_dir::RunDir;
 use snerf_files::guard::{check_output, Input};
 
 #[derive(Args, Debug)]
@@ -77,46 +78,15 @@ impl BakeArgs {
     }
 }
 
-/// The dataset a run was trained on, from its config.json (or, for a stylization run, from
-/// its options).
-pub fn run_dataset(run: &Path) -> Result<PathBuf> {
-    if !run.is_dir() {
-        bail!("{}: no such run directory (expected the --out of `snerf train` or `snerf stylize`)", run.display());
-    }
-    let cfg = run.join("config.json");
-    if let Ok(bytes) = std::fs::read(&cfg) {
-        let v: Value = serde_json::from_slice(&bytes).with_context(|| format!("{}: not JSON", cfg.display()))?;
-        if let Some(root) = v.pointer("/dataset/root").and_then(|r| r.as_str()) {
-            return Ok(PathBuf::from(root));
-        }
-    }
-    let st = run.join(snerf_stylize::snerf_loop::STATE_FILE);
-    if let Ok(bytes) = std::fs::read(&st) {
-        let v: Value = serde_json::from_slice(&bytes).with_context(|| format!("{}: not JSON", st.display()))?;
-        if let Some(root) = v.pointer("/options/data").and_then(|r| r.as_str()) {
-            return Ok(PathBuf::from(root));
-        }
-    }
-    bail!("{}: cannot tell which dataset this run used (no config.json or stylize.json); pass --data", run.display())
-}
-
-/// Peak resident memory of this process so far (Linux), in MB.
-pub fn peak_rss_mb() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb / 1024.0)
-}
-
 pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     let wall = Instant::now();
     let data_path = match &a.data {
         Some(d) => d.clone(),
-        None => run_dataset(&a.run)?,
+        None => RunDir::new(&a.run).dataset()?,
     };
     let data = a.opts.load(&data_path)?;
-    crate::cli::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
-    let (model, pool) = load_model(&a.run)?;
+    crate::args::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
+    let (model, pool) = RunDir::new(&a.run).load_model()?;
     if !a.sweep.is_empty() {
         return sweep(a, &data, &model, &pool);
     }
@@ -395,7 +365,7 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
         bail!("--iso {}: must be an opacity in (0,1)", a.iso);
     }
     let mut inputs = vec![Input::File(&a.file)];
-    let check_files = a.check.as_deref().map(crate::cli::run_files).unwrap_or_default();
+    let check_files = a.check.as_deref().map(|r| RunDir::new(r).files()).unwrap_or_default();
     inputs.extend(check_files.iter().map(|f| Input::File(f)));
     check_output("--out", &a.out, &inputs)?;
     let t0 = Instant::now();
@@ -433,10 +403,10 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
 fn surface_agreement(asset: &Asset, mesh: &snerf_baker::marching_cubes::Mesh, run: &Path, data: Option<&Path>, opts: &DataOpts) -> Result<Value> {
     let data_path = match data {
         Some(d) => d.to_path_buf(),
-        None => run_dataset(run)?,
+        None => RunDir::new(run).dataset()?,
     };
     let data = opts.load(&data_path)?;
-    let (model, pool) = load_model(run)?;
+    let (model, pool) = RunDir::new(run).load_model()?;
     let views = if data.test.is_empty() { &data.train } else { &data.test };
     let s = snerf_baker::checks::surface_agreement(asset, mesh, &model, &pool, views).with_context(|| format!("{}", run.display()))?;
     eprintln!(

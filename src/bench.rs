@@ -6,9 +6,10 @@ use anyhow::Result;
 use clap::{Args, Subcommand};
 use serde_json::{json, Value};
 use snerf_trainer::data::LoadOptions;
-use snerf_trainer::field::{C, OUT};
 use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
+
+mod quality;
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCmd {
@@ -23,10 +24,10 @@ pub enum BenchCmd {
     Stream(BenchStreamArgs),
     /// Held-out quality over many real glTF models (train for each budget, score, compare
     /// with a baseline build): table, quality.json and curves.svg.
-    Quality(crate::bench_quality::BenchQualityArgs),
+    Quality(quality::BenchQualityArgs),
     /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
     /// reference renderer at the same size, in the same run.
-    View(crate::view_cmd::BenchViewArgs),
+    View(BenchViewArgs),
     /// What `snerf report` costs: the whole report of the runs given, and one redraw of a
     /// run's own report as `snerf train` does it at each curve point, projected onto a
     /// 5-minute training run.
@@ -80,9 +81,9 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
     match cmd {
         BenchCmd::Train(a) => train(a),
         BenchCmd::Stylize(a) => stylize(a),
-        BenchCmd::View(a) => crate::view_cmd::bench_view(a),
-        BenchCmd::Stream(a) => crate::stream_cmd::bench_stream(&a.asset, a.rounds),
-        BenchCmd::Quality(a) => crate::bench_quality::run(a),
+        BenchCmd::View(a) => bench_view(a),
+        BenchCmd::Stream(a) => bench_stream(&a.asset, a.rounds),
+        BenchCmd::Quality(a) => quality::run(a),
         BenchCmd::Report(a) => report(a),
     }
 }
@@ -108,7 +109,7 @@ fn report(a: &BenchReportArgs) -> Result<Value> {
         }
         // one redraw of a training run's own report, as at each new curve point
         let train = sources.iter().find(|s| s.kind == snerf_report::SourceKind::Train);
-        let mut live = crate::report_cmd::LiveReport::new();
+        let mut live = snerf_report::live::LiveReport::new();
         let mut per_write = None;
         if let Some(s) = train {
             let run = scratch.join("run");
@@ -164,21 +165,6 @@ fn stylize(a: &BenchStylizeArgs) -> Result<Value> {
     Ok(json!({ "command": "bench stylize", "tract": tract, "onnxruntime": ort }))
 }
 
-/// FLOPs per sample of the field (encode, decoder, both directions), counting an FMA as 2.
-fn field_flops_per_sample(cfg: &snerf_trainer::field::FieldConfig) -> (f64, f64) {
-    let planes = cfg.planes() as f64;
-    let levels = cfg.levels() as f64;
-    let (inp, h, out) = ((cfg.levels() * C) as f64, cfg.hidden as f64, OUT as f64);
-    let c = C as f64;
-    // bilinear: 4 corners x C FMAs; product over planes: C mults
-    let enc = levels * planes * (4.0 * c * 2.0 + c);
-    let dec = 2.0 * (inp * h + h * out);
-    // backward: decoder dW and dX (2x forward), encoder scatter (same as forward + products)
-    let fwd = enc + dec;
-    let bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
-    (fwd, bwd)
-}
-
 fn train(a: &BenchTrainArgs) -> Result<Value> {
     let data = snerf_trainer::data::load(&a.data, &LoadOptions::default())?;
     let cfg = TrainConfig::for_dataset(&data);
@@ -203,7 +189,7 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
     }
     let sps = sum.samples as f64 / sum.seconds;
     let thread_ns: u64 = sum.phase_ns.iter().sum();
-    let (fwd, bwd) = field_flops_per_sample(&t.model.field.cfg);
+    let (fwd, bwd) = t.model.field.cfg.flops_per_sample();
     let field_ns: u64 = sum.phase_ns[1] + sum.phase_ns[2] + sum.phase_ns[4] + sum.phase_ns[5];
     let threads = rayon::current_num_threads() as f64;
     let field_gflops = sum.samples as f64 * (fwd + bwd) / (field_ns as f64 * 1e-9 / threads);
@@ -250,4 +236,34 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
         "threads": threads,
         "train_psnr": snerf_trainer::train::mse_to_psnr(sum.loss),
     }))
+}
+
+#[derive(Args, Debug)]
+pub struct BenchViewArgs {
+    /// A baked asset file.
+    pub asset: PathBuf,
+    /// Frame size WxH.
+    #[arg(long, default_value = "1280x720")]
+    pub size: String,
+    /// Frames timed on the GPU (median reported).
+    #[arg(long, default_value_t = 10, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
+    pub frames: usize,
+    /// Also time stereo 2x(1920x1080), the VR case.
+    #[arg(long)]
+    pub stereo: bool,
+}
+
+fn bench_view(a: &BenchViewArgs) -> Result<Value> {
+    let asset = snerf_asset::Asset::read(&a.asset)?;
+    let (w, h) = crate::args::parse_size(&a.size)?;
+    let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
+    let r = snerf_viewer::bench_view_with(&asset, &opts)?;
+    eprintln!("{r}");
+    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r }))
+}
+
+fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {
+    let r = snerf_stream::bench::run(asset, &snerf_stream::bench::BenchOptions { rounds: rounds.max(1), ..Default::default() })?;
+    eprintln!("{r}");
+    Ok(json!({ "command": "bench stream", "asset": crate::args::pj(asset), "report": r.to_string() }))
 }

@@ -10,7 +10,8 @@ use serde_json::{json, Value};
 use snerf_trainer::data::LoadOptions;
 use snerf_trainer::{checkpoint, eval, train};
 
-use crate::cli::{self, pj};
+use crate::args::{pj, DataOpts};
+use snerf_trainer::run_dir::RunDir;
 
 #[derive(Args, Debug)]
 pub struct DemoArgs {
@@ -79,7 +80,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let data_dir = a.out.join("data");
     let run_dir = a.out.join("run");
     eprintln!("[1/8] generating the '{}' scene", a.scene);
-    let scene = cli::scene(&cli::SceneArgs {
+    let scene = crate::scene_cmd::scene(&crate::scene_cmd::SceneArgs {
         name: a.scene.clone(),
         out: data_dir.clone(),
         views: Some(a.views),
@@ -99,21 +100,21 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         curve_pixels: 16384,
         checkpoint_every: 30.0,
     };
-    let trained = cli::train_run(&data, cfg, &opts, false, quiet)?;
+    let trained = crate::train_cmd::train_run(&data, cfg, &opts, false, quiet)?;
     eprintln!("[3/8] evaluating on {} held-out views", data.test.len());
-    let (model, pool) = cli::load_model(&run_dir)?;
+    let (model, pool) = RunDir::new(&run_dir).load_model()?;
     let has_alpha = train::views_have_alpha(&data.train);
-    let eval_dir = run_dir.join("eval");
+    let eval_dir = RunDir::new(&run_dir).eval_dir();
     std::fs::create_dir_all(&eval_dir)?;
     let report = eval::evaluate(&model, &pool, &data.test, has_alpha, Some(&eval_dir))?;
     eprintln!("      test PSNR {:.2} dB, SSIM {:.4}", report.mean_psnr, report.mean_ssim);
     // as `snerf eval` records it, so the report finds the SSIM
     checkpoint::write_json_atomic(
-        &eval_dir.join("eval.json"),
+        &RunDir::new(&run_dir).eval_record(),
         &json!({ "command": "eval", "run": pj(&run_dir), "split": "test", "report": report, "images": pj(&eval_dir) }),
     )?;
     eprintln!("[4/8] rendering a {}-frame turntable", a.frames);
-    let frames = cli::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;
+    let frames = crate::train_cmd::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;
 
     // SNeRF: stylize the field (the stylizer falls back to colour transfer when the
     // pretrained models are not installed, and says so)
@@ -156,7 +157,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             gatys_steps: 100,
             models: None,
         },
-        opts: cli::DataOpts::default(),
+        opts: DataOpts::default(),
     };
     let stylized = crate::stylize_cmd::stylize_cmd(&s_args(a.rounds, srun.clone()), quiet)?;
     eprintln!("[6/8] consistency: SNeRF against stylizing each novel view on its own");
@@ -167,15 +168,15 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             one_round: None,
             frames: CONSISTENCY_FRAMES,
             out: None,
-            opts: cli::DataOpts::default(),
+            opts: DataOpts::default(),
         },
         true,
     )?;
     if let Some(t) = consistency.get("table").and_then(|t| t.as_str()) {
         eprintln!("{t}");
     }
-    let (smodel, spool) = cli::load_model(&srun)?;
-    let sframes = cli::turntable(&smodel, &spool, &data, a.frames, &srun.join("turntable"))?;
+    let (smodel, spool) = RunDir::new(&srun).load_model()?;
+    let sframes = crate::train_cmd::turntable(&smodel, &spool, &data, a.frames, &srun.join("turntable"))?;
 
     eprintln!("[7/8] baking the stylized field and rendering the baked asset");
     let asset_path = a.out.join("stylized.snerf");
@@ -208,7 +209,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         check: None,
         data: None,
         validate: false,
-        opts: cli::DataOpts::default(),
+        opts: DataOpts::default(),
     })?;
     // error against run time: the training curve, the rounds, the bake, as pictures
     let bake_json = a.out.join("bake.json");

@@ -3,12 +3,13 @@
 mod args;
 mod bake_cmd;
 mod bench;
-mod bench_quality;
 mod cli;
 mod demo;
 mod report_cmd;
+mod scene_cmd;
 mod stream_cmd;
 mod stylize_cmd;
+mod train_cmd;
 mod view_cmd;
 
 use std::process::ExitCode;

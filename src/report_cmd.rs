@@ -1,6 +1,5 @@
 //! `snerf report` and `snerf compare`: error against run time, as pictures (the work is in
-//! the snerf-report crate); and the hooks through which `snerf train` and `snerf stylize`
-//! keep a running job's own report up to date in `RUN/report/`.
+//! the snerf-report crate, which also keeps a running job's own report: `snerf_report::live`).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -11,10 +10,7 @@ use serde_json::{json, Value};
 use snerf_files::guard::{check_output, Input};
 use snerf_report::{pages, Source};
 
-use crate::cli::pj;
-
-/// Where a run keeps its own report.
-pub const RUN_REPORT_DIR: &str = "report";
+use crate::args::pj;
 
 pub const REPORT_HELP: &str = "Reads the records of any runs given (kind told from the files present): training runs \
 (RUN/metrics.json, and RUN/eval/eval.json for SSIM), stylization runs (SRUN/stylize.json, and SRUN/consistency.json for \
@@ -59,7 +55,7 @@ pub struct CompareArgs {
 fn guard(out: &Path, sources: &[Source]) -> Result<()> {
     let mut inputs: Vec<PathBuf> = sources.iter().flat_map(|s| s.files.iter().cloned()).collect();
     for s in sources.iter().filter(|s| s.path.is_dir()) {
-        inputs.extend(crate::cli::run_files(&s.path));
+        inputs.extend(snerf_trainer::run_dir::RunDir::new(&s.path).files());
     }
     let inputs: Vec<Input> = inputs.iter().map(|f| Input::File(f)).collect();
     check_output("--out", out, &inputs)?;
@@ -112,61 +108,4 @@ pub fn compare_cmd(a: &CompareArgs, quiet: bool) -> Result<Value> {
     let mut v = report_cmd(&ReportArgs { paths: vec![a.a.clone(), a.b.clone()], out: a.out.clone(), compare: true, title: None }, quiet)?;
     v["command"] = json!("compare");
     Ok(v)
-}
-
-fn label_of(run: &Path) -> String {
-    let p = std::fs::canonicalize(run).unwrap_or_else(|_| run.to_path_buf());
-    p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into())
-}
-
-/// The live report of a running job, written into `RUN/report/`. A failure to draw is said
-/// once and never stops the job: the pictures are a view on the records, not the records.
-pub struct LiveReport {
-    pub seconds: f64,
-    pub writes: usize,
-    warned: bool,
-}
-
-impl Default for LiveReport {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl LiveReport {
-    pub fn new() -> LiveReport {
-        LiveReport { seconds: 0.0, writes: 0, warned: false }
-    }
-
-    fn write(&mut self, run: &Path, source: Source) {
-        let t0 = Instant::now();
-        let title = format!("{} — {}", source.label, if source.kind == snerf_report::SourceKind::Train { "training" } else { "stylization" });
-        let dir = run.join(RUN_REPORT_DIR);
-        let opts = pages::Options { title, compare: None, svg: true };
-        // a defect in drawing must not cost a training run
-        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| snerf_report::write_report(&[source], &dir, &opts)))
-            .unwrap_or_else(|_| Err(anyhow::anyhow!("drawing panicked")));
-        self.seconds += t0.elapsed().as_secs_f64();
-        self.writes += 1;
-        if let Err(e) = r {
-            if !self.warned {
-                eprintln!("warning: the run's report could not be written ({e:#}); training goes on");
-                self.warned = true;
-            }
-        }
-    }
-
-    /// A training run's curve as it stands (`metrics` as `run::metrics_json` gives it).
-    pub fn train(&mut self, run: &Path, metrics: Value) {
-        let eval_path = run.join("eval").join("eval.json");
-        let eval = std::fs::read(&eval_path).ok().and_then(|b| serde_json::from_slice(&b).ok());
-        self.write(run, Source::train(&label_of(run), run, metrics, eval));
-    }
-
-    /// A stylization run's rounds as they stand (`state` as `stylize.json` holds it).
-    pub fn stylize(&mut self, run: &Path, state: Value) {
-        let c = run.join(snerf_report::sources::CONSISTENCY);
-        let consistency = std::fs::read(&c).ok().and_then(|b| serde_json::from_slice(&b).ok());
-        self.write(run, Source::stylize(&label_of(run), run, state, consistency));
-    }
 }

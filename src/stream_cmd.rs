@@ -85,7 +85,7 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
         cache_bytes: a.cache_mb << 20,
         ..Limits::default()
     };
-    let path = crate::cli::pj(&a.path);
+    let path = crate::args::pj(&a.path);
     snerf_stream::serve_blocking_with(o, |h| {
         if json {
             let v = json!({
@@ -95,7 +95,7 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
                 "url": h.url(""),
                 "fingerprint": h.fingerprint(),
                 "token": if h.token_from_file() { Value::Null } else { Value::String(h.token().to_string()) },
-                "token_file": h.token_file().map(crate::cli::pj),
+                "token_file": h.token_file().map(crate::args::pj),
                 "created_identity": h.created_identity(),
             });
             println!("{v}");
@@ -114,53 +114,15 @@ pub struct FetchArgs {
     #[arg(long)]
     pub pin: String,
     #[command(flatten)]
-    pub token: TokenArgs,
+    pub token: crate::args::TokenArgs,
     /// The asset file to write; an interrupted fetch resumes from OUT.part.
     #[arg(long)]
     pub out: PathBuf,
-}
-
-/// How a client gets the server's access token. A token on the command line shows in `ps`
-/// and shell history, so a file or the environment is preferred.
-#[derive(Args, Debug, Clone, Default)]
-pub struct TokenArgs {
-    /// Access token (printed by `snerf serve`). Visible to other users in `ps`; prefer
-    /// --token-file or $SNERF_TOKEN.
-    #[arg(long)]
-    pub token: Option<String>,
-    /// File holding the access token (e.g. the server's state directory `token` file).
-    #[arg(long, conflicts_with = "token")]
-    pub token_file: Option<PathBuf>,
-}
-
-pub const TOKEN_ENV: &str = "SNERF_TOKEN";
-
-impl TokenArgs {
-    /// --token, else --token-file, else $SNERF_TOKEN.
-    pub fn resolve(&self) -> Result<String> {
-        let token = if let Some(t) = &self.token {
-            t.clone()
-        } else if let Some(f) = &self.token_file {
-            std::fs::read_to_string(f).with_context(|| format!("--token-file {}: cannot read", f.display()))?.trim().to_string()
-        } else if let Ok(t) = std::env::var(TOKEN_ENV) {
-            t.trim().to_string()
-        } else {
-            anyhow::bail!("no access token: pass --token-file FILE, set ${TOKEN_ENV}, or --token T (all printed by `snerf serve`)");
-        };
-        anyhow::ensure!(!token.is_empty(), "the access token is empty");
-        Ok(token)
-    }
 }
 
 pub fn fetch_cmd(a: &FetchArgs) -> Result<Value> {
     let token = a.token.resolve()?;
     let stats = snerf_stream::fetch_blocking(&a.url, &a.pin, &token, &a.out).with_context(|| format!("fetching {}", a.url))?;
     eprintln!("fetched {} -> {} ({:?})", a.url, a.out.display(), stats);
-    Ok(json!({ "command": "fetch", "url": a.url, "out": crate::cli::pj(&a.out), "stats": format!("{stats:?}") }))
-}
-
-pub fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {
-    let r = snerf_stream::bench::run(asset, &snerf_stream::bench::BenchOptions { rounds: rounds.max(1), ..Default::default() })?;
-    eprintln!("{r}");
-    Ok(json!({ "command": "bench stream", "asset": crate::cli::pj(asset), "report": r.to_string() }))
+    Ok(json!({ "command": "fetch", "url": a.url, "out": crate::args::pj(&a.out), "stats": format!("{stats:?}") }))
 }

@@ -11,10 +11,10 @@ use serde_json::{json, Value};
 use snerf_stylize::consistency::{self, MethodScores, PathGeometry};
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
 use snerf_stylize::stylizer::{self, Image, StyleEmbedder, Stylizer, StylizerOptions};
-use snerf_trainer::{checkpoint, run};
+use snerf_trainer::checkpoint;
 
-use crate::bake_cmd::run_dataset;
-use crate::cli::{bar, load_model, DataOpts};
+use crate::args::{bar, DataOpts};
+use snerf_trainer::run_dir::RunDir;
 use snerf_files::guard::{check_output, Input};
 
 const STYLIZER_HELP: &str = "Stylizer: arbitrary (default; Magenta arbitrary stylization, any picture is a style), \
@@ -106,7 +106,7 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
     let secs = t1.elapsed().as_secs_f64();
     checkpoint::write_png_atomic(&a.out, &to_rgb8(&out))?;
     eprintln!("{} -> {} with {} ({:.2} s; model load {:.2} s)", a.content.display(), a.out.display(), s.name(), secs, load);
-    Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::cli::pj(&a.out), "seconds": secs, "load_seconds": load }))
+    Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::args::pj(&a.out), "seconds": secs, "load_seconds": load }))
 }
 
 /// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
@@ -164,7 +164,7 @@ struct Bars {
     pb: ProgressBar,
     quiet: bool,
     out: PathBuf,
-    live: crate::report_cmd::LiveReport,
+    live: snerf_report::live::LiveReport,
 }
 
 impl Progress for Bars {
@@ -215,7 +215,7 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     let data_path = match &a.data {
         Some(d) => d.clone(),
-        None => run_dataset(&a.run)?,
+        None => RunDir::new(&a.run).dataset()?,
     };
     let data = a.opts.load(&data_path)?;
     // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.
@@ -231,7 +231,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         inputs.push(Input::File(s));
     }
     check_output("--out", &a.out, &inputs)?;
-    let ck_path = run::checkpoint_path(&a.run);
+    let ck_path = RunDir::new(&a.run).checkpoint();
     if !ck_path.exists() {
         bail!("{}: no checkpoint here; run `snerf train` first", a.run.display());
     }
@@ -262,7 +262,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         pb: bar(1, "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}"),
         quiet,
         out: a.out.clone(),
-        live: crate::report_cmd::LiveReport::new(),
+        live: snerf_report::live::LiveReport::new(),
     };
     let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), embedder.as_ref(), &style_img, &a.out, &mut bars)?;
     bars.pb.finish_and_clear();
@@ -272,10 +272,10 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     }
     Ok(json!({
         "command": "stylize",
-        "out": crate::cli::pj(&a.out),
+        "out": crate::args::pj(&a.out),
         "state": state,
         "wall_seconds": wall.elapsed().as_secs_f64(),
-        "report": { "dir": crate::cli::pj(a.out.join(crate::report_cmd::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
+        "report": { "dir": crate::args::pj(a.out.join(snerf_report::live::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
     }))
 }
 
@@ -329,8 +329,8 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     .with_context(|| format!("{}: unreadable", st_path.display()))?;
     let o = &state.options;
     let data = a.opts.load(a.data.as_ref().unwrap_or(&o.data))?;
-    let (realistic, pool) = load_model(&o.source_run)?;
-    let (stylized, spool) = load_model(&a.srun)?;
+    let (realistic, pool) = RunDir::new(&o.source_run).load_model()?;
+    let (stylized, spool) = RunDir::new(&a.srun).load_model()?;
     let sargs = StylizerArgs {
         stylizer: o.stylizer.clone(),
         strength: o.strength,
@@ -371,7 +371,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     ];
     let mut one_round_frames = None;
     if let Some(r1) = &a.one_round {
-        let (m1, p1) = load_model(r1)?;
+        let (m1, p1) = RunDir::new(r1).load_model()?;
         let frames = path.render(&m1, &p1);
         methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, style_ref, &style_samples)?);
         one_round_frames = Some(frames);
@@ -430,7 +430,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
     let v = json!({
         "command": "consistency",
-        "srun": crate::cli::pj(&a.srun),
+        "srun": crate::args::pj(&a.srun),
         "frames": a.frames,
         "coverage": path.coverage(),
         "methods": methods,
@@ -444,7 +444,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     if out == a.srun {
         // the run's report gains the per-frame baseline and the realistic floor
         let st: Value = serde_json::to_value(&state)?;
-        crate::report_cmd::LiveReport::new().stylize(&a.srun, st);
+        snerf_report::live::LiveReport::new().stylize(&a.srun, st);
     }
     if !quiet {
         eprintln!("{md}");

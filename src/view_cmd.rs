@@ -1,13 +1,11 @@
-//! `snerf view FILE | quic://HOST:PORT/ASSET` (the wgpu window), `snerf bench view`, and the
-//! GPU side of `snerf render --gpu`.
+//! `snerf view FILE | quic://HOST:PORT/ASSET` (the wgpu window).
 
 use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use clap::Args;
 use serde_json::{json, Value};
-use snerf_asset::Asset;
-use snerf_viewer::{AssetSource, AssetUpdate, FileSource, ViewOptions};
+use snerf_viewer::{AssetSource, FileSource, StreamSource, ViewOptions};
 
 #[derive(Args, Debug)]
 #[command(after_help = snerf_viewer::keys_help())]
@@ -18,7 +16,7 @@ pub struct ViewArgs {
     #[arg(long)]
     pub pin: Option<String>,
     #[command(flatten)]
-    pub token: crate::stream_cmd::TokenArgs,
+    pub token: crate::args::TokenArgs,
     /// Window size WxH.
     #[arg(long, default_value = "1280x720")]
     pub size: String,
@@ -49,63 +47,8 @@ pub struct ViewArgs {
     pub loop_seconds: f32,
 }
 
-/// A streamed asset as a window source: the whole (partial) asset once it can be drawn,
-/// then the blocks and grids as they arrive.
-struct LiveSource {
-    live: snerf_stream::LiveAsset,
-    sent: bool,
-    grids: Vec<Vec<u32>>,
-    generation: u64,
-}
-
-impl AssetSource for LiveSource {
-    fn poll(&mut self) -> Option<AssetUpdate> {
-        let g = self.live.generation();
-        if self.sent && g == self.generation {
-            return None;
-        }
-        if !self.sent {
-            let whole = self.live.with_asset(|a| a.clone())?;
-            self.live.take_new_blocks();
-            self.grids = whole.grids.clone();
-            self.sent = true;
-            self.generation = g;
-            return Some(AssetUpdate::Whole(Box::new(whole)));
-        }
-        // a changed keyframe grid first, then the new blocks
-        let changed = self.live.with_asset(|a| {
-            a.grids.iter().enumerate().find(|(f, grid)| self.grids.get(*f) != Some(*grid)).map(|(f, grid)| (f, grid.clone()))
-        })?;
-        if let Some((f, entries)) = changed {
-            if self.grids.len() <= f {
-                self.grids.resize(f + 1, Vec::new());
-            }
-            self.grids[f] = entries.clone();
-            return Some(AssetUpdate::Grid { frame: f as u32, entries });
-        }
-        self.generation = g;
-        let new = self.live.take_new_blocks();
-        if new.is_empty() {
-            return None;
-        }
-        let blocks = self.live.with_asset(|a| new.iter().filter_map(|&i| a.block(i).map(|b| (i, b.to_vec()))).collect())?;
-        Some(AssetUpdate::Blocks(blocks))
-    }
-
-    fn set_pose(&mut self, eye: [f32; 3], forward: [f32; 3]) {
-        self.live.set_pose(eye, forward);
-    }
-
-    fn status(&self) -> Option<String> {
-        if let Some(e) = self.live.error() {
-            return Some(format!("stream error: {e}"));
-        }
-        (!self.live.is_complete()).then(|| format!("streaming: {:.1} MB", self.live.bytes_received() as f64 / 1e6))
-    }
-}
-
 pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
-    let (w, h) = crate::cli::parse_size(&a.size)?;
+    let (w, h) = crate::args::parse_size(&a.size)?;
     if let Some(shot) = &a.screenshot {
         if !a.asset.starts_with("quic://") {
             snerf_files::check_output("--screenshot", shot, &[snerf_files::Input::File(std::path::Path::new(&a.asset))])?;
@@ -116,8 +59,7 @@ pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
             bail!("{}: a quic:// asset needs --pin FINGERPRINT and an access token (both printed by `snerf serve`)", a.asset);
         };
         let token = a.token.resolve()?;
-        let live = snerf_stream::LiveAsset::connect(&a.asset, pin, &token)?;
-        Box::new(LiveSource { live, sent: false, grids: Vec::new(), generation: 0 })
+        Box::new(StreamSource::connect(&a.asset, pin, &token)?)
     } else {
         Box::new(FileSource::open(&a.asset)?)
     };
@@ -137,28 +79,4 @@ pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
     };
     snerf_viewer::run_window(source, opts)?;
     Ok(json!({ "command": "view", "asset": a.asset }))
-}
-
-#[derive(Args, Debug)]
-pub struct BenchViewArgs {
-    /// A baked asset file.
-    pub asset: PathBuf,
-    /// Frame size WxH.
-    #[arg(long, default_value = "1280x720")]
-    pub size: String,
-    /// Frames timed on the GPU (median reported).
-    #[arg(long, default_value_t = 10, value_parser = crate::args::int_in::<usize>(1, 10000, ""))]
-    pub frames: usize,
-    /// Also time stereo 2x(1920x1080), the VR case.
-    #[arg(long)]
-    pub stereo: bool,
-}
-
-pub fn bench_view(a: &BenchViewArgs) -> Result<Value> {
-    let asset = Asset::read(&a.asset)?;
-    let (w, h) = crate::cli::parse_size(&a.size)?;
-    let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
-    let r = snerf_viewer::bench_view_with(&asset, &opts)?;
-    eprintln!("{r}");
-    Ok(json!({ "command": "bench view", "asset": crate::cli::pj(&a.asset), "report": r }))
 }

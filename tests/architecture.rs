@@ -1,5 +1,5 @@
 //! ARCHITECTURE.md stays true: its crate table names exactly the workspace's crates, each
-//! with its path.
+//! with its path and the snerf crates it depends on.
 
 use std::path::Path;
 
@@ -15,6 +15,23 @@ fn package_name(dir: &Path) -> String {
     let pkg = &toml[toml.find("[package]").expect("a [package] section")..];
     let line = pkg.lines().find(|l| l.trim_start().starts_with("name")).unwrap();
     line.split('=').nth(1).unwrap().trim().trim_matches('"').to_string()
+}
+
+/// The snerf-* crates in a manifest's `[dependencies]` (not dev- or build-dependencies),
+/// without the `snerf-` prefix, sorted.
+fn snerf_dependencies(dir: &Path) -> Vec<String> {
+    let toml = std::fs::read_to_string(dir.join("Cargo.toml")).unwrap();
+    let mut deps: Vec<String> = toml
+        .lines()
+        .skip_while(|l| l.trim() != "[dependencies]")
+        .skip(1)
+        .take_while(|l| !l.trim_start().starts_with('['))
+        .filter_map(|l| l.trim().strip_prefix("snerf-"))
+        .filter_map(|l| l.split([' ', '=']).next())
+        .map(str::to_string)
+        .collect();
+    deps.sort();
+    deps
 }
 
 #[test]
@@ -42,4 +59,23 @@ fn architecture_names_every_crate_and_no_other() {
     for (name, _) in &table {
         assert!(crates.iter().any(|(n, _)| n == name), "ARCHITECTURE.md names {name}, which is not a workspace crate");
     }
+}
+
+#[test]
+fn architecture_says_what_each_crate_depends_on() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let doc = std::fs::read_to_string(root.join("ARCHITECTURE.md")).expect("ARCHITECTURE.md at the root");
+    let mut checked = 0;
+    for l in doc.lines().filter(|l| l.starts_with("| snerf")) {
+        let cols: Vec<&str> = l.split('|').map(str::trim).collect();
+        let (name, path, deps) = (cols[1], cols[2].split(' ').next().unwrap(), cols[4]);
+        if deps == "all of the above" {
+            continue;
+        }
+        let mut said: Vec<String> = deps.split(',').map(str::trim).filter(|d| !d.is_empty() && *d != "—").map(str::to_string).collect();
+        said.sort();
+        assert_eq!(said, snerf_dependencies(&root.join(path)), "ARCHITECTURE.md: what {name} depends on");
+        checked += 1;
+    }
+    assert!(checked >= 10, "only {checked} rows with dependencies found");
 }

@@ -8,7 +8,8 @@
 //! the exact numbers behind them ([`plots`]), draws the plots as PNG and SVG with a font
 //! compiled into the binary so a headless machine needs nothing installed ([`draw`]), and
 //! writes `report.md`, a self-contained `report.html` and `report.json` ([`pages`]).
-//! [`compare`] sets two runs of the same data side by side at equal times.
+//! [`compare`] sets two runs of the same data side by side at equal times; [`live`] keeps a
+//! running job's own report up to date.
 //!
 //! It depends on no trainer crate: the records are read as JSON, so the training library
 //! stays free of drawing code and a report can be drawn from records alone.
@@ -17,6 +18,7 @@ pub mod base64;
 pub mod compare;
 pub mod draw;
 pub mod font;
+pub mod live;
 pub mod model;
 pub mod pages;
 pub mod plots;

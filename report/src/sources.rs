@@ -41,6 +41,8 @@ pub struct Source {
 }
 
 pub const METRICS: &str = "metrics.json";
+/// `snerf eval`'s record of a run, in its default place.
+pub const EVAL: &str = "eval/eval.json";
 pub const STYLIZE: &str = "stylize.json";
 pub const CONSISTENCY: &str = "consistency.json";
 pub const SWEEP: &str = "sweep.json";
@@ -127,7 +129,7 @@ fn load_dir(dir: &Path) -> Result<Option<Source>> {
     let metrics = dir.join(METRICS);
     if metrics.is_file() {
         let m = read_json(&metrics)?;
-        let eval_path = dir.join("eval").join("eval.json");
+        let eval_path = dir.join(EVAL);
         let eval = eval_path.is_file().then(|| read_json(&eval_path)).transpose()?;
         let mut s = Source::train(&label, dir, m, eval);
         s.files.push(metrics);

@@ -56,6 +56,26 @@ impl FieldConfig {
     pub fn input_dim(&self) -> usize {
         self.levels() * C
     }
+    /// Floating-point operations per sample of this field as (forward, backward), counting a
+    /// fused multiply-add as 2: what `snerf bench train` divides by to report how close the
+    /// field's code runs to the machine's peak. It follows the code, so it changes with it:
+    /// - encode: per level and plane, a bilinear lookup (4 corners x C FMAs) and the C
+    ///   multiplies of the Hadamard product over planes;
+    /// - decode: the two dense layers (input x hidden and hidden x OUT FMAs);
+    /// - backward: the decoder's weight and input gradients (twice its forward), the
+    ///   encoder's scatter (as its forward) and, per plane, the product rule's 3 operations a
+    ///   channel.
+    pub fn flops_per_sample(&self) -> (f64, f64) {
+        let planes = self.planes() as f64;
+        let levels = self.levels() as f64;
+        let (inp, h, out) = (self.input_dim() as f64, self.hidden as f64, OUT as f64);
+        let c = C as f64;
+        let enc = levels * planes * (4.0 * c * 2.0 + c);
+        let dec = 2.0 * (inp * h + h * out);
+        let fwd = enc + dec;
+        let bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
+        (fwd, bwd)
+    }
     pub fn validate(&self) -> anyhow::Result<()> {
         anyhow::ensure!(!self.resolutions.is_empty(), "field needs at least one level");
         anyhow::ensure!(
@@ -543,4 +563,20 @@ pub fn activate_backward(o: &[f32], sigma: f32, v: &[f32], d_sigma: f32, d_v: &[
 #[inline]
 pub fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn flops_per_sample_match_a_hand_count() {
+        // Static, 2 levels, hidden 16: 6 plane lookups of 4 corners x 8 channels (FMA = 2)
+        // plus 8 products each = 6 x 72 = 432; decoder (16 x 16 + 16 x 8) FMAs = 768.
+        let cfg = FieldConfig { resolutions: vec![16, 32], time_resolutions: vec![], hidden: 16 };
+        assert_eq!(cfg.flops_per_sample(), (432.0 + 768.0, 2.0 * 768.0 + 432.0 + 6.0 * 8.0 * 3.0));
+        // Dynamic, 1 level, hidden 8: 6 planes x 72 = 432; decoder (8 x 8 + 8 x 8) FMAs = 256.
+        let cfg = FieldConfig { resolutions: vec![8], time_resolutions: vec![4], hidden: 8 };
+        assert_eq!(cfg.flops_per_sample(), (432.0 + 256.0, 2.0 * 256.0 + 432.0 + 6.0 * 8.0 * 3.0));
+    }
 }

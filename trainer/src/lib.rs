@@ -5,7 +5,8 @@
 //! across views and runs the fused `render` pipeline (occupancy-skipping march, K-Planes
 //! `field` encode + decoder, stable `composite`, per-ray `view_mlp`) forward and backward on
 //! rayon workers -> `adam` updates the one flat parameter vector -> `checkpoint` writes it
-//! atomically. `eval` renders held-out views and scores them with `metrics`.
+//! atomically. `eval` renders held-out views and scores them with `metrics`. `run` trains into a
+//! run directory whose layout (and reading back: dataset, model) `run_dir` owns.
 
 // Index loops over parallel fixed-size arrays (channels, axes, samples) read as the
 // formulas they implement; iterator zips of three or four arrays would not.
@@ -23,6 +24,7 @@ pub mod metrics;
 pub mod occupancy;
 pub mod render;
 pub mod run;
+pub mod run_dir;
 pub mod space;
 pub mod train;
 pub mod view_mlp;

@@ -11,6 +11,7 @@ use snerf_data::Dataset;
 
 use crate::checkpoint;
 use crate::eval::sampled_psnr;
+use crate::run_dir::RunDir;
 use crate::train::{CurvePoint, StepStats, TrainConfig, Trainer};
 
 /// When to measure test PSNR (training seconds); after the last, every 60 s.
@@ -28,14 +29,10 @@ pub struct RunOptions {
     pub checkpoint_every: f64,
 }
 
-pub fn checkpoint_path(dir: &Path) -> PathBuf {
-    dir.join(checkpoint::FILE_NAME)
-}
-
 /// Start a new run or resume the one in `dir`. Hold `DirLock::acquire(dir)` around the
 /// whole run so no other process trains into the same directory.
 pub fn open(data: &Dataset, cfg: TrainConfig, dir: &Path, resume: bool) -> Result<Trainer> {
-    let ck = checkpoint_path(dir);
+    let ck = RunDir::new(dir).checkpoint();
     if resume && !ck.exists() {
         anyhow::bail!(
             "{}: nothing to resume (no {}); drop --resume to start a new run there",
@@ -165,10 +162,11 @@ fn next_eval_after(s: f64) -> f64 {
 
 /// Checkpoint + metrics.json + config.json, each written atomically.
 pub fn save(t: &Trainer, data: &Dataset, opts: &RunOptions) -> Result<()> {
-    checkpoint::save(t, &checkpoint_path(&opts.dir))?;
-    checkpoint::write_json_atomic(&opts.dir.join("metrics.json"), &metrics_json(t))?;
+    let dir = RunDir::new(&opts.dir);
+    checkpoint::save(t, &dir.checkpoint())?;
+    checkpoint::write_json_atomic(&dir.metrics(), &metrics_json(t))?;
     checkpoint::write_json_atomic(
-        &opts.dir.join("config.json"),
+        &dir.config(),
         &json!({
             "train": t.cfg,
             "space": t.model.space,

@@ -1,9 +1,11 @@
 //! snerf-viewer: renders baked assets in real time (wgpu/winit) and streams them over QUIC.
 //!
-//! Uses only `snerf-asset`, never the trainer, so a headset client stays small.
+//! Uses only `snerf-asset`, `snerf-geometry` and `snerf-stream`, never the trainer, so a
+//! headset client stays small.
 //!
-//! Data flow: an `AssetSource` (a file, or a streaming client) yields an `Asset` and later
-//! block updates -> `GpuRenderer` uploads the atlas into a 3D texture of (block+2)^3-voxel
+//! Data flow: an `AssetSource` (a `FileSource`, or a `StreamSource` over a `snerf-stream`
+//! live client) yields an `Asset` and later block updates (`AssetUpdate::apply` is what
+//! they do to the CPU copy) -> `GpuRenderer` uploads the atlas into a 3D texture of (block+2)^3-voxel
 //! blocks (one rg32uint texel per voxel), the indirection grids into a storage buffer and
 //! the view MLP into a uniform buffer ->
 //! per frame, `shaders/march.wgsl` (built for the scene's kind and static/dynamic only)
@@ -16,6 +18,7 @@ pub mod bench;
 pub mod camera;
 pub mod gpu;
 pub mod headless;
+pub mod stream_source;
 pub mod window;
 
 pub use bench::{bench_view, bench_view_with, BenchOptions, BenchView, StereoBench};
@@ -28,4 +31,5 @@ pub use gpu::{
 };
 pub use headless::{render_frames, render_frames_or_cpu, render_frames_with, RenderedBy};
 pub use wgpu;
-pub use window::{keys_help, run_window, AssetSource, AssetUpdate, FileSource, ViewOptions};
+pub use stream_source::StreamSource;
+pub use window::{keys_help, run_window, Applied, AssetSource, AssetUpdate, FileSource, ViewOptions};

@@ -38,6 +38,81 @@ pub enum AssetUpdate {
     Mlp(ViewMlp),
 }
 
+/// What applying an update changed, so a GPU copy of the asset can follow.
+#[derive(Debug, PartialEq)]
+pub enum Applied {
+    /// The asset was replaced.
+    Whole,
+    /// These atlas blocks were written.
+    Blocks(Vec<u32>),
+    /// A keyframe grid was written.
+    Grid,
+    /// The view MLP was replaced.
+    Mlp,
+    /// Nothing: a part with no asset to go into, or one that does not fit the asset.
+    Nothing,
+}
+
+impl AssetUpdate {
+    /// Apply the update to the asset a viewer holds (`None` before the first `Whole`): the
+    /// one place that decides what a streamed part does to the CPU copy, shared by the
+    /// window and any headless client.
+    pub fn apply(self, held: &mut Option<Asset>) -> Applied {
+        match (self, held.as_mut()) {
+            (AssetUpdate::Whole(a), _) => {
+                *held = Some(*a);
+                Applied::Whole
+            }
+            (part, Some(asset)) => part.apply_part(asset),
+            (_, None) => Applied::Nothing,
+        }
+    }
+
+    /// Apply a part (blocks, a grid, the MLP) to `asset`. A part that does not fit it (a
+    /// block of the wrong size or index, a grid of the wrong size or pointing past the
+    /// atlas) is left out and said on stderr: a misbehaving server must not crash the viewer.
+    pub fn apply_part(self, asset: &mut Asset) -> Applied {
+        match self {
+            AssetUpdate::Whole(a) => {
+                *asset = *a;
+                Applied::Whole
+            }
+            AssetUpdate::Blocks(blocks) => {
+                let bb = asset.block_bytes();
+                let mut idx = Vec::with_capacity(blocks.len());
+                for (i, bytes) in blocks {
+                    let i_us = i as usize;
+                    if bytes.len() != bb || i_us >= asset.present.len() {
+                        eprintln!("snerf view: ignoring block {} ({} bytes)", i, bytes.len());
+                        continue;
+                    }
+                    asset.atlas[i_us * bb..(i_us + 1) * bb].copy_from_slice(&bytes);
+                    asset.present[i_us] = true;
+                    idx.push(i);
+                }
+                Applied::Blocks(idx)
+            }
+            AssetUpdate::Grid { frame, entries } => {
+                let g3 = asset.grid_dim().pow(3);
+                let n = asset.header.atlas_blocks;
+                if entries.len() != g3
+                    || frame as usize >= asset.grids.len()
+                    || entries.iter().any(|&e| e != snerf_asset::EMPTY && e >= n)
+                {
+                    eprintln!("snerf view: ignoring a bad grid for frame {}", frame);
+                    return Applied::Nothing;
+                }
+                asset.grids[frame as usize] = entries;
+                Applied::Grid
+            }
+            AssetUpdate::Mlp(m) => {
+                asset.mlp = m;
+                Applied::Mlp
+            }
+        }
+    }
+}
+
 /// Where the window's asset comes from: a file (everything at once) or a stream.
 pub trait AssetSource {
     /// Called every frame until it returns None; must not block.
@@ -469,46 +544,16 @@ impl App {
                         controller,
                     });
                 }
-                AssetUpdate::Blocks(blocks) => {
+                part => {
                     let Some(s) = self.scene.as_mut() else {
                         continue;
                     };
-                    let bb = s.asset.block_bytes();
-                    let mut idx = Vec::with_capacity(blocks.len());
-                    for (i, bytes) in blocks {
-                        let i_us = i as usize;
-                        if bytes.len() != bb || i_us >= s.asset.present.len() {
-                            eprintln!("snerf view: ignoring block {} ({} bytes)", i, bytes.len());
-                            continue;
-                        }
-                        s.asset.atlas[i_us * bb..(i_us + 1) * bb].copy_from_slice(&bytes);
-                        s.asset.present[i_us] = true;
-                        idx.push(i);
+                    match part.apply_part(&mut s.asset) {
+                        Applied::Blocks(idx) => s.renderer.update_blocks(&s.asset, &idx)?,
+                        Applied::Grid => s.renderer.update_grids(&s.asset)?,
+                        Applied::Mlp => s.renderer.update_mlp(&s.asset.mlp)?,
+                        Applied::Whole | Applied::Nothing => {}
                     }
-                    s.renderer.update_blocks(&s.asset, &idx)?;
-                }
-                AssetUpdate::Grid { frame, entries } => {
-                    let Some(s) = self.scene.as_mut() else {
-                        continue;
-                    };
-                    let g3 = s.asset.grid_dim().pow(3);
-                    let n = s.asset.header.atlas_blocks;
-                    if entries.len() != g3
-                        || frame as usize >= s.asset.grids.len()
-                        || entries.iter().any(|&e| e != snerf_asset::EMPTY && e >= n)
-                    {
-                        eprintln!("snerf view: ignoring a bad grid for frame {}", frame);
-                        continue;
-                    }
-                    s.asset.grids[frame as usize] = entries;
-                    s.renderer.update_grids(&s.asset)?;
-                }
-                AssetUpdate::Mlp(m) => {
-                    let Some(s) = self.scene.as_mut() else {
-                        continue;
-                    };
-                    s.renderer.update_mlp(&m)?;
-                    s.asset.mlp = m;
                 }
             }
         }

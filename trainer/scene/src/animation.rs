@@ -1,7 +1,8 @@
 //! glTF animation evaluation: keyframe sampling (LINEAR / STEP / CUBICSPLINE), node
 //! hierarchies, skinning and morph targets, producing world-space geometry at a time t.
 
-use crate::math::{lerp, normalize_quat, slerp, Mat4, V3};
+use crate::math::{normal_matrix, normalize_quat, slerp};
+use glam::{FloatExt, Mat4, Vec3};
 use crate::mesh::Geometry;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -69,9 +70,9 @@ impl Channel {
             Interp::Step => a.to_vec(),
             Interp::Linear => {
                 if self.path == Path::Rotation && self.stride == 4 {
-                    slerp([a[0], a[1], a[2], a[3]], [b[0], b[1], b[2], b[3]], u).to_vec()
+                    slerp([a[0], a[1], a[2], a[3]], [b[0], b[1], b[2], b[3]], u).to_array().to_vec()
                 } else {
-                    a.iter().zip(b).map(|(x, y)| lerp(*x, *y, u)).collect()
+                    a.iter().zip(b).map(|(x, y)| x.lerp(*y, u)).collect()
                 }
             }
             Interp::CubicSpline => {
@@ -87,7 +88,7 @@ impl Channel {
                     .map(|i| h00 * a[i] + h10 * dt * out_a[i] + h01 * b[i] + h11 * dt * in_b[i])
                     .collect();
                 if self.path == Path::Rotation && s == 4 {
-                    normalize_quat([v[0], v[1], v[2], v[3]]).to_vec()
+                    normalize_quat([v[0], v[1], v[2], v[3]]).to_array().to_vec()
                 } else {
                     v
                 }
@@ -108,15 +109,15 @@ pub struct NodeRest {
 
 /// Mesh data of one glTF primitive, in the mesh's local space.
 pub struct PrimData {
-    pub positions: Vec<V3>,
-    pub normals: Option<Vec<V3>>,
+    pub positions: Vec<Vec3>,
+    pub normals: Option<Vec<Vec3>>,
     pub uvs: Vec<[f32; 2]>,
     pub colors: Option<Vec<[f32; 4]>>,
     pub tris: Vec<[u32; 3]>,
     pub joints: Option<Vec<[u16; 4]>>,
     pub weights: Option<Vec<[f32; 4]>>,
     /// Morph targets: position deltas and optional normal deltas.
-    pub targets: Vec<(Vec<V3>, Option<Vec<V3>>)>,
+    pub targets: Vec<(Vec<Vec3>, Option<Vec<Vec3>>)>,
     pub material: u32,
 }
 
@@ -165,7 +166,7 @@ impl Rig {
             let e = &mut trs[ch.node];
             match ch.path {
                 Path::Translation if v.len() >= 3 => e.0 = [v[0], v[1], v[2]],
-                Path::Rotation if v.len() >= 4 => e.1 = normalize_quat([v[0], v[1], v[2], v[3]]),
+                Path::Rotation if v.len() >= 4 => e.1 = [v[0], v[1], v[2], v[3]],
                 Path::Scale if v.len() >= 3 => e.2 = [v[0], v[1], v[2]],
                 Path::Weights => weights[ch.node] = Some(v),
                 _ => {}
@@ -175,7 +176,11 @@ impl Rig {
         for &n in &self.order {
             let local = match self.rest[n].matrix {
                 Some(m) => m,
-                None => Mat4::trs(trs[n].0, trs[n].1, trs[n].2),
+                None => Mat4::from_scale_rotation_translation(
+                    trs[n].2.into(),
+                    normalize_quat(trs[n].1),
+                    trs[n].0.into(),
+                ),
             };
             world[n] = match self.parent[n] {
                 Some(p) => world[p] * local,
@@ -196,18 +201,18 @@ impl Rig {
                 .unwrap_or(&inst.mesh_weights);
             // Morph.
             let mut pos = p.positions.clone();
-            let mut nrm: Option<Vec<V3>> = p.normals.clone();
+            let mut nrm: Option<Vec<Vec3>> = p.normals.clone();
             for (k, (dp, dn)) in p.targets.iter().enumerate() {
                 let wk = w.get(k).copied().unwrap_or(0.0);
                 if wk == 0.0 {
                     continue;
                 }
                 for (a, d) in pos.iter_mut().zip(dp) {
-                    *a = *a + *d * wk;
+                    *a += *d * wk;
                 }
                 if let (Some(n), Some(dn)) = (nrm.as_mut(), dn) {
                     for (a, d) in n.iter_mut().zip(dn) {
-                        *a = *a + *d * wk;
+                        *a += *d * wk;
                     }
                 }
             }
@@ -227,41 +232,36 @@ impl Rig {
                     for (vi, v) in pos.iter().enumerate() {
                         let (j, wt) = (js[vi], ws[vi]);
                         let sum: f32 = wt.iter().sum();
-                        let mut m = [[0.0f32; 4]; 4];
+                        let mut m = Mat4::ZERO;
                         if sum > 0.0 {
                             for k in 0..4 {
                                 let Some(jmk) = jm.get(j[k] as usize) else {
                                     continue;
                                 };
-                                let f = wt[k] / sum;
-                                for (r, row) in m.iter_mut().enumerate() {
-                                    for (c, x) in row.iter_mut().enumerate() {
-                                        *x += f * jmk.m[r][c];
-                                    }
-                                }
+                                m += *jmk * (wt[k] / sum);
                             }
                         }
                         let m = if sum > 0.0 {
-                            Mat4 { m }
+                            m
                         } else {
                             world[inst.node]
                         };
                         let n = nrm
                             .as_ref()
-                            .map(|n| m.normal_matrix().dir(n[vi]).norm())
+                            .map(|n| (normal_matrix(&m) * n[vi]).normalize_or(Vec3::Y))
                             .unwrap_or_default();
-                        g.vertex(m.point(*v), n, p.uvs[vi]);
+                        g.vertex(m.transform_point3(*v), n, p.uvs[vi]);
                     }
                 }
                 _ => {
                     let m = world[inst.node];
-                    let nm = m.normal_matrix();
+                    let nm = normal_matrix(&m);
                     for (vi, v) in pos.iter().enumerate() {
                         let n = nrm
                             .as_ref()
-                            .map(|n| nm.dir(n[vi]).norm())
+                            .map(|n| (nm * n[vi]).normalize_or(Vec3::Y))
                             .unwrap_or_default();
-                        g.vertex(m.point(*v), n, p.uvs[vi]);
+                        g.vertex(m.transform_point3(*v), n, p.uvs[vi]);
                     }
                 }
             }
@@ -275,16 +275,16 @@ impl Rig {
             }
             if p.normals.is_none() {
                 // Flat-ish normals from the posed triangles of this primitive.
-                let mut acc = vec![V3::default(); pos.len()];
+                let mut acc = vec![Vec3::default(); pos.len()];
                 for t in &g.tris[start_tri..] {
                     let [a, b, c] = t.map(|i| g.positions[i as usize]);
                     let f = (b - a).cross(c - a);
                     for &i in t {
-                        acc[(i - base) as usize] = acc[(i - base) as usize] + f;
+                        acc[(i - base) as usize] += f;
                     }
                 }
                 for (i, n) in acc.into_iter().enumerate() {
-                    g.normals[base as usize + i] = n.norm();
+                    g.normals[base as usize + i] = n.normalize_or(Vec3::Y);
                 }
             }
         }

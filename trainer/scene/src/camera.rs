@@ -1,13 +1,15 @@
 //! Camera paths for each scene kind: which poses (and, for dynamic scenes, which times) the
 //! train and test views use.
 
-use crate::math::{look_at, v3, Mat4, Rng, V3};
+use crate::math::Rng;
+use glam::{vec3, Vec3};
+use snerf_geometry::camera::{look_at, C2w};
 use crate::{CameraPath, SceneKind};
 use std::f32::consts::{PI, TAU};
 
 #[derive(Clone, Debug)]
 pub struct View {
-    pub c2w: Mat4,
+    pub c2w: C2w,
     pub time: Option<f32>,
 }
 
@@ -18,22 +20,27 @@ pub enum Layout {
     /// for faces.
     Around {
         radius: f32,
-        target: V3,
+        target: Vec3,
         front_only: bool,
     },
     /// Forward-facing grid looking down -z.
-    Forward { centre: V3, target: V3, spread: V3 },
+    Forward { centre: Vec3, target: Vec3, spread: Vec3 },
     /// On a circle around the centre, slightly above the ground.
     Ring {
         radius: f32,
         height: f32,
-        target: V3,
+        target: Vec3,
     },
 }
 
-fn on_sphere(target: V3, radius: f32, azim: f32, elev: f32) -> Mat4 {
-    let d = v3(elev.cos() * azim.sin(), elev.sin(), elev.cos() * azim.cos());
-    look_at(target + d * radius, target, v3(0.0, 1.0, 0.0))
+/// A camera at `eye` looking at `target`, upright in the scene's +y.
+fn look(eye: Vec3, target: Vec3) -> C2w {
+    look_at(eye.into(), target.into(), [0.0, 1.0, 0.0])
+}
+
+fn on_sphere(target: Vec3, radius: f32, azim: f32, elev: f32) -> C2w {
+    let d = vec3(elev.cos() * azim.sin(), elev.sin(), elev.cos() * azim.cos());
+    look(target + d * radius, target)
 }
 
 /// Train times spread uniformly over [0, 1] with jitter; test times midway between train times.
@@ -74,14 +81,14 @@ pub fn poses(
     n_train: usize,
     n_test: usize,
     rng: &mut Rng,
-) -> (Vec<Mat4>, Vec<Mat4>) {
+) -> (Vec<C2w>, Vec<C2w>) {
     match layout {
         Layout::Around {
             radius,
             target,
             front_only,
         } => {
-            let orbit = |n: usize, phase: f32, elev: f32| -> Vec<Mat4> {
+            let orbit = |n: usize, phase: f32, elev: f32| -> Vec<C2w> {
                 (0..n)
                     .map(|i| {
                         let a = (i as f32 + phase) / n.max(1) as f32;
@@ -131,7 +138,7 @@ pub fn poses(
             target,
             spread,
         } => {
-            let grid = |n: usize, rng: &mut Rng, jitter: f32| -> Vec<Mat4> {
+            let grid = |n: usize, rng: &mut Rng, jitter: f32| -> Vec<C2w> {
                 let cols = (n as f32).sqrt().ceil().max(1.0) as usize;
                 let rows = n.div_ceil(cols).max(1);
                 (0..n)
@@ -149,13 +156,13 @@ pub fn poses(
                         };
                         let j = |rng: &mut Rng| rng.range(-jitter, jitter);
                         let eye = centre
-                            + v3(
+                            + vec3(
                                 (fx + j(rng)) * spread.x,
                                 (0.0 - fy + j(rng)) * spread.y,
                                 j(rng) * spread.z,
                             );
-                        let tg = target + v3(j(rng) * 0.3, j(rng) * 0.3, 0.0);
-                        look_at(eye, tg, v3(0.0, 1.0, 0.0))
+                        let tg = target + vec3(j(rng) * 0.3, j(rng) * 0.3, 0.0);
+                        look(eye, tg)
                     })
                     .collect()
             };
@@ -166,12 +173,12 @@ pub fn poses(
                     let a = (i as f32 + 0.5) / n_test.max(1) as f32;
                     let r = 0.35 * (0.4 + 0.6 * a);
                     let eye = centre
-                        + v3(
+                        + vec3(
                             (a * TAU).cos() * r * spread.x,
                             (a * TAU).sin() * r * spread.y,
                             0.0,
                         );
-                    look_at(eye, target, v3(0.0, 1.0, 0.0))
+                    look(eye, target)
                 })
                 .collect();
             (train, test)
@@ -182,7 +189,7 @@ pub fn poses(
             target,
         } => {
             let at = |a: f32, r: f32, h: f32| {
-                look_at(v3(a.sin() * r, h, a.cos() * r), target, v3(0.0, 1.0, 0.0))
+                look(vec3(a.sin() * r, h, a.cos() * r), target)
             };
             let train = (0..n_train)
                 .map(|i| {
@@ -223,18 +230,18 @@ pub fn layout_for(kind: SceneKind, dynamic_face: bool) -> Layout {
     match kind {
         SceneKind::Object => Layout::Around {
             radius: 4.0,
-            target: V3::default(),
+            target: Vec3::default(),
             front_only: dynamic_face,
         },
         SceneKind::Forward => Layout::Forward {
-            centre: v3(0.0, 0.0, 0.0),
-            target: v3(0.0, -0.25, -6.0),
-            spread: v3(0.8, 0.5, 0.2),
+            centre: vec3(0.0, 0.0, 0.0),
+            target: vec3(0.0, -0.25, -6.0),
+            spread: vec3(0.8, 0.5, 0.2),
         },
         SceneKind::Unbounded => Layout::Ring {
             radius: 3.6,
             height: -0.4,
-            target: v3(0.0, -0.2, 0.0),
+            target: vec3(0.0, -0.2, 0.0),
         },
     }
 }
@@ -271,13 +278,14 @@ mod tests {
             5,
             &mut rng,
         );
-        for m in tr.iter().chain(te.iter()) {
-            let eye = m.col(3);
-            let fwd = -m.col(2);
-            assert!((eye.len() - 4.0).abs() < 0.3);
-            assert!(fwd.dot((-eye).norm()) > 0.999);
+        for c2w in tr.iter().chain(te.iter()) {
+            let m = crate::raster::c2w_matrix(c2w);
+            let eye = m.w_axis.truncate();
+            let fwd = -m.z_axis.truncate();
+            assert!((eye.length() - 4.0).abs() < 0.3);
+            assert!(fwd.dot((-eye).normalize_or(Vec3::Y)) > 0.999);
             assert!(
-                (m.col(0).cross(m.col(1)) - m.col(2)).len() < 1e-4,
+                (m.x_axis.truncate().cross(m.y_axis.truncate()) - m.z_axis.truncate()).length() < 1e-4,
                 "right-handed"
             );
         }

@@ -5,7 +5,7 @@
 use crate::animation::{
     Channel, Instance, Interp, NodeRest, Path as AnimPath, PrimData, Rig, Skin,
 };
-use crate::math::{v3, Mat4, V3};
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Look, Material};
 use crate::procedural::{Built, Content};
 use crate::texture::{Texture, Wrap};
@@ -90,7 +90,7 @@ fn to_rgba8(img: &gltf::image::Data) -> Option<Vec<[u8; 4]>> {
     )
 }
 
-fn check_finite(v: &[V3], what: &str, file: &str, mesh: &str, prim: usize) -> Result<()> {
+fn check_finite(v: &[Vec3], what: &str, file: &str, mesh: &str, prim: usize) -> Result<()> {
     if let Some((i, p)) = v.iter().enumerate().find(|(_, p)| !p.is_finite()) {
         bail!(
             "{file}: mesh {mesh}, primitive {prim}: {what} has a non-finite value at vertex {i} ({:?}, {:?}, {:?}); \
@@ -235,7 +235,7 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
         .map(|n| {
             let (matrix, (t, r, s)) = match n.transform() {
                 gltf::scene::Transform::Matrix { matrix } => (
-                    Some(Mat4::from_cols(matrix)),
+                    Some(Mat4::from_cols_array_2d(&matrix)),
                     ([0.0; 3], [0.0, 0.0, 0.0, 1.0], [1.0; 3]),
                 ),
                 gltf::scene::Transform::Decomposed {
@@ -258,7 +258,7 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
             r.t.iter()
                 .chain(r.r.iter())
                 .chain(r.s.iter())
-                .chain(r.matrix.iter().flat_map(|m| m.m.iter().flatten()));
+                .chain(r.matrix.iter().flat_map(|m| m.as_ref().iter()));
         if vals.clone().any(|x| !x.is_finite()) {
             bail!(
                 "{file}: node {i} ({}) has a non-finite transform",
@@ -323,18 +323,18 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
                     continue;
                 }
                 let reader = prim.reader(get);
-                let positions: Vec<V3> = reader
+                let positions: Vec<Vec3> = reader
                     .read_positions()
                     .ok_or_else(|| {
                         anyhow!("{file}: mesh {mesh_name}, primitive {pi}: no POSITION attribute")
                     })?
-                    .map(V3::from_arr)
+                    .map(Vec3::from_array)
                     .collect();
                 check_finite(&positions, "POSITION", &file, &mesh_name, pi)?;
                 let nv = positions.len();
-                let normals: Option<Vec<V3>> = reader
+                let normals: Option<Vec<Vec3>> = reader
                     .read_normals()
-                    .map(|it| it.map(V3::from_arr).collect());
+                    .map(|it| it.map(Vec3::from_array).collect());
                 let normals = normals.filter(|n| n.len() == nv && n.iter().all(|v| v.is_finite()));
                 let mat_index = prim.material().index();
                 let set = mat_index.map(|i| mat_texcoord[i]).unwrap_or(0);
@@ -385,9 +385,9 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
                     .filter(|w: &Vec<[f32; 4]>| w.len() == nv);
                 let mut targets = Vec::new();
                 for (ti, (dp, dn, _)) in reader.read_morph_targets().enumerate() {
-                    let dp: Vec<V3> = dp
-                        .map(|it| it.map(V3::from_arr).collect())
-                        .unwrap_or_else(|| vec![V3::default(); nv]);
+                    let dp: Vec<Vec3> = dp
+                        .map(|it| it.map(Vec3::from_array).collect())
+                        .unwrap_or_else(|| vec![Vec3::default(); nv]);
                     if dp.len() != nv {
                         bail!("{file}: mesh {mesh_name}, primitive {pi}: morph target {ti} has {} positions, expected {nv}", dp.len());
                     }
@@ -398,9 +398,9 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
                         &mesh_name,
                         pi,
                     )?;
-                    let dn: Option<Vec<V3>> = dn
-                        .map(|it| it.map(V3::from_arr).collect())
-                        .filter(|d: &Vec<V3>| d.len() == nv);
+                    let dn: Option<Vec<Vec3>> = dn
+                        .map(|it| it.map(Vec3::from_array).collect())
+                        .filter(|d: &Vec<Vec3>| d.len() == nv);
                     targets.push((dp, dn));
                 }
                 prims.push(Arc::new(PrimData {
@@ -447,7 +447,7 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
     for s in doc.skins() {
         let joints: Vec<usize> = s.joints().map(|j| j.index()).collect();
         let ibm: Vec<Mat4> = match s.reader(get).read_inverse_bind_matrices() {
-            Some(it) => it.map(Mat4::from_cols).collect(),
+            Some(it) => it.map(|c| Mat4::from_cols_array_2d(&c)).collect(),
             None => vec![Mat4::IDENTITY; joints.len()],
         };
         for &j in &joints {
@@ -585,7 +585,7 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
         vec![0.0]
     };
     let geoms: Vec<_> = samples.iter().map(|&t| rig.geometry_raw(t)).collect();
-    let mut lo = v3(f32::INFINITY, f32::INFINITY, f32::INFINITY);
+    let mut lo = vec3(f32::INFINITY, f32::INFINITY, f32::INFINITY);
     let mut hi = -lo;
     for g in &geoms {
         if let Some((a, b)) = g.bounds() {
@@ -603,20 +603,20 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
             g.tris
                 .iter()
                 .flatten()
-                .map(move |&i| (g.positions[i as usize] - centre).len())
+                .map(move |&i| (g.positions[i as usize] - centre).length())
         })
         .fold(0.0f32, f32::max);
     if radius.is_nan() || radius <= 1e-12 {
         bail!("{file}: the model has zero size");
     }
     let scale = 1.0 / radius;
-    rig.normalize = Mat4::scale(v3(scale, scale, scale)) * Mat4::translate(-centre);
+    rig.normalize = Mat4::from_scale(vec3(scale, scale, scale)) * Mat4::from_translation(-centre);
 
     let dynamic = rig.animated();
     let mut info = serde_json::Map::new();
     info.insert("file".into(), file.clone().into());
     info.insert("normalize_scale".into(), (scale as f64).into());
-    info.insert("normalize_centre".into(), serde_json::json!(centre.arr()));
+    info.insert("normalize_centre".into(), serde_json::json!(centre.to_array()));
     info.insert("triangles".into(), ntris.into());
     info.insert("textures".into(), look.textures.len().into());
     if let Some(a) = &anim_name {
@@ -633,7 +633,7 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
         look,
         content,
         kind: SceneKind::Object,
-        aabb: [v3(-1.05, -1.05, -1.05), v3(1.05, 1.05, 1.05)],
+        aabb: [vec3(-1.05, -1.05, -1.05), vec3(1.05, 1.05, 1.05)],
         fov_x: 40f32.to_radians(),
         info,
         warnings,

@@ -1,14 +1,15 @@
 //! Triangle geometry and materials, the common form every scene (procedural or glTF) is
 //! turned into before rasterization.
 
-use crate::math::{Mat4, V3};
+use crate::math::normal_matrix;
+use glam::{vec3, Mat4, Vec3};
 use crate::texture::Texture;
 
 /// Indexed triangle mesh in world space. All per-vertex arrays have the same length.
 #[derive(Clone, Default)]
 pub struct Geometry {
-    pub positions: Vec<V3>,
-    pub normals: Vec<V3>,
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
     pub uvs: Vec<[f32; 2]>,
     /// Linear RGBA vertex colour (white when the source has none).
     pub colors: Vec<[f32; 4]>,
@@ -18,7 +19,7 @@ pub struct Geometry {
 }
 
 impl Geometry {
-    pub fn vertex(&mut self, p: V3, n: V3, uv: [f32; 2]) -> u32 {
+    pub fn vertex(&mut self, p: Vec3, n: Vec3, uv: [f32; 2]) -> u32 {
         self.positions.push(p);
         self.normals.push(n);
         self.uvs.push(uv);
@@ -34,11 +35,11 @@ impl Geometry {
     /// Append `other`, transformed by `xf` (normals by its normal matrix).
     pub fn append(&mut self, other: &Geometry, xf: &Mat4) {
         let base = self.positions.len() as u32;
-        let nm = xf.normal_matrix();
+        let nm = normal_matrix(xf);
         self.positions
-            .extend(other.positions.iter().map(|p| xf.point(*p)));
+            .extend(other.positions.iter().map(|p| xf.transform_point3(*p)));
         self.normals
-            .extend(other.normals.iter().map(|n| nm.dir(*n).norm()));
+            .extend(other.normals.iter().map(|n| (nm * *n).normalize_or(Vec3::Y)));
         self.uvs.extend_from_slice(&other.uvs);
         self.colors.extend_from_slice(&other.colors);
         self.tris.extend(
@@ -50,7 +51,7 @@ impl Geometry {
         self.tri_material.extend_from_slice(&other.tri_material);
     }
 
-    pub fn bounds(&self) -> Option<(V3, V3)> {
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut it = self
             .tris
             .iter()
@@ -94,7 +95,7 @@ pub enum Background {
     /// Alpha 0 (object datasets with transparent background).
     Transparent,
     /// Opaque colour as a function of the world-space view direction (sky at infinity).
-    Sky(fn(V3) -> [f32; 3]),
+    Sky(fn(Vec3) -> [f32; 3]),
 }
 
 /// Everything shared by all frames of a scene except the (possibly time-varying) geometry.
@@ -103,7 +104,7 @@ pub struct Look {
     pub textures: Vec<Texture>,
     pub background: Background,
     /// Unit direction towards the light, world space.
-    pub light_dir: V3,
+    pub light_dir: Vec3,
     pub ambient: f32,
     pub diffuse: f32,
 }
@@ -114,7 +115,7 @@ impl Look {
             materials: Vec::new(),
             textures: Vec::new(),
             background,
-            light_dir: crate::math::v3(0.45, 0.8, 0.4).norm(),
+            light_dir: vec3(0.45, 0.8, 0.4).normalize_or(Vec3::Y),
             ambient: 0.35,
             diffuse: 0.75,
         }

@@ -2,49 +2,42 @@
 //! perspective-correct attribute interpolation, mip-mapped texturing and simple
 //! view-independent Lambert lighting. Work is split into horizontal bands run with rayon.
 
-use crate::math::{v3, Mat4, V3};
+use glam::{Mat3, Mat4, Vec3};
+use snerf_geometry::camera::{position, C2w, Pinhole};
 use crate::mesh::{Background, Geometry, Look};
 use crate::texture::encode_srgb8;
 use rayon::prelude::*;
 
-/// A pinhole camera. `c2w` is camera-to-world in the OpenGL convention (x right, y up,
-/// looking down -z); intrinsics in pixels, pixel centres at (i + 0.5, j + 0.5), image y down.
-#[derive(Clone, Debug)]
-pub struct Camera {
-    pub c2w: Mat4,
-    pub fx: f32,
-    pub fy: f32,
-    pub cx: f32,
-    pub cy: f32,
-    pub width: u32,
-    pub height: u32,
+/// The pinhole camera of a dataset view: square pixels, principal point at the centre and
+/// the horizontal field of view `fov_x` (radians), which is what nerf_synthetic's
+/// `camera_angle_x` stores.
+pub fn camera(c2w: C2w, width: u32, height: u32, fov_x: f32) -> Pinhole {
+    let f = focal(width, fov_x);
+    Pinhole { c2w, fx: f, fy: f, cx: width as f32 * 0.5, cy: height as f32 * 0.5, width, height }
 }
 
-impl Camera {
-    /// Square pixels, principal point at the centre, horizontal field of view `fov_x` (radians).
-    pub fn new(c2w: Mat4, width: u32, height: u32, fov_x: f32) -> Camera {
-        let f = 0.5 * width as f32 / (0.5 * fov_x).tan();
-        Camera {
-            c2w,
-            fx: f,
-            fy: f,
-            cx: width as f32 * 0.5,
-            cy: height as f32 * 0.5,
-            width,
-            height,
-        }
-    }
+/// Focal length in pixels of an image `width` pixels wide with horizontal field of view
+/// `fov_x` (radians).
+pub fn focal(width: u32, fov_x: f32) -> f32 {
+    0.5 * width as f32 / (0.5 * fov_x).tan()
+}
 
-    /// World-space unit direction through image point (px, py) in pixels.
-    pub fn ray_dir(&self, px: f32, py: f32) -> V3 {
-        self.c2w
-            .dir(v3(
-                (px - self.cx) / self.fx,
-                -(py - self.cy) / self.fy,
-                -1.0,
-            ))
-            .norm()
-    }
+/// The camera-to-world rows as a glam matrix (the fourth row is implied).
+pub fn c2w_matrix(c2w: &C2w) -> Mat4 {
+    Mat4::from_cols_array_2d(&[
+        [c2w[0][0], c2w[1][0], c2w[2][0], 0.0],
+        [c2w[0][1], c2w[1][1], c2w[2][1], 0.0],
+        [c2w[0][2], c2w[1][2], c2w[2][2], 0.0],
+        [c2w[0][3], c2w[1][3], c2w[2][3], 1.0],
+    ])
+}
+
+/// World-to-camera of a camera pose: the rotation transposed, not a general inverse, because
+/// poses are rigid and the transpose is exact where `inverse()` would round.
+pub fn world_to_camera(c2w: &C2w) -> Mat4 {
+    let m = c2w_matrix(c2w);
+    let r = Mat3::from_mat4(m).transpose();
+    Mat4::from_mat3_translation(r, -(r * m.w_axis.truncate()))
 }
 
 /// A rendered view: 8-bit RGBA (straight alpha) and per-pixel mean z-depth of the covered
@@ -90,8 +83,8 @@ fn eval(pl: &[f64; 3], p0: &[f64; 2], x: f64, y: f64) -> f64 {
     pl[0] + pl[1] * (x - p0[0]) + pl[2] * (y - p0[1])
 }
 
-fn setup(geom: &Geometry, cam: &Camera, w2c: &Mat4, ss: f64, sw: i64, sh: i64) -> Vec<RTri> {
-    let cam_pos = cam.c2w.col(3);
+fn setup(geom: &Geometry, cam: &Pinhole, w2c: &Mat4, ss: f64, sw: i64, sh: i64) -> Vec<RTri> {
+    let cam_pos = Vec3::from(position(&cam.c2w));
     let mut out = Vec::new();
     for (ti, t) in geom.tris.iter().enumerate() {
         let wp = t.map(|i| geom.positions[i as usize]);
@@ -99,12 +92,12 @@ fn setup(geom: &Geometry, cam: &Camera, w2c: &Mat4, ss: f64, sw: i64, sh: i64) -
             continue;
         }
         let fnorm = (wp[1] - wp[0]).cross(wp[2] - wp[0]);
-        if fnorm.len() == 0.0 {
+        if fnorm.length() == 0.0 {
             continue;
         }
         let nsum = t
             .iter()
-            .fold(V3::default(), |a, &i| a + geom.normals[i as usize]);
+            .fold(Vec3::default(), |a, &i| a + geom.normals[i as usize]);
         let agree = if fnorm.dot(nsum) >= 0.0 { 1.0 } else { -1.0 };
         let visible_front = if fnorm.dot(cam_pos - wp[0]) >= 0.0 {
             1.0
@@ -115,7 +108,7 @@ fn setup(geom: &Geometry, cam: &Camera, w2c: &Mat4, ss: f64, sw: i64, sh: i64) -
 
         // Camera space, depth d = -z; clip the polygon against d >= NEAR.
         let cv: [[f64; 4]; 3] = [0, 1, 2].map(|k| {
-            let c = w2c.point(wp[k]);
+            let c = w2c.transform_point3(wp[k]);
             [c.x as f64, c.y as f64, -(c.z as f64), 0.0]
         });
         let qs = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -207,11 +200,11 @@ fn setup(geom: &Geometry, cam: &Camera, w2c: &Mat4, ss: f64, sw: i64, sh: i64) -
 }
 
 /// Render `geom` with `look` from `cam` with `ss` x `ss` samples per pixel.
-pub fn render(look: &Look, geom: &Geometry, cam: &Camera, ss: u32) -> Frame {
+pub fn render(look: &Look, geom: &Geometry, cam: &Pinhole, ss: u32) -> Frame {
     let ss = ss.max(1) as usize;
     let (w, h) = (cam.width as usize, cam.height as usize);
     let (sw, sh) = (w * ss, h * ss);
-    let w2c = cam.c2w.rigid_inverse();
+    let w2c = world_to_camera(&cam.c2w);
     let rtris = setup(geom, cam, &w2c, ss as f64, sw as i64, sh as i64);
 
     let band_rows = BAND_PIXELS * ss;
@@ -258,7 +251,7 @@ pub fn render(look: &Look, geom: &Geometry, cam: &Camera, ss: u32) -> Frame {
 fn render_band(
     look: &Look,
     geom: &Geometry,
-    cam: &Camera,
+    cam: &Pinhole,
     rtris: &[RTri],
     list: &[u32],
     y0: usize,
@@ -348,7 +341,7 @@ fn render_band(
                 Background::Sky(sky) => {
                     let miss = (ss * ss - covered) as f32;
                     if miss > 0.0 {
-                        let d = cam.ray_dir(px as f32 + 0.5, (py + y0 / ss) as f32 + 0.5);
+                        let d = Vec3::from(cam.ray(px as u32, (py + y0 / ss) as u32).1);
                         let s = sky(d);
                         for k in 0..3 {
                             acc[k] += s[k] * miss;
@@ -409,7 +402,7 @@ fn shade(look: &Look, geom: &Geometry, rt: &RTri, x: f64, y: f64) -> [f32; 3] {
     }
     let (n0, n1, n2) = (geom.normals[i0], geom.normals[i1], geom.normals[i2]);
     let n = (n0 * q0f + n1 * q1f + n2 * q2f) * rt.nsign;
-    let n = n.norm();
+    let n = n.normalize_or(Vec3::Y);
     let l = look.ambient + look.diffuse * n.dot(look.light_dir).max(0.0);
     [albedo[0] * l, albedo[1] * l, albedo[2] * l]
 }

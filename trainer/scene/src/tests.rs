@@ -2,10 +2,11 @@
 //! dynamic vs static scenes, glTF loading (an in-code model always; installed test models
 //! when present) and error cases.
 
-use crate::math::{look_at, v3, Mat4, V3};
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::{shapes, Content};
-use crate::raster::{render, Camera, Frame};
+use crate::raster::{c2w_matrix, camera, render, world_to_camera, Frame};
+use snerf_geometry::camera::C2w;
 use crate::texture::{Texture, Wrap};
 use crate::*;
 use serde_json::Value;
@@ -28,14 +29,20 @@ fn quad(z: f32, s: f32, mat: u32) -> Geometry {
     let mut g = Geometry::default();
     g.append(
         &shapes::grid(s, s, 1, 1, mat, 1.0),
-        &(Mat4::translate(v3(0.0, 0.0, z))
-            * Mat4::rotate(v3(1.0, 0.0, 0.0), std::f32::consts::FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(0.0, 0.0, z))
+            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), std::f32::consts::FRAC_PI_2)),
     );
     g
 }
 
-fn front_camera(w: u32, h: u32, fov_deg: f32) -> Camera {
-    Camera::new(Mat4::IDENTITY, w, h, fov_deg.to_radians())
+/// A camera at `eye` looking at `target` with `up` as the image's up.
+fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> C2w {
+    snerf_geometry::look_at(eye.into(), target.into(), up.into())
+}
+
+fn front_camera(w: u32, h: u32, fov_deg: f32) -> snerf_geometry::Pinhole {
+    let identity = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+    camera(identity, w, h, fov_deg.to_radians())
 }
 
 #[test]
@@ -73,8 +80,8 @@ fn depth_and_colour_of_a_known_quad() {
     assert!(f.depth[(32 * 64 + outside) as usize].is_infinite());
     // Seen from behind, a one-sided light would make it dark; the shading normal is flipped
     // towards the camera, so the back reads as lit by the ambient + |back-facing| rule.
-    let back = Camera::new(
-        look_at(v3(0.0, 0.0, -6.0), v3(0.0, 0.0, -3.0), v3(0.0, 1.0, 0.0)),
+    let back = camera(
+        look_at(vec3(0.0, 0.0, -6.0), vec3(0.0, 0.0, -3.0), vec3(0.0, 1.0, 0.0)),
         64,
         64,
         60f32.to_radians(),
@@ -97,11 +104,11 @@ fn perspective_correct_texturing() {
     }));
     let m = look.add_material(Material::textured(t));
     let mut g = Geometry::default();
-    let n = v3(0.0, 1.0, 0.0);
-    let a = g.vertex(v3(-5.0, -1.0, -1.0), n, [0.0, 0.0]);
-    let b = g.vertex(v3(5.0, -1.0, -1.0), n, [1.0, 0.0]);
-    let c = g.vertex(v3(5.0, -1.0, -21.0), n, [1.0, 1.0]);
-    let d = g.vertex(v3(-5.0, -1.0, -21.0), n, [0.0, 1.0]);
+    let n = vec3(0.0, 1.0, 0.0);
+    let a = g.vertex(vec3(-5.0, -1.0, -1.0), n, [0.0, 0.0]);
+    let b = g.vertex(vec3(5.0, -1.0, -1.0), n, [1.0, 0.0]);
+    let c = g.vertex(vec3(5.0, -1.0, -21.0), n, [1.0, 1.0]);
+    let d = g.vertex(vec3(-5.0, -1.0, -21.0), n, [0.0, 1.0]);
     g.tri(a, c, b, m);
     g.tri(a, d, c, m);
     let cam = front_camera(64, 128, 90.0);
@@ -131,11 +138,11 @@ fn supersampling_antialiases_edges() {
     // A quad whose right edge projects exactly to x = 20.5 pixels at depth 1 (fx known).
     let cam = front_camera(40, 40, 60.0);
     let xr = (20.5 - cam.cx) / cam.fx;
-    let n = v3(0.0, 0.0, 1.0);
-    let a = g.vertex(v3(-1.0, -1.0, -1.0), n, [0.0, 0.0]);
-    let b = g.vertex(v3(xr, -1.0, -1.0), n, [0.0, 0.0]);
-    let c = g.vertex(v3(xr, 1.0, -1.0), n, [0.0, 0.0]);
-    let d = g.vertex(v3(-1.0, 1.0, -1.0), n, [0.0, 0.0]);
+    let n = vec3(0.0, 0.0, 1.0);
+    let a = g.vertex(vec3(-1.0, -1.0, -1.0), n, [0.0, 0.0]);
+    let b = g.vertex(vec3(xr, -1.0, -1.0), n, [0.0, 0.0]);
+    let c = g.vertex(vec3(xr, 1.0, -1.0), n, [0.0, 0.0]);
+    let d = g.vertex(vec3(-1.0, 1.0, -1.0), n, [0.0, 0.0]);
     g.tri(a, b, c, m);
     g.tri(a, c, d, m);
     let f4 = render(&look, &g, &cam, 4);
@@ -160,21 +167,22 @@ fn views_agree_on_surface_colour() {
     let Content::Static(g) = &built.content else {
         panic!()
     };
-    let cam_a = Camera::new(
-        look_at(v3(0.0, 1.0, 4.0), V3::default(), v3(0.0, 1.0, 0.0)),
+    let cam_a = camera(
+        look_at(vec3(0.0, 1.0, 4.0), Vec3::default(), vec3(0.0, 1.0, 0.0)),
         96,
         96,
         built.fov_x,
     );
-    let cam_b = Camera::new(
-        look_at(v3(1.2, 1.3, 3.7), V3::default(), v3(0.0, 1.0, 0.0)),
+    let cam_b = camera(
+        look_at(vec3(1.2, 1.3, 3.7), Vec3::default(), vec3(0.0, 1.0, 0.0)),
         96,
         96,
         built.fov_x,
     );
     let fa = render(&built.look, g, &cam_a, 4);
     let fb = render(&built.look, g, &cam_b, 4);
-    let w2c_b = cam_b.c2w.rigid_inverse();
+    let w2c_b = world_to_camera(&cam_b.c2w);
+    let c2w_a = c2w_matrix(&cam_a.c2w);
     let (mut checked, mut close) = (0, 0);
     for y in (10..86).step_by(3) {
         for x in (10..86).step_by(3) {
@@ -183,13 +191,13 @@ fn views_agree_on_surface_colour() {
                 continue;
             }
             // World point of pixel centre in A.
-            let dir = cam_a.c2w.dir(v3(
+            let dir = c2w_a.transform_vector3(vec3(
                 (x as f32 + 0.5 - cam_a.cx) / cam_a.fx,
                 -(y as f32 + 0.5 - cam_a.cy) / cam_a.fy,
                 -1.0,
             ));
-            let p = cam_a.c2w.col(3) + dir * d;
-            let q = w2c_b.point(p);
+            let p = c2w_a.w_axis.truncate() + dir * d;
+            let q = w2c_b.transform_point3(p);
             let (u, v) = (
                 cam_b.cx + cam_b.fx * q.x / -q.z,
                 cam_b.cy - cam_b.fy * q.y / -q.z,
@@ -300,13 +308,13 @@ fn dataset_layout_and_json() {
             assert_eq!(m[3], serde_json::json!([0.0, 0.0, 0.0, 1.0]));
             // Camera looks at the origin: -z axis (third column, negated) towards the centre.
             let col = |c: usize| {
-                v3(
+                vec3(
                     m[0][c].as_f64().unwrap() as f32,
                     m[1][c].as_f64().unwrap() as f32,
                     m[2][c].as_f64().unwrap() as f32,
                 )
             };
-            assert!((-col(2)).dot((-col(3)).norm()) > 0.99);
+            assert!((-col(2)).dot((-col(3)).normalize_or(Vec3::Y)) > 0.99);
             let img = image::open(out.join(&fp)).unwrap();
             assert_eq!((img.width(), img.height()), (40, 30));
             assert_eq!(img.color(), image::ColorType::Rgba8);
@@ -428,7 +436,7 @@ fn room_content_depths() {
         &mut rng,
     );
     for c2w in train {
-        let cam = Camera::new(c2w, 64, 48, built.fov_x);
+        let cam = camera(c2w, 64, 48, built.fov_x);
         let f = render(&built.look, g, &cam, 1);
         let min = f.depth.iter().cloned().fold(f32::INFINITY, f32::min);
         let max = f.depth.iter().cloned().fold(0.0f32, f32::max);
@@ -449,8 +457,8 @@ fn diff_fraction(a: &Frame, b: &Frame) -> f32 {
 
 #[test]
 fn avatar_changes_with_time_static_scenes_do_not() {
-    let cam = Camera::new(
-        look_at(v3(0.0, 0.0, 4.0), V3::default(), v3(0.0, 1.0, 0.0)),
+    let cam = camera(
+        look_at(vec3(0.0, 0.0, 4.0), Vec3::default(), vec3(0.0, 1.0, 0.0)),
         96,
         96,
         40f32.to_radians(),
@@ -694,7 +702,7 @@ fn gltf_built_in_code_textured_and_animated() {
     // Normalized into the unit sphere over the whole animation.
     for t in [0.0, 0.25, 0.5, 1.0] {
         let g = f(t).unwrap();
-        assert!(g.positions.iter().all(|p| p.len() <= 1.0 + 1e-4));
+        assert!(g.positions.iter().all(|p| p.length() <= 1.0 + 1e-4));
     }
     // At t = 0.5 (1 s): translated by +0.6 and the top raised by 0.5 through the morph target.
     let (g0, g5) = (f(0.0).unwrap(), f(0.5).unwrap());
@@ -704,8 +712,8 @@ fn gltf_built_in_code_textured_and_animated() {
     let d2 = g5.positions[2] - g0.positions[2];
     assert!((d2.y - 0.5 * s).abs() < 1e-4, "{d2:?}");
     // Texture: the left of the quad is red, the right green.
-    let cam = Camera::new(
-        look_at(v3(0.0, 0.0, 4.0), V3::default(), v3(0.0, 1.0, 0.0)),
+    let cam = camera(
+        look_at(vec3(0.0, 0.0, 4.0), Vec3::default(), vec3(0.0, 1.0, 0.0)),
         64,
         64,
         built.fov_x,
@@ -778,8 +786,8 @@ fn gltf_jpeg_texture() {
     let Content::Dynamic(f) = &b.content else {
         panic!()
     };
-    let cam = Camera::new(
-        look_at(v3(0.0, 0.0, 4.0), V3::default(), v3(0.0, 1.0, 0.0)),
+    let cam = camera(
+        look_at(vec3(0.0, 0.0, 4.0), Vec3::default(), vec3(0.0, 1.0, 0.0)),
         64,
         64,
         b.fov_x,
@@ -854,8 +862,8 @@ fn render_model(p: &Path) -> (crate::procedural::Built, Frame) {
         Content::Static(g) => g.clone(),
         Content::Dynamic(f) => f(0.3).unwrap(),
     };
-    let cam = Camera::new(
-        look_at(v3(2.0, 2.0, 3.0), V3::default(), v3(0.0, 1.0, 0.0)),
+    let cam = camera(
+        look_at(vec3(2.0, 2.0, 3.0), Vec3::default(), vec3(0.0, 1.0, 0.0)),
         64,
         64,
         b.fov_x,
@@ -907,8 +915,8 @@ fn assimp_animated_models() {
         let Content::Dynamic(f) = &b.content else {
             panic!()
         };
-        let cam = Camera::new(
-            look_at(v3(0.5, 1.0, 4.0), V3::default(), v3(0.0, 1.0, 0.0)),
+        let cam = camera(
+            look_at(vec3(0.5, 1.0, 4.0), Vec3::default(), vec3(0.0, 1.0, 0.0)),
             64,
             64,
             b.fov_x,

@@ -2,9 +2,10 @@
 //! files into a temporary sibling directory, then move it into place only on success.
 
 use crate::camera::{layout_for, poses, times, Layout, View};
-use crate::math::{v3, Rng};
+use crate::math::Rng;
+use glam::vec3;
 use crate::procedural::{Built, Content};
-use crate::raster::{render, Camera};
+use crate::raster::{c2w_matrix, camera, focal, render};
 use crate::{build_scene, SceneSpec, Source};
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
@@ -63,7 +64,7 @@ pub fn write(spec: &SceneSpec, out_dir: &Path, progress: &dyn Fn(usize, usize)) 
     let layout = match (&spec.source, built.kind) {
         (Source::Avatar, _) => Layout::Around {
             radius: 4.0,
-            target: v3(0.0, 0.0, 0.0),
+            target: vec3(0.0, 0.0, 0.0),
             front_only: true,
         },
         (_, k) => layout_for(k, false),
@@ -168,7 +169,7 @@ fn write_into(
         let worker = s.spawn(move || {
             jobs.par_iter()
                 .try_for_each_with(tx, |tx, job| -> Result<()> {
-                    let cam = Camera::new(job.view.c2w, w, h, built.fov_x);
+                    let cam = camera(job.view.c2w, w, h, built.fov_x);
                     let frame = match &built.content {
                         Content::Static(g) => render(&built.look, g, &cam, spec.supersample),
                         Content::Dynamic(f) => {
@@ -195,14 +196,14 @@ fn write_into(
     res?;
 
     let fov = built.fov_x;
-    let fl = 0.5 * w as f32 / (0.5 * fov).tan();
+    let fl = focal(w, fov);
     let frames = |split: &str| -> Vec<Value> {
         jobs.iter()
             .filter(|j| j.split == split)
             .map(|j| {
                 let mut f = json!({
                     "file_path": format!("{}/r_{:03}.png", j.split, j.index),
-                    "transform_matrix": j.view.c2w.rows(),
+                    "transform_matrix": c2w_matrix(&j.view.c2w).transpose().to_cols_array_2d(),
                 });
                 if let Some(t) = j.view.time {
                     f["time"] = json!(t);
@@ -225,7 +226,7 @@ fn write_into(
             "w": w,
             "h": h,
             "scene_kind": built.kind.as_str(),
-            "aabb": [built.aabb[0].arr(), built.aabb[1].arr()],
+            "aabb": [built.aabb[0].to_array(), built.aabb[1].to_array()],
             "frames": frames(split),
         });
         let path = tmp.join(file);

@@ -30,6 +30,7 @@ use snerf_data::{Dataset, View};
 use snerf_trainer::checkpoint;
 use snerf_trainer::eval::{eval_background, render_camera};
 use snerf_trainer::render::WorkspacePool;
+use snerf_trainer::run_dir::RunDir;
 use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
 
 mod partial;
@@ -38,7 +39,8 @@ use crate::consistency::{self, PathGeometry};
 use crate::fusion::{self, ViewGeometry};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer};
 
-pub const STATE_FILE: &str = "stylize.json";
+/// The run's record; its name is part of the run directory's layout ([`RunDir`]).
+pub const STATE_FILE: &str = RunDir::STYLIZE_RECORD;
 
 /// What a stylization run was asked to do (fixed for the life of the run directory).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -104,7 +106,7 @@ pub struct StylizeState {
 }
 
 pub fn state_path(dir: &Path) -> PathBuf {
-    dir.join(STATE_FILE)
+    RunDir::new(dir).stylize_record()
 }
 
 /// Progress callbacks, so the command line can draw bars without this crate knowing how.
@@ -147,7 +149,7 @@ pub fn run(
     let _lock = snerf_files::DirLock::acquire(out)?;
     let _graceful = snerf_files::interrupt::Graceful::enter();
     std::fs::create_dir_all(out.join("rounds")).with_context(|| format!("{}: cannot create", out.display()))?;
-    let ck_path = out.join(checkpoint::FILE_NAME);
+    let ck_path = RunDir::new(out).checkpoint();
     // Resume when the directory holds a run with the same options.
     let (mut state, mut trainer) = match std::fs::read(state_path(out)) {
         Ok(bytes) => {

@@ -3,7 +3,8 @@
 //! interior and teeth), the eyes blink three times and the brows rise twice.
 
 use super::{rgb, Built, Content};
-use crate::math::{fbm, smoothstep, v3, Mat4, V3};
+use crate::math::{fbm, smoothstep};
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
@@ -80,17 +81,17 @@ pub fn build() -> Built {
         look,
         content,
         kind: SceneKind::Object,
-        aabb: [v3(-1.0, -1.1, -1.0), v3(1.0, 1.1, 1.1)],
+        aabb: [vec3(-1.0, -1.1, -1.0), vec3(1.0, 1.1, 1.1)],
         fov_x: 40f32.to_radians(),
         info: Default::default(),
         warnings: Vec::new(),
     }
 }
 
-fn ellipsoid(g: &mut Geometry, c: V3, r: V3, rot: Mat4, mat: u32, segs: usize) {
+fn ellipsoid(g: &mut Geometry, c: Vec3, r: Vec3, rot: Mat4, mat: u32, segs: usize) {
     g.append(
         &shapes::sphere(segs, segs / 2, mat),
-        &(Mat4::translate(c) * rot * Mat4::scale(r)),
+        &(Mat4::from_translation(c) * rot * Mat4::from_scale(r)),
     );
 }
 
@@ -100,8 +101,8 @@ fn head(m: &Mats, t: f32) -> Geometry {
     let mut g = Geometry::default();
     ellipsoid(
         &mut g,
-        v3(0.0, 0.05, 0.0),
-        v3(0.72, 0.92, 0.8),
+        vec3(0.0, 0.05, 0.0),
+        vec3(0.72, 0.92, 0.8),
         id,
         m.skin,
         64,
@@ -110,9 +111,9 @@ fn head(m: &Mats, t: f32) -> Geometry {
     for s in [-1.0f32, 1.0] {
         ellipsoid(
             &mut g,
-            v3(0.7 * s, 0.05, -0.02),
-            v3(0.07, 0.18, 0.12),
-            Mat4::rotate(v3(0.0, 1.0, 0.0), 0.3 * s),
+            vec3(0.7 * s, 0.05, -0.02),
+            vec3(0.07, 0.18, 0.12),
+            Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), 0.3 * s),
             m.skin,
             16,
         );
@@ -120,56 +121,56 @@ fn head(m: &Mats, t: f32) -> Geometry {
     // Nose.
     ellipsoid(
         &mut g,
-        v3(0.0, -0.02, 0.76),
-        v3(0.08, 0.15, 0.11),
-        Mat4::rotate(v3(1.0, 0.0, 0.0), -0.3),
+        vec3(0.0, -0.02, 0.76),
+        vec3(0.08, 0.15, 0.11),
+        Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), -0.3),
         m.skin,
         16,
     );
     // Eyes: pole of the sphere turned to face +z; blinking squashes them into the head.
     let open_eye = 1.0 - 0.92 * blink;
     for s in [-1.0f32, 1.0] {
-        let c = v3(0.26 * s, 0.2, 0.62);
-        let xf = Mat4::translate(c)
-            * Mat4::scale(v3(0.13, 0.13 * open_eye, 0.13))
-            * Mat4::rotate(v3(1.0, 0.0, 0.0), FRAC_PI_2);
+        let c = vec3(0.26 * s, 0.2, 0.62);
+        let xf = Mat4::from_translation(c)
+            * Mat4::from_scale(vec3(0.13, 0.13 * open_eye, 0.13))
+            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), FRAC_PI_2);
         g.append(&shapes::sphere(24, 12, m.eye), &xf);
         // Brows.
-        let b = Mat4::translate(v3(0.27 * s, 0.4 + 0.09 * brow, 0.66))
-            * Mat4::rotate(v3(0.0, 0.0, 1.0), -s * (0.12 + 0.15 * brow))
-            * Mat4::rotate(v3(0.0, 1.0, 0.0), 0.35 * s);
-        g.append(&shapes::cuboid(v3(0.13, 0.028, 0.05), m.brow, 1.0), &b);
+        let b = Mat4::from_translation(vec3(0.27 * s, 0.4 + 0.09 * brow, 0.66))
+            * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), -s * (0.12 + 0.15 * brow))
+            * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), 0.35 * s);
+        g.append(&shapes::cuboid(vec3(0.13, 0.028, 0.05), m.brow, 1.0), &b);
     }
     // Mouth: dark interior and teeth appear as the lips part.
     let my = -0.4;
     ellipsoid(
         &mut g,
-        v3(0.0, my - 0.05 * open, 0.63),
-        v3(0.2, 0.02 + 0.11 * open, 0.1),
+        vec3(0.0, my - 0.05 * open, 0.63),
+        vec3(0.2, 0.02 + 0.11 * open, 0.1),
         id,
         m.mouth,
         24,
     );
     ellipsoid(
         &mut g,
-        v3(0.0, my + 0.03 * open, 0.64),
-        v3(0.14, 0.025 + 0.015 * open, 0.08),
+        vec3(0.0, my + 0.03 * open, 0.64),
+        vec3(0.14, 0.025 + 0.015 * open, 0.08),
         id,
         m.teeth,
         16,
     );
     ellipsoid(
         &mut g,
-        v3(0.0, my + 0.035 + 0.03 * open, 0.67),
-        v3(0.21, 0.04, 0.07),
+        vec3(0.0, my + 0.035 + 0.03 * open, 0.67),
+        vec3(0.21, 0.04, 0.07),
         id,
         m.lip,
         24,
     );
     ellipsoid(
         &mut g,
-        v3(0.0, my - 0.04 - 0.16 * open, 0.66),
-        v3(0.19, 0.045, 0.07),
+        vec3(0.0, my - 0.04 - 0.16 * open, 0.66),
+        vec3(0.19, 0.045, 0.07),
         id,
         m.lip,
         24,

@@ -6,7 +6,7 @@ pub mod outdoor;
 pub mod room;
 pub mod shapes;
 
-use crate::math::V3;
+use glam::Vec3;
 use crate::mesh::{Geometry, Look};
 use crate::SceneKind;
 
@@ -23,7 +23,7 @@ pub struct Built {
     pub look: Look,
     pub content: Content,
     pub kind: SceneKind,
-    pub aabb: [V3; 2],
+    pub aabb: [Vec3; 2],
     pub fov_x: f32,
     /// Extra facts for the JSON summary (glTF scale, warnings...).
     pub info: serde_json::Map<String, serde_json::Value>,
@@ -31,7 +31,7 @@ pub struct Built {
 }
 
 impl Built {
-    pub fn still(look: Look, g: Geometry, kind: SceneKind, aabb: [V3; 2], fov_x: f32) -> Built {
+    pub fn still(look: Look, g: Geometry, kind: SceneKind, aabb: [Vec3; 2], fov_x: f32) -> Built {
         Built {
             look,
             content: Content::Static(g),

@@ -2,7 +2,8 @@
 //! torus, brick cylinder and a cone) inside [-1, 1]^3 with a transparent background.
 
 use super::{rgb, Built};
-use crate::math::{fbm, v3, Mat4};
+use crate::math::fbm;
+use glam::{vec3, Mat4};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
@@ -77,30 +78,30 @@ pub fn build() -> Built {
     let mut g = Geometry::default();
     g.append(
         &shapes::sphere(48, 24, m_sphere),
-        &(Mat4::translate(v3(-0.4, 0.35, 0.25)) * Mat4::scale(v3(0.55, 0.55, 0.55))),
+        &(Mat4::from_translation(vec3(-0.4, 0.35, 0.25)) * Mat4::from_scale(vec3(0.55, 0.55, 0.55))),
     );
     g.append(
-        &shapes::cuboid(v3(0.35, 0.35, 0.35), m_box, 1.0),
-        &(Mat4::translate(v3(0.45, -0.55, 0.3)) * Mat4::rotate(v3(0.0, 1.0, 0.0), 0.5)),
+        &shapes::cuboid(vec3(0.35, 0.35, 0.35), m_box, 1.0),
+        &(Mat4::from_translation(vec3(0.45, -0.55, 0.3)) * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), 0.5)),
     );
     g.append(
         &shapes::torus(0.5, 0.14, 64, 16, m_torus, [1.0, 1.0]),
-        &(Mat4::translate(v3(0.3, 0.35, -0.3)) * Mat4::rotate(v3(1.0, 0.0, 0.3), 0.7)),
+        &(Mat4::from_translation(vec3(0.3, 0.35, -0.3)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.3).normalize(), 0.7)),
     );
     g.append(
         &shapes::cylinder(0.3, 0.8, 40, m_cyl, true, [2.0, 1.0]),
-        &Mat4::translate(v3(-0.45, -0.95, -0.4)),
+        &Mat4::from_translation(vec3(-0.45, -0.95, -0.4)),
     );
     g.append(
         &shapes::cone(0.25, 0.6, 32, m_cone, [1.0, 1.0]),
-        &Mat4::translate(v3(0.55, -0.2, 0.3)),
+        &Mat4::from_translation(vec3(0.55, -0.2, 0.3)),
     );
 
     Built::still(
         look,
         g,
         SceneKind::Object,
-        [v3(-1.2, -1.2, -1.2), v3(1.2, 1.2, 1.2)],
+        [vec3(-1.2, -1.2, -1.2), vec3(1.2, 1.2, 1.2)],
         40f32.to_radians(),
     )
 }

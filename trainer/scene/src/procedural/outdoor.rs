@@ -3,7 +3,8 @@
 //! 20-60, and a sky at infinity (gradient + clouds + sun as a function of direction).
 
 use super::{rgb, Built};
-use crate::math::{fbm, smoothstep, v3, Mat4, Rng, V3};
+use crate::math::{fbm, smoothstep, Rng};
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
@@ -12,7 +13,7 @@ use crate::SceneKind;
 pub const GROUND_Y: f32 = -1.0;
 
 /// Sky colour (linear) for a world direction.
-pub fn sky(d: V3) -> [f32; 3] {
+pub fn sky(d: Vec3) -> [f32; 3] {
     if d.y < 0.0 {
         // Below the horizon beyond the ground disk: hazy ground.
         let k = smoothstep(0.0, -0.2, d.y);
@@ -32,7 +33,7 @@ pub fn sky(d: V3) -> [f32; 3] {
     let cloud = smoothstep(0.5, 0.75, n) * smoothstep(0.0, 0.15, d.y);
     c = c.map(|x| x + (0.95 - x) * cloud);
     // Sun.
-    let sun = v3(0.45, 0.8, 0.4).norm();
+    let sun = vec3(0.45, 0.8, 0.4).normalize_or(Vec3::Y);
     let a = d.dot(sun);
     let glow = smoothstep(0.995, 0.999, a) + 0.25 * smoothstep(0.9, 1.0, a);
     c.map(|x| x + glow)
@@ -108,25 +109,25 @@ pub fn build(seed: u64) -> Built {
     let mut g = Geometry::default();
     g.append(
         &shapes::disk(100.0, 24, 64, m_ground, 0.5),
-        &Mat4::translate(v3(0.0, GROUND_Y, 0.0)),
+        &Mat4::from_translation(vec3(0.0, GROUND_Y, 0.0)),
     );
 
     // Central statue: pedestal, tiled sphere, bronze ring, marble column.
     g.append(
         &shapes::cylinder(0.7, 0.35, 48, m_marble, true, [3.0, 0.5]),
-        &Mat4::translate(v3(0.0, GROUND_Y, 0.0)),
+        &Mat4::from_translation(vec3(0.0, GROUND_Y, 0.0)),
     );
     g.append(
         &shapes::cylinder(0.18, 0.7, 24, m_marble, false, [1.0, 1.0]),
-        &Mat4::translate(v3(0.0, GROUND_Y + 0.35, 0.0)),
+        &Mat4::from_translation(vec3(0.0, GROUND_Y + 0.35, 0.0)),
     );
     g.append(
         &shapes::sphere(48, 24, m_tiles),
-        &(Mat4::translate(v3(0.0, 0.45, 0.0)) * Mat4::scale(v3(0.42, 0.42, 0.42))),
+        &(Mat4::from_translation(vec3(0.0, 0.45, 0.0)) * Mat4::from_scale(vec3(0.42, 0.42, 0.42))),
     );
     g.append(
         &shapes::torus(0.62, 0.06, 64, 12, m_bronze, [1.0, 1.0]),
-        &(Mat4::translate(v3(0.0, 0.45, 0.0)) * Mat4::rotate(v3(1.0, 0.0, 0.5), 0.9)),
+        &(Mat4::from_translation(vec3(0.0, 0.45, 0.0)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.5).normalize(), 0.9)),
     );
 
     let mut rng = Rng::new(seed ^ 0x0u64.wrapping_add(4242));
@@ -136,7 +137,7 @@ pub fn build(seed: u64) -> Built {
         let r = 20.0 + rng.range(-1.0, 1.0);
         g.append(
             &shapes::cylinder(0.8, 7.0, 24, m_marble, true, [2.0, 3.0]),
-            &Mat4::translate(v3(a.sin() * r, GROUND_Y, a.cos() * r)),
+            &Mat4::from_translation(vec3(a.sin() * r, GROUND_Y, a.cos() * r)),
         );
     }
     // Trees at radius 24-34.
@@ -144,14 +145,14 @@ pub fn build(seed: u64) -> Built {
         let a = rng.range(0.0, std::f32::consts::TAU);
         let r = rng.range(24.0, 34.0);
         let s = rng.range(0.7, 1.4);
-        let base = v3(a.sin() * r, GROUND_Y, a.cos() * r);
+        let base = vec3(a.sin() * r, GROUND_Y, a.cos() * r);
         g.append(
             &shapes::cylinder(0.35 * s, 3.0 * s, 10, m_bark, false, [1.0, 1.0]),
-            &Mat4::translate(base),
+            &Mat4::from_translation(base),
         );
         g.append(
             &shapes::cone(2.0 * s, 6.0 * s, 16, m_leaves, [2.0, 2.0]),
-            &Mat4::translate(base + v3(0.0, 2.0 * s, 0.0)),
+            &Mat4::from_translation(base + vec3(0.0, 2.0 * s, 0.0)),
         );
     }
     // Mountains at radius 45-60.
@@ -161,8 +162,8 @@ pub fn build(seed: u64) -> Built {
         let h = rng.range(10.0, 24.0);
         g.append(
             &shapes::cone(rng.range(12.0, 18.0), h, 24, m_rock, [3.0, 2.0]),
-            &(Mat4::translate(v3(a.sin() * r, GROUND_Y - 0.5, a.cos() * r))
-                * Mat4::rotate(v3(0.0, 1.0, 0.0), a)),
+            &(Mat4::from_translation(vec3(a.sin() * r, GROUND_Y - 0.5, a.cos() * r))
+                * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), a)),
         );
     }
 
@@ -170,7 +171,7 @@ pub fn build(seed: u64) -> Built {
         look,
         g,
         SceneKind::Unbounded,
-        [v3(-4.0, GROUND_Y - 0.1, -4.0), v3(4.0, GROUND_Y + 3.9, 4.0)],
+        [vec3(-4.0, GROUND_Y - 0.1, -4.0), vec3(4.0, GROUND_Y + 3.9, 4.0)],
         60f32.to_radians(),
     )
 }

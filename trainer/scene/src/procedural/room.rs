@@ -3,14 +3,15 @@
 //! and a plant in the foreground. Opaque.
 
 use super::{rgb, Built};
-use crate::math::{fbm, v3, Mat4};
+use crate::math::fbm;
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
 use crate::SceneKind;
 use std::f32::consts::FRAC_PI_2;
 
-fn black_sky(_: crate::math::V3) -> [f32; 3] {
+fn black_sky(_: Vec3) -> [f32; 3] {
     [0.0, 0.0, 0.0]
 }
 
@@ -19,7 +20,7 @@ pub const ROOM_MAX: [f32; 3] = [3.0, 2.0, 1.0];
 
 pub fn build() -> Built {
     let mut look = Look::new(Background::Sky(black_sky));
-    look.light_dir = v3(0.3, 0.8, 0.5).norm();
+    look.light_dir = vec3(0.3, 0.8, 0.5).normalize_or(Vec3::Y);
     let rgba = |c: [f32; 3]| [c[0], c[1], c[2], 1.0];
 
     let wallpaper = look.add_texture(Texture::from_fn(256, 256, Wrap::Repeat, move |u, v| {
@@ -108,76 +109,76 @@ pub fn build() -> Built {
     // `grid` lies in xz facing +y; rotate it into each wall, facing into the room.
     g.append(
         &shapes::grid(hx, hz, 6, 9, m_floor, 0.5),
-        &Mat4::translate(v3(cx, y0, cz)),
+        &Mat4::from_translation(vec3(cx, y0, cz)),
     );
     g.append(
         &shapes::grid(hx, hz, 6, 9, m_ceiling, 0.5),
-        &(Mat4::translate(v3(cx, y1, cz)) * Mat4::rotate(v3(1.0, 0.0, 0.0), std::f32::consts::PI)),
+        &(Mat4::from_translation(vec3(cx, y1, cz)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), std::f32::consts::PI)),
     );
     g.append(
         &shapes::grid(hx, hy, 6, 4, m_wall, 0.5),
-        &(Mat4::translate(v3(cx, cy, z0)) * Mat4::rotate(v3(1.0, 0.0, 0.0), FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(cx, cy, z0)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), FRAC_PI_2)),
     );
     g.append(
         &shapes::grid(hy, hz, 4, 9, m_side, 0.4),
-        &(Mat4::translate(v3(x0, cy, cz)) * Mat4::rotate(v3(0.0, 0.0, 1.0), -FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(x0, cy, cz)) * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), -FRAC_PI_2)),
     );
     g.append(
         &shapes::grid(hy, hz, 4, 9, m_side, 0.4),
-        &(Mat4::translate(v3(x1, cy, cz)) * Mat4::rotate(v3(0.0, 0.0, 1.0), FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(x1, cy, cz)) * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), FRAC_PI_2)),
     );
 
     // Picture on the back wall.
     g.append(
-        &shapes::cuboid(v3(1.05, 0.8, 0.03), m_frame, 1.0),
-        &Mat4::translate(v3(0.3, 0.6, z0 + 0.03)),
+        &shapes::cuboid(vec3(1.05, 0.8, 0.03), m_frame, 1.0),
+        &Mat4::from_translation(vec3(0.3, 0.6, z0 + 0.03)),
     );
     g.append(
-        &shapes::cuboid(v3(0.9, 0.65, 0.03), m_paint, 1.0),
-        &Mat4::translate(v3(0.3, 0.6, z0 + 0.05)),
+        &shapes::cuboid(vec3(0.9, 0.65, 0.03), m_paint, 1.0),
+        &Mat4::from_translation(vec3(0.3, 0.6, z0 + 0.05)),
     );
 
     // Table at depth ~4 with a vase and books.
     let (tx, tz, ty) = (0.9, -4.2, -0.65);
     g.append(
-        &shapes::cuboid(v3(0.9, 0.05, 0.5), m_wood, 1.0),
-        &Mat4::translate(v3(tx, ty, tz)),
+        &shapes::cuboid(vec3(0.9, 0.05, 0.5), m_wood, 1.0),
+        &Mat4::from_translation(vec3(tx, ty, tz)),
     );
     for (lx, lz) in [(-0.8, -0.42), (0.8, -0.42), (-0.8, 0.42), (0.8, 0.42)] {
         g.append(
             &shapes::cylinder(0.05, ty - y0, 12, m_wood, false, [1.0, 1.0]),
-            &Mat4::translate(v3(tx + lx, y0, tz + lz)),
+            &Mat4::from_translation(vec3(tx + lx, y0, tz + lz)),
         );
     }
     g.append(
         &shapes::sphere(24, 12, m_vase),
-        &(Mat4::translate(v3(tx + 0.4, ty + 0.3, tz)) * Mat4::scale(v3(0.18, 0.26, 0.18))),
+        &(Mat4::from_translation(vec3(tx + 0.4, ty + 0.3, tz)) * Mat4::from_scale(vec3(0.18, 0.26, 0.18))),
     );
     g.append(
-        &shapes::cuboid(v3(0.2, 0.05, 0.14), m_book, 1.0),
-        &(Mat4::translate(v3(tx - 0.35, ty + 0.1, tz + 0.1))
-            * Mat4::rotate(v3(0.0, 1.0, 0.0), 0.4)),
+        &shapes::cuboid(vec3(0.2, 0.05, 0.14), m_book, 1.0),
+        &(Mat4::from_translation(vec3(tx - 0.35, ty + 0.1, tz + 0.1))
+            * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), 0.4)),
     );
 
     // Plant in the foreground (depth ~2.3): pot, stem, leaves.
     let (px, pz) = (-1.2, -2.4);
     g.append(
         &shapes::cylinder(0.22, 0.45, 24, m_pot, true, [2.0, 1.0]),
-        &Mat4::translate(v3(px, y0, pz)),
+        &Mat4::from_translation(vec3(px, y0, pz)),
     );
     g.append(
         &shapes::cylinder(0.03, 0.9, 8, m_stem, false, [1.0, 1.0]),
-        &Mat4::translate(v3(px, y0 + 0.45, pz)),
+        &Mat4::from_translation(vec3(px, y0 + 0.45, pz)),
     );
     for k in 0..9 {
         let a = k as f32 * 2.4;
         let h = y0 + 0.6 + 0.09 * k as f32;
-        let dir = v3(a.sin(), 0.0, a.cos());
-        let c = v3(px, h, pz) + dir * 0.22;
-        let xf = Mat4::translate(c)
-            * Mat4::rotate(v3(0.0, 1.0, 0.0), a)
-            * Mat4::rotate(v3(1.0, 0.0, 0.0), 1.1)
-            * Mat4::scale(v3(0.08, 0.25, 0.025));
+        let dir = vec3(a.sin(), 0.0, a.cos());
+        let c = vec3(px, h, pz) + dir * 0.22;
+        let xf = Mat4::from_translation(c)
+            * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), a)
+            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), 1.1)
+            * Mat4::from_scale(vec3(0.08, 0.25, 0.025));
         g.append(&shapes::sphere(12, 8, m_leaf), &xf);
     }
 
@@ -185,7 +186,7 @@ pub fn build() -> Built {
         look,
         g,
         SceneKind::Forward,
-        [v3(x0, y0, z0), v3(x1, y1, -1.0)],
+        [vec3(x0, y0, z0), vec3(x1, y1, -1.0)],
         55f32.to_radians(),
     )
 }

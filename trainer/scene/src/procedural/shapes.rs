@@ -1,7 +1,7 @@
 //! Parametric meshes (sphere, box, cylinder, cone, torus, grid) with normals and UVs, built in
 //! local coordinates; scenes place them with `Geometry::append(&shape, &transform)`.
 
-use crate::math::{v3, V3};
+use glam::{vec3, Vec3};
 use crate::mesh::Geometry;
 use std::f32::consts::{PI, TAU};
 
@@ -11,7 +11,7 @@ fn param(
     nv: usize,
     mat: u32,
     uv_scale: [f32; 2],
-    f: impl Fn(f32, f32) -> (V3, V3),
+    f: impl Fn(f32, f32) -> (Vec3, Vec3),
 ) -> Geometry {
     let mut g = Geometry::default();
     for j in 0..=nv {
@@ -36,7 +36,7 @@ fn param(
 pub fn sphere(segs: usize, rings: usize, mat: u32) -> Geometry {
     param(segs, rings, mat, [1.0, 1.0], |u, v| {
         let (th, ph) = (u * TAU, v * PI);
-        let n = v3(ph.sin() * th.sin(), ph.cos(), ph.sin() * th.cos());
+        let n = vec3(ph.sin() * th.sin(), ph.cos(), ph.sin() * th.cos());
         (n, n)
     })
 }
@@ -52,8 +52,8 @@ pub fn torus(
 ) -> Geometry {
     param(segs, sides, mat, uv_scale, |u, v| {
         let (a, b) = (u * TAU, (1.0 - v) * TAU);
-        let ring = v3(a.sin(), 0.0, a.cos());
-        let n = ring * b.cos() + v3(0.0, b.sin(), 0.0);
+        let ring = vec3(a.sin(), 0.0, a.cos());
+        let n = ring * b.cos() + vec3(0.0, b.sin(), 0.0);
         (ring * r0 + n * r1, n)
     })
 }
@@ -62,18 +62,18 @@ pub fn torus(
 pub fn cylinder(r: f32, h: f32, segs: usize, mat: u32, caps: bool, uv_scale: [f32; 2]) -> Geometry {
     let mut g = param(segs, 1, mat, uv_scale, |u, v| {
         let a = u * TAU;
-        let n = v3(a.sin(), 0.0, a.cos());
-        (n * r + v3(0.0, h * (1.0 - v), 0.0), n)
+        let n = vec3(a.sin(), 0.0, a.cos());
+        (n * r + vec3(0.0, h * (1.0 - v), 0.0), n)
     });
     if caps {
         for (y, up) in [(h, 1.0f32), (0.0, -1.0)] {
-            let c = g.vertex(v3(0.0, y, 0.0), v3(0.0, up, 0.0), [0.5, 0.5]);
+            let c = g.vertex(vec3(0.0, y, 0.0), vec3(0.0, up, 0.0), [0.5, 0.5]);
             let first = g.positions.len() as u32;
             for i in 0..=segs {
                 let a = i as f32 / segs as f32 * TAU;
                 g.vertex(
-                    v3(a.sin() * r, y, a.cos() * r),
-                    v3(0.0, up, 0.0),
+                    vec3(a.sin() * r, y, a.cos() * r),
+                    vec3(0.0, up, 0.0),
                     [0.5 + 0.5 * a.sin(), 0.5 + 0.5 * a.cos()],
                 );
             }
@@ -95,27 +95,27 @@ pub fn cone(r: f32, h: f32, segs: usize, mat: u32, uv_scale: [f32; 2]) -> Geomet
     param(segs, 8, mat, uv_scale, |u, v| {
         let a = u * TAU;
         let k = v; // 0 at the apex, 1 at the base
-        let dir = v3(a.sin(), 0.0, a.cos());
-        let p = dir * (r * k) + v3(0.0, h * (1.0 - k), 0.0);
-        (p, (dir + v3(0.0, slope, 0.0)).norm())
+        let dir = vec3(a.sin(), 0.0, a.cos());
+        let p = dir * (r * k) + vec3(0.0, h * (1.0 - k), 0.0);
+        (p, (dir + vec3(0.0, slope, 0.0)).normalize_or(Vec3::Y))
     })
 }
 
 /// Axis-aligned box with half extents `he`, each face with its own [0,1]^2 UVs times `uv_scale`.
-pub fn cuboid(he: V3, mat: u32, uv_scale: f32) -> Geometry {
+pub fn cuboid(he: Vec3, mat: u32, uv_scale: f32) -> Geometry {
     let mut g = Geometry::default();
     let faces = [
-        (v3(1.0, 0.0, 0.0), v3(0.0, 0.0, -1.0), v3(0.0, 1.0, 0.0)),
-        (v3(-1.0, 0.0, 0.0), v3(0.0, 0.0, 1.0), v3(0.0, 1.0, 0.0)),
-        (v3(0.0, 1.0, 0.0), v3(1.0, 0.0, 0.0), v3(0.0, 0.0, -1.0)),
-        (v3(0.0, -1.0, 0.0), v3(1.0, 0.0, 0.0), v3(0.0, 0.0, 1.0)),
-        (v3(0.0, 0.0, 1.0), v3(1.0, 0.0, 0.0), v3(0.0, 1.0, 0.0)),
-        (v3(0.0, 0.0, -1.0), v3(-1.0, 0.0, 0.0), v3(0.0, 1.0, 0.0)),
+        (vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.0), vec3(0.0, 1.0, 0.0)),
+        (vec3(-1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, 1.0, 0.0)),
+        (vec3(0.0, 1.0, 0.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.0)),
+        (vec3(0.0, -1.0, 0.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0)),
+        (vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)),
+        (vec3(0.0, 0.0, -1.0), vec3(-1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)),
     ];
     for (n, t, b) in faces {
         let base = g.positions.len() as u32;
         for (su, sv) in [(-1.0f32, -1.0f32), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-            let p = (n + t * su + b * sv).mul_elem(he);
+            let p = (n + t * su + b * sv) * he;
             g.vertex(
                 p,
                 n,
@@ -132,8 +132,8 @@ pub fn cuboid(he: V3, mat: u32, uv_scale: f32) -> Geometry {
 pub fn grid(sx: f32, sz: f32, nx: usize, nz: usize, mat: u32, uv_per_unit: f32) -> Geometry {
     let mut g = param(nx, nz, mat, [1.0, 1.0], |u, v| {
         (
-            v3((u * 2.0 - 1.0) * sx, 0.0, (v * 2.0 - 1.0) * sz),
-            v3(0.0, 1.0, 0.0),
+            vec3((u * 2.0 - 1.0) * sx, 0.0, (v * 2.0 - 1.0) * sz),
+            vec3(0.0, 1.0, 0.0),
         )
     });
     for (p, uv) in g.positions.iter().zip(g.uvs.iter_mut()) {
@@ -145,15 +145,15 @@ pub fn grid(sx: f32, sz: f32, nx: usize, nz: usize, mat: u32, uv_per_unit: f32) 
 /// Flat disk of radius `r` in the xz plane in rings (so large disks stay well tessellated).
 pub fn disk(r: f32, rings: usize, segs: usize, mat: u32, uv_per_unit: f32) -> Geometry {
     let mut g = Geometry::default();
-    let up = v3(0.0, 1.0, 0.0);
-    let c = g.vertex(V3::default(), up, [0.0, 0.0]);
+    let up = vec3(0.0, 1.0, 0.0);
+    let c = g.vertex(Vec3::default(), up, [0.0, 0.0]);
     // Geometric ring radii so near rings are small and far rings large.
     let radius = |k: usize| r * ((k as f32 / rings as f32) * 7.0).exp2() / 128.0f32;
     for k in 1..=rings {
         let rr = radius(k);
         for i in 0..segs {
             let a = i as f32 / segs as f32 * TAU;
-            let p = v3(a.sin() * rr, 0.0, a.cos() * rr);
+            let p = vec3(a.sin() * rr, 0.0, a.cos() * rr);
             g.vertex(p, up, [p.x * uv_per_unit, p.z * uv_per_unit]);
         }
     }
@@ -189,7 +189,7 @@ mod tests {
             ("torus", torus(1.0, 0.3, 16, 8, 0, [1.0, 1.0])),
             ("cylinder", cylinder(1.0, 1.0, 16, 0, true, [1.0, 1.0])),
             ("cone", cone(1.0, 1.0, 16, 0, [1.0, 1.0])),
-            ("box", cuboid(v3(1.0, 2.0, 3.0), 0, 1.0)),
+            ("box", cuboid(vec3(1.0, 2.0, 3.0), 0, 1.0)),
             ("grid", grid(1.0, 1.0, 4, 4, 0, 1.0)),
             ("disk", disk(10.0, 6, 12, 0, 1.0)),
         ] {
@@ -199,7 +199,7 @@ mod tests {
                 let f = (b - a).cross(c - a);
                 let n =
                     g.normals[t[0] as usize] + g.normals[t[1] as usize] + g.normals[t[2] as usize];
-                if f.len() > 1e-6 && f.dot(n) < 0.0 {
+                if f.length() > 1e-6 && f.dot(n) < 0.0 {
                     bad += 1;
                 }
             }

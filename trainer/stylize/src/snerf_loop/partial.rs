@@ -9,6 +9,7 @@ use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
 use snerf_data::Dataset;
 use snerf_trainer::checkpoint;
+use snerf_trainer::run_dir::RunDir;
 use snerf_trainer::train::Trainer;
 
 use super::StylizeOptions;
@@ -49,7 +50,7 @@ pub fn clear(out: &Path) {
 pub fn save(out: &Path, p: &Partial, trainer: &Trainer, targets: &[Image]) -> Result<()> {
     clear(out);
     std::fs::create_dir_all(dir(out)).with_context(|| format!("{}: cannot create", dir(out).display()))?;
-    checkpoint::save(trainer, &dir(out).join(checkpoint::FILE_NAME))?;
+    checkpoint::save(trainer, &RunDir::new(dir(out)).checkpoint())?;
     for (i, t) in targets.iter().enumerate() {
         crate::stylizer::save_png(&target_path(out, i), t)?;
     }
@@ -65,7 +66,7 @@ pub fn load(out: &Path, round: usize, data: &Dataset, opts: &StylizeOptions) -> 
         clear(out);
         return Ok(None);
     }
-    let ck = checkpoint::load(&dir(out).join(checkpoint::FILE_NAME))?;
+    let ck = checkpoint::load(&RunDir::new(dir(out)).checkpoint())?;
     let views = super::pick_views(&data.train, opts.views).len();
     let mut targets = Vec::with_capacity(views);
     for i in 0..views {

@@ -14,7 +14,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde_json::{json, Value};
 
-use crate::cli::pj;
+use crate::args::pj;
+use snerf_trainer::run_dir::RunDir;
 
 #[derive(Args, Debug)]
 pub struct BenchQualityArgs {
@@ -146,7 +147,7 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
     let mut runs = Vec::new();
     for &secs in &a.seconds {
         let run = a.out.join("runs").join(format!("{name}-{secs}s"));
-        let metrics_path = run.join("metrics.json");
+        let metrics_path = RunDir::new(&run).metrics();
         let done = std::fs::read(&metrics_path)
             .ok()
             .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
@@ -154,7 +155,7 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
         let mut peak = None;
         if done.is_none() {
             let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run), "--minutes".into(), format!("{}", secs / 60.0)];
-            if run.join("checkpoint.snerfck").exists() {
+            if RunDir::new(&run).checkpoint().exists() {
                 args.push("--resume".into());
             }
             if let Some(f) = &a.train_flags {

@@ -1,0 +1,181 @@
+//! The layout of a run directory, in one place. `snerf train --out RUN` writes
+//! `RUN/checkpoint.snerfck`, `RUN/config.json` and `RUN/metrics.json`; `snerf eval` writes
+//! `RUN/eval/` with its record `eval.json`; `snerf stylize --out SRUN` writes a checkpoint and
+//! `SRUN/stylize.json`. Every command that reads a run (eval, turntable, stylize, bake,
+//! report, the benchmarks) goes through [`RunDir`] rather than joining these names itself,
+//! so a missing piece is reported the same way everywhere: by the directory and the file.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use serde_json::Value;
+
+use crate::checkpoint;
+use crate::render::WorkspacePool;
+use crate::train::Model;
+
+/// A training or stylization run's directory.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunDir {
+    path: PathBuf,
+}
+
+impl RunDir {
+    /// The field, its optimizer state and settings (`checkpoint` module).
+    pub const CHECKPOINT: &'static str = checkpoint::FILE_NAME;
+    /// Training settings, the scene space and the dataset's summary.
+    pub const CONFIG: &'static str = "config.json";
+    /// The test-PSNR-against-time curve.
+    pub const METRICS: &'static str = "metrics.json";
+    /// Where `snerf eval` writes its images by default.
+    pub const EVAL_DIR: &'static str = "eval";
+    /// `snerf eval`'s record, in its output directory.
+    pub const EVAL_RECORD: &'static str = "eval.json";
+    /// A stylization run's per-round record (written by snerf-stylize).
+    pub const STYLIZE_RECORD: &'static str = "stylize.json";
+
+    pub fn new(path: impl Into<PathBuf>) -> RunDir {
+        RunDir { path: path.into() }
+    }
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+    pub fn checkpoint(&self) -> PathBuf {
+        self.path.join(Self::CHECKPOINT)
+    }
+    pub fn config(&self) -> PathBuf {
+        self.path.join(Self::CONFIG)
+    }
+    pub fn metrics(&self) -> PathBuf {
+        self.path.join(Self::METRICS)
+    }
+    pub fn eval_dir(&self) -> PathBuf {
+        self.path.join(Self::EVAL_DIR)
+    }
+    /// The record of an evaluation into the default directory.
+    pub fn eval_record(&self) -> PathBuf {
+        self.eval_dir().join(Self::EVAL_RECORD)
+    }
+    pub fn stylize_record(&self) -> PathBuf {
+        self.path.join(Self::STYLIZE_RECORD)
+    }
+
+    /// The files of the run that no command may overwrite through an `--out`.
+    pub fn files(&self) -> Vec<PathBuf> {
+        vec![self.checkpoint(), self.metrics(), self.config(), self.stylize_record()]
+    }
+
+    /// The dataset the run was trained on: `dataset.root` of config.json, or for a
+    /// stylization run the `options.data` of its record.
+    pub fn dataset(&self) -> Result<PathBuf> {
+        if !self.path.is_dir() {
+            bail!("{}: no such run directory (expected the --out of `snerf train` or `snerf stylize`)", self.path.display());
+        }
+        for (file, pointer) in [(self.config(), "/dataset/root"), (self.stylize_record(), "/options/data")] {
+            if let Ok(bytes) = std::fs::read(&file) {
+                let v: Value = serde_json::from_slice(&bytes).with_context(|| format!("{}: not JSON", file.display()))?;
+                if let Some(root) = v.pointer(pointer).and_then(|r| r.as_str()) {
+                    return Ok(PathBuf::from(root));
+                }
+            }
+        }
+        bail!(
+            "{}: cannot tell which dataset this run used (no {} or {}); pass --data",
+            self.path.display(),
+            Self::CONFIG,
+            Self::STYLIZE_RECORD
+        )
+    }
+
+    /// The run's field as a renderable model, with a workspace pool sized for it.
+    pub fn load_model(&self) -> Result<(Model, WorkspacePool)> {
+        let path = self.checkpoint();
+        if !path.exists() {
+            bail!("{}: no checkpoint here (expected {}); run `snerf train` first", self.path.display(), path.display());
+        }
+        let ck = checkpoint::load(&path)?;
+        let pool = WorkspacePool::new(ck.model.field.params.len());
+        Ok((ck.model, pool))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::run::{self, RunOptions};
+    use crate::train::TrainConfig;
+
+    fn tmp(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("snerf-run-dir-{}-{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    /// A four-view Blender-style dataset of a grey disc on a transparent background, seen
+    /// from the four sides: small enough to train a few steps in a unit test.
+    fn write_tiny_dataset(dir: &Path) {
+        let img = image::RgbaImage::from_fn(16, 16, |x, y| {
+            let (dx, dy) = (x as f32 - 7.5, y as f32 - 7.5);
+            if dx * dx + dy * dy < 25.0 {
+                image::Rgba([128, 128, 128, 255])
+            } else {
+                image::Rgba([0, 0, 0, 0])
+            }
+        });
+        for split in ["train", "test"] {
+            std::fs::create_dir_all(dir.join(split)).unwrap();
+            let frames: Vec<Value> = (0..4)
+                .map(|i| {
+                    let a = i as f32 * std::f32::consts::FRAC_PI_2;
+                    let eye = [4.0 * a.sin(), 0.5, 4.0 * a.cos()];
+                    let m = snerf_geometry::look_at(eye, [0.0; 3], [0.0, 1.0, 0.0]);
+                    let file = format!("{split}/r_{i}");
+                    img.save(dir.join(format!("{file}.png"))).unwrap();
+                    serde_json::json!({ "file_path": file, "transform_matrix": [m[0], m[1], m[2], [0.0, 0.0, 0.0, 1.0]] })
+                })
+                .collect();
+            let doc = serde_json::json!({ "camera_angle_x": 0.7, "frames": frames });
+            std::fs::write(dir.join(format!("transforms_{split}.json")), doc.to_string()).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_missing_checkpoint_or_directory_is_named_in_the_error() {
+        let d = tmp("missing");
+        let Err(e) = RunDir::new(&d).load_model() else { panic!("a model from an empty directory") };
+        let e = format!("{e:#}");
+        assert!(e.contains(&RunDir::new(&d).checkpoint().display().to_string()), "{e}");
+        let e = format!("{:#}", RunDir::new(&d).dataset().unwrap_err());
+        assert!(e.contains(&d.display().to_string()) && e.contains(RunDir::CONFIG), "{e}");
+        let gone = d.join("no-such-run");
+        let e = format!("{:#}", RunDir::new(&gone).dataset().unwrap_err());
+        assert!(e.contains(&gone.display().to_string()), "{e}");
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn a_trained_run_gives_back_its_dataset_and_model() {
+        let d = tmp("trained");
+        let data_dir = d.join("data");
+        write_tiny_dataset(&data_dir);
+        let data = crate::data::load(&data_dir, &Default::default()).unwrap();
+        let mut cfg = TrainConfig::for_dataset(&data);
+        cfg.field.resolutions = vec![8, 16];
+        cfg.batch_rays = 256;
+        cfg.batch_samples = 0;
+        let opts = RunOptions { dir: d.join("run"), steps: Some(3), seconds: None, curve_pixels: 64, checkpoint_every: 1e9 };
+        let mut t = run::open(&data, cfg, &opts.dir, false).unwrap();
+        run::run(&mut t, &data, &opts, &mut |_, _, _| {}).unwrap();
+
+        let dir = RunDir::new(&opts.dir);
+        for f in [dir.checkpoint(), dir.config(), dir.metrics()] {
+            assert!(f.is_file(), "{} was not written", f.display());
+        }
+        assert_eq!(dir.dataset().unwrap(), data.root);
+        let (model, _pool) = dir.load_model().unwrap();
+        assert_eq!(model.field.params, t.model.field.params);
+        assert_eq!(model.space.kind, data.kind);
+        std::fs::remove_dir_all(&d).ok();
+    }
+}
