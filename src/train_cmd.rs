@@ -56,6 +56,10 @@ pub struct TrainArgs {
     /// Learning rate of the decoder and view MLP (Adam).
     #[arg(long, value_parser = crate::args::positive_f32)]
     pub lr_mlp: Option<f32>,
+    /// Learning rate at the end of the budget, as a fraction of the starting rate (the rate
+    /// decays exponentially in between; default 0.1).
+    #[arg(long, value_parser = crate::args::positive_f32)]
+    pub lr_final: Option<f32>,
     /// Weight of the distortion loss (default 0.01 for forward/unbounded scenes, 0 for objects).
     #[arg(long, value_parser = crate::args::non_negative_f32)]
     pub distortion: Option<f32>,
@@ -129,6 +133,9 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     if let Some(lr) = a.lr_mlp {
         cfg.lr_mlp = lr;
     }
+    if let Some(f) = a.lr_final {
+        cfg.lr_final = f;
+    }
     if let Some(d) = a.distortion {
         cfg.distortion = d;
     }
@@ -161,6 +168,7 @@ impl TrainArgs {
             ("--resolution", "/field/resolutions", self.resolution.is_some()),
             ("--lr-planes", "/lr_planes", self.lr_planes.is_some()),
             ("--lr-mlp", "/lr_mlp", self.lr_mlp.is_some()),
+            ("--lr-final", "/lr_final", self.lr_final.is_some()),
             ("--distortion", "/distortion", self.distortion.is_some()),
             ("--tv", "/tv", self.tv.is_some()),
             ("--batch", "/batch_rays", self.batch.is_some()),
