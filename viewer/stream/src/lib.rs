@@ -16,6 +16,7 @@
 
 pub mod bench;
 mod cache;
+mod conn;
 pub mod client;
 pub mod live;
 mod pending;
@@ -24,6 +25,7 @@ pub mod proto;
 pub mod server;
 pub mod tls;
 pub mod url;
+pub mod web;
 
 pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
 pub use live::LiveAsset;

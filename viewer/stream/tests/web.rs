@@ -1,0 +1,188 @@
+//! The web viewer end to end: a real server on loopback (the code `snerf serve` runs), the
+//! real page in headless Chromium (driven by `tests/web/page.mjs` through playwright-core),
+//! WebTransport with the token from the URL fragment, the asset received byte for byte
+//! (SHA-256 computed by the page), and the page's WebGPU frame against the CPU reference
+//! renderer (`snerf render`) at the same pose.
+//!
+//! Needs `/usr/bin/chromium` (or SNERF_CHROMIUM) and playwright-core under
+//! target/test-assets/playwright (`.ci/run` installs both). Without them the tests say so and
+//! pass, unless SNERF_REQUIRE_BROWSER=1 (CI), where they fail.
+
+mod common;
+
+use common::*;
+use sha2::{Digest, Sha256};
+use snerf_asset::Asset;
+use snerf_stream::{Limits, ServeOptions, ServerHandle};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::Ordering;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// (node, chromium, playwright-core dir), or None after saying why (panics under CI).
+fn browser() -> Option<(PathBuf, PathBuf, PathBuf)> {
+    let chromium = std::env::var_os("SNERF_CHROMIUM")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
+    let pw = root().join("target/test-assets/playwright/node_modules/playwright-core");
+    let node = Command::new("node").arg("--version").output().is_ok();
+    let missing = if !chromium.exists() {
+        Some(format!("no Chromium at {}", chromium.display()))
+    } else if !pw.join("package.json").exists() {
+        Some(format!("no playwright-core at {}", pw.display()))
+    } else if !node {
+        Some("no node".to_string())
+    } else {
+        None
+    };
+    match missing {
+        None => Some((PathBuf::from("node"), chromium, pw)),
+        Some(why) => {
+            if std::env::var("SNERF_REQUIRE_BROWSER").as_deref() == Ok("1") {
+                panic!("SNERF_REQUIRE_BROWSER=1 but {} (.ci/run installs it)", why);
+            }
+            eprintln!("skipping the web viewer test: {} (.ci/run installs chromium and playwright-core)", why);
+            None
+        }
+    }
+}
+
+fn start(dir: &Path, state: &Path) -> ServerHandle {
+    let mut o = ServeOptions::new(dir, "127.0.0.1:0".parse().unwrap());
+    o.state_dir = Some(state.to_path_buf());
+    o.limits = Limits::default();
+    o.quiet = std::env::var_os("SNERF_STREAM_LOG").is_none();
+    o.web = Some("127.0.0.1:0".parse().unwrap());
+    snerf_stream::spawn(o).unwrap()
+}
+
+/// Run page.mjs; its JSON report.
+fn page(b: &(PathBuf, PathBuf, PathBuf), args: &[&str]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/page.mjs");
+    let out = Command::new(&b.0)
+        .arg(&script)
+        .arg(&b.2)
+        .args(args)
+        .env("SNERF_CHROMIUM", &b.1)
+        .output()
+        .expect("run node");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "page.mjs failed: {}", stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("page report {:?}: {} (stderr: {})", stdout, e, stderr))
+}
+
+fn cam_json(c: &snerf_asset::Camera) -> String {
+    serde_json::json!({
+        "c2w": c.c2w, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
+        "width": c.width, "height": c.height,
+    })
+    .to_string()
+}
+
+fn fragment(pairs: &[(&str, &str)]) -> String {
+    let enc = |s: &str| -> String {
+        s.bytes()
+            .map(|b| match b {
+                b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' => (b as char).to_string(),
+                _ => format!("%{:02X}", b),
+            })
+            .collect()
+    };
+    pairs.iter().map(|(k, v)| format!("{}={}", k, enc(v))).collect::<Vec<_>>().join("&")
+}
+
+/// Mean absolute difference per channel between the page's RGBA floats and a CPU frame.
+fn mean_abs_diff(rgba: &[serde_json::Value], cpu: &snerf_asset::Frame) -> [f64; 3] {
+    let px = (cpu.width * cpu.height) as usize;
+    assert_eq!(rgba.len(), px * 4, "page frame size");
+    let mut d = [0f64; 3];
+    for i in 0..px {
+        for c in 0..3 {
+            let g = rgba[4 * i + c].as_f64().unwrap().clamp(0.0, 1.0);
+            d[c] += (g - cpu.rgb[3 * i + c] as f64).abs();
+        }
+    }
+    d.map(|x| x / px as f64)
+}
+
+#[test]
+fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web");
+    let state = TempDir::new("web-state");
+    let asset = static_asset(32, 8, 0.8, 11);
+    let bytes = write_asset(&asset, dir.path(), "scene");
+    // A second asset so the listing shows more than one.
+    write_asset(&dynamic_asset(16, 8, 0.9, 2, 3), dir.path(), "moving");
+    let h = start(dir.path(), state.path());
+    let web = h.web().expect("web viewer started").clone();
+    // The pose of `snerf render --path orbit --frames 1 --size 64x48`.
+    let cam = snerf_asset::orbit(&asset.header, 1, 0, 64, 48, 40.0);
+    let url = format!(
+        "{}#{}",
+        web.url(),
+        fragment(&[("token", h.token()), ("asset", "scene"), ("cam", &cam_json(&cam))])
+    );
+    let r = page(&b, &[&url, "done"]);
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+    assert_eq!(r["state"], "done");
+    // The listing: names, sizes, kinds.
+    let listing = r["listing"].as_array().unwrap();
+    let names: Vec<&str> = listing.iter().map(|e| e["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["moving", "scene"]);
+    assert_eq!(listing[1]["size"], bytes.len() as u64);
+    assert_eq!(listing[1]["kind"], "object");
+    // Byte-identical: the page's SHA-256 of the rebuilt file is the file's.
+    let sha = snerf_stream::proto::to_hex(&Sha256::digest(&bytes));
+    assert_eq!(r["sha256"], sha.as_str());
+    assert_eq!(r["chunks"], r["asset"]["chunks"]);
+    // The same image as the CPU reference.
+    let cpu = snerf_asset::render(&Asset::from_bytes(&bytes).unwrap(), &cam, 0.0);
+    let fr = &r["lastRender"];
+    assert_eq!(fr["complete"], true);
+    assert_eq!((fr["width"].as_u64(), fr["height"].as_u64()), (Some(64), Some(48)));
+    let d = mean_abs_diff(fr["rgba"].as_array().unwrap(), &cpu);
+    eprintln!("web vs CPU reference: mean |diff| per channel {:?} (adapter {})", d, r["adapter"]);
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
+    // The image is not trivially empty (the comparison means something).
+    let lit = cpu.rgb.iter().filter(|&&v| v > 0.05).count();
+    assert!(lit > cpu.rgb.len() / 10, "the test image is almost black");
+    assert!(h.stats().bytes_sent.load(Ordering::Relaxed) >= bytes.len() as u64 - 16);
+    h.shutdown();
+}
+
+#[test]
+fn wrong_token_missing_token_and_another_origin_get_nothing() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-refuse");
+    let state = TempDir::new("web-refuse-state");
+    write_asset(&static_asset(16, 8, 0.9, 5), dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    // Wrong token: the server closes the session (unauthorized) before sending anything.
+    let wrong = "0".repeat(64);
+    let url = format!("{}#{}", web.url(), fragment(&[("token", &wrong), ("asset", "scene")]));
+    let r = page(&b, &[&url, "done"]);
+    assert_eq!(r["state"], "error");
+    assert_eq!(r["listing"], serde_json::Value::Null);
+    assert_eq!(r["asset"], serde_json::Value::Null);
+    assert_eq!(r["bytes"], 0);
+    assert!(h.stats().unauthorized.load(Ordering::Relaxed) >= 1);
+    // No token: the page does not even connect.
+    let r = page(&b, &[&format!("{}#asset=scene", web.url()), "done"]);
+    assert_eq!(r["state"], "error");
+    assert!(r["error"].as_str().unwrap().contains("token"), "{}", r["error"]);
+    // A page of another origin: the CONNECT is refused (403).
+    let before = h.stats().unauthorized.load(Ordering::Relaxed);
+    let wt = format!("https://127.0.0.1:{}/snerf/1", web.addr.port());
+    let r = page(&b, &["-", "-", &wt, web.cert_hash.as_deref().unwrap()]);
+    assert_eq!(r["connected"], false, "{}", r);
+    assert!(h.stats().unauthorized.load(Ordering::Relaxed) > before);
+    assert_eq!(h.stats().bytes_sent.load(Ordering::Relaxed), 0);
+    assert_eq!(h.stats().streams_started.load(Ordering::Relaxed), 0);
+    h.shutdown();
+}
