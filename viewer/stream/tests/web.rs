@@ -180,6 +180,7 @@ fn wrong_token_missing_token_and_another_origin_get_nothing() {
     let before = h.stats().unauthorized.load(Ordering::Relaxed);
     let wt = format!("https://127.0.0.1:{}/snerf/1", web.addr.port());
     let r = page(&b, &["-", "-", &wt, web.cert_hash.as_deref().unwrap()]);
+    eprintln!("another origin: {}", r);
     assert_eq!(r["connected"], false, "{}", r);
     assert!(h.stats().unauthorized.load(Ordering::Relaxed) > before);
     assert_eq!(h.stats().bytes_sent.load(Ordering::Relaxed), 0);

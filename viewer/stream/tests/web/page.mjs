@@ -1,8 +1,8 @@
 // Drives the web viewer in headless Chromium for tests/web.rs (no mocks: the real page from
 // the real server). Usage: node page.mjs PLAYWRIGHT_DIR URL STATE [OTHER_ORIGIN_WT_URL CERT_HASH]
 // Waits until window.snerf.state is STATE or 'error', prints the page's report as JSON.
-// With OTHER_ORIGIN_WT_URL: instead opens a page of another origin (https://other.test,
-// served by Playwright) that tries a WebTransport session to the server, and prints its result.
+// With OTHER_ORIGIN_WT_URL: instead opens a page of another origin (another loopback port)
+// that tries a WebTransport session to the server, and prints its result.
 import { createRequire } from 'module';
 
 const [pwDir, url, want, otherWt, certHash] = process.argv.slice(2);
@@ -20,8 +20,13 @@ try {
   page.on('console', (m) => console.error('page:', m.text()));
   page.on('pageerror', (e) => console.error('page error:', e.message));
   if (otherWt) {
-    await page.route('https://other.test/**', (r) => r.fulfill({ contentType: 'text/html', body: '<!doctype html><title>other</title>' }));
-    await page.goto('https://other.test/');
+    // Another origin on loopback (a public origin would be stopped by the browser's own
+    // local-network rules before reaching the server, testing nothing of ours).
+    const http = await import('node:http');
+    const srv = http.createServer((_, res) => { res.setHeader('content-type', 'text/html'); res.end('<!doctype html><title>other</title>'); });
+    await new Promise((res) => srv.listen(0, '127.0.0.1', res));
+    await page.goto(`http://127.0.0.1:${srv.address().port}/`);
+    srv.close();
     const r = await page.evaluate(async ([u, h]) => {
       const value = new Uint8Array(h.match(/../g).map((x) => parseInt(x, 16)));
       try {
