@@ -51,9 +51,13 @@ fn browser() -> Option<(PathBuf, PathBuf, PathBuf)> {
 }
 
 fn start(dir: &Path, state: &Path) -> ServerHandle {
+    start_with(dir, state, Limits::default())
+}
+
+fn start_with(dir: &Path, state: &Path, limits: Limits) -> ServerHandle {
     let mut o = ServeOptions::new(dir, "127.0.0.1:0".parse().unwrap());
     o.state_dir = Some(state.to_path_buf());
-    o.limits = Limits::default();
+    o.limits = limits;
     o.quiet = std::env::var_os("SNERF_STREAM_LOG").is_none();
     o.web = Some("127.0.0.1:0".parse().unwrap());
     snerf_stream::spawn(o).unwrap()
@@ -185,5 +189,97 @@ fn wrong_token_missing_token_and_another_origin_get_nothing() {
     assert!(h.stats().unauthorized.load(Ordering::Relaxed) > before);
     assert_eq!(h.stats().bytes_sent.load(Ordering::Relaxed), 0);
     assert_eq!(h.stats().streams_started.load(Ordering::Relaxed), 0);
+    h.shutdown();
+}
+
+/// An unbounded-scene asset: random blocks in the cells within `radius` of the grid centre
+/// (contracted space: the far field is the grid's outer shell).
+fn unbounded_asset(res: u32, block: u32, radius: f32, seed: u64) -> Asset {
+    use snerf_asset::{AssetBuilder, Header, Kind};
+    let mut h = Header::new(Kind::Unbounded, res, block);
+    h.background = [0.2, 0.3, 0.4];
+    let g = h.grid_dim();
+    let bb = h.block_bytes();
+    let mut b = AssetBuilder::new(h, mlp()).unwrap();
+    let mut rng = Rng(seed | 1);
+    let mut buf = vec![0u8; bb];
+    let c = |i: usize| -1.0 + (i as f32 + 0.5) * 2.0 / g as f32;
+    for z in 0..g {
+        for y in 0..g {
+            for x in 0..g {
+                if (c(x).powi(2) + c(y).powi(2) + c(z).powi(2)).sqrt() < radius {
+                    rng.fill(&mut buf);
+                    // Thin densities (codes 0..63) so the far shell shows through.
+                    for v in buf.chunks_mut(8) {
+                        v[0] &= 63;
+                    }
+                    b.set_block(0, [x, y, z], &buf).unwrap();
+                }
+            }
+        }
+    }
+    b.finish().unwrap()
+}
+
+/// Stream `name` into the page with the orbit's first camera at `time`; check the page's
+/// frame against the CPU reference. Returns the page's report.
+fn check_render(b: &(PathBuf, PathBuf, PathBuf), h: &ServerHandle, asset: &Asset, name: &str, time: f32) -> serde_json::Value {
+    let cam = snerf_asset::orbit(&asset.header, 1, 0, 48, 32, 40.0);
+    let url = format!(
+        "{}#{}",
+        h.web().unwrap().url(),
+        fragment(&[("token", h.token()), ("asset", name), ("cam", &cam_json(&cam)), ("time", &time.to_string())])
+    );
+    let r = page(b, &[&url, "done"]);
+    assert_eq!(r["error"], serde_json::Value::Null, "{}: page error: {}", name, r["error"]);
+    let cpu = snerf_asset::render(asset, &cam, time);
+    let d = mean_abs_diff(r["lastRender"]["rgba"].as_array().unwrap(), &cpu);
+    eprintln!("{} at t={}: web vs CPU reference mean |diff| {:?}", name, time, d);
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{} at t={}: mean |diff| {:?} > 2/255", name, time, d);
+    r
+}
+
+#[test]
+fn a_4d_asset_at_two_times_and_an_unbounded_scene_render_like_the_cpu_reference() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-kinds");
+    let state = TempDir::new("web-kinds-state");
+    let moving = Asset::from_bytes(&write_asset(&dynamic_asset(16, 8, 0.9, 3, 21), dir.path(), "moving")).unwrap();
+    let outdoor = Asset::from_bytes(&write_asset(&unbounded_asset(32, 8, 0.9, 4), dir.path(), "outdoor")).unwrap();
+    let h = start(dir.path(), state.path());
+    // Between keyframes 0 and 1 (blended), and between 1 and 2: different images.
+    let cam = snerf_asset::orbit(&moving.header, 1, 0, 48, 32, 40.0);
+    let (a, c) = (snerf_asset::render(&moving, &cam, 0.5), snerf_asset::render(&moving, &cam, 1.75));
+    assert!(a.rgb.iter().zip(&c.rgb).any(|(x, y)| (x - y).abs() > 0.05), "the two times look the same");
+    check_render(&b, &h, &moving, "moving", 0.5);
+    check_render(&b, &h, &moving, "moving", 1.75);
+    let r = check_render(&b, &h, &outdoor, "outdoor", 0.0);
+    assert_eq!(r["listing"].as_array().unwrap()[1]["kind"], "unbounded");
+    h.shutdown();
+}
+
+#[test]
+fn first_frame_comes_before_the_whole_asset_under_a_small_send_budget() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-progressive");
+    let state = TempDir::new("web-progressive-state");
+    let asset = static_asset(64, 8, 0.95, 9);
+    write_asset(&asset, dir.path(), "big");
+    // One data stream at a time and the smallest send window: the small parts go first and
+    // are acknowledged before any block is sent.
+    let limits = Limits {
+        send_budget: 64 * 1024,
+        max_streams: 1,
+        batch_bytes: 16 * 1024,
+        ..Limits::default()
+    };
+    let h = start_with(dir.path(), state.path(), limits);
+    let r = check_render(&b, &h, &asset, "big", 0.0);
+    let total = asset.header.atlas_blocks as u64;
+    let first = &r["firstFrame"];
+    eprintln!("first frame after {} ms with {} of {} blocks", r["firstFrameMs"], first["blocks"], total);
+    assert_eq!(first["complete"], false, "{}", first);
+    assert!(first["blocks"].as_u64().unwrap() < total, "{}", first);
+    assert!(r["frames"].as_u64().unwrap() >= 2);
     h.shutdown();
 }

@@ -342,15 +342,17 @@ async function stream(name, device, wg) {
     try {
       const cam = camera();
       const ts = performance.now();
+      // What this frame shows: the blocks uploaded before it was submitted.
+      const blocks = report.blocks, complete = report.chunks === info.chunks;
       const rgba = await r.render(cam, time);
       blit(rgba, cam.width, cam.height);
       report.frames++;
       const ms = performance.now() - ts;
       if (report.firstFrameMs === null) {
         report.firstFrameMs = performance.now() - t0;
-        report.firstFrame = { width: cam.width, height: cam.height, blocks: report.blocks, complete: report.chunks === info.chunks };
+        report.firstFrame = { width: cam.width, height: cam.height, blocks, complete };
       }
-      report.lastRender = { rgba, width: cam.width, height: cam.height, complete: report.chunks === info.chunks };
+      report.lastRender = { rgba, width: cam.width, height: cam.height, complete };
       stats(ms);
     } catch (e) { fail(e); }
     rendering = false;
@@ -404,7 +406,11 @@ async function stream(name, device, wg) {
     } else if (tag === 'VMLP') { r.setMlp(p); r.mlp = true; }
     else if (tag === 'GRID') { r.setGrid(u32(p, 0), new Uint32Array(p.slice(4).buffer)); }
     else if (tag === 'BLKS') { const n = u32(p, 4); r.setBlocks(u32(p, 0), n, p.subarray(8)); report.blocks += n; }
-    if (r && r.mlp && r.grids.every((g) => g)) redraw();
+    if (r && r.mlp && r.grids.every((g) => g)) {
+      // The first frame is drawn as soon as the small parts are in, before more blocks are
+      // taken in (chunks are applied one at a time): progressive from the first block on.
+      if (report.firstFrameMs === null) { dirty = true; await draw(); } else redraw();
+    }
   }
   const pendingChunks = [];
 
