@@ -65,7 +65,7 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
         .output()
         .unwrap());
     let run = d.join("run");
-    ok(snerf().args(["--json", "train"]).arg(&ds).arg("--out").arg(&run).args(["--steps", "30"]).output().unwrap());
+    ok(snerf().args(["--json", "train"]).arg(&ds).arg("--out").arg(&run).args(["--steps", "2"]).output().unwrap());
     let assets = d.join("assets");
     std::fs::create_dir_all(&assets).unwrap();
     let file = assets.join("a.snerf");
