@@ -14,7 +14,8 @@
 //! valid for 13 days (browsers accept at most 14 for `serverCertificateHashes`) and hands its
 //! SHA-256 to the page in `/config.json`; with `--cert/--key` that certificate is used and the
 //! page relies on the browser's normal verification. The page is served over plain HTTP,
-//! which browsers treat as a secure context only on loopback.
+//! which browsers treat as a secure context only on loopback, or over HTTPS with that same
+//! certificate when `--cert/--key` are given.
 //!
 //! Who may connect: the page needs the access token, which it takes from the URL fragment
 //! (never sent in a request, never logged); the WebTransport CONNECT must come from a page of
@@ -27,8 +28,8 @@ use std::net::SocketAddr;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
-use tokio::net::{TcpListener, TcpStream};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
+use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinSet;
 use tokio::time::Instant;
@@ -56,17 +57,21 @@ pub struct WebInfo {
     pub addr: SocketAddr,
     /// Hex SHA-256 of the generated certificate (None with `--cert/--key`).
     pub cert_hash: Option<String>,
+    /// The page is served over HTTPS (with `--cert/--key`), else plain HTTP.
+    pub https: bool,
 }
 
 impl WebInfo {
-    /// `http://ADDR/` (the token goes in the fragment: `#token=…`).
+    /// `http://ADDR/`, or `https://…` with `--cert/--key` (the token goes in the fragment:
+    /// `#token=…`).
     pub fn url(&self) -> String {
         let host = if self.addr.ip().is_unspecified() {
             "127.0.0.1".to_string()
         } else {
             host_literal(self.addr.ip())
         };
-        format!("http://{}:{}/", host, self.addr.port())
+        let scheme = if self.https { "https" } else { "http" };
+        format!("{}://{}:{}/", scheme, host, self.addr.port())
     }
 }
 
@@ -80,6 +85,8 @@ fn host_literal(ip: std::net::IpAddr) -> String {
 pub(crate) struct WebParts {
     pub info: WebInfo,
     http: TcpListener,
+    /// TLS for the page (`--cert/--key`): the same certificate, ALPN http/1.1.
+    page_tls: Option<tokio_rustls::TlsAcceptor>,
     wt: wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>,
 }
 
@@ -130,6 +137,11 @@ pub(crate) fn bind(
     limits: &crate::server::Limits,
 ) -> Result<WebParts> {
     let (tls, cert_hash) = web_tls(id, user_cert, addr)?;
+    let page_tls = user_cert.then(|| {
+        let mut c = tls.clone();
+        c.alpn_protocols = vec![b"http/1.1".to_vec()];
+        tokio_rustls::TlsAcceptor::from(Arc::new(c))
+    });
     let mut t = transport(limits)?;
     // HTTP/3 needs the client's control and QPACK streams and its CONNECT request; snerf/1
     // adds one bidirectional control stream.
@@ -162,8 +174,10 @@ pub(crate) fn bind(
             info: WebInfo {
                 addr: tcp_addr,
                 cert_hash,
+                https: page_tls.is_some(),
             },
             http: TcpListener::from_std(tcp)?,
+            page_tls,
             wt,
         });
     }
@@ -177,7 +191,7 @@ pub(crate) fn bind(
 /// Serve the page and WebTransport sessions until `stop`.
 pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Receiver<bool>) {
     let info = Arc::new(parts.info);
-    let http = tokio::spawn(http_loop(parts.http, info.clone(), stop.clone()));
+    let http = tokio::spawn(http_loop(parts.http, parts.page_tls, info.clone(), stop.clone()));
     wt_loop(shared, parts.wt, info.addr.port(), stop).await;
     http.abort();
     let _ = http.await;
@@ -277,7 +291,12 @@ async fn session(
 
 // ---- the page over HTTP/1.1 ----
 
-async fn http_loop(l: TcpListener, info: Arc<WebInfo>, mut stop: watch::Receiver<bool>) {
+async fn http_loop(
+    l: TcpListener,
+    tls: Option<tokio_rustls::TlsAcceptor>,
+    info: Arc<WebInfo>,
+    mut stop: watch::Receiver<bool>,
+) {
     let mut conns = JoinSet::new();
     loop {
         let r = tokio::select! {
@@ -293,16 +312,25 @@ async fn http_loop(l: TcpListener, info: Arc<WebInfo>, mut stop: watch::Receiver
         if conns.len() >= 64 {
             continue; // dropped: too many page requests at once
         }
-        let info = info.clone();
+        let (info, tls) = (info.clone(), tls.clone());
         conns.spawn(async move {
-            let _ = tokio::time::timeout(Duration::from_secs(10), http_conn(s, &info)).await;
+            let _ = tokio::time::timeout(Duration::from_secs(10), async {
+                match tls {
+                    Some(t) => match t.accept(s).await {
+                        Ok(s) => http_conn(s, &info).await,
+                        Err(_) => Ok(()),
+                    },
+                    None => http_conn(s, &info).await,
+                }
+            })
+            .await;
         });
     }
     conns.abort_all();
 }
 
 /// One request per connection (`Connection: close`): GET or HEAD of a few fixed paths.
-async fn http_conn(mut s: TcpStream, info: &WebInfo) -> std::io::Result<()> {
+async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) -> std::io::Result<()> {
     let mut buf = Vec::with_capacity(2048);
     let mut chunk = [0u8; 2048];
     let head_end = loop {
@@ -392,8 +420,8 @@ fn host_ok(h: &str, port: u16) -> bool {
     name.eq_ignore_ascii_case("localhost") || name.parse::<std::net::IpAddr>().is_ok()
 }
 
-async fn respond(
-    s: &mut TcpStream,
+async fn respond<S: AsyncWrite + Unpin>(
+    s: &mut S,
     status: u16,
     ctype: &str,
     body: &[u8],

@@ -283,3 +283,81 @@ fn first_frame_comes_before_the_whole_asset_under_a_small_send_budget() {
     assert!(r["frames"].as_u64().unwrap() >= 2);
     h.shutdown();
 }
+
+/// One HTTP/1.1 request over `s`; the whole response as text.
+async fn get<S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin>(mut s: S, host: &str, path: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: {host}\r\n\r\n").as_bytes()).await.unwrap();
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out).await;
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[test]
+fn the_page_routes_serve_the_composed_shader_with_strict_headers_and_check_the_host() {
+    let dir = TempDir::new("web-http");
+    let state = TempDir::new("web-http-state");
+    write_asset(&static_asset(16, 8, 0.9, 5), dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    assert!(!web.https && web.url().starts_with("http://127.0.0.1:"));
+    let host = format!("127.0.0.1:{}", web.addr.port());
+    let rt = runtime();
+    let tcp = || rt.block_on(tokio::net::TcpStream::connect(web.addr)).unwrap();
+    let page = rt.block_on(get(tcp(), &host, "/"));
+    assert!(page.starts_with("HTTP/1.1 200"), "{page}");
+    assert!(page.contains("Content-Security-Policy: default-src 'none'; script-src 'self';"), "{page}");
+    assert!(page.contains("src=\"/app.js\""), "{page}");
+    // The shader the page runs is the one the native viewer composes.
+    let wgsl = rt.block_on(get(tcp(), &host, "/march.wgsl?kind=2&dynamic=1&block=8"));
+    let body = wgsl.split_once("\r\n\r\n").unwrap().1;
+    assert_eq!(body, snerf_geometry::march::march_shader(2, true, 8, false));
+    assert!(rt.block_on(get(tcp(), &host, "/march.wgsl?kind=7&dynamic=1&block=8")).starts_with("HTTP/1.1 400"));
+    let cfg = rt.block_on(get(tcp(), &host, "/config.json"));
+    let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
+    assert_eq!(cfg["webtransport"], format!("https://{host}/snerf/1"));
+    assert_eq!(cfg["cert_hash"].as_str().unwrap().len(), 64);
+    // Another name for this address (DNS rebinding) and unknown paths are refused.
+    assert!(rt.block_on(get(tcp(), &format!("evil.example:{}", web.addr.port()), "/")).starts_with("HTTP/1.1 421"));
+    assert!(rt.block_on(get(tcp(), &host, "/../../etc/passwd")).starts_with("HTTP/1.1 404"));
+    h.shutdown();
+}
+
+#[test]
+fn with_cert_and_key_the_page_is_served_over_https_with_that_certificate() {
+    let dir = TempDir::new("web-https");
+    let state = TempDir::new("web-https-state");
+    write_asset(&static_asset(16, 8, 0.9, 5), dir.path(), "scene");
+    let ck = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    std::fs::write(state.join("c.pem"), ck.cert.pem()).unwrap();
+    std::fs::write(state.join("k.pem"), ck.signing_key.serialize_pem()).unwrap();
+    let mut o = ServeOptions::new(dir.path(), "127.0.0.1:0".parse().unwrap());
+    o.state_dir = Some(state.path().to_path_buf());
+    o.cert = Some(state.join("c.pem"));
+    o.key = Some(state.join("k.pem"));
+    o.quiet = true;
+    o.web = Some("127.0.0.1:0".parse().unwrap());
+    let h = snerf_stream::spawn(o).unwrap();
+    let web = h.web().unwrap().clone();
+    assert!(web.https && web.url().starts_with("https://") && web.cert_hash.is_none());
+    let pin = snerf_stream::tls::parse_pin(h.fingerprint()).unwrap();
+    let mut cfg = rustls::ClientConfig::builder_with_provider(snerf_stream::tls::provider())
+        .with_protocol_versions(&[&rustls::version::TLS13])
+        .unwrap()
+        .dangerous()
+        .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(pin)))
+        .with_no_client_auth();
+    cfg.alpn_protocols = vec![b"http/1.1".to_vec()];
+    let rt = runtime();
+    let page = rt.block_on(async {
+        let tcp = tokio::net::TcpStream::connect(web.addr).await.unwrap();
+        let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
+        let tls = tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg)).connect(name, tcp).await.unwrap();
+        get(tls, &format!("localhost:{}", web.addr.port()), "/").await
+    });
+    assert!(page.starts_with("HTTP/1.1 200") && page.contains("src=\"/app.js\""), "{page}");
+    // Plain HTTP gets no page from a TLS port.
+    let plain = rt.block_on(async { get(tokio::net::TcpStream::connect(web.addr).await.unwrap(), "localhost", "/").await });
+    assert!(!plain.contains("HTTP/1.1 200"), "{plain}");
+    h.shutdown();
+}
