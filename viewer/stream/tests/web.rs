@@ -192,12 +192,16 @@ fn wrong_token_missing_token_and_another_origin_get_nothing() {
     h.shutdown();
 }
 
-/// An unbounded-scene asset: random blocks in the cells within `radius` of the grid centre
-/// (contracted space: the far field is the grid's outer shell).
-fn unbounded_asset(res: u32, block: u32, radius: f32, seed: u64) -> Asset {
-    use snerf_asset::{AssetBuilder, Header, Kind};
-    let mut h = Header::new(Kind::Unbounded, res, block);
+/// An unbounded or forward-facing asset: random thin blocks in the cells within `radius` of
+/// the grid centre (unbounded: contracted space, the far field is the grid's outer shell;
+/// forward: NDC space of a reference camera).
+fn kind_asset(kind: snerf_asset::Kind, res: u32, block: u32, radius: f32, seed: u64) -> Asset {
+    use snerf_asset::{AssetBuilder, Header, Kind, Ndc};
+    let mut h = Header::new(kind, res, block);
     h.background = [0.2, 0.3, 0.4];
+    if kind == Kind::Forward {
+        h.space.ndc = Some(Ndc { fx: 60.0, fy: 60.0, width: 100.0, height: 80.0, near: 1.0, xy_extent: 1.3 });
+    }
     let g = h.grid_dim();
     let bb = h.block_bytes();
     let mut b = AssetBuilder::new(h, mlp()).unwrap();
@@ -209,9 +213,11 @@ fn unbounded_asset(res: u32, block: u32, radius: f32, seed: u64) -> Asset {
             for x in 0..g {
                 if (c(x).powi(2) + c(y).powi(2) + c(z).powi(2)).sqrt() < radius {
                     rng.fill(&mut buf);
-                    // Thin densities (codes 0..63) so the far shell shows through.
-                    for v in buf.chunks_mut(8) {
-                        v[0] &= 63;
+                    // Unbounded: thin densities (codes 0..63) so the far shell shows through.
+                    if kind == Kind::Unbounded {
+                        for v in buf.chunks_mut(8) {
+                            v[0] &= 63;
+                        }
                     }
                     b.set_block(0, [x, y, z], &buf).unwrap();
                 }
@@ -233,6 +239,10 @@ fn check_render(b: &(PathBuf, PathBuf, PathBuf), h: &ServerHandle, asset: &Asset
     let r = page(b, &[&url, "done"]);
     assert_eq!(r["error"], serde_json::Value::Null, "{}: page error: {}", name, r["error"]);
     let cpu = snerf_asset::render(asset, &cam, time);
+    // The picture has content (a match of two blank images would mean nothing).
+    let bg = &asset.header.background;
+    let shown = cpu.rgb.chunks(3).filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02)).count();
+    assert!(shown * 10 > cpu.rgb.len() / 3, "{}: only {} pixels differ from the background", name, shown);
     let d = mean_abs_diff(r["lastRender"]["rgba"].as_array().unwrap(), &cpu);
     eprintln!("{} at t={}: web vs CPU reference mean |diff| {:?}", name, time, d);
     assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{} at t={}: mean |diff| {:?} > 2/255", name, time, d);
@@ -240,12 +250,13 @@ fn check_render(b: &(PathBuf, PathBuf, PathBuf), h: &ServerHandle, asset: &Asset
 }
 
 #[test]
-fn a_4d_asset_at_two_times_and_an_unbounded_scene_render_like_the_cpu_reference() {
+fn a_4d_asset_at_two_times_an_unbounded_and_a_forward_scene_render_like_the_cpu_reference() {
     let Some(b) = browser() else { return };
     let dir = TempDir::new("web-kinds");
     let state = TempDir::new("web-kinds-state");
     let moving = Asset::from_bytes(&write_asset(&dynamic_asset(16, 8, 0.9, 3, 21), dir.path(), "moving")).unwrap();
-    let outdoor = Asset::from_bytes(&write_asset(&unbounded_asset(32, 8, 0.9, 4), dir.path(), "outdoor")).unwrap();
+    let outdoor = Asset::from_bytes(&write_asset(&kind_asset(snerf_asset::Kind::Unbounded, 32, 8, 0.9, 4), dir.path(), "outdoor")).unwrap();
+    let front = Asset::from_bytes(&write_asset(&kind_asset(snerf_asset::Kind::Forward, 32, 8, 0.9, 6), dir.path(), "front")).unwrap();
     let h = start(dir.path(), state.path());
     // Between keyframes 0 and 1 (blended), and between 1 and 2: different images.
     let cam = snerf_asset::orbit(&moving.header, 1, 0, 48, 32, 40.0);
@@ -254,7 +265,9 @@ fn a_4d_asset_at_two_times_and_an_unbounded_scene_render_like_the_cpu_reference(
     check_render(&b, &h, &moving, "moving", 0.5);
     check_render(&b, &h, &moving, "moving", 1.75);
     let r = check_render(&b, &h, &outdoor, "outdoor", 0.0);
-    assert_eq!(r["listing"].as_array().unwrap()[1]["kind"], "unbounded");
+    let kinds: Vec<&str> = r["listing"].as_array().unwrap().iter().map(|e| e["kind"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["forward", "object", "unbounded"]);
+    check_render(&b, &h, &front, "front", 0.0);
     h.shutdown();
 }
 
