@@ -61,9 +61,9 @@ pub struct ServeArgs {
     /// Congestion control: cubic (best on loopback/LAN) or bbr (10x faster under random loss, e.g. Wi-Fi).
     #[arg(long, default_value = "cubic")]
     pub congestion: String,
-    /// Web viewer address: the page over HTTP (TCP) and WebTransport (UDP) on this port
-    /// (default: the --listen address, port + 1). Browsers allow WebTransport from an http
-    /// page only on loopback.
+    /// Web viewer address: the page over HTTP (HTTPS with --cert/--key; TCP) and
+    /// WebTransport (UDP) on this port (default: the --listen address, port + 1). Browsers
+    /// allow WebTransport from an http page only on loopback.
     #[arg(long, conflicts_with = "no_web")]
     pub web: Option<SocketAddr>,
     /// Do not serve the web viewer.
