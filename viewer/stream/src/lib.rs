@@ -6,6 +6,9 @@
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
 //! - `bench`: `snerf bench stream` (QUIC vs TCP side by side, time to first view).
+//! - `web`: the web viewer — its page (`web/`, embedded) over HTTP(S) and `snerf/1` over
+//!   WebTransport, served beside the native endpoint (`ServeOptions::web`); `conn` lets one
+//!   session code path serve both transports.
 //! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
 //!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
 //!
