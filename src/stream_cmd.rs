@@ -61,6 +61,28 @@ pub struct ServeArgs {
     /// Congestion control: cubic (best on loopback/LAN) or bbr (10x faster under random loss, e.g. Wi-Fi).
     #[arg(long, default_value = "cubic")]
     pub congestion: String,
+    /// Web viewer address: the page over HTTP (HTTPS with --cert/--key; TCP) and
+    /// WebTransport (UDP) on this port (default: the --listen address, port + 1). Browsers
+    /// allow WebTransport from an http page only on loopback.
+    #[arg(long, conflicts_with = "no_web")]
+    pub web: Option<SocketAddr>,
+    /// Do not serve the web viewer.
+    #[arg(long)]
+    pub no_web: bool,
+}
+
+/// The web viewer's address: `--web`, else the QUIC address's port + 1 (0 stays 0).
+fn web_addr(a: &ServeArgs) -> Option<SocketAddr> {
+    if a.no_web {
+        return None;
+    }
+    a.web.or_else(|| {
+        let port = match a.listen.port() {
+            0 => 0,
+            p => p.checked_add(1)?,
+        };
+        Some(SocketAddr::new(a.listen.ip(), port))
+    })
 }
 
 /// Serve until Ctrl-C. With `json`, one line of JSON on stdout once the server listens
@@ -72,6 +94,7 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
     o.cert = a.cert.clone();
     o.key = a.key.clone();
     o.token_file = a.token_file.clone();
+    o.web = web_addr(a);
     o.limits = Limits {
         max_clients: a.max_clients,
         max_message: a.max_message,
@@ -97,6 +120,9 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
                 "token": if h.token_from_file() { Value::Null } else { Value::String(h.token().to_string()) },
                 "token_file": h.token_file().map(crate::args::pj),
                 "created_identity": h.created_identity(),
+                // The page wants the token in the fragment: WEB_URL#token=TOKEN.
+                "web_url": h.web().map(|w| w.url()),
+                "web_cert_sha256": h.web().and_then(|w| w.cert_hash.clone()),
             });
             println!("{v}");
             use std::io::Write;

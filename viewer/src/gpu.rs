@@ -10,13 +10,11 @@ use std::time::{Duration, Instant};
 
 use snerf_asset::{Asset, Camera, Frame, Header, ViewMlp, EMPTY};
 
-pub const MARCH_WGSL: &str = include_str!("../../shaders/march.wgsl");
-pub const ATLAS_LOAD_WGSL: &str = include_str!("../../shaders/atlas_load.wgsl");
-pub const ATLAS_FILTER_WGSL: &str = include_str!("../../shaders/atlas_filter.wgsl");
+pub use snerf_geometry::march::{ATLAS_FILTER_WGSL, ATLAS_LOAD_WGSL, MARCH_WGSL};
 pub const PRESENT_WGSL: &str = include_str!("../../shaders/present.wgsl");
 
 /// Workgroup edge of the march shader (WG x WG pixels per workgroup).
-const WG: u32 = 8;
+const WG: u32 = snerf_geometry::march::WORKGROUP;
 const CHANNELS: usize = 8;
 
 /// Renderer settings. The defaults are what the viewer uses.
@@ -1092,19 +1090,16 @@ pub(crate) fn read_buffer<T: bytemuck::Pod>(
     Ok(data)
 }
 
-/// The march shader source of one variant (kind, static/dynamic, atlas access).
+/// The march shader source of one variant (kind, static/dynamic, atlas access), composed by
+/// `snerf_geometry::march::march_shader`, as `snerf serve` composes it for the web page.
 pub fn shader_source(h: &Header, hardware_filter: bool) -> String {
     // The march constants come from snerf-geometry, so the shader cannot drift from the
     // CPU reference and the trainer.
-    format!(
-        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}",
+    snerf_geometry::march::march_shader(
         h.kind.shader_index(),
         h.num_frames() > 1,
         h.block,
-        WG,
-        snerf_geometry::march::wgsl_prelude(),
-        MARCH_WGSL,
-        if hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL }
+        hardware_filter,
     )
 }
 

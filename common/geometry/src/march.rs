@@ -41,6 +41,30 @@ pub fn box_hit(o: Vec3, d: Vec3, h: f32) -> Option<(f32, f32)> {
     }
 }
 
+/// The march compute shader (`shaders/march.wgsl`) and its two atlas access snippets.
+pub const MARCH_WGSL: &str = include_str!("../../../shaders/march.wgsl");
+pub const ATLAS_LOAD_WGSL: &str = include_str!("../../../shaders/atlas_load.wgsl");
+pub const ATLAS_FILTER_WGSL: &str = include_str!("../../../shaders/atlas_filter.wgsl");
+/// Workgroup edge of the march shader (WORKGROUP x WORKGROUP pixels per workgroup).
+pub const WORKGROUP: u32 = 8;
+
+/// The march shader of one variant, composed exactly once for every client: the native
+/// viewer builds its pipeline from it and `snerf serve` hands the same text to the web page.
+/// `kind` is the scene kind's shader index (0 object, 1 forward, 2 unbounded), `block` the
+/// asset's block edge; `hardware_filter` picks `atlas_filter.wgsl` over `atlas_load.wgsl`.
+pub fn march_shader(kind: u32, dynamic: bool, block: u32, hardware_filter: bool) -> String {
+    format!(
+        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}",
+        kind,
+        dynamic,
+        block,
+        WORKGROUP,
+        wgsl_prelude(),
+        MARCH_WGSL,
+        if hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL }
+    )
+}
+
 /// WGSL declarations of the shared constants, prepended to `shaders/march.wgsl`.
 pub fn wgsl_prelude() -> String {
     format!(

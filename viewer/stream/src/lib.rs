@@ -6,6 +6,9 @@
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
 //! - `bench`: `snerf bench stream` (QUIC vs TCP side by side, time to first view).
+//! - `web`: the web viewer — its page (`web/`, embedded) over HTTP(S) and `snerf/1` over
+//!   WebTransport, served beside the native endpoint (`ServeOptions::web`); `conn` lets one
+//!   session code path serve both transports.
 //! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
 //!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
 //!
@@ -16,6 +19,7 @@
 
 pub mod bench;
 mod cache;
+mod conn;
 pub mod client;
 pub mod live;
 mod pending;
@@ -24,6 +28,7 @@ pub mod proto;
 pub mod server;
 pub mod tls;
 pub mod url;
+pub mod web;
 
 pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
 pub use live::LiveAsset;

@@ -208,6 +208,9 @@ pub enum ClientMsg {
 pub struct ListEntry {
     pub name: String,
     pub size: u64,
+    /// Scene kind from the asset's header (`object`, `forward`, `unbounded`), when readable.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kind: Option<String>,
 }
 
 /// What the server is about to stream.

@@ -6,7 +6,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use bytes::Bytes;
-use quinn::{Connection, Endpoint, RecvStream, SendStream, VarInt};
+use quinn::{Endpoint, VarInt};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -17,6 +17,7 @@ use tokio::task::JoinSet;
 use tokio::time::Instant;
 
 use crate::cache::AssetCache;
+use crate::conn::{Conn, Recv, Send};
 use crate::pending::{Pending, PendingTable};
 use crate::plan::{ServedAsset, View};
 use crate::proto::{
@@ -127,6 +128,9 @@ pub struct ServeOptions {
     pub limits: Limits,
     /// No per-connection log lines on stderr.
     pub quiet: bool,
+    /// Also serve the web viewer: its page over HTTP (TCP) and WebTransport (UDP), both on
+    /// this address's port (0: a free port). See `web.rs`.
+    pub web: Option<SocketAddr>,
 }
 
 impl ServeOptions {
@@ -140,6 +144,7 @@ impl ServeOptions {
             token_file: None,
             limits: Limits::default(),
             quiet: false,
+            web: None,
         }
     }
 }
@@ -183,6 +188,7 @@ pub struct ServerHandle {
     token_file: Option<PathBuf>,
     created: bool,
     stats: Arc<ServerStats>,
+    web: Option<crate::web::WebInfo>,
     stop: watch::Sender<bool>,
     thread: Option<std::thread::JoinHandle<()>>,
     task: Option<tokio::task::JoinHandle<()>>,
@@ -215,6 +221,10 @@ impl ServerHandle {
     pub fn stats(&self) -> &Arc<ServerStats> {
         &self.stats
     }
+    /// The web viewer's address and certificate hash, when it is served.
+    pub fn web(&self) -> Option<&crate::web::WebInfo> {
+        self.web.as_ref()
+    }
     /// `quic://ADDR/ASSET` for this server.
     pub fn url(&self, asset: &str) -> String {
         format!("quic://{}/{}", self.addr, asset)
@@ -246,16 +256,16 @@ enum Source {
     File { name: String, path: PathBuf },
 }
 
-struct Shared {
-    limits: Limits,
+pub(crate) struct Shared {
+    pub(crate) limits: Limits,
     token: String,
     source: Source,
     cache: Mutex<AssetCache<ServedAsset>>,
     load_lock: tokio::sync::Mutex<()>,
-    /// One permit per authenticated client.
-    slots: Arc<Semaphore>,
-    pending: Arc<PendingTable>,
-    stats: Arc<ServerStats>,
+    /// One permit per authenticated client (native and web).
+    pub(crate) slots: Arc<Semaphore>,
+    pub(crate) pending: Arc<PendingTable>,
+    pub(crate) stats: Arc<ServerStats>,
     quiet: bool,
 }
 
@@ -263,7 +273,7 @@ struct Shared {
 #[derive(Debug)]
 struct Close(u32, String);
 
-fn log(shared: &Shared, who: SocketAddr, msg: &str) {
+pub(crate) fn log(shared: &Shared, who: SocketAddr, msg: &str) {
     if !shared.quiet {
         eprintln!("snerf serve: {}: {}", who, msg);
     }
@@ -278,6 +288,27 @@ pub fn asset_name(path: &Path) -> String {
     f.strip_suffix(".snerf").map(str::to_string).unwrap_or(f)
 }
 
+/// The scene kind named in an asset file's header (HEAD chunk), read without loading the
+/// file; None when the file does not start with a readable header.
+fn header_kind(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).ok()?;
+    let mut head = [0u8; 28];
+    f.read_exact(&mut head).ok()?;
+    snerf_asset::chunk::check_preamble(&head[..16]).ok()?;
+    if &head[16..20] != b"HEAD" {
+        return None;
+    }
+    let len = u32::from_le_bytes([head[20], head[21], head[22], head[23]]) as usize;
+    if len > 1 << 20 {
+        return None;
+    }
+    let mut json = vec![0u8; len];
+    f.read_exact(&mut json).ok()?;
+    let v: serde_json::Value = serde_json::from_slice(&json).ok()?;
+    v.get("kind")?.as_str().map(str::to_string)
+}
+
 impl Shared {
     fn list(&self) -> Vec<ListEntry> {
         match &self.source {
@@ -286,6 +317,7 @@ impl Shared {
                 vec![ListEntry {
                     name: name.clone(),
                     size,
+                    kind: header_kind(path),
                 }]
             }
             Source::Dir(d) => {
@@ -300,6 +332,7 @@ impl Shared {
                                     out.push(ListEntry {
                                         name,
                                         size: m.len(),
+                                        kind: header_kind(&p),
                                     });
                                 }
                             }
@@ -399,7 +432,7 @@ impl Shared {
     }
 }
 
-fn transport(limits: &Limits) -> Result<quinn::TransportConfig> {
+pub(crate) fn transport(limits: &Limits) -> Result<quinn::TransportConfig> {
     let mut t = quinn::TransportConfig::default();
     t.max_concurrent_bidi_streams(VarInt::from_u32(1))
         .max_concurrent_uni_streams(VarInt::from_u32(0))
@@ -435,9 +468,21 @@ fn transport(limits: &Limits) -> Result<quinn::TransportConfig> {
 pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
     let (shared, endpoint, id) = setup(&opts)?;
     let addr = endpoint.local_addr()?;
+    let web = match opts.web {
+        Some(w) => Some(crate::web::bind(w, &id, opts.cert.is_some(), &opts.limits)?),
+        None => None,
+    };
+    let web_info = web.as_ref().map(|w| w.info.clone());
     let (stop, stop_rx) = watch::channel(false);
     let stats = shared.stats.clone();
-    let task = tokio::spawn(accept_loop(shared, endpoint, stop_rx));
+    let web_task = web.map(|w| tokio::spawn(crate::web::run(shared.clone(), w, stop_rx.clone())));
+    let native = tokio::spawn(accept_loop(shared, endpoint, stop_rx));
+    let task = tokio::spawn(async move {
+        let _ = native.await;
+        if let Some(w) = web_task {
+            let _ = w.await;
+        }
+    });
     Ok(ServerHandle {
         addr,
         fingerprint: id.fingerprint,
@@ -445,6 +490,7 @@ pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
         token_file: opts.token_file.clone(),
         created: id.created,
         stats,
+        web: web_info,
         stop,
         thread: None,
         task: Some(task),
@@ -487,6 +533,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
                             h.token_file.clone(),
                             h.created,
                             h.stats.clone(),
+                            h.web.clone(),
                             real_stop,
                         );
                         drop(h);
@@ -500,7 +547,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
             });
         })
         .context("cannot spawn the server thread")?;
-    let (addr, fingerprint, token, token_file, created, stats, stop) = rx
+    let (addr, fingerprint, token, token_file, created, stats, web, stop) = rx
         .recv()
         .map_err(|_| anyhow!("server thread ended during start"))??;
     Ok(ServerHandle {
@@ -510,6 +557,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
         token_file,
         created,
         stats,
+        web,
         stop,
         thread: Some(thread),
         task: None,
@@ -553,6 +601,13 @@ fn banner(path: &Path, h: &ServerHandle) -> String {
     );
     b += &format!("  fingerprint (--pin): {}\n", h.fingerprint());
     b += &format!("  token (--token):     {}\n", token);
+    if let Some(w) = h.web() {
+        // The token rides in the fragment, which the browser never sends to the server.
+        match h.token_file() {
+            Some(_) => b += &format!("  web viewer:          {}#token=TOKEN (the token from the file)\n", w.url()),
+            None => b += &format!("  web viewer:          {}#token={}\n", w.url(), h.token()),
+        }
+    }
     if h.created_identity() && h.token_from_file() {
         // A token file is never created, so only the certificate can be new.
         b += "  (certificate created on this first run)\n";
@@ -704,11 +759,11 @@ async fn connection(shared: Arc<Shared>, incoming: quinn::Incoming, mut pending:
         }
     };
     shared.stats.connections.fetch_add(1, Ordering::Relaxed);
-    handle(shared, conn, pending, deadline).await;
+    handle(shared, Conn::Quic(conn), pending, deadline).await;
 }
 
-async fn handle(shared: Arc<Shared>, conn: Connection, pending: Pending, deadline: Instant) {
-    let who = conn.remote_address();
+pub(crate) async fn handle(shared: Arc<Shared>, conn: Conn, pending: Pending, deadline: Instant) {
+    let who = conn.quic().remote_address();
     let mut tasks = JoinSet::new();
     let r = session(&shared, &conn, &mut tasks, pending, deadline).await;
     tasks.abort_all();
@@ -726,7 +781,7 @@ async fn handle(shared: Arc<Shared>, conn: Connection, pending: Pending, deadlin
                 who,
                 &format!("closing ({}): {}", code::name(c as u64), reason),
             );
-            conn.close(VarInt::from_u32(c), reason.as_bytes());
+            conn.quic().close(VarInt::from_u32(c), reason.as_bytes());
         }
     }
     while tasks.join_next().await.is_some() {}
@@ -772,8 +827,8 @@ fn client_slot(shared: &Shared) -> Result<Slot, Close> {
     })
 }
 
-fn frame_close(conn: &Connection, e: FrameError) -> Close {
-    if conn.close_reason().is_some() {
+fn frame_close(conn: &Conn, e: FrameError) -> Close {
+    if conn.quic().close_reason().is_some() {
         return Close(code::DONE, "connection closed".into());
     }
     match e {
@@ -783,8 +838,9 @@ fn frame_close(conn: &Connection, e: FrameError) -> Close {
     }
 }
 
-async fn send_msg(send: &mut SendStream, m: &ServerMsg) -> Result<(), Close> {
-    send.write_all(&encode_frame(m))
+async fn send_msg(send: &mut Send, m: &ServerMsg) -> Result<(), Close> {
+    send.quic()
+        .write_all(&encode_frame(m))
         .await
         .map_err(|e| Close(code::PROTOCOL, format!("control stream: {}", e)))
 }
@@ -795,10 +851,10 @@ async fn send_msg(send: &mut SendStream, m: &ServerMsg) -> Result<(), Close> {
 /// leaves the table, authenticated or not.
 async fn authenticate(
     shared: &Shared,
-    conn: &Connection,
+    conn: &Conn,
     mut pending: Pending,
     deadline: Instant,
-) -> Result<(SendStream, RecvStream, Hello), Close> {
+) -> Result<(Send, Recv, Hello), Close> {
     let deadline = deadline.min(Instant::now() + shared.limits.hello_timeout);
     tokio::select! {
         r = read_hello(shared, conn, deadline) => r,
@@ -808,11 +864,11 @@ async fn authenticate(
 
 async fn read_hello(
     shared: &Shared,
-    conn: &Connection,
+    conn: &Conn,
     deadline: Instant,
-) -> Result<(SendStream, RecvStream, Hello), Close> {
+) -> Result<(Send, Recv, Hello), Close> {
     let limits = &shared.limits;
-    let (send, mut recv) = match tokio::time::timeout_at(deadline, conn.accept_bi()).await {
+    let (mut send, mut recv) = match tokio::time::timeout_at(deadline, conn.accept_bi()).await {
         Err(_) => {
             return Err(Close(
                 code::TIMEOUT,
@@ -823,9 +879,9 @@ async fn read_hello(
         Ok(Ok(s)) => s,
     };
     // Control messages go before any data stream.
-    let _ = send.set_priority(i32::MAX);
+    let _ = send.quic().set_priority(i32::MAX);
     let first =
-        match tokio::time::timeout_at(deadline, read_frame(&mut recv, limits.max_message)).await {
+        match tokio::time::timeout_at(deadline, read_frame(recv.quic(), limits.max_message)).await {
             Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
             Ok(Err(e)) => return Err(frame_close(conn, e)),
             Ok(Ok(None)) => {
@@ -872,13 +928,13 @@ async fn read_hello(
 
 async fn session(
     shared: &Arc<Shared>,
-    conn: &Connection,
+    conn: &Conn,
     tasks: &mut JoinSet<Result<(), Close>>,
     pending: Pending,
     deadline: Instant,
 ) -> Result<(), Close> {
     let limits = &shared.limits;
-    let who = conn.remote_address();
+    let who = conn.quic().remote_address();
     let (mut send, mut recv, hello) = authenticate(shared, conn, pending, deadline).await?;
     // Authenticated from here on: only now does the connection take a client slot.
     let _slot = client_slot(shared)?;
@@ -949,7 +1005,7 @@ async fn session(
     let mut control_open = true;
     loop {
         tokio::select! {
-            f = read_frame(&mut recv, limits.max_message), if control_open => {
+            f = read_frame(recv.quic(), limits.max_message), if control_open => {
                 match f {
                     Err(e) => return Err(frame_close(conn, e)),
                     Ok(None) => control_open = false,
@@ -965,7 +1021,7 @@ async fn session(
                     Some(Ok(Ok(()))) => {
                         // Everything sent and acknowledged; give the client a moment to close.
                         tokio::select! {
-                            _ = conn.closed() => return Ok(()),
+                            _ = conn.quic().closed() => return Ok(()),
                             _ = tokio::time::sleep(limits.linger) => return Err(Close(code::DONE, "transfer complete".into())),
                         }
                     }
@@ -973,19 +1029,19 @@ async fn session(
                     Some(Err(_)) => return Ok(()),
                 }
             }
-            _ = conn.closed() => return Ok(()),
+            _ = conn.quic().closed() => return Ok(()),
         }
     }
 }
 
 async fn read_poses(
-    conn: Connection,
+    conn: Conn,
     tx: watch::Sender<Option<Pose>>,
     stats: Arc<ServerStats>,
 ) -> Result<(), Close> {
     let mut last: Option<u32> = None;
     // Ends when the connection does; a pose stream never closes it (datagrams are best effort).
-    while let Ok(d) = conn.read_datagram().await {
+    while let Some(d) = conn.read_datagram().await {
         match decode_pose(&d) {
             Ok((seq, p)) => {
                 if last.is_none_or(|l| seq > l) {
@@ -1004,7 +1060,7 @@ async fn read_poses(
     Ok(())
 }
 
-async fn open_stream(conn: &Connection, stall: Duration) -> Result<SendStream, Close> {
+async fn open_stream(conn: &Conn, stall: Duration) -> Result<Send, Close> {
     match tokio::time::timeout(stall, conn.open_uni()).await {
         Err(_) => Err(Close(
             code::TIMEOUT,
@@ -1016,7 +1072,7 @@ async fn open_stream(conn: &Connection, stall: Duration) -> Result<SendStream, C
 }
 
 async fn write_batch(
-    mut s: SendStream,
+    mut s: Send,
     asset: Arc<ServedAsset>,
     idx: Vec<u32>,
     shared: Arc<Shared>,
@@ -1030,7 +1086,7 @@ async fn write_batch(
     }
     let stall = shared.limits.stall_timeout;
     shared.stats.streams_started.fetch_add(1, Ordering::Relaxed);
-    match tokio::time::timeout(stall, s.write_all_chunks(&mut bufs)).await {
+    match tokio::time::timeout(stall, s.quic().write_all_chunks(&mut bufs)).await {
         Err(_) => {
             return Err(Close(
                 code::TIMEOUT,
@@ -1040,12 +1096,12 @@ async fn write_batch(
         Ok(Err(e)) => return Err(Close(code::DONE, format!("connection lost: {}", e))),
         Ok(Ok(())) => {}
     }
-    let _ = s.finish();
+    let _ = s.quic().finish();
     shared.stats.bytes_sent.fetch_add(bytes, Ordering::Relaxed);
     // Done when the client has acknowledged the whole stream: only then does the scheduler
     // commit more blocks, so what is queued stays ~2 congestion windows and a pose change
     // takes effect within about one round trip.
-    match tokio::time::timeout(stall, s.stopped()).await {
+    match tokio::time::timeout(stall, s.quic().stopped()).await {
         Err(_) => {
             return Err(Close(
                 code::TIMEOUT,
@@ -1077,7 +1133,7 @@ const MIN_BATCH: u64 = 16 * 1024;
 /// once every block stream has been acknowledged. Blocks are committed to streams only while
 /// less than ~2 congestion windows are unacknowledged, so the order can follow the pose.
 async fn stream_asset(
-    conn: Connection,
+    conn: Conn,
     asset: Arc<ServedAsset>,
     skip: Vec<bool>,
     mut view_rx: watch::Receiver<Option<Pose>>,
@@ -1098,8 +1154,8 @@ async fn stream_asset(
         .filter(|&i| !skip[i as usize])
         .collect();
     if !meta.is_empty() {
-        let s = open_stream(&conn, limits.stall_timeout).await?;
-        let _ = s.set_priority(prio);
+        let mut s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.quic().set_priority(prio);
         prio -= 1;
         outstanding += crate::plan::records_len(&asset, &meta);
         writers.spawn(write_batch(s, asset.clone(), meta, shared.clone()));
@@ -1130,14 +1186,14 @@ async fn stream_asset(
         while let Some(r) = writers.try_join_next() {
             outstanding -= joined(r)?;
         }
-        let cwnd = conn.congestion_state().window();
+        let cwnd = conn.quic().congestion_state().window();
         let target = cwnd
             .saturating_mul(2)
             .clamp(MIN_IN_FLIGHT, limits.send_budget.max(MIN_IN_FLIGHT));
         if outstanding >= target || writers.len() >= max_streams {
             tokio::select! {
                 Some(r) = writers.join_next() => outstanding -= joined(r)?,
-                _ = conn.closed() => return Ok(()),
+                _ = conn.quic().closed() => return Ok(()),
             }
             continue;
         }
@@ -1163,8 +1219,8 @@ async fn stream_asset(
             batch.push(c);
             remaining.pop();
         }
-        let s = open_stream(&conn, limits.stall_timeout).await?;
-        let _ = s.set_priority(prio);
+        let mut s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.quic().set_priority(prio);
         prio = prio.saturating_sub(1).max(i32::MIN + 1);
         outstanding += bytes;
         writers.spawn(write_batch(s, asset.clone(), batch, shared.clone()));
@@ -1173,8 +1229,8 @@ async fn stream_asset(
         joined(r)?;
     }
     if !skip[asset.end as usize] {
-        let s = open_stream(&conn, limits.stall_timeout).await?;
-        let _ = s.set_priority(i32::MIN);
+        let mut s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.quic().set_priority(i32::MIN);
         write_batch(s, asset.clone(), vec![asset.end], shared.clone()).await?;
     } else {
         // Nothing more to send; wait for the client to close.
