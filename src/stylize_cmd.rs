@@ -113,6 +113,15 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
 pub const DEFAULT_FUSE_VIEWS: usize = 4;
 /// Step from the render toward the fused stylization each round.
 pub const DEFAULT_TARGET_STEP: f32 = 0.5;
+/// `--content`, `--step-schedule`, `--lr-schedule` (BENCH.md §5b).
+pub const DEFAULT_CONTENT: &str = "render";
+pub const DEFAULT_STEP_SCHEDULE: &str = "constant";
+pub const DEFAULT_LR_SCHEDULE: &str = "round";
+
+/// A lowercase option value as the serde enum of the same name.
+fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
+    serde_json::from_value(Value::String(v.to_string())).map_err(|e| anyhow::anyhow!("{what} {v}: {e}"))
+}
 
 #[derive(Args, Debug)]
 pub struct StylizeArgs {
@@ -153,6 +162,17 @@ pub struct StylizeArgs {
     /// current render toward the stylization (1: the stylization itself).
     #[arg(long, default_value_t = DEFAULT_TARGET_STEP, value_parser = crate::args::unit_f32)]
     pub target_step: f32,
+    /// What the stylizer paints: render (the current field's render, every round) or
+    /// realistic (the realistic field's renders, once; later rounds re-fuse those
+    /// stylizations through the current field's depth).
+    #[arg(long, default_value = DEFAULT_CONTENT, value_parser = ["render", "realistic"])]
+    pub content: String,
+    /// The step of round t: constant (STEP) or harmonic (STEP / t).
+    #[arg(long, default_value = DEFAULT_STEP_SCHEDULE, value_parser = ["constant", "harmonic"])]
+    pub step_schedule: String,
+    /// Learning-rate decay: once per round (round) or once over all rounds (run).
+    #[arg(long, default_value = DEFAULT_LR_SCHEDULE, value_parser = ["round", "run"])]
+    pub lr_schedule: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -256,6 +276,9 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         consistency_frames: a.consistency_frames,
         fuse_views: a.fuse_views,
         target_step: a.target_step,
+        content: option_enum("--content", &a.content)?,
+        step_schedule: option_enum("--step-schedule", &a.step_schedule)?,
+        lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {
