@@ -111,12 +111,13 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
 
 /// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
 pub const DEFAULT_FUSE_VIEWS: usize = 4;
-/// Step from the render toward the fused stylization each round.
-pub const DEFAULT_TARGET_STEP: f32 = 0.5;
-/// `--content`, `--step-schedule`, `--lr-schedule` (BENCH.md §5b).
-pub const DEFAULT_CONTENT: &str = "render";
-pub const DEFAULT_STEP_SCHEDULE: &str = "constant";
-pub const DEFAULT_LR_SCHEDULE: &str = "round";
+/// The loop's defaults, chosen by measurement (BENCH.md §5b): stylize the realistic renders
+/// once, step 1/t toward the fused stylization in round t (the first round takes the whole
+/// step, later ones average), and one learning-rate decay over the whole run.
+pub const DEFAULT_TARGET_STEP: f32 = 1.0;
+pub const DEFAULT_CONTENT: &str = "realistic";
+pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
+pub const DEFAULT_LR_SCHEDULE: &str = "run";
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
@@ -159,7 +160,8 @@ pub struct StylizeArgs {
     #[arg(long, default_value_t = DEFAULT_FUSE_VIEWS, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
     pub fuse_views: usize,
     /// Each round's target is render + STEP × (stylized − render): a damped step from the
-    /// current render toward the stylization (1: the stylization itself).
+    /// current render toward the stylization (1: the stylization itself); with
+    /// --step-schedule harmonic, round t steps STEP / t.
     #[arg(long, default_value_t = DEFAULT_TARGET_STEP, value_parser = crate::args::unit_f32)]
     pub target_step: f32,
     /// What the stylizer paints: render (the current field's render, every round) or
