@@ -118,6 +118,7 @@ pub const DEFAULT_TARGET_STEP: f32 = 1.0;
 pub const DEFAULT_CONTENT: &str = "realistic";
 pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
 pub const DEFAULT_LR_SCHEDULE: &str = "run";
+pub const DEFAULT_ROUND_STEPS: &str = "equal";
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
@@ -175,6 +176,10 @@ pub struct StylizeArgs {
     /// Learning-rate decay: once per round (round) or once over all rounds (run).
     #[arg(long, default_value = DEFAULT_LR_SCHEDULE, value_parser = ["round", "run"])]
     pub lr_schedule: String,
+    /// Training steps per round: equal (--steps-per-round each) or harmonic (the same total,
+    /// in proportion to 1/t: most in round 1).
+    #[arg(long, default_value = DEFAULT_ROUND_STEPS, value_parser = ["equal", "harmonic"])]
+    pub round_steps: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -281,6 +286,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         content: option_enum("--content", &a.content)?,
         step_schedule: option_enum("--step-schedule", &a.step_schedule)?,
         lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
+        round_steps: option_enum("--round-steps", &a.round_steps)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

@@ -96,6 +96,21 @@ pub struct StylizeOptions {
     /// How the learning rate decays (before this option: `Round`).
     #[serde(default)]
     pub lr_schedule: LrSchedule,
+    /// How the training steps are spread over the rounds (before this option: `Equal`).
+    #[serde(default)]
+    pub round_steps: RoundSteps,
+}
+
+/// Training steps of each round; the run's total is `rounds × steps_per_round` either way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RoundSteps {
+    /// `steps_per_round` every round.
+    #[default]
+    Equal,
+    /// In proportion to 1/t, as the harmonic target step: most of the budget goes to round 1,
+    /// where the style is taken; later rounds, whose targets change by O(1/t), refine.
+    Harmonic,
 }
 
 /// The image the stylizer is given for each training view.
@@ -143,12 +158,33 @@ impl StylizeOptions {
         }
     }
 
+    /// Training steps of round `round` (1-based); at least 1.
+    pub fn steps_of_round(&self, round: usize) -> u64 {
+        let n = self.steps_per_round.max(1);
+        match self.round_steps {
+            RoundSteps::Equal => n,
+            RoundSteps::Harmonic => {
+                let rounds = self.rounds.max(1);
+                let total = n * rounds as u64;
+                let h: f64 = (1..=rounds).map(|t| 1.0 / t as f64).sum();
+                // cumulative shares, rounded, so the rounds add up to the total exactly
+                let upto = |t: usize| ((1..=t).map(|k| 1.0 / k as f64).sum::<f64>() / h * total as f64).round() as u64;
+                let t = round.clamp(1, rounds);
+                (upto(t) - upto(t - 1)).max(1)
+            }
+        }
+    }
+
     /// Learning-rate progress in [0, 1] of step `s` of round `round` (1-based).
     pub fn lr_progress(&self, round: usize, s: u64) -> f64 {
-        let n = self.steps_per_round.max(1);
+        let n = self.steps_of_round(round).max(1);
         match self.lr_schedule {
             LrSchedule::Round => s as f64 / n as f64,
-            LrSchedule::Run => ((round.max(1) - 1) as u64 * n + s) as f64 / (self.rounds.max(1) as u64 * n) as f64,
+            LrSchedule::Run => {
+                let before: u64 = (1..round.max(1)).map(|t| self.steps_of_round(t)).sum();
+                let total: u64 = (1..=self.rounds.max(1)).map(|t| self.steps_of_round(t)).sum();
+                (before + s) as f64 / total.max(1) as f64
+            }
         }
     }
 }
@@ -348,9 +384,10 @@ pub fn run(
         // (3) train on random rays across the stylized views
         let targets: Vec<View> = views.iter().zip(&stylized).map(|(v, s)| stylized_view(v, s)).collect();
         trainer.set_views(targets)?;
-        progress.phase(round + 1, opts.rounds, "train", opts.steps_per_round);
+        let steps = opts.steps_of_round(round + 1);
+        progress.phase(round + 1, opts.rounds, "train", steps);
         let t0 = Instant::now();
-        for s in first_step..opts.steps_per_round {
+        for s in first_step..steps {
             if snerf_files::interrupt::requested() {
                 let p = partial::Partial {
                     round: round + 1,
@@ -365,7 +402,7 @@ pub fn run(
                 return Err(snerf_files::interrupt::Interrupted(format!(
                     "round {} saved at step {s} of {} in {}; run the same command again to continue it",
                     round + 1,
-                    opts.steps_per_round,
+                    steps,
                     out.display()
                 ))
                 .into());
@@ -376,7 +413,7 @@ pub fn run(
             }
             let l = loss_ema.map(|l| 0.9 * l + 0.1 * st.loss).unwrap_or(st.loss);
             loss_ema = Some(l);
-            if s % 5 == 0 || s + 1 == opts.steps_per_round {
+            if s % 5 == 0 || s + 1 == steps {
                 progress.tick(s + 1, &format!("fit {:.2} dB", mse_to_psnr(l)));
             }
         }

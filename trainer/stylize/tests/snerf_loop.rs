@@ -72,6 +72,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         content: Default::default(),
         step_schedule: Default::default(),
         lr_schedule: Default::default(),
+        round_steps: Default::default(),
     }
 }
 
@@ -235,4 +236,15 @@ fn step_and_learning_rate_schedules() {
     assert!(all.windows(2).all(|w| w[1] > w[0]), "the run's learning-rate progress must rise step by step");
     assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
     assert_eq!(o.lr_progress(3, 0), 0.5);
+    // harmonic round steps: the same total, most in round 1, and the run's decay still ends at 1
+    assert_eq!((1..=4).map(|t| o.steps_of_round(t)).collect::<Vec<_>>(), vec![n; 4]);
+    o.round_steps = snerf_loop::RoundSteps::Harmonic;
+    let steps: Vec<u64> = (1..=4).map(|t| o.steps_of_round(t)).collect();
+    assert_eq!(steps.iter().sum::<u64>(), 4 * n, "{steps:?}");
+    assert!(steps.windows(2).all(|w| w[0] > w[1]) && steps[3] >= 1, "{steps:?}");
+    // 1 : 1/2 : 1/3 : 1/4 of 160 steps (sum 25/12): 77, 38, 26, 19 after rounding the running sums
+    assert_eq!(steps, vec![77, 38, 26, 19]);
+    let all: Vec<f64> = (1..=4).flat_map(|t| (0..steps[t - 1]).map(move |s| (t, s))).map(|(t, s)| o.lr_progress(t, s)).collect();
+    assert!(all.windows(2).all(|w| w[1] > w[0]));
+    assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
 }
