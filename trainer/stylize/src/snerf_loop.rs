@@ -34,7 +34,7 @@
 //!   every round, so later rounds refine instead of re-fitting.
 //!
 //! The command's defaults use all three (measured against each alone, BENCH.md §5b: the
-//! warp error of round 5 is within 6–40% of round 1's, against 3–5× with the published
+//! warp error of round 5 is 6–42% above round 1's, against 3–5× with the published
 //! loop, and the style distance is flat). What is left is the field still fitting the same
 //! fixed targets, not new texture: round 1 ends under-fitted. `RoundSteps::Harmonic`
 //! (most of the steps in round 1) flattens the curve further only by making round 1 worse,
