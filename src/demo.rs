@@ -150,6 +150,10 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         consistency_frames: CONSISTENCY_FRAMES,
         fuse_views: crate::stylize_cmd::DEFAULT_FUSE_VIEWS,
         target_step: crate::stylize_cmd::DEFAULT_TARGET_STEP,
+        content: crate::stylize_cmd::DEFAULT_CONTENT.into(),
+        step_schedule: crate::stylize_cmd::DEFAULT_STEP_SCHEDULE.into(),
+        lr_schedule: crate::stylize_cmd::DEFAULT_LR_SCHEDULE.into(),
+        round_steps: crate::stylize_cmd::DEFAULT_ROUND_STEPS.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

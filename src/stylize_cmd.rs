@@ -111,8 +111,19 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
 
 /// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
 pub const DEFAULT_FUSE_VIEWS: usize = 4;
-/// Step from the render toward the fused stylization each round.
-pub const DEFAULT_TARGET_STEP: f32 = 0.5;
+/// The loop's defaults, chosen by measurement (BENCH.md §5b): stylize the realistic renders
+/// once, step 1/t toward the fused stylization in round t (the first round takes the whole
+/// step, later ones average), and one learning-rate decay over the whole run.
+pub const DEFAULT_TARGET_STEP: f32 = 1.0;
+pub const DEFAULT_CONTENT: &str = "realistic";
+pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
+pub const DEFAULT_LR_SCHEDULE: &str = "run";
+pub const DEFAULT_ROUND_STEPS: &str = "equal";
+
+/// A lowercase option value as the serde enum of the same name.
+fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
+    serde_json::from_value(Value::String(v.to_string())).map_err(|e| anyhow::anyhow!("{what} {v}: {e}"))
+}
 
 #[derive(Args, Debug)]
 pub struct StylizeArgs {
@@ -150,9 +161,25 @@ pub struct StylizeArgs {
     #[arg(long, default_value_t = DEFAULT_FUSE_VIEWS, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
     pub fuse_views: usize,
     /// Each round's target is render + STEP × (stylized − render): a damped step from the
-    /// current render toward the stylization (1: the stylization itself).
+    /// current render toward the stylization (1: the stylization itself); with
+    /// --step-schedule harmonic, round t steps STEP / t.
     #[arg(long, default_value_t = DEFAULT_TARGET_STEP, value_parser = crate::args::unit_f32)]
     pub target_step: f32,
+    /// What the stylizer paints: render (the current field's render, every round) or
+    /// realistic (the realistic field's renders, once; later rounds re-fuse those
+    /// stylizations through the current field's depth).
+    #[arg(long, default_value = DEFAULT_CONTENT, value_parser = ["render", "realistic"])]
+    pub content: String,
+    /// The step of round t: constant (STEP) or harmonic (STEP / t).
+    #[arg(long, default_value = DEFAULT_STEP_SCHEDULE, value_parser = ["constant", "harmonic"])]
+    pub step_schedule: String,
+    /// Learning-rate decay: once per round (round) or once over all rounds (run).
+    #[arg(long, default_value = DEFAULT_LR_SCHEDULE, value_parser = ["round", "run"])]
+    pub lr_schedule: String,
+    /// Training steps per round: equal (--steps-per-round each) or harmonic (the same total,
+    /// in proportion to 1/t: most in round 1).
+    #[arg(long, default_value = DEFAULT_ROUND_STEPS, value_parser = ["equal", "harmonic"])]
+    pub round_steps: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -256,6 +283,10 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         consistency_frames: a.consistency_frames,
         fuse_views: a.fuse_views,
         target_step: a.target_step,
+        content: option_enum("--content", &a.content)?,
+        step_schedule: option_enum("--step-schedule", &a.step_schedule)?,
+        lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
+        round_steps: option_enum("--round-steps", &a.round_steps)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

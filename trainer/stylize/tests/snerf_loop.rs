@@ -69,6 +69,10 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         consistency_frames: 10,
         fuse_views: 4,
         target_step: 0.5,
+        content: Default::default(),
+        step_schedule: Default::default(),
+        lr_schedule: Default::default(),
+        round_steps: Default::default(),
     }
 }
 
@@ -155,4 +159,92 @@ fn stylized_field_is_more_consistent_than_per_frame_stylization() {
     // comparison with `arbitrary` and presets is `snerf consistency`, in BENCH.md.)
     assert!(sn.is_finite() && sn < 3.0 * realistic_err.max(1e-4) && sn < flicker_err, "SNeRF {sn}");
     assert!(sn_long.is_finite());
+}
+
+/// Counts the images it is given and returns them brighter by a fixed amount (a stand-in for
+/// a feed-forward stylizer: it changes whatever it gets, including its own earlier output).
+struct Counting {
+    calls: std::sync::atomic::AtomicUsize,
+    /// Mean colour of every input, in call order.
+    means: std::sync::Mutex<Vec<f64>>,
+}
+
+impl stylizer::Stylizer for Counting {
+    fn name(&self) -> String {
+        "counting".into()
+    }
+    fn stylize(&self, content: &Image) -> anyhow::Result<Image> {
+        self.calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        let mean = content.data.iter().map(|&v| v as f64).sum::<f64>() / content.data.len() as f64;
+        self.means.lock().unwrap().push(mean);
+        Ok(Image { width: content.width, height: content.height, data: content.data.iter().map(|v| (v + 0.2).min(1.0)).collect() })
+    }
+}
+
+/// `Content::Realistic` stylizes the realistic renders once, whatever the number of rounds;
+/// `Content::Render` stylizes each round's render, so it sees the field drift.
+#[test]
+fn realistic_content_is_stylized_once_and_render_content_every_round() {
+    let dir = tmp("content");
+    let (data, run) = trained_run(&dir);
+    let style = style_png(&dir);
+    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
+    let style_img = stylizer::load_style_image(&style).unwrap();
+    let mut runs = Vec::new();
+    for content in [snerf_loop::Content::Realistic, snerf_loop::Content::Render] {
+        let st = Counting { calls: Default::default(), means: Default::default() };
+        let mut o = options(&run, &data.root, &style, 3, false);
+        o.steps_per_round = 20;
+        o.consistency_frames = 0;
+        o.content = content;
+        o.step_schedule = snerf_loop::StepSchedule::Harmonic;
+        o.target_step = 1.0;
+        o.lr_schedule = snerf_loop::LrSchedule::Run;
+        let s = snerf_loop::run(&o, &data, &source, &st, None, &style_img, &dir.join(format!("{content:?}")), &mut Quiet).unwrap();
+        assert_eq!(s.rounds_done, 3);
+        let steps: Vec<f32> = s.records.iter().map(|r| r.target_step.unwrap()).collect();
+        assert_eq!(steps, vec![1.0, 0.5, 1.0 / 3.0]);
+        runs.push((st.calls.into_inner(), st.means.into_inner().unwrap()));
+    }
+    let views = 12;
+    let (realistic_calls, _) = &runs[0];
+    assert_eq!(*realistic_calls, views, "realistic content: one stylization per view for the whole run");
+    let (render_calls, means) = &runs[1];
+    assert_eq!(*render_calls, 3 * views, "render content: one stylization per view and round");
+    // the brightening stylizer pulled the field brighter, so round 3 stylized brighter renders
+    let first: f64 = means[..views].iter().sum::<f64>() / views as f64;
+    let last: f64 = means[2 * views..].iter().sum::<f64>() / views as f64;
+    assert!(last > first + 0.01, "render content did not see the field change: round 1 mean {first:.4}, round 3 {last:.4}");
+}
+
+#[test]
+fn step_and_learning_rate_schedules() {
+    let mut o = options(Path::new("r"), Path::new("d"), Path::new("s"), 4, false);
+    o.target_step = 0.8;
+    assert_eq!((1..=4).map(|t| o.step_of_round(t)).collect::<Vec<_>>(), vec![0.8; 4]);
+    o.step_schedule = snerf_loop::StepSchedule::Harmonic;
+    assert_eq!((1..=4).map(|t| o.step_of_round(t)).collect::<Vec<_>>(), vec![0.8, 0.4, 0.8 / 3.0, 0.2]);
+    // per round: the decay starts again every round
+    let n = o.steps_per_round;
+    assert_eq!(o.lr_progress(1, 0), 0.0);
+    assert_eq!(o.lr_progress(3, 0), 0.0);
+    assert_eq!(o.lr_progress(3, n / 2), 0.5);
+    // over the run: one decay, continuous across rounds, ending at 1
+    o.lr_schedule = snerf_loop::LrSchedule::Run;
+    let all: Vec<f64> = (1..=4).flat_map(|t| (0..n).map(move |s| (t, s))).map(|(t, s)| o.lr_progress(t, s)).collect();
+    assert_eq!(all[0], 0.0);
+    assert!(all.windows(2).all(|w| w[1] > w[0]), "the run's learning-rate progress must rise step by step");
+    assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
+    assert_eq!(o.lr_progress(3, 0), 0.5);
+    // harmonic round steps: the same total, most in round 1, and the run's decay still ends at 1
+    assert_eq!((1..=4).map(|t| o.steps_of_round(t)).collect::<Vec<_>>(), vec![n; 4]);
+    o.round_steps = snerf_loop::RoundSteps::Harmonic;
+    let steps: Vec<u64> = (1..=4).map(|t| o.steps_of_round(t)).collect();
+    assert_eq!(steps.iter().sum::<u64>(), 4 * n, "{steps:?}");
+    assert!(steps.windows(2).all(|w| w[0] > w[1]) && steps[3] >= 1, "{steps:?}");
+    // 1 : 1/2 : 1/3 : 1/4 of 160 steps (sum 25/12): 77, 38, 26, 19 after rounding the running sums
+    assert_eq!(steps, vec![77, 38, 26, 19]);
+    let all: Vec<f64> = (1..=4).flat_map(|t| (0..steps[t - 1]).map(move |s| (t, s))).map(|(t, s)| o.lr_progress(t, s)).collect();
+    assert!(all.windows(2).all(|w| w[1] > w[0]));
+    assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
 }

@@ -62,7 +62,7 @@ pub fn load(out: &Path, round: usize, data: &Dataset, opts: &StylizeOptions) -> 
     let json = dir(out).join("partial.json");
     let Ok(bytes) = std::fs::read(&json) else { return Ok(None) };
     let p: Partial = serde_json::from_slice(&bytes).with_context(|| format!("{}: unreadable", json.display()))?;
-    if p.round != round || p.steps_done >= opts.steps_per_round {
+    if p.round != round || p.steps_done >= opts.steps_of_round(round) {
         clear(out);
         return Ok(None);
     }
