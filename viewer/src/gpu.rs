@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use snerf_asset::{Asset, Camera, Frame, Header, ViewMlp, EMPTY};
 
 pub use snerf_geometry::march::{ATLAS_FILTER_WGSL, ATLAS_LOAD_WGSL, MARCH_WGSL};
-pub const PRESENT_WGSL: &str = include_str!("../../shaders/present.wgsl");
+pub use snerf_geometry::march::PRESENT_WGSL;
 
 /// Workgroup edge of the march shader (WG x WG pixels per workgroup).
 const WG: u32 = snerf_geometry::march::WORKGROUP;

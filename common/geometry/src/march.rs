@@ -45,6 +45,9 @@ pub fn box_hit(o: Vec3, d: Vec3, h: f32) -> Option<(f32, f32)> {
 pub const MARCH_WGSL: &str = include_str!("../../../shaders/march.wgsl");
 pub const ATLAS_LOAD_WGSL: &str = include_str!("../../../shaders/atlas_load.wgsl");
 pub const ATLAS_FILTER_WGSL: &str = include_str!("../../../shaders/atlas_filter.wgsl");
+/// The presentation pass (march output buffer -> screen), shared by the native window and
+/// the web page.
+pub const PRESENT_WGSL: &str = include_str!("../../../shaders/present.wgsl");
 /// Workgroup edge of the march shader (WORKGROUP x WORKGROUP pixels per workgroup).
 pub const WORKGROUP: u32 = 8;
 

@@ -379,6 +379,7 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) 
             });
             (200, "application/json", cfg.to_string().into_bytes())
         }
+        "/present.wgsl" => (200, "text/plain; charset=utf-8", snerf_geometry::march::PRESENT_WGSL.as_bytes().to_vec()),
         "/march.wgsl" => match shader_query(query) {
             Some((kind, dynamic, block)) => (
                 200,

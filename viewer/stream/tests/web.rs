@@ -74,6 +74,9 @@ fn page(b: &(PathBuf, PathBuf, PathBuf), args: &[&str]) -> serde_json::Value {
         .output()
         .expect("run node");
     let stderr = String::from_utf8_lossy(&out.stderr);
+    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
+        eprintln!("{}", stderr);
+    }
     assert!(out.status.success(), "page.mjs failed: {}", stderr);
     let stdout = String::from_utf8_lossy(&out.stdout);
     serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("page report {:?}: {} (stderr: {})", stdout, e, stderr))
@@ -111,6 +114,23 @@ fn mean_abs_diff(rgba: &[serde_json::Value], cpu: &snerf_asset::Frame) -> [f64; 
         }
     }
     d.map(|x| x / px as f64)
+}
+
+fn base64_decode(s: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        _ => 63,
+    } as u32;
+    let b: Vec<u8> = s.bytes().filter(|&c| c != b'=').collect();
+    let mut out = Vec::with_capacity(b.len() * 3 / 4);
+    for ch in b.chunks(4) {
+        let n = ch.iter().enumerate().fold(0u32, |a, (i, &c)| a | val(c) << (18 - 6 * i));
+        out.extend_from_slice(&n.to_be_bytes()[1..ch.len()]);
+    }
+    out
 }
 
 #[test]
@@ -152,6 +172,23 @@ fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
     let d = mean_abs_diff(fr["rgba"].as_array().unwrap(), &cpu);
     eprintln!("web vs CPU reference: mean |diff| per channel {:?} (adapter {})", d, r["adapter"]);
     assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
+    // What the canvas presents (shaders/present.wgsl, as in the native window) is that frame.
+    let png = base64_decode(r["canvasPng"].as_str().expect("canvas screenshot"));
+    let shot = image::load_from_memory(&png).unwrap().to_rgb8();
+    if let Some(d) = std::env::var_os("SNERF_PAGE_DUMP") {
+        shot.save(Path::new(&d).join("canvas.png")).unwrap();
+        let cpu8: Vec<u8> = cpu.rgb.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
+        image::RgbImage::from_raw(64, 48, cpu8).unwrap().save(Path::new(&d).join("cpu.png")).unwrap();
+    }
+    assert_eq!(shot.dimensions(), (64, 48));
+    let mut dc = [0f64; 3];
+    for (i, p) in shot.pixels().enumerate() {
+        for c in 0..3 {
+            dc[c] += (p[c] as f64 / 255.0 - cpu.rgb[3 * i + c] as f64).abs() / (64.0 * 48.0);
+        }
+    }
+    eprintln!("presented canvas vs CPU reference: mean |diff| per channel {:?}", dc);
+    assert!(dc.iter().all(|&x| x <= 2.0 / 255.0), "canvas mean |diff| {:?} > 2/255", dc);
     // The image is not trivially empty (the comparison means something).
     let lit = cpu.rgb.iter().filter(|&&v| v > 0.05).count();
     assert!(lit > cpu.rgb.len() / 10, "the test image is almost black");

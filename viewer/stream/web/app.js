@@ -90,6 +90,8 @@ async function readMsg(rd) {
 
 // ---- WebTransport ----
 let config = null;
+// True while an immersive WebXR session draws (its frame loop replaces the page's).
+let xrActive = false;
 async function connect(hello) {
   const opts = {};
   if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
@@ -147,8 +149,10 @@ function orbitOf(h) {
 
 // ---- the renderer (host side of viewer/src/gpu.rs) ----
 class Renderer {
-  constructor(device, h, shader, wg) {
+  constructor(device, h, shader, presentWgsl, wg) {
     this.device = device;
+    this.presentWgsl = presentWgsl;
+    this.slots = [];
     this.h = h;
     this.wg = wg;
     this.g = h.res / h.block;
@@ -160,12 +164,10 @@ class Renderer {
     this.atlas = device.createTexture({ size: t, dimension: '3d', format: 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
     this.gridBuf = device.createBuffer({ size: Math.max(4, this.g3 * this.frames * 4), usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_DST });
     this.mlpBuf = device.createBuffer({ size: 900 * 4, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
-    this.paramBuf = device.createBuffer({ size: 256, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
     this.pipeline = device.createComputePipeline({ layout: 'auto', compute: { module: device.createShaderModule({ code: shader }), entryPoint: 'main' } });
     this.grids = new Array(this.frames).fill(null);
     this.present = new Uint8Array(h.atlas_blocks);
     this.gridDirty = true;
-    this.target = null;
   }
   texels() { const l = this.layout; return [l.nx * l.edge, l.ny * l.edge, l.nz * l.edge]; }
   packed(b) { const l = this.layout; return (b % l.nx) | ((Math.floor(b / l.nx) % l.ny) << 10) | (Math.floor(b / (l.nx * l.ny)) << 20); }
@@ -228,40 +230,93 @@ class Renderer {
     f.set([1 / t[0], 1 / t[1], 1 / t[2], 0], 60);
     return b;
   }
-  // March one image and read it back: Float32Array of width*height RGBA (A = opacity).
-  async render(cam, time) {
-    const d = this.device, px = cam.width * cam.height;
+  // Buffers of one view (slot 0: the page's canvas; slots 0 and 1: the two eyes in XR).
+  slot(i, w, hgt) {
+    const s0 = this.slots[i];
+    if (s0 && s0.w === w && s0.h === hgt) return s0;
+    const d = this.device, px = w * hgt, U = GPUBufferUsage;
+    const rgba = d.createBuffer({ size: px * 16, usage: U.STORAGE | U.COPY_SRC });
+    const depth = d.createBuffer({ size: px * 4, usage: U.STORAGE });
+    const params = d.createBuffer({ size: 256, usage: U.UNIFORM | U.COPY_DST });
+    const bind = d.createBindGroup({
+      layout: this.pipeline.getBindGroupLayout(0),
+      entries: [
+        { binding: 0, resource: { buffer: params } },
+        { binding: 1, resource: { buffer: this.gridBuf } },
+        { binding: 2, resource: { buffer: this.mlpBuf } },
+        { binding: 3, resource: { buffer: rgba } },
+        { binding: 4, resource: { buffer: depth } },
+        { binding: 5, resource: this.atlas.createView() },
+      ],
+    });
+    const screen = d.createBuffer({ size: 16, usage: U.UNIFORM | U.COPY_DST });
+    const s = { w, h: hgt, rgba, depth, params, bind, screen, present: null, readback: null };
+    if (s0) for (const b of [s0.rgba, s0.depth, s0.params, s0.screen, s0.readback]) if (b) b.destroy();
+    return (this.slots[i] = s);
+  }
+  // March `views` ([{cam, x, y}]) at `time` in one submission; present each into `target`
+  // (a GPUTexture, or null) at viewport origin (x, y) with shaders/present.wgsl, as the native
+  // window does; with `capture`, read every view back (Float32Array of width*height RGBA,
+  // A = opacity) — what the tests compare with the CPU reference.
+  async render(views, time, target, capture) {
+    const d = this.device;
     if (this.gridDirty) this.uploadGrid();
-    if (!this.target || this.target.w !== cam.width || this.target.h !== cam.height) {
-      const rgba = d.createBuffer({ size: px * 16, usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_SRC });
-      const depth = d.createBuffer({ size: px * 4, usage: GPUBufferUsage.STORAGE });
-      const readback = d.createBuffer({ size: px * 16, usage: GPUBufferUsage.MAP_READ | GPUBufferUsage.COPY_DST });
-      const bind = d.createBindGroup({
-        layout: this.pipeline.getBindGroupLayout(0),
-        entries: [
-          { binding: 0, resource: { buffer: this.paramBuf } },
-          { binding: 1, resource: { buffer: this.gridBuf } },
-          { binding: 2, resource: { buffer: this.mlpBuf } },
-          { binding: 3, resource: { buffer: rgba } },
-          { binding: 4, resource: { buffer: depth } },
-          { binding: 5, resource: this.atlas.createView() },
-        ],
-      });
-      this.target = { w: cam.width, h: cam.height, rgba, depth, readback, bind };
-    }
-    d.queue.writeBuffer(this.paramBuf, 0, this.params(cam, time));
+    const slots = views.map((v, i) => this.slot(i, v.cam.width, v.cam.height));
+    views.forEach((v, i) => d.queue.writeBuffer(slots[i].params, 0, this.params(v.cam, time)));
     const enc = d.createCommandEncoder();
     const pass = enc.beginComputePass();
     pass.setPipeline(this.pipeline);
-    pass.setBindGroup(0, this.target.bind);
-    pass.dispatchWorkgroups(Math.ceil(cam.width / this.wg), Math.ceil(cam.height / this.wg));
+    for (const s of slots) {
+      pass.setBindGroup(0, s.bind);
+      pass.dispatchWorkgroups(Math.ceil(s.w / this.wg), Math.ceil(s.h / this.wg));
+    }
     pass.end();
-    enc.copyBufferToBuffer(this.target.rgba, 0, this.target.readback, 0, px * 16);
+    if (target) {
+      const rp = enc.beginRenderPass({ colorAttachments: [{ view: target.createView(), loadOp: 'clear', clearValue: { r: 0.12, g: 0.12, b: 0.12, a: 1 }, storeOp: 'store' }] });
+      rp.setPipeline(this.presentPipeline(target.format));
+      views.forEach((v, i) => {
+        const s = slots[i];
+        d.queue.writeBuffer(s.screen, 0, new Uint32Array([s.w, s.h, v.x, v.y]));
+        if (!s.present) {
+          s.present = d.createBindGroup({
+            layout: this.presentPipe.getBindGroupLayout(0),
+            entries: [{ binding: 0, resource: { buffer: s.screen } }, { binding: 1, resource: { buffer: s.rgba } }],
+          });
+        }
+        rp.setViewport(v.x, v.y, s.w, s.h, 0, 1);
+        rp.setBindGroup(0, s.present);
+        rp.draw(3);
+      });
+      rp.end();
+    }
+    if (capture) {
+      for (const s of slots) {
+        if (!s.readback) s.readback = d.createBuffer({ size: s.w * s.h * 16, usage: GPUBufferUsage.MAP_READ | GPUBufferUsage.COPY_DST });
+        enc.copyBufferToBuffer(s.rgba, 0, s.readback, 0, s.w * s.h * 16);
+      }
+    }
     d.queue.submit([enc.finish()]);
-    await this.target.readback.mapAsync(GPUMapMode.READ);
-    const out = new Float32Array(this.target.readback.getMappedRange().slice(0));
-    this.target.readback.unmap();
+    if (!capture) { await d.queue.onSubmittedWorkDone(); return null; }
+    const out = [];
+    for (const s of slots) {
+      await s.readback.mapAsync(GPUMapMode.READ);
+      out.push(new Float32Array(s.readback.getMappedRange().slice(0)));
+      s.readback.unmap();
+    }
     return out;
+  }
+  presentPipeline(format) {
+    if (this.presentPipe && this.presentFormat === format) return this.presentPipe;
+    const module = this.device.createShaderModule({ code: this.presentWgsl });
+    this.presentPipe = this.device.createRenderPipeline({
+      layout: 'auto',
+      vertex: { module, entryPoint: 'vs' },
+      fragment: { module, entryPoint: 'fs', targets: [{ format }] },
+      primitive: { topology: 'triangle-list' },
+    });
+    this.presentFormat = format;
+    for (const s of this.slots) if (s) s.present = null;
+    return this.presentPipe;
   }
 }
 
@@ -291,17 +346,36 @@ function timeSlot(frames, t) {
 }
 
 // ---- streaming one asset ----
-async function stream(name, device, wg) {
+// gpu: {device, wg, ctx (the canvas's WebGPU context), presentWgsl}.
+async function stream(name, gpu) {
   const t0 = performance.now();
-  const view = { yaw: 0, pitch: null, radius: null };
+  // Orbit state; `pan` moves the orbit centre (keyboard fly), in world units.
+  const view = { yaw: 0, pitch: null, radius: null, pan: [0, 0, 0] };
   let time = frag.has('time') ? parseFloat(frag.get('time')) : 0;
   let h = null, r = null, orbit = null;
   const chunks = [];
   let finish, abort;
   const complete = new Promise((res, rej) => { finish = res; abort = rej; });
-  let dirty = false, rendering = false, seq = 0, dgram = null;
+  let seq = 0, dgram = null;
+  // Tests read every frame back (a fixed camera, or capture=1 in the fragment).
+  const capture = !!fixedCam || frag.has('capture');
+  // Render scale: the fraction of the canvas's device pixels marched, chosen each frame to
+  // hold the display's frame rate while the view moves; a still view is refined at 1.
+  let scale = 1, refined = true, lastInput = -1e9, playing = false, lastTick = null;
+  const rafTimes = [];
 
-  function camera() {
+  function refreshMs() {
+    if (rafTimes.length < 8) return 1000 / 60;
+    const d = rafTimes.slice(1).map((t, i) => t - rafTimes[i]).sort((a, b) => a - b);
+    return d[d.length >> 1];
+  }
+  function renderSize(sc) {
+    const cv = $('canvas'), dpr = window.devicePixelRatio || 1;
+    const w = Math.max(16, Math.round((cv.clientWidth || 640) * dpr * sc));
+    const hh = Math.max(16, Math.round((cv.clientHeight || 480) * dpr * sc));
+    return [w, hh];
+  }
+  function camera(sc) {
     if (fixedCam) return fixedCam;
     const o = orbit;
     const el = view.pitch ?? o.elevation;
@@ -309,13 +383,14 @@ async function stream(name, device, wg) {
     const side = cross(o.up, o.start);
     const horiz = add(scl(o.start, Math.cos(view.yaw)), scl(side, Math.sin(view.yaw)));
     const dir = add(scl(horiz, Math.cos(el)), scl(o.up, Math.sin(el)));
-    const c2w = lookAt(add(o.center, scl(dir, rad)), o.center, o.up);
-    const cv = $('canvas');
-    const f = (0.5 * cv.height) / Math.tan((0.5 * 40 * Math.PI) / 180);
-    return { c2w, fx: f, fy: f, cx: cv.width / 2, cy: cv.height / 2, width: cv.width, height: cv.height };
+    const c = add(o.center, view.pan);
+    const c2w = lookAt(add(c, scl(dir, rad)), c, o.up);
+    const [w, hh] = renderSize(sc);
+    const f = (0.5 * hh) / Math.tan((0.5 * 40 * Math.PI) / 180);
+    return { c2w, fx: f, fy: f, cx: w / 2, cy: hh / 2, width: w, height: hh };
   }
   function poseBytes() {
-    const c = camera();
+    const c = camera(scale);
     const b = new ArrayBuffer(40), dv = new DataView(b);
     dv.setUint8(0, 0x53); dv.setUint8(1, 0x50); dv.setUint8(2, 1); dv.setUint8(3, 0);
     dv.setUint32(4, ++seq, true);
@@ -323,56 +398,92 @@ async function stream(name, device, wg) {
     [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3], ...fwd, time, 0].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
     return new Uint8Array(b);
   }
-  function sendPose() { if (dgram) dgram.write(poseBytes()).catch(() => {}); }
+  function sendPose() { if (dgram && orbit) dgram.write(poseBytes()).catch(() => {}); }
 
+  // The pose goes in the hello when it is known already (a fixed camera), so the very first
+  // blocks sent are the ones in view; otherwise by datagram as soon as the header is in.
   const hello = { type: 'hello', version: 1, token, asset: name, have: [] };
+  if (fixedCam) {
+    const c = fixedCam;
+    hello.pose = {
+      eye: [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], forward: [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]],
+      time, fov_deg: (2 * Math.atan(0.5 * Math.max(c.width / c.fx, c.height / c.fy)) * 180) / Math.PI,
+    };
+  }
   const { wt, ctl } = await connect(hello);
   const welcome = await readMsg(ctl);
   if (welcome.type !== 'welcome' || !welcome.asset) throw new Error('no asset in the welcome');
   const info = welcome.asset;
   report.asset = info;
   report.state = 'streaming';
+  report.arrivals = [];
   dgram = wt.datagrams.writable.getWriter();
   const poseTimer = setInterval(sendPose, 250);
 
-  async function draw() {
-    if (rendering || !r || !dirty) return;
-    rendering = true;
+  let busy = false, dirty = false;
+  const ready = () => r && r.mlp && r.grids.every((g) => g);
+  // One frame: march at the current scale, present to the canvas (and read back if asked).
+  async function frameNow(sc) {
+    if (busy || !ready()) return;
+    busy = true;
     dirty = false;
     try {
-      const cam = camera();
-      const ts = performance.now();
+      const cam = camera(sc);
+      const cv = $('canvas');
+      if (cv.width !== cam.width || cv.height !== cam.height) { cv.width = cam.width; cv.height = cam.height; }
+      if (fixedCam) {
+        // One canvas pixel per device pixel, so a screenshot of the canvas is the frame.
+        const dpr = window.devicePixelRatio || 1;
+        cv.style.width = `${cam.width / dpr}px`; cv.style.height = `${cam.height / dpr}px`; cv.style.aspectRatio = 'auto';
+      }
       // What this frame shows: the blocks uploaded before it was submitted.
-      const blocks = report.blocks, complete = report.chunks === info.chunks;
-      const rgba = await r.render(cam, time);
-      blit(rgba, cam.width, cam.height);
-      report.frames++;
+      const blocks = report.blocks, done = report.chunks === info.chunks;
+      const ts = performance.now();
+      const out = await r.render([{ cam, x: 0, y: 0 }], time, gpu.ctx.getCurrentTexture(), capture);
       const ms = performance.now() - ts;
+      report.frames++;
       if (report.firstFrameMs === null) {
         report.firstFrameMs = performance.now() - t0;
-        report.firstFrame = { width: cam.width, height: cam.height, blocks, complete };
+        report.firstFrameAt = performance.now();
+        report.firstFrame = { width: cam.width, height: cam.height, blocks, complete: done };
       }
-      report.lastRender = { rgba, width: cam.width, height: cam.height, complete };
-      stats(ms);
+      report.lastFrame = { width: cam.width, height: cam.height, complete: done, ms, scale: sc };
+      if (out) report.lastRender = { rgba: out[0], width: cam.width, height: cam.height, complete: done };
+      if (done && !report.completeAt) report.completeAt = performance.now();
+      if (sc === scale && !fixedCam) adapt(ms);
+      stats(ms, sc);
     } catch (e) { fail(e); }
-    rendering = false;
-    if (dirty) requestAnimationFrame(draw);
+    busy = false;
   }
-  const redraw = () => { dirty = true; requestAnimationFrame(draw); };
-
-  function blit(rgba, w, hgt) {
-    const cv = $('canvas');
-    if (cv.width !== w || cv.height !== hgt) { cv.width = w; cv.height = hgt; }
-    const img = new ImageData(w, hgt);
-    for (let i = 0; i < w * hgt; i++) {
-      for (let c = 0; c < 3; c++) img.data[4 * i + c] = Math.round(Math.min(1, Math.max(0, rgba[4 * i + c])) * 255);
-      img.data[4 * i + 3] = 255;
+  function adapt(ms) {
+    const k = Math.sqrt((0.9 * refreshMs()) / Math.max(ms, 0.1));
+    if (k < 0.95 || (k > 1.1 && scale < 1)) scale = Math.min(1, Math.max(0.1, scale * Math.min(1.25, Math.max(0.6, k))));
+  }
+  const redraw = () => { dirty = true; };
+  const touched = () => { lastInput = performance.now(); refined = false; sendPose(); };
+  function tick(now) {
+    rafTimes.push(now);
+    if (rafTimes.length > 32) rafTimes.shift();
+    requestAnimationFrame(tick);
+    if (xrActive) return; // the XR session's own frame loop draws
+    if (playing && h && h.frames) {
+      const lo = h.frames[0].time, hi = h.frames[h.frames.length - 1].time;
+      time += ((now - (lastTick ?? now)) / 1000);
+      if (time > hi) time = lo + ((time - lo) % Math.max(hi - lo, 1e-6));
+      $('time').value = time;
+      dirty = true;
     }
-    cv.getContext('2d').putImageData(img, 0, 0);
+    lastTick = now;
+    const moving = playing || now - lastInput < 300;
+    if (fixedCam) { if (dirty) frameNow(1); return; }
+    if (moving || dirty) { if (moving) refined = false; frameNow(scale); }
+    else if (!refined && !busy) { refined = true; frameNow(1); }
   }
-  function stats(ms) {
+  requestAnimationFrame(tick);
+
+  function stats(ms, sc) {
     $('stats').textContent =
-      `${(1000 / Math.max(ms, 0.01)).toFixed(1)} fps (${ms.toFixed(1)} ms)\n` +
+      `${(1000 / Math.max(ms, 0.01)).toFixed(1)} fps (${ms.toFixed(1)} ms)  scale ${sc.toFixed(2)}\n` +
       `blocks ${report.blocks}/${h ? h.atlas_blocks : '?'}  chunks ${report.chunks}/${info.chunks}\n` +
       `${(report.bytes / 1048576).toFixed(2)} MiB received\n` +
       `first frame ${report.firstFrameMs === null ? '-' : report.firstFrameMs.toFixed(0) + ' ms'}`;
@@ -395,21 +506,28 @@ async function stream(name, device, wg) {
       const dyn = h.frames && h.frames.length > 1 ? 1 : 0;
       const res = await fetch(`/march.wgsl?kind=${kind}&dynamic=${dyn}&block=${h.block}`);
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
-      r = new Renderer(device, h, await res.text(), wg);
+      r = new Renderer(gpu.device, h, await res.text(), gpu.presentWgsl, gpu.wg);
+      sendPose();
       if (dyn) {
         const tb = $('time');
         tb.min = h.frames[0].time; tb.max = h.frames[h.frames.length - 1].time; tb.value = time;
         $('timebox').hidden = false;
         tb.oninput = () => { time = parseFloat(tb.value); sendPose(); redraw(); };
+        $('play').onclick = () => { playing = !playing; $('play').textContent = playing ? 'pause' : 'play'; lastTick = null; };
       }
       for (const q of pendingChunks.splice(0)) await onChunk(q[0], q[1]);
     } else if (tag === 'VMLP') { r.setMlp(p); r.mlp = true; }
     else if (tag === 'GRID') { r.setGrid(u32(p, 0), new Uint32Array(p.slice(4).buffer)); }
-    else if (tag === 'BLKS') { const n = u32(p, 4); r.setBlocks(u32(p, 0), n, p.subarray(8)); report.blocks += n; }
-    if (r && r.mlp && r.grids.every((g) => g)) {
+    else if (tag === 'BLKS') {
+      const first = u32(p, 0), n = u32(p, 4);
+      r.setBlocks(first, n, p.subarray(8));
+      report.blocks += n;
+      if (report.arrivals.length < 4096) report.arrivals.push([first, n]);
+    }
+    if (ready()) {
       // The first frame is drawn as soon as the small parts are in, before more blocks are
       // taken in (chunks are applied one at a time): progressive from the first block on.
-      if (report.firstFrameMs === null) { dirty = true; await draw(); } else redraw();
+      if (report.firstFrameMs === null) { dirty = true; await frameNow(fixedCam ? 1 : scale); } else redraw();
     }
   }
   const pendingChunks = [];
@@ -432,7 +550,7 @@ async function stream(name, device, wg) {
       queue = queue.then(() => onChunk(index, ck)).catch(abort);
     }
   }
-  if (!fixedCam) attachOrbit(view, () => { if (orbit) { sendPose(); redraw(); } });
+  if (!fixedCam) attachControls(view, () => orbit, touched);
   $('view').hidden = false;
   setStatus(`streaming ${info.name}: ${info.size} bytes in ${info.chunks} chunks`);
 
@@ -461,31 +579,57 @@ async function stream(name, device, wg) {
   report.sha256 = hex(new Uint8Array(await crypto.subtle.digest('SHA-256', file)));
   if (report.sha256 !== info.sha256) throw new Error(`SHA-256 mismatch: got ${report.sha256}, expected ${info.sha256}`);
   wt.close({ closeCode: 0, reason: 'done' });
+  report.completeMs = performance.now() - t0;
   redraw();
   // Wait for the complete frame.
-  while (!report.lastRender || !report.lastRender.complete || rendering || dirty) await new Promise((res) => setTimeout(res, 10));
+  while (!report.lastFrame || !report.lastFrame.complete || busy || dirty) await new Promise((res) => setTimeout(res, 10));
   report.state = 'done';
-  setStatus(`${info.name}: ${total} bytes, SHA-256 verified; drag to orbit, wheel to zoom`);
+  setStatus(`${info.name}: ${total} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);
 }
 
-function attachOrbit(view, changed) {
+// Mouse, touch and keyboard: drag (one pointer) orbits, wheel or pinch (two pointers) zooms,
+// WASD moves the orbit centre in the view's horizontal plane, Q/E along up, arrows orbit.
+function attachControls(view, orbit, changed) {
   const cv = $('canvas');
-  let last = null;
-  cv.addEventListener('pointerdown', (e) => { last = [e.clientX, e.clientY]; cv.setPointerCapture(e.pointerId); });
-  cv.addEventListener('pointerup', () => { last = null; });
+  const pts = new Map();
+  let pinch = null;
+  const zoom = (f) => { const o = orbit(); if (o) { view.radius = (view.radius ?? o.radius) * f; changed(); } };
+  const turn = (dx, dy) => {
+    const o = orbit();
+    if (!o) return;
+    view.yaw -= dx;
+    view.pitch = Math.max(-1.5, Math.min(1.5, (view.pitch ?? o.elevation) + dy));
+    changed();
+  };
+  cv.addEventListener('pointerdown', (e) => { pts.set(e.pointerId, [e.clientX, e.clientY]); cv.setPointerCapture(e.pointerId); pinch = null; });
+  const up = (e) => { pts.delete(e.pointerId); pinch = null; };
+  cv.addEventListener('pointerup', up);
+  cv.addEventListener('pointercancel', up);
   cv.addEventListener('pointermove', (e) => {
+    const last = pts.get(e.pointerId);
     if (!last) return;
-    const dx = e.clientX - last[0], dy = e.clientY - last[1];
-    last = [e.clientX, e.clientY];
-    view.yaw -= dx * 0.01;
-    view.pitch = Math.max(-1.5, Math.min(1.5, (view.pitch ?? view.elevation) + dy * 0.01));
-    changed();
+    pts.set(e.pointerId, [e.clientX, e.clientY]);
+    if (pts.size === 1) { turn((e.clientX - last[0]) * 0.01, (e.clientY - last[1]) * 0.01); return; }
+    const [a, b] = [...pts.values()];
+    const d = Math.hypot(a[0] - b[0], a[1] - b[1]);
+    if (pinch) zoom(pinch / Math.max(d, 1));
+    pinch = d;
   });
-  cv.addEventListener('wheel', (e) => {
-    e.preventDefault();
-    view.radius = (view.radius ?? view.baseRadius) * Math.exp(e.deltaY * 0.001);
-    changed();
-  }, { passive: false });
+  cv.addEventListener('wheel', (e) => { e.preventDefault(); zoom(Math.exp(e.deltaY * 0.001)); }, { passive: false });
+  window.addEventListener('keydown', (e) => {
+    const o = orbit();
+    if (!o || e.target.tagName === 'INPUT') return;
+    const k = e.key.toLowerCase();
+    const step = 0.05 * (view.radius ?? o.radius);
+    // Camera-relative directions in the horizontal plane (see camera()).
+    const side = cross(o.up, o.start);
+    const fwd = scl(add(scl(o.start, Math.cos(view.yaw)), scl(side, Math.sin(view.yaw))), -1);
+    const right = cross(fwd, o.up);
+    const mv = { w: fwd, s: scl(fwd, -1), d: right, a: scl(right, -1), e: o.up, q: scl(o.up, -1) }[k];
+    if (mv) { view.pan = add(view.pan, scl(mv, step)); changed(); return; }
+    const rot = { arrowleft: [0.1, 0], arrowright: [-0.1, 0], arrowup: [0, 0.1], arrowdown: [0, -0.1] }[k];
+    if (rot) { e.preventDefault(); turn(rot[0], rot[1]); }
+  });
 }
 
 async function main() {
@@ -515,7 +659,12 @@ async function main() {
   report.state = 'listed';
   setStatus(`${assets.length} asset(s); choose one`);
   const want = frag.get('asset');
-  if (want) await stream(want, device, config.workgroup);
+  if (!want) return;
+  const ctx = $('canvas').getContext('webgpu');
+  ctx.configure({ device, format: navigator.gpu.getPreferredCanvasFormat(), alphaMode: 'opaque' });
+  const pw = await fetch('/present.wgsl');
+  if (!pw.ok) throw new Error('present shader: HTTP ' + pw.status);
+  await stream(want, { device, wg: config.workgroup, ctx, presentWgsl: await pw.text() });
 }
 
 main().catch(fail);

@@ -12,8 +12,12 @@ const { chromium } = require('playwright-core');
 const browser = await chromium.launch({
   executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium',
   headless: true,
-  // WebGPU is behind this flag on Linux; SwiftShader provides the adapter without a GPU.
-  args: ['--no-sandbox', '--disable-background-networking', '--disable-component-update', '--no-first-run', '--enable-unsafe-webgpu'],
+  // WebGPU is behind --enable-unsafe-webgpu on Linux; SwiftShader provides the adapter
+  // without a GPU. Presenting a WebGPU canvas needs the compositor on SwiftShader Vulkan too
+  // (with the default GL compositor the first present loses Dawn's instance).
+  args: ['--no-sandbox', '--disable-background-networking', '--disable-component-update', '--no-first-run',
+    '--enable-unsafe-webgpu', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist', '--enable-gpu',
+    '--enable-features=Vulkan', '--use-vulkan=swiftshader', '--use-angle=swiftshader'],
 });
 try {
   const page = await browser.newPage();
@@ -47,6 +51,11 @@ try {
       if (s.lastRender) out.lastRender = { width: s.lastRender.width, height: s.lastRender.height, complete: s.lastRender.complete, rgba: Array.from(s.lastRender.rgba) };
       return out;
     });
+    // What the canvas shows (the presented frame), as the browser composited it.
+    if (r.state === want && (await page.locator('#view').isVisible())) {
+      await page.evaluate(() => { document.getElementById('stats').style.display = 'none'; });
+      r.canvasPng = (await page.locator('#canvas').screenshot()).toString('base64');
+    }
     console.log(JSON.stringify(r));
   }
 } finally {
