@@ -42,6 +42,7 @@ use crate::server::{handle, log, transport, Shared};
 /// The page and its script, embedded at build time (no build step: plain ES modules).
 pub const INDEX_HTML: &str = include_str!("../web/index.html");
 pub const APP_JS: &str = include_str!("../web/app.js");
+pub const XR_JS: &str = include_str!("../web/xr.js");
 pub const APP_CSS: &str = include_str!("../web/app.css");
 
 /// Path of the WebTransport session (`https://HOST:PORT/snerf/1`).
@@ -369,6 +370,7 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) 
     let (status, ctype, body): (u16, &str, Vec<u8>) = match path {
         "/" | "/index.html" => (200, "text/html; charset=utf-8", INDEX_HTML.as_bytes().to_vec()),
         "/app.js" => (200, "text/javascript; charset=utf-8", APP_JS.as_bytes().to_vec()),
+        "/xr.js" => (200, "text/javascript; charset=utf-8", XR_JS.as_bytes().to_vec()),
         "/app.css" => (200, "text/css; charset=utf-8", APP_CSS.as_bytes().to_vec()),
         "/config.json" => {
             let cfg = serde_json::json!({

@@ -411,3 +411,153 @@ fn with_cert_and_key_the_page_is_served_over_https_with_that_certificate() {
     assert!(!plain.contains("HTTP/1.1 200"), "{plain}");
     h.shutdown();
 }
+
+/// A camera from the page's JSON ({c2w rows, fx, fy, cx, cy, width, height}).
+fn cam_from_json(v: &serde_json::Value) -> snerf_asset::Camera {
+    let f = |k: &str| v[k].as_f64().unwrap() as f32;
+    let mut c2w = [[0f32; 4]; 3];
+    for (i, row) in c2w.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = v["c2w"][i][j].as_f64().unwrap() as f32;
+        }
+    }
+    snerf_asset::Camera {
+        c2w,
+        fx: f("fx"),
+        fy: f("fy"),
+        cx: f("cx"),
+        cy: f("cy"),
+        width: v["width"].as_u64().unwrap() as u32,
+        height: v["height"].as_u64().unwrap() as u32,
+    }
+}
+
+fn vec3(v: &serde_json::Value) -> [f64; 3] {
+    [0, 1, 2].map(|i| v[i].as_f64().unwrap())
+}
+
+fn dist3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// World position of an eye camera.
+fn eye_pos(cam: &snerf_asset::Camera) -> [f64; 3] {
+    [0, 1, 2].map(|i| cam.c2w[i][3] as f64)
+}
+
+/// World direction of a local-floor direction under the page's placement (rig at rest).
+fn place_dir(place: &serde_json::Value, d: [f64; 3]) -> [f64; 3] {
+    let b = |c: usize| vec3(&place["B"][c]);
+    let (x, y, z) = (b(0), b(1), b(2));
+    [0, 1, 2].map(|i| x[i] * d[0] + y[i] * d[1] + z[i] * d[2])
+}
+
+/// Every eye of a snapshot: its marched image against the CPU reference at the eye's camera,
+/// and what the WebGL layer shows against the marched image. Returns the eye cameras.
+fn check_eyes(snap: &serde_json::Value, asset: &Asset, what: &str) -> Vec<snerf_asset::Camera> {
+    assert_eq!(snap["error"], serde_json::Value::Null, "{what}: {}", snap["error"]);
+    let eyes = snap["eyes"].as_array().unwrap();
+    assert_eq!(eyes.len(), 2, "{what}: both eyes are drawn");
+    let mut cams = Vec::new();
+    for (i, e) in eyes.iter().enumerate() {
+        let cam = cam_from_json(&e["cam"]);
+        // The intrinsics are the XR view's projection (column-major) for this viewport.
+        let p: Vec<f64> = e["projection"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+        let (w, h) = (cam.width as f64, cam.height as f64);
+        assert!((cam.fx as f64 - p[0] * w / 2.0).abs() < 1e-3 && (cam.fy as f64 - p[5] * h / 2.0).abs() < 1e-3, "{what} eye {i}: intrinsics");
+        assert!((cam.cx as f64 - w / 2.0 * (1.0 - p[8])).abs() < 1e-3 && (cam.cy as f64 - h / 2.0 * (1.0 + p[9])).abs() < 1e-3);
+        let cpu = snerf_asset::render(asset, &cam, snap["time"].as_f64().unwrap_or(0.0) as f32);
+        let rgba: Vec<serde_json::Value> = e["rgba"].as_array().unwrap().clone();
+        let d = mean_abs_diff(&rgba, &cpu);
+        eprintln!("{what} eye {i} ({}x{}): marched vs CPU reference mean |diff| {:?}", cam.width, cam.height, d);
+        assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{what} eye {i}: mean |diff| {:?} > 2/255", d);
+        // The layer's pixels (GL rows bottom up) against the marched image.
+        let gl: Vec<f64> = e["gl"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() / 255.0).collect();
+        let vp: Vec<u64> = e["viewport"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+        assert_eq!((vp[2], vp[3]), (cam.width as u64, cam.height as u64), "{what} eye {i}: render scale 1 under capture");
+        let (w, h) = (vp[2] as usize, vp[3] as usize);
+        let mut dg = 0f64;
+        for y in 0..h {
+            for x in 0..w {
+                let src = 4 * ((h - 1 - y) * w + x);
+                for c in 0..3 {
+                    dg += (gl[4 * (y * w + x) + c] - rgba[src + c].as_f64().unwrap().clamp(0.0, 1.0)).abs();
+                }
+            }
+        }
+        dg /= (w * h * 3) as f64;
+        eprintln!("{what} eye {i}: XR layer vs marched mean |diff| {dg}");
+        assert!(dg <= 2.0 / 255.0, "{what} eye {i}: the XR layer shows something else ({dg})");
+        cams.push(cam);
+    }
+    cams
+}
+
+#[test]
+fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_and_follows_the_headset() {
+    let Some(b) = browser() else { return };
+    let iwer = b.2.join("../iwer/build/iwer.min.js");
+    if !iwer.exists() {
+        assert!(std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"), "no iwer at {} (.ci/run installs it)", iwer.display());
+        eprintln!("skipping the immersive test: no iwer at {}", iwer.display());
+        return;
+    }
+    let dir = TempDir::new("web-xr");
+    let state = TempDir::new("web-xr-state");
+    let asset = static_asset(32, 8, 0.8, 11);
+    write_asset(&asset, dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1")]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/xr.mjs");
+    let out = Command::new(&b.0).arg(&script).arg(b.2.join("../..")).arg(&url).env("SNERF_CHROMIUM", &b.1).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
+        eprintln!("{stderr}");
+    }
+    assert!(out.status.success(), "xr.mjs failed: {stderr}");
+    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    let before = &r["before"];
+    let cams0 = check_eyes(before, &asset, "before");
+    eprintln!("first immersive frame {} ms after Enter VR", before["firstFrameMs"]);
+    // The object is in view (the comparison means something).
+    let cpu = snerf_asset::render(&asset, &cams0[0], 0.0);
+    let bg = asset.header.background;
+    let shown = cpu.rgb.chunks(3).filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02)).count();
+    assert!(shown * 20 > cpu.rgb.len() / 3, "the object is not in front of the user ({shown} pixels)");
+    let place = &before["place"];
+    let k = place["k"].as_f64().unwrap();
+    // The eyes are an IPD apart (iwer's 63 mm), in world units.
+    let sep = dist3(eye_pos(&cams0[0]), eye_pos(&cams0[1]));
+    assert!((sep / k - 0.063).abs() < 1e-3, "eye separation {} m", sep / k);
+    // An object floats at arm's length: its centre 0.6 m ahead of and 0.3 m below the head.
+    let centre = vec3(&serde_json::json!(asset.header.space.center));
+    let mid = [0, 1, 2].map(|i| (eye_pos(&cams0[0])[i] + eye_pos(&cams0[1])[i]) / 2.0);
+    let want = (0.6f64.powi(2) + 0.3f64.powi(2)).sqrt();
+    assert!((dist3(centre, mid) / k - want).abs() < 1e-3, "object at {} m", dist3(centre, mid) / k);
+    // Moving the headset 30 cm right and 20 cm back moves both eyes by that, as placed.
+    let cams1 = check_eyes(&r["moved"], &asset, "moved");
+    let d = place_dir(place, [0.3, 0.0, 0.2]).map(|x| x * k);
+    for (a, b_) in cams0.iter().zip(&cams1) {
+        let moved = [0, 1, 2].map(|i| eye_pos(b_)[i] - eye_pos(a)[i]);
+        assert!(dist3(moved, d) / k < 1e-3, "eye moved {:?}, expected {:?}", moved, d);
+    }
+    // Turning the head 90 degrees left: both eyes look along local-floor -x.
+    let cams2 = check_eyes(&r["turned"], &asset, "turned");
+    let left = place_dir(place, [-1.0, 0.0, 0.0]);
+    for c in &cams2 {
+        let fwd = [0, 1, 2].map(|i| -c.c2w[i][2] as f64);
+        assert!(dist3(fwd, left) < 1e-3, "forward {:?}, expected {:?}", fwd, left);
+    }
+    assert!(r["turned"]["posesSent"].as_u64().unwrap() > before["posesSent"].as_u64().unwrap(), "head poses go to the server");
+    // The left thumbstick pushed forward walks the user where the head looks (-x).
+    let p0 = vec3(&r["turned"]["rig"]["p"]);
+    let p1 = vec3(&r["walked"]["rig"]["p"]);
+    let step = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
+    let len = dist3(step, [0.0; 3]);
+    assert!(len > 0.05 && -step[0] / len > 0.999, "walked {:?}", step);
+    let cams3 = check_eyes(&r["walked"], &asset, "walked");
+    let moved = [0, 1, 2].map(|i| eye_pos(&cams3[0])[i] - eye_pos(&cams2[0])[i]);
+    assert!(dist3(moved, place_dir(place, step).map(|x| x * k)) / k < 1e-3, "the eyes follow the walk");
+    assert!(h.stats().pose_updates.load(Ordering::Relaxed) > 0);
+    h.shutdown();
+}

@@ -8,6 +8,8 @@
 // away), cam=JSON ({c2w:[[4],[4],[4]], fx, fy, cx, cy, width, height}: a fixed camera),
 // time=T (playback time of a 4D asset).
 
+import { xrSupported, enterXR } from './xr.js';
+
 const EMPTY = 0xffffffff;
 const $ = (id) => document.getElementById(id);
 const frag = new URLSearchParams(location.hash.slice(1));
@@ -398,7 +400,17 @@ async function stream(name, gpu) {
     [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3], ...fwd, time, 0].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
     return new Uint8Array(b);
   }
-  function sendPose() { if (dgram && orbit) dgram.write(poseBytes()).catch(() => {}); }
+  function sendPose() { if (dgram && orbit && !xrActive) dgram.write(poseBytes()).catch(() => {}); }
+  // A pose from elsewhere (the XR head): eye, forward (world), field of view in degrees.
+  function sendPoseRaw(eye, fwd, fov) {
+    if (!dgram) return;
+    const b = new ArrayBuffer(40), dv = new DataView(b);
+    dv.setUint8(0, 0x53); dv.setUint8(1, 0x50); dv.setUint8(2, 1); dv.setUint8(3, 0);
+    dv.setUint32(4, ++seq, true);
+    [...eye, ...fwd, time, fov].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
+    dgram.write(new Uint8Array(b)).catch(() => {});
+    report.posesSent = seq;
+  }
 
   // The pose goes in the hello when it is known already (a fixed camera), so the very first
   // blocks sent are the ones in view; otherwise by datagram as soon as the header is in.
@@ -465,6 +477,36 @@ async function stream(name, gpu) {
     rafTimes.push(now);
     if (rafTimes.length > 32) rafTimes.shift();
     requestAnimationFrame(tick);
+
+  // What the immersive mode (xr.js) uses of this stream.
+  function togglePlay() {
+    if (!h || !h.frames || h.frames.length < 2) return;
+    playing = !playing;
+    $('play').textContent = playing ? 'pause' : 'play';
+    lastTick = null;
+  }
+  function advance(dt) {
+    if (!playing || !h || !h.frames) return;
+    const lo = h.frames[0].time, hi = h.frames[h.frames.length - 1].time;
+    time += dt;
+    if (time > hi) time = lo + ((time - lo) % Math.max(hi - lo, 1e-6));
+    $('time').value = time;
+  }
+  const api = {
+    gpu, capture, ready, togglePlay, advance, sendPose: sendPoseRaw,
+    renderer: () => r, header: () => h, orbit: () => orbit, time: () => time,
+    playing: () => playing,
+    setXR: (on) => { xrActive = on; if (!on) { dirty = true; refined = false; } },
+  };
+  xrSupported().then((ok) => {
+    if (!ok) return;
+    const b = $('xr');
+    b.hidden = false;
+    b.onclick = () => {
+      report.xrClickAt = performance.now();
+      enterXR(api, report).catch((e) => { report.xr = { ...(report.xr || {}), state: 'error', error: String(e.message || e) }; setStatus('VR: ' + (e.message || e)); });
+    };
+  });
     if (xrActive) return; // the XR session's own frame loop draws
     if (playing && h && h.frames) {
       const lo = h.frames[0].time, hi = h.frames[h.frames.length - 1].time;
@@ -513,7 +555,7 @@ async function stream(name, gpu) {
         tb.min = h.frames[0].time; tb.max = h.frames[h.frames.length - 1].time; tb.value = time;
         $('timebox').hidden = false;
         tb.oninput = () => { time = parseFloat(tb.value); sendPose(); redraw(); };
-        $('play').onclick = () => { playing = !playing; $('play').textContent = playing ? 'pause' : 'play'; lastTick = null; };
+        $('play').onclick = togglePlay;
       }
       for (const q of pendingChunks.splice(0)) await onChunk(q[0], q[1]);
     } else if (tag === 'VMLP') { r.setMlp(p); r.mlp = true; }

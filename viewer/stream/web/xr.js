@@ -1,0 +1,285 @@
+// snerf web viewer, immersive mode: an `immersive-vr` WebXR session that draws each eye with
+// that XR view's own projection and pose. The march is the same WebGPU compute pass as the
+// flat page (shaders/march.wgsl, composed by the server); both eyes are marched in one
+// submission and presented side by side (shaders/present.wgsl) into an OffscreenCanvas, which
+// is drawn into the XR layer's framebuffer with WebGL2 (WebXR layers are WebGL).
+//
+// Placement (derived from the asset, see `placement`): an object floats at arm's length in
+// front of the user, its radius ~25 cm; a room or unbounded scene puts its floor (the asset's
+// `floor`, else the orbit's lowest camera height) at the floor, the user standing where the
+// capture's start view stood, scaled so that view's height is a standing eye height (1.6 m).
+//
+// Controllers (documented in web/README.md): left thumbstick walks (1.5 m/s along where the
+// head looks, on the floor plane), right thumbstick snaps the turn by 30°, grip with one hand
+// drags the scene, with both hands scales it about their midpoint, trigger (select; a pinch
+// with hands) plays or pauses a 4D asset. The head pose goes to the server as datagrams so
+// blocks come in the order the user will look; the frame loop never waits on the network.
+
+const WALK = 1.5; // m/s
+const SNAP = Math.PI / 6;
+const EYE_HEIGHT = 1.6; // m
+const OBJECT_RADIUS = 0.25; // m
+const OBJECT_AT = [0, 1.3, -0.6]; // m, in local-floor space
+
+const sub = (a, b) => [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+const add = (a, b) => [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+const scl = (a, s) => [a[0] * s, a[1] * s, a[2] * s];
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+const cross = (a, b) => [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]];
+const unit = (a) => scl(a, 1 / Math.hypot(a[0], a[1], a[2]));
+// 3x3 as columns [c0, c1, c2].
+const mulv = (m, v) => add(add(scl(m[0], v[0]), scl(m[1], v[1])), scl(m[2], v[2]));
+const ry = (a, v) => [Math.cos(a) * v[0] + Math.sin(a) * v[2], v[1], -Math.sin(a) * v[0] + Math.cos(a) * v[2]];
+
+export async function xrSupported() {
+  try {
+    return !!navigator.xr && (await navigator.xr.isSessionSupported('immersive-vr'));
+  } catch {
+    return false;
+  }
+}
+
+// Where local-floor space sits in the world: world = origin + k * B * (Ry(yaw) * ref + p),
+// B's columns the world directions of ref x (right), y (up), z (back).
+export function placement(h, orbit) {
+  const up = unit(orbit.up);
+  let fwd = sub(orbit.start, scl(up, dot(orbit.start, up)));
+  fwd = Math.hypot(...fwd) < 1e-6 ? unit(cross(up, [1, 0, 0])) : scl(unit(fwd), -1); // start -> centre
+  const right = unit(cross(fwd, up));
+  const B = [right, up, scl(fwd, -1)];
+  if (h.kind === 'object') {
+    const k = 1 / h.space.scale / OBJECT_RADIUS;
+    return { B, k, origin: sub(orbit.center, scl(mulv(B, OBJECT_AT), k)) };
+  }
+  // Standing where the start view stood, feet on the floor.
+  const startEye = add(orbit.center, scl(add(scl(scl(fwd, -1), Math.cos(orbit.elevation)), scl(up, Math.sin(orbit.elevation))), orbit.radius));
+  const floorH = h.floor != null ? h.floor : dot(orbit.center, up) - orbit.radius;
+  const eyeH = dot(startEye, up) - floorH;
+  const k = (eyeH > 1e-6 ? eyeH : orbit.radius / 3) / EYE_HEIGHT;
+  const origin = add(sub(startEye, scl(up, dot(startEye, up))), scl(up, floorH));
+  return { B, k, origin };
+}
+
+// The eye camera in world space ({c2w rows, fx, fy, cx, cy, width, height}) of an XR view
+// (column-major projection and ref-space transform) for a w x h image.
+export function eyeCamera(P, T, w, hh, place, rig) {
+  const fx = (P[0] * w) / 2, fy = (P[5] * hh) / 2;
+  const cx = (w / 2) * (1 - P[8]), cy = (hh / 2) * (1 + P[9]);
+  const toWorldDir = (d) => mulv(place.B, ry(rig.yaw, d));
+  const cols = [0, 1, 2].map((c) => toWorldDir([T[4 * c], T[4 * c + 1], T[4 * c + 2]]));
+  const eye = add(place.origin, scl(mulv(place.B, add(ry(rig.yaw, [T[12], T[13], T[14]]), rig.p)), place.k));
+  const c2w = [0, 1, 2].map((i) => [cols[0][i], cols[1][i], cols[2][i], eye[i]]);
+  return { c2w, fx, fy, cx, cy, width: w, height: hh };
+}
+
+const VS = `#version 300 es
+uniform vec4 rect; out vec2 uv;
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  uv = rect.xy + p * rect.zw;
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}`;
+const FS = `#version 300 es
+precision highp float; uniform sampler2D img; in vec2 uv; out vec4 o;
+void main() { o = vec4(texture(img, uv).rgb, 1.0); }`;
+
+function program(gl) {
+  const sh = (type, src) => {
+    const s = gl.createShader(type);
+    gl.shaderSource(s, src);
+    gl.compileShader(s);
+    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error('XR blit shader: ' + gl.getShaderInfoLog(s));
+    return s;
+  };
+  const p = gl.createProgram();
+  gl.attachShader(p, sh(gl.VERTEX_SHADER, VS));
+  gl.attachShader(p, sh(gl.FRAGMENT_SHADER, FS));
+  gl.linkProgram(p);
+  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error('XR blit program: ' + gl.getProgramInfoLog(p));
+  return p;
+}
+
+// Start the session. `api`: what the streaming page shares (see app.js `stream`); `report`:
+// window.snerf, where the session's state goes (`report.xr`).
+export async function enterXR(api, report) {
+  const t0 = performance.now();
+  const xr = (report.xr = { state: 'starting', firstFrameMs: null, frames: 0, scale: 1, eyes: null, rig: null, error: null });
+  const glCanvas = document.createElement('canvas');
+  const gl = glCanvas.getContext('webgl2', { xrCompatible: true, alpha: false, antialias: false, depth: false });
+  if (!gl) throw new Error('no WebGL2 for the XR layer');
+  const session = await navigator.xr.requestSession('immersive-vr', { requiredFeatures: ['local-floor'], optionalFeatures: ['hand-tracking'] });
+  const layer = new XRWebGLLayer(session, gl, { antialias: false, depth: false, alpha: false });
+  session.updateRenderState({ baseLayer: layer });
+  if ('fixedFoveation' in layer) layer.fixedFoveation = 0.5;
+  const ref = await session.requestReferenceSpace('local-floor');
+  const place = placement(api.header(), api.orbit());
+  const rig = { p: [0, 0, 0], yaw: 0 };
+  xr.place = place;
+  xr.rig = rig;
+  const prog = program(gl);
+  const tex = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D, tex);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+  gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+  const rectLoc = gl.getUniformLocation(prog, 'rect');
+  const off = new OffscreenCanvas(16, 16);
+  const ctx = off.getContext('webgpu');
+  ctx.configure({ device: api.gpu.device, format: 'rgba8unorm', alphaMode: 'opaque' });
+  // Dynamic render scale: the fraction of each eye's pixels marched, held to the display's
+  // refresh (session.frameRate where the browser says it, else 72 Hz).
+  let scale = api.capture ? 1 : 0.5;
+  let busy = false, last = null, lastPose = 0, grab = null;
+  const pressed = new Map();
+  session.addEventListener('select', () => api.togglePlay());
+  session.addEventListener('end', () => { api.setXR(false); xr.state = 'ended'; });
+  api.setXR(true);
+
+  function edge(key, on) {
+    const was = pressed.get(key) || false;
+    pressed.set(key, on);
+    return on && !was;
+  }
+  // Controllers: thumbsticks, grip drag / two-hand scale (see the top of this file).
+  function input(frame, dt, head) {
+    const grips = [];
+    for (const src of session.inputSources) {
+      const gp = src.gamepad;
+      if (!gp) continue;
+      const ax = gp.axes.length >= 4 ? [gp.axes[2], gp.axes[3]] : [gp.axes[0] || 0, gp.axes[1] || 0];
+      if (src.handedness === 'left' && Math.hypot(ax[0], ax[1]) > 0.15) {
+        // Walk on the floor plane along the head's heading (stick up = -y = forward).
+        const f = ry(rig.yaw, head.fwd), fl = Math.hypot(f[0], f[2]) || 1;
+        const fw = [f[0] / fl, 0, f[2] / fl], rt = [-fw[2], 0, fw[0]];
+        rig.p = add(rig.p, scl(add(scl(fw, -ax[1]), scl(rt, ax[0])), WALK * dt));
+      }
+      if (src.handedness === 'right') {
+        const dir = ax[0] > 0.7 ? -1 : ax[0] < -0.7 ? 1 : 0;
+        if (edge('snap', dir !== 0) && dir !== 0) {
+          // Turn about the head, not the rig's origin: the head stays where it is.
+          const before = add(ry(rig.yaw, head.pos), rig.p);
+          rig.yaw += dir * SNAP;
+          rig.p = sub(before, ry(rig.yaw, head.pos));
+        }
+      }
+      const grip = gp.buttons[1] && gp.buttons[1].pressed;
+      const gpose = grip && src.gripSpace && frame.getPose(src.gripSpace, ref);
+      if (gpose) {
+        const q = gpose.transform.position;
+        grips.push(add(ry(rig.yaw, [q.x, q.y, q.z]), rig.p));
+      }
+    }
+    if (grips.length === 1 && grab && grab.n === 1) {
+      // The scene follows the hand: move the rig the other way.
+      rig.p = sub(rig.p, sub(grips[0], grab.at[0]));
+      grips[0] = grab.at[0];
+    } else if (grips.length === 2 && grab && grab.n === 2) {
+      const d0 = Math.hypot(...sub(grab.at[0], grab.at[1])), d1 = Math.hypot(...sub(grips[0], grips[1]));
+      if (d0 > 1e-3 && d1 > 1e-3) {
+        // Hands apart = the scene grows: fewer world units per metre, about the midpoint.
+        const m = scl(add(grips[0], grips[1]), 0.5);
+        const k1 = (place.k * d0) / d1;
+        place.origin = add(place.origin, scl(mulv(place.B, m), place.k - k1));
+        place.k = k1;
+      }
+    }
+    grab = grips.length ? { n: grips.length, at: grips } : null;
+  }
+
+  function onFrame(t, frame) {
+    session.requestAnimationFrame(onFrame);
+    const dt = last === null ? 0 : Math.min(0.1, (t - last) / 1000);
+    const frameMs = last === null ? null : t - last;
+    last = t;
+    const pose = frame.getViewerPose(ref);
+    if (!pose) return;
+    const T = pose.transform.matrix;
+    const head = { pos: [T[12], T[13], T[14]], fwd: [-T[8], -T[9], -T[10]] };
+    input(frame, dt, head);
+    api.advance(dt);
+    const r = api.renderer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
+    if (!r || !api.ready()) {
+      // Not renderable yet: a dim grey, never a black eye.
+      gl.clearColor(0.12, 0.12, 0.12, 1);
+      gl.clear(gl.COLOR_BUFFER_BIT);
+      return;
+    }
+    const fbW = layer.framebufferWidth, fbH = layer.framebufferHeight;
+    const eyes = pose.views.map((v) => {
+      const vp = layer.getViewport(v);
+      return { v, vp, w: Math.max(8, Math.round(vp.width * scale)), h: Math.max(8, Math.round(vp.height * scale)) };
+    }).filter((e) => e.vp.width > 0);
+    const W = Math.max(8, Math.round(fbW * scale)), H = Math.max(8, Math.round(fbH * scale));
+    if (off.width !== W || off.height !== H) { off.width = W; off.height = H; }
+    const views = eyes.map((e) => {
+      const x = Math.min(W - e.w, Math.round(e.vp.x * scale));
+      const y = Math.max(0, H - Math.round((e.vp.y + e.vp.height) * scale));
+      e.x = x; e.y = y;
+      e.cam = eyeCamera(e.v.projectionMatrix, e.v.transform.matrix, e.w, e.h, place, rig);
+      return { cam: e.cam, x, y };
+    });
+    const time = api.time();
+    // Head pose to the server (at most every 50 ms; never awaited).
+    if (t - lastPose > 50) {
+      lastPose = t;
+      const c = eyeCamera(pose.views[0].projectionMatrix, T, 2, 2, place, rig);
+      const P = pose.views[0].projectionMatrix;
+      const fov = (2 * Math.atan(Math.max(1 / P[0], 1 / P[5])) * 180) / Math.PI;
+      api.sendPose([c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]], fov);
+    }
+    const draw = () => {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
+      gl.bindTexture(gl.TEXTURE_2D, tex);
+      gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, true);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, off);
+      gl.useProgram(prog);
+      for (const e of eyes) {
+        gl.viewport(e.vp.x, e.vp.y, e.vp.width, e.vp.height);
+        // The eye's rectangle of the offscreen image, in GL texture coordinates (y up).
+        gl.uniform4f(rectLoc, e.x / W, (H - e.y - e.h) / H, e.w / W, e.h / H);
+        gl.drawArrays(gl.TRIANGLES, 0, 3);
+      }
+    };
+    if (busy) { draw(); return; } // the last marched image, reprojected by nothing: never wait
+    busy = true;
+    const ts = performance.now();
+    const done = r.render(views, time, ctx.getCurrentTexture(), api.capture);
+    draw();
+    let glShot = null;
+    if (api.capture) {
+      // What the layer shows, per eye, to compare with the marched image.
+      glShot = eyes.map((e) => {
+        const px = new Uint8Array(e.vp.width * e.vp.height * 4);
+        gl.readPixels(e.vp.x, e.vp.y, e.vp.width, e.vp.height, gl.RGBA, gl.UNSIGNED_BYTE, px);
+        return px;
+      });
+    }
+    done.then((out) => {
+      const ms = performance.now() - ts;
+      busy = false;
+      xr.frames++;
+      if (xr.firstFrameMs === null) { xr.firstFrameMs = performance.now() - t0; xr.state = 'running'; }
+      const target = 1000 / (session.frameRate || 72);
+      if (!api.capture) {
+        const k = Math.sqrt((0.9 * target) / Math.max(ms, frameMs || ms, 0.1));
+        if (k < 0.95 || (k > 1.1 && scale < 1)) scale = Math.min(1, Math.max(0.1, scale * Math.min(1.25, Math.max(0.6, k))));
+      }
+      xr.scale = scale;
+      xr.ms = ms;
+      xr.eyes = eyes.map((e, i) => ({
+        cam: e.cam,
+        projection: Array.from(e.v.projectionMatrix),
+        transform: Array.from(e.v.transform.matrix),
+        viewport: [e.vp.x, e.vp.y, e.vp.width, e.vp.height],
+        rgba: out ? out[i] : null,
+        gl: glShot ? glShot[i] : null,
+      }));
+      xr.time = time;
+    }, (e) => { busy = false; xr.error = String(e.message || e); });
+  }
+  session.requestAnimationFrame(onFrame);
+  xr.state = 'started';
+  return session;
+}
