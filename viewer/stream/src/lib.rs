@@ -35,6 +35,6 @@ pub use live::LiveAsset;
 pub use proto::{Pose, ALPN, DEFAULT_PORT, PROTOCOL_VERSION};
 pub use server::{
     serve, serve_blocking, serve_blocking_with, serve_with, spawn, start, Congestion, Limits,
-    ServeOptions, ServerHandle, ServerStats,
+    SentBatch, ServeOptions, ServerHandle, ServerStats,
 };
 pub use url::{parse_url, resolve};

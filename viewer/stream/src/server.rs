@@ -70,6 +70,12 @@ pub struct Limits {
     /// After everything is sent and acknowledged, close the connection if the client has not
     /// done so within this time.
     pub linger: Duration,
+    /// Per-client pacing of block data, bytes per second (None: as fast as QUIC allows), so
+    /// one client cannot take a whole uplink; also how tests stretch a stream in time.
+    pub max_rate: Option<f64>,
+    /// Record each batch of blocks committed to a stream, with the pose it was ordered for,
+    /// in `ServerStats::send_log` (what tests check the send order on).
+    pub log_sends: bool,
 }
 
 impl Default for Limits {
@@ -89,6 +95,8 @@ impl Default for Limits {
             batch_bytes: 256 * 1024,
             linger: Duration::from_secs(10),
             congestion: Congestion::Cubic,
+            log_sends: false,
+            max_rate: None,
         }
     }
 }
@@ -178,6 +186,17 @@ pub struct ServerStats {
     pub cache_bytes: AtomicU64,
     /// Assets dropped from the cache to make room.
     pub cache_evictions: AtomicU64,
+    /// Batches of blocks committed to streams, in order, all clients (only with
+    /// `Limits::log_sends`).
+    pub send_log: std::sync::Mutex<Vec<SentBatch>>,
+}
+
+/// One batch of BLKS chunks committed to a data stream, and the latest pose of the client
+/// when the batch was chosen (None before any).
+#[derive(Clone, Debug)]
+pub struct SentBatch {
+    pub pose: Option<Pose>,
+    pub chunks: Vec<u32>,
 }
 
 /// A running server. `shutdown` stops it; dropping the handle stops it too.
@@ -1181,6 +1200,9 @@ async fn stream_asset(
     };
     let p0 = *view_rx.borrow_and_update();
     sort(&mut remaining, p0);
+    let mut pose_now = p0;
+    let paced_from = tokio::time::Instant::now();
+    let mut paced_bytes = 0u64;
     let mut last_sort = std::time::Instant::now() - Duration::from_secs(1);
     while !remaining.is_empty() {
         while let Some(r) = writers.try_join_next() {
@@ -1197,6 +1219,15 @@ async fn stream_asset(
             }
             continue;
         }
+        // Pacing: the next batch waits until the bytes so far fit the rate (and is chosen
+        // after the wait, for the pose then).
+        if let Some(rate) = limits.max_rate.filter(|r| *r > 0.0) {
+            let due = paced_from + Duration::from_secs_f64(paced_bytes as f64 / rate);
+            tokio::select! {
+                _ = tokio::time::sleep_until(due) => {}
+                _ = conn.quic().closed() => return Ok(()),
+            }
+        }
         // Re-sort for a new pose, at most every 10 ms (a client streaming poses at a high
         // rate must not make the server sort its blocks continuously).
         if last_sort.elapsed() >= Duration::from_millis(10)
@@ -1204,6 +1235,7 @@ async fn stream_asset(
         {
             let p = *view_rx.borrow_and_update();
             sort(&mut remaining, p);
+            pose_now = p;
             last_sort = std::time::Instant::now();
         }
         let batch_target =
@@ -1219,10 +1251,16 @@ async fn stream_asset(
             batch.push(c);
             remaining.pop();
         }
+        if limits.log_sends {
+            if let Ok(mut log) = shared.stats.send_log.lock() {
+                log.push(SentBatch { pose: pose_now, chunks: batch.clone() });
+            }
+        }
         let mut s = open_stream(&conn, limits.stall_timeout).await?;
         let _ = s.quic().set_priority(prio);
         prio = prio.saturating_sub(1).max(i32::MIN + 1);
         outstanding += bytes;
+        paced_bytes += bytes;
         writers.spawn(write_batch(s, asset.clone(), batch, shared.clone()));
     }
     while let Some(r) = writers.join_next().await {

@@ -558,6 +558,140 @@ fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_
     let cams3 = check_eyes(&r["walked"], &asset, "walked");
     let moved = [0, 1, 2].map(|i| eye_pos(&cams3[0])[i] - eye_pos(&cams2[0])[i]);
     assert!(dist3(moved, place_dir(place, step).map(|x| x * k)) / k < 1e-3, "the eyes follow the walk");
+    // The right thumbstick snaps the turn by 30 degrees, once per push, about the head.
+    let (y0, y1) = (r["walked"]["rig"]["yaw"].as_f64().unwrap(), r["snapped"]["rig"]["yaw"].as_f64().unwrap());
+    assert!((y1 - y0 + std::f64::consts::FRAC_PI_6).abs() < 1e-6, "snap turn {} -> {}", y0, y1);
+    let cams4 = check_eyes(&r["snapped"], &asset, "snapped");
+    let mid = |c: &[snerf_asset::Camera]| [0, 1, 2].map(|i| (eye_pos(&c[0])[i] + eye_pos(&c[1])[i]) / 2.0);
+    assert!(dist3(mid(&cams3), mid(&cams4)) / k < 1e-3, "the head stays put through a snap turn");
+    // Grip held while the hand rises 20 cm: the scene rises with it (the eyes sink in it).
+    let cams5 = check_eyes(&r["gripped"], &asset, "gripped");
+    let moved = [0, 1, 2].map(|i| mid(&cams5)[i] - mid(&cams4)[i]);
+    let want = place_dir(place, [0.0, -0.2, 0.0]).map(|x| x * k);
+    assert!(dist3(moved, want) / k < 0.01, "grip drag moved the eyes {:?}, expected {:?}", moved, want);
     assert!(h.stats().pose_updates.load(Ordering::Relaxed) > 0);
+    h.shutdown();
+}
+
+/// An unbounded scene whose inner ball (uniform cells, |p| < 1) is full of blocks, and whose
+/// start view stands inside it, at (0, 0, 0.3) looking down -z: blocks all around the
+/// viewer, all the same size.
+fn inside_asset() -> Asset {
+    let mut asset = kind_asset(snerf_asset::Kind::Unbounded, 96, 8, 0.5, 12);
+    asset.header.view = Some(snerf_geometry::camera::Orbit::Around { center: [0.0; 3], up: [0.0, 1.0, 0.0], start: [0.0, 0.0, 1.0], radius: 0.3, elevation: 0.0 });
+    asset
+}
+
+/// Whether a block's bounding sphere meets a pose's view cone: this test's own geometry.
+fn in_cone(blk: &snerf_stream::plan::BlkEntry, p: &snerf_stream::Pose) -> bool {
+    let d = [0, 1, 2].map(|i| (blk.centre[i] - p.eye[i]) as f64);
+    let f = [0, 1, 2].map(|i| p.forward[i] as f64);
+    let (ld, lf) = (dist3(d, [0.0; 3]), dist3(f, [0.0; 3]));
+    if ld <= blk.radius as f64 {
+        return true;
+    }
+    let ang = ((d[0] * f[0] + d[1] * f[1] + d[2] * f[2]) / (ld * lf)).clamp(-1.0, 1.0).acos();
+    ang - (blk.radius as f64 / ld).min(1.0).asin() <= (p.fov_deg as f64 / 2.0).to_radians() + 1e-4
+}
+
+#[test]
+fn the_blocks_in_view_arrive_first() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-inview");
+    let state = TempDir::new("web-inview-state");
+    let asset = inside_asset();
+    let bytes = write_asset(&asset, dir.path(), "around");
+    let limits = Limits { send_budget: 64 * 1024, max_streams: 1, batch_bytes: 16 * 1024, log_sends: true, ..Limits::default() };
+    let h = start_with(dir.path(), state.path(), limits);
+    // Inside the scene looking down -z: the page sends this pose in its hello.
+    let cam = snerf_asset::Camera::from_fov([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.3]], 48, 48, 60.0);
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "around"), ("cam", &cam_json(&cam))]));
+    let r = page(&b, &[&url, "done"]);
+    assert_eq!(r["error"], serde_json::Value::Null, "{}", r["error"]);
+    let served = snerf_stream::plan::ServedAsset::from_bytes("around", dir.path(), bytes).unwrap();
+    let log = h.stats().send_log.lock().unwrap().clone();
+    let pose = log[0].pose.expect("the first batch was ordered for the hello's pose");
+    assert!(pose.forward[2] < -0.99 && (pose.fov_deg - 60.0).abs() < 0.5, "{:?}", pose);
+    let needed: std::collections::HashSet<u32> = served.blks.iter().filter(|b| in_cone(b, &pose)).map(|b| b.chunk).collect();
+    assert!(needed.len() >= 4 && needed.len() * 3 < served.blks.len(), "{} of {} blocks in view", needed.len(), served.blks.len());
+    // The page's arrival order (chunk indices): the first |needed| are exactly those in view.
+    let arrivals: Vec<u32> = r["arrivals"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap() as u32).collect();
+    assert_eq!(arrivals.len(), served.blks.len());
+    let first: std::collections::HashSet<u32> = arrivals[..needed.len()].iter().copied().collect();
+    eprintln!("{} of {} blocks in view; the first {} to arrive: {} of them in view", needed.len(), served.blks.len(), needed.len(), first.intersection(&needed).count());
+    assert_eq!(first, needed);
+    h.shutdown();
+}
+
+#[test]
+fn the_head_pose_reorders_what_the_server_sends_next() {
+    let Some(b) = browser() else { return };
+    let iwer = b.2.join("../iwer/build/iwer.min.js");
+    if !iwer.exists() {
+        assert!(std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"), "no iwer at {}", iwer.display());
+        return;
+    }
+    let dir = TempDir::new("web-xr-order");
+    let state = TempDir::new("web-xr-order-state");
+    let asset = inside_asset();
+    let bytes = write_asset(&asset, dir.path(), "around");
+    // Small batches, one stream at a time, a batch chosen only once the last is acknowledged,
+    // paced at 150 kB/s: the stream lasts long enough to turn around in, and each batch
+    // follows the latest pose.
+    let limits = Limits {
+        send_budget: 64 * 1024,
+        max_streams: 1,
+        batch_bytes: 16 * 1024,
+        max_rate: Some(1.5e5),
+        log_sends: true,
+        ..Limits::default()
+    };
+    let h = start_with(dir.path(), state.path(), limits);
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "around")]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/xr.mjs");
+    let out = Command::new(&b.0).args([script.as_os_str(), b.2.join("../..").as_os_str()]).arg(&url).args(["192", "96", "early"]).env("SNERF_CHROMIUM", &b.1).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "xr.mjs failed: {stderr}");
+    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    eprintln!("{}", r);
+    assert_eq!(r["end"]["state"], "done", "{}", r);
+    assert_eq!(r["end"]["xr"]["error"], serde_json::Value::Null);
+    let served = snerf_stream::plan::ServedAsset::from_bytes("around", dir.path(), bytes).unwrap();
+    let chunk_block: std::collections::HashMap<u32, usize> = served.blks.iter().enumerate().map(|(i, b)| (b.chunk, i)).collect();
+    let in_cone = |p: &snerf_stream::Pose, c: u32| in_cone(&served.blks[chunk_block[&c]], p);
+    let log = h.stats().send_log.lock().unwrap().clone();
+    let with_pose: Vec<_> = log.iter().filter_map(|b| b.pose.map(|p| (p, b.chunks.clone()))).collect();
+    assert!(!with_pose.is_empty(), "no batch was ordered for a pose");
+    let mut seen: Vec<[f32; 3]> = Vec::new();
+    for (p, _) in &with_pose {
+        if seen.last() != Some(&p.forward) {
+            seen.push(p.forward);
+        }
+    }
+    eprintln!("forwards the batches were ordered for: {:?}; {} pose updates, {} bad datagrams", seen, h.stats().pose_updates.load(Ordering::Relaxed), h.stats().bad_datagrams.load(Ordering::Relaxed));
+    // The first batch ordered for the turned-around head: the last forward, reversed from
+    // the one before it (the flat page's pose comes first, then the XR head's).
+    assert!(seen.len() >= 2, "the head pose never changed the order");
+    let (fa, fb) = (seen[seen.len() - 2], seen[seen.len() - 1]);
+    let d: f32 = (0..3).map(|i| fa[i] * fb[i]).sum();
+    assert!(d < -0.9, "the last two forwards {:?} -> {:?} are not a turn around", fa, fb);
+    let turned = with_pose.iter().position(|(p, _)| p.forward == fb).unwrap();
+    let pose = with_pose[turned].0;
+    // Every block still unsent at the turn that the new view needs...
+    let sent_before: std::collections::HashSet<u32> = log.iter().take_while(|b| b.pose.map_or(true, |p| p.forward != pose.forward)).flat_map(|b| b.chunks.clone()).collect();
+    let needed: Vec<u32> = served.blks.iter().map(|b| b.chunk).filter(|c| !sent_before.contains(c) && in_cone(&pose, *c)).collect();
+    let all_in = served.blks.iter().filter(|b| in_cone(&pose, b.chunk)).count();
+    eprintln!("turned pose {:?}: {} blocks in its cone of {}, {} sent before", pose, all_in, served.blks.len(), sent_before.len());
+    let after: Vec<u32> = with_pose[turned..].iter().flat_map(|(_, c)| c.clone()).collect();
+    eprintln!("{} batches before the turn, {} blocks the turned view needs, {} sent after", turned, needed.len(), after.len());
+    assert!(needed.len() >= 4, "the turned view needs too few unsent blocks ({}) to tell", needed.len());
+    // ...is sent next, before any block it does not need.
+    let next: std::collections::HashSet<u32> = after.iter().take(needed.len()).copied().collect();
+    let hits = needed.iter().filter(|c| next.contains(c)).count();
+    assert_eq!(hits, needed.len(), "of the next {} blocks sent, only {} are in the turned view", needed.len(), hits);
+    // And the turn mattered: most of those blocks were not in the view before the turn.
+    let first = with_pose[turned - 1].0;
+    let also_before = needed.iter().filter(|&&c| in_cone(&first, c)).count();
+    assert!(also_before * 2 < needed.len(), "{} of {} were in view before the turn too", also_before, needed.len());
     h.shutdown();
 }

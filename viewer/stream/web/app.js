@@ -347,6 +347,9 @@ function timeSlot(frames, t) {
   return [k - 1, k, w];
 }
 
+// The full field of view (degrees) of a camera's wider axis: the server's view cone.
+const fovOf = (c) => (2 * Math.atan(0.5 * Math.max(c.width / c.fx, c.height / c.fy)) * 180) / Math.PI;
+
 // ---- streaming one asset ----
 // gpu: {device, wg, ctx (the canvas's WebGPU context), presentWgsl}.
 async function stream(name, gpu) {
@@ -397,7 +400,7 @@ async function stream(name, gpu) {
     dv.setUint8(0, 0x53); dv.setUint8(1, 0x50); dv.setUint8(2, 1); dv.setUint8(3, 0);
     dv.setUint32(4, ++seq, true);
     const fwd = [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]];
-    [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3], ...fwd, time, 0].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
+    [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3], ...fwd, time, fovOf(c)].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
     return new Uint8Array(b);
   }
   function sendPose() { if (dgram && orbit && !xrActive) dgram.write(poseBytes()).catch(() => {}); }
@@ -410,6 +413,7 @@ async function stream(name, gpu) {
     [...eye, ...fwd, time, fov].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
     dgram.write(new Uint8Array(b)).catch(() => {});
     report.posesSent = seq;
+    report.lastPose = { eye, forward: fwd, fov };
   }
 
   // The pose goes in the hello when it is known already (a fixed camera), so the very first
@@ -419,7 +423,7 @@ async function stream(name, gpu) {
     const c = fixedCam;
     hello.pose = {
       eye: [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], forward: [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]],
-      time, fov_deg: (2 * Math.atan(0.5 * Math.max(c.width / c.fx, c.height / c.fy)) * 180) / Math.PI,
+      time, fov_deg: fovOf(c),
     };
   }
   const { wt, ctl } = await connect(hello);
@@ -477,6 +481,15 @@ async function stream(name, gpu) {
     rafTimes.push(now);
     if (rafTimes.length > 32) rafTimes.shift();
     requestAnimationFrame(tick);
+    if (xrActive) return; // the XR session's own frame loop draws
+    if (playing) { advance((now - (lastTick ?? now)) / 1000); dirty = true; }
+    lastTick = now;
+    const moving = playing || now - lastInput < 300;
+    if (fixedCam) { if (dirty) frameNow(1); return; }
+    if (moving || dirty) { if (moving) refined = false; frameNow(scale); }
+    else if (!refined && !busy) { refined = true; frameNow(1); }
+  }
+  requestAnimationFrame(tick);
 
   // What the immersive mode (xr.js) uses of this stream.
   function togglePlay() {
@@ -498,7 +511,9 @@ async function stream(name, gpu) {
     playing: () => playing,
     setXR: (on) => { xrActive = on; if (!on) { dirty = true; refined = false; } },
   };
-  xrSupported().then((ok) => {
+  // Enter VR is offered once the header is in (placement comes from it).
+  const xrOk = xrSupported();
+  const offerXR = () => xrOk.then((ok) => {
     if (!ok) return;
     const b = $('xr');
     b.hidden = false;
@@ -507,21 +522,6 @@ async function stream(name, gpu) {
       enterXR(api, report).catch((e) => { report.xr = { ...(report.xr || {}), state: 'error', error: String(e.message || e) }; setStatus('VR: ' + (e.message || e)); });
     };
   });
-    if (xrActive) return; // the XR session's own frame loop draws
-    if (playing && h && h.frames) {
-      const lo = h.frames[0].time, hi = h.frames[h.frames.length - 1].time;
-      time += ((now - (lastTick ?? now)) / 1000);
-      if (time > hi) time = lo + ((time - lo) % Math.max(hi - lo, 1e-6));
-      $('time').value = time;
-      dirty = true;
-    }
-    lastTick = now;
-    const moving = playing || now - lastInput < 300;
-    if (fixedCam) { if (dirty) frameNow(1); return; }
-    if (moving || dirty) { if (moving) refined = false; frameNow(scale); }
-    else if (!refined && !busy) { refined = true; frameNow(1); }
-  }
-  requestAnimationFrame(tick);
 
   function stats(ms, sc) {
     $('stats').textContent =
@@ -550,6 +550,7 @@ async function stream(name, gpu) {
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
       r = new Renderer(gpu.device, h, await res.text(), gpu.presentWgsl, gpu.wg);
       sendPose();
+      offerXR();
       if (dyn) {
         const tb = $('time');
         tb.min = h.frames[0].time; tb.max = h.frames[h.frames.length - 1].time; tb.value = time;
@@ -564,7 +565,7 @@ async function stream(name, gpu) {
       const first = u32(p, 0), n = u32(p, 4);
       r.setBlocks(first, n, p.subarray(8));
       report.blocks += n;
-      if (report.arrivals.length < 4096) report.arrivals.push([first, n]);
+      if (report.arrivals.length < 65536) report.arrivals.push(index);
     }
     if (ready()) {
       // The first frame is drawn as soon as the small parts are in, before more blocks are
@@ -623,8 +624,8 @@ async function stream(name, gpu) {
   wt.close({ closeCode: 0, reason: 'done' });
   report.completeMs = performance.now() - t0;
   redraw();
-  // Wait for the complete frame.
-  while (!report.lastFrame || !report.lastFrame.complete || busy || dirty) await new Promise((res) => setTimeout(res, 10));
+  // Wait for the complete frame (in VR the session draws it: no flat frame comes).
+  while (!xrActive && (!report.lastFrame || !report.lastFrame.complete || busy || dirty)) await new Promise((res) => setTimeout(res, 10));
   report.state = 'done';
   setStatus(`${info.name}: ${total} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);
 }

@@ -198,6 +198,14 @@ export async function enterXR(api, report) {
     const head = { pos: [T[12], T[13], T[14]], fwd: [-T[8], -T[9], -T[10]] };
     input(frame, dt, head);
     api.advance(dt);
+    // Head pose to the server (at most every 50 ms; never awaited).
+    if (t - lastPose > 50) {
+      lastPose = t;
+      const c = eyeCamera(pose.views[0].projectionMatrix, T, 2, 2, place, rig);
+      const P = pose.views[0].projectionMatrix;
+      const fov = (2 * Math.atan(Math.max(1 / P[0], 1 / P[5])) * 180) / Math.PI;
+      api.sendPose([c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]], fov);
+    }
     const r = api.renderer();
     gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
     if (!r || !api.ready()) {
@@ -221,14 +229,6 @@ export async function enterXR(api, report) {
       return { cam: e.cam, x, y };
     });
     const time = api.time();
-    // Head pose to the server (at most every 50 ms; never awaited).
-    if (t - lastPose > 50) {
-      lastPose = t;
-      const c = eyeCamera(pose.views[0].projectionMatrix, T, 2, 2, place, rig);
-      const P = pose.views[0].projectionMatrix;
-      const fov = (2 * Math.atan(Math.max(1 / P[0], 1 / P[5])) * 180) / Math.PI;
-      api.sendPose([c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]], fov);
-    }
     const draw = () => {
       gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
       gl.bindTexture(gl.TEXTURE_2D, tex);

@@ -1,13 +1,15 @@
 // Drives the web viewer's immersive mode in headless Chromium on an emulated Meta Quest 3
 // (npm iwer, installed over Chromium's own navigator.xr) for tests/web.rs. No mocks: the real
 // page from the real server, the real WebGPU march, the real WebXR session API as iwer
-// emulates it. Usage: node xr.mjs PLAYWRIGHT_DIR URL [WIDTH HEIGHT]
-// Prints JSON: {before, moved, turned, walked, page}, each a snapshot of window.snerf.xr
-// (eyes with cameras, raw XR matrices, marched pixels and what the WebGL layer shows).
+// emulates it. Usage: node xr.mjs PLAYWRIGHT_DIR URL [WIDTH HEIGHT [early]]
+// Prints JSON: {before, moved, turned, walked, snapped, gripped, page}, each a snapshot of
+// window.snerf.xr (eyes with cameras, raw XR matrices, marched pixels and what the WebGL
+// layer shows). With `early`: enters VR while the asset still streams, turns the head
+// around a moment later, waits for the stream to end and prints {turnedAt, posesSent}.
 import { createRequire } from 'module';
 import { readFileSync } from 'fs';
 
-const [pwDir, url, width, height] = process.argv.slice(2);
+const [pwDir, url, width, height, mode] = process.argv.slice(2);
 const require = createRequire(pwDir + '/');
 const { chromium } = require('playwright-core');
 const iwer = readFileSync(pwDir + '/node_modules/iwer/build/iwer.min.js', 'utf8');
@@ -30,6 +32,20 @@ try {
     window.__xr.installRuntime({ forceInstall: true });`);
   await page.goto(url);
   const wait = (fn, arg) => page.waitForFunction(fn, arg, { timeout: 240000, polling: 50 });
+  if (mode === 'early') {
+    await wait(() => window.snerf.state === 'error' || !document.getElementById('xr').hidden);
+    await page.click('#xr');
+    log('entered VR while streaming');
+    await wait(() => (window.snerf.posesSent || 0) >= 2 || window.snerf.state === 'error');
+    log('poses sent');
+    // Turn around (180 degrees about +y).
+    await page.evaluate(() => window.__xr.quaternion.set(0, 1, 0, 0));
+    const turnedAt = await page.evaluate(() => ({ blocks: window.snerf.blocks, posesSent: window.snerf.posesSent }));
+    await wait(() => window.snerf.state === 'done' || window.snerf.state === 'error');
+    const end = await page.evaluate(() => ({ state: window.snerf.state, error: window.snerf.error, blocks: window.snerf.blocks, posesSent: window.snerf.posesSent, lastPose: window.snerf.lastPose, xr: window.snerf.xr && { error: window.snerf.xr.error, place: window.snerf.xr.place } }));
+    console.log(JSON.stringify({ turnedAt, end }));
+    process.exit(0);
+  }
   await wait(() => window.snerf && (window.snerf.state === 'done' || window.snerf.state === 'error'));
   const state = await page.evaluate(() => window.snerf.state);
   if (state !== 'done') throw new Error('page: ' + (await page.evaluate(() => window.snerf.error)));
@@ -67,7 +83,21 @@ try {
   await page.evaluate(() => window.__xr.controllers.left.updateAxes('thumbstick', 0, 0));
   await frames(2);
   const walked = await snap();
-  console.log(JSON.stringify({ before, moved, turned, walked, page: { error: await page.evaluate(() => window.snerf.error) } }));
+  // Right thumbstick to the right: one snap turn (30 degrees clockwise), however long held.
+  await page.evaluate(() => window.__xr.controllers.right.updateAxes('thumbstick', 1, 0));
+  await frames(4);
+  await page.evaluate(() => window.__xr.controllers.right.updateAxes('thumbstick', 0, 0));
+  await frames(2);
+  const snapped = await snap();
+  // Grip (squeeze, right) held while the controller moves 20 cm up: the scene follows the hand.
+  await page.evaluate(() => window.__xr.controllers.right.updateButtonValue('squeeze', 1));
+  await frames(2);
+  await page.evaluate(() => { const p = window.__xr.controllers.right.position; p.set(p.x, p.y + 0.2, p.z); });
+  await frames(3);
+  await page.evaluate(() => window.__xr.controllers.right.updateButtonValue('squeeze', 0));
+  await frames(2);
+  const gripped = await snap();
+  console.log(JSON.stringify({ before, moved, turned, walked, snapped, gripped, page: { error: await page.evaluate(() => window.snerf.error) } }));
 } finally {
   await browser.close();
 }
