@@ -695,3 +695,39 @@ fn the_head_pose_reorders_what_the_server_sends_next() {
     assert!(also_before * 2 < needed.len(), "{} of {} were in view before the turn too", also_before, needed.len());
     h.shutdown();
 }
+
+#[test]
+fn traversal_names_and_malformed_messages_are_refused_while_another_page_downloads() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-malformed");
+    let state = TempDir::new("web-malformed-state");
+    let asset = static_asset(64, 8, 0.95, 9);
+    let bytes = write_asset(&asset, dir.path(), "scene");
+    // Paced so the download is still running while the probes come and go.
+    let limits = Limits { max_rate: Some(1.0e6), ..Limits::default() };
+    let h = start_with(dir.path(), state.path(), limits);
+    let web = h.web().unwrap().url();
+    let download = format!("{}#{}", web, fragment(&[("token", h.token()), ("asset", "scene")]));
+    let probe = format!("{}#{}", web, fragment(&[("token", h.token())]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/refuse.mjs");
+    let out = Command::new(&b.0).arg(&script).arg(b.2.join("../..")).args([&download, &probe, h.token()]).env("SNERF_CHROMIUM", &b.1).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "refuse.mjs failed: {stderr}");
+    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    for p in r["probes"].as_array().unwrap() {
+        eprintln!("{}: {}", p["name"], p["closed"]);
+        assert_eq!(p["connected"], true, "{p}");
+        assert_eq!((p["dataStreams"].as_u64(), p["dataBytes"].as_u64()), (Some(0), Some(0)), "{p}: data was sent");
+        assert!(!p["control"].as_str().unwrap().contains("welcome"), "{p}: welcomed");
+        assert!(p["closed"].as_str().unwrap() != "still open", "{p}: the session stayed open");
+    }
+    // The other page's download finished, byte for byte, and got every byte the server sent.
+    let d = &r["download"];
+    assert_eq!(d["state"], "done", "{d}");
+    assert_eq!(d["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
+    assert_eq!(h.stats().bytes_sent.load(Ordering::Relaxed), d["bytes"].as_u64().unwrap());
+    assert!(h.stats().bad_datagrams.load(Ordering::Relaxed) <= 1);
+    assert!(h.stats().protocol_errors.load(Ordering::Relaxed) >= 3);
+    assert!(h.stats().unauthorized.load(Ordering::Relaxed) >= 1);
+    h.shutdown();
+}
