@@ -624,7 +624,19 @@ fn banner(path: &Path, h: &ServerHandle) -> String {
         // The token rides in the fragment, which the browser never sends to the server.
         match h.token_file() {
             Some(_) => b += &format!("  web viewer:          {}#token=TOKEN (the token from the file)\n", w.url()),
-            None => b += &format!("  web viewer:          {}#token={}\n", w.url(), h.token()),
+            None => {
+                let url = format!("{}#token={}", w.url(), h.token());
+                b += &format!("  web viewer:          {}\n", url);
+                // A headset's camera reads the address off the terminal.
+                if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+                    if let Some(q) = crate::web::qr_text(&url) {
+                        b += &q;
+                    }
+                }
+            }
+        }
+        if !w.https && !w.addr.ip().is_loopback() {
+            b += "  (plain HTTP is a secure context only on this machine: for a headset on the LAN give --cert/--key)\n";
         }
     }
     if h.created_identity() && h.token_from_file() {

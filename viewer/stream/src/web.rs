@@ -76,6 +76,19 @@ impl WebInfo {
     }
 }
 
+/// `text` as a QR code drawn with Unicode half blocks (two modules per character cell, dark
+/// on light, with the quiet zone), or None when it does not fit a QR code.
+pub fn qr_text(text: &str) -> Option<String> {
+    let code = qrcode::QrCode::with_error_correction_level(text.as_bytes(), qrcode::EcLevel::L).ok()?;
+    Some(
+        code.render::<qrcode::render::unicode::Dense1x2>()
+            .dark_color(qrcode::render::unicode::Dense1x2::Light)
+            .light_color(qrcode::render::unicode::Dense1x2::Dark)
+            .build()
+            + "\n",
+    )
+}
+
 fn host_literal(ip: std::net::IpAddr) -> String {
     match ip {
         std::net::IpAddr::V4(v) => v.to_string(),
@@ -457,6 +470,16 @@ async fn respond<S: AsyncWrite + Unpin>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_address_fits_a_qr_code() {
+        let url = format!("https://192.168.100.200:4434/#token={}", "ab".repeat(32));
+        let q = qr_text(&url).unwrap();
+        // Version 6 or so: a few dozen lines, each as wide as the code plus quiet zone.
+        let lines: Vec<&str> = q.lines().collect();
+        assert!(lines.len() > 15 && lines.len() < 40, "{} lines", lines.len());
+        assert!(lines.iter().all(|l| l.chars().count() == lines[0].chars().count()));
+    }
 
     #[test]
     fn origins_and_hosts() {
