@@ -163,7 +163,7 @@ impl Session {
     /// Ask for the server's asset list.
     pub async fn list(&mut self) -> Result<Vec<ListEntry>> {
         self.send
-            .write_all(&encode_frame(&ClientMsg::List))
+            .write_all(&encode_frame(&ClientMsg::List { thumbs: false }))
             .await
             .map_err(|e| anyhow!("control stream: {}", e))?;
         match self.read_msg().await? {

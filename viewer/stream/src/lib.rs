@@ -24,6 +24,7 @@ pub mod client;
 pub mod live;
 mod pending;
 pub mod plan;
+pub mod thumbs;
 pub mod proto;
 pub mod server;
 pub mod tls;

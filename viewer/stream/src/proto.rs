@@ -199,8 +199,11 @@ pub enum ClientMsg {
         #[serde(default)]
         pose: Option<Pose>,
     },
-    /// Ask for the asset list (after Hello).
-    List,
+    /// Ask for the asset list (after Hello); with `thumbs`, each entry carries a thumbnail.
+    List {
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        thumbs: bool,
+    },
 }
 
 /// One entry of a listing.
@@ -211,6 +214,17 @@ pub struct ListEntry {
     /// Scene kind from the asset's header (`object`, `forward`, `unbounded`), when readable.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub kind: Option<String>,
+    /// The start view, when the client asked for thumbnails and the file could be rendered.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thumb: Option<Thumb>,
+}
+
+/// A small picture: `width` x `height` RGB8 pixels, row-major from the top, base64.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Thumb {
+    pub width: u32,
+    pub height: u32,
+    pub rgb: String,
 }
 
 /// What the server is about to stream.
@@ -538,7 +552,7 @@ mod tests {
 
     #[tokio::test]
     async fn read_frame_limits() {
-        let f = encode_frame(&ClientMsg::List);
+        let f = encode_frame(&ClientMsg::List { thumbs: false });
         let mut r: &[u8] = &f;
         assert!(read_frame(&mut r, 1024).await.unwrap().is_some());
         assert!(read_frame(&mut r, 1024).await.unwrap().is_none());

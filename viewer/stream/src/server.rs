@@ -286,6 +286,7 @@ pub(crate) struct Shared {
     pub(crate) pending: Arc<PendingTable>,
     pub(crate) stats: Arc<ServerStats>,
     quiet: bool,
+    thumbs: crate::thumbs::Thumbs,
 }
 
 /// A connection-ending error: QUIC application code + reason sent to the client.
@@ -337,6 +338,7 @@ impl Shared {
                     name: name.clone(),
                     size,
                     kind: header_kind(path),
+                    thumb: None,
                 }]
             }
             Source::Dir(d) => {
@@ -352,6 +354,7 @@ impl Shared {
                                         name,
                                         size: m.len(),
                                         kind: header_kind(&p),
+                                        thumb: None,
                                     });
                                 }
                             }
@@ -362,6 +365,11 @@ impl Shared {
                 out
             }
         }
+    }
+
+    /// The file of a listed asset.
+    fn asset_path(&self, name: &str) -> Option<PathBuf> {
+        self.resolve(Some(name)).ok().map(|(_, p)| p)
     }
 
     fn resolve(&self, asked: Option<&str>) -> Result<(String, PathBuf), Close> {
@@ -716,6 +724,7 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
         )),
         stats,
         quiet: opts.quiet,
+        thumbs: Default::default(),
     });
     Ok((shared, endpoint, id))
 }
@@ -925,7 +934,7 @@ async fn read_hello(
         };
     let msg = decode_client_msg(&first).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))?;
     match msg {
-        ClientMsg::List => Err(Close(code::PROTOCOL, "List before Hello".into())),
+        ClientMsg::List { .. } => Err(Close(code::PROTOCOL, "List before Hello".into())),
         ClientMsg::Hello {
             version,
             token,
@@ -1041,7 +1050,22 @@ async fn session(
                     Err(e) => return Err(frame_close(conn, e)),
                     Ok(None) => control_open = false,
                     Ok(Some(b)) => match decode_client_msg(&b).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))? {
-                        ClientMsg::List => send_msg(&mut send, &ServerMsg::Listing { assets: shared.list() }).await?,
+                        ClientMsg::List { thumbs } => {
+                            let mut assets = shared.list();
+                            if thumbs {
+                                // Rendered (or read from the cache) off the async workers.
+                                let sh = shared.clone();
+                                assets = tokio::task::spawn_blocking(move || {
+                                    for a in &mut assets {
+                                        a.thumb = sh.asset_path(&a.name).and_then(|p| sh.thumbs.get(&p));
+                                    }
+                                    assets
+                                })
+                                .await
+                                .map_err(|_| Close(code::INTERNAL, "thumbnail task failed".into()))?;
+                            }
+                            send_msg(&mut send, &ServerMsg::Listing { assets }).await?
+                        }
                         ClientMsg::Hello { .. } => return Err(Close(code::PROTOCOL, "duplicate Hello".into())),
                     },
                 }

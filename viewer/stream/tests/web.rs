@@ -160,6 +160,12 @@ fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
     assert_eq!(names, ["moving", "scene"]);
     assert_eq!(listing[1]["size"], bytes.len() as u64);
     assert_eq!(listing[1]["kind"], "object");
+    // Each entry has its start view as a thumbnail, the CPU reference's picture.
+    let t = &listing[1]["thumb"];
+    assert_eq!((t["width"].as_u64(), t["height"].as_u64()), (Some(64), Some(48)));
+    let want = snerf_stream::thumbs::render(&dir.join("scene.snerf")).unwrap();
+    assert_eq!(t["rgb"].as_str(), Some(want.rgb.as_str()));
+    assert!(listing[0]["thumb"].is_object());
     // Byte-identical: the page's SHA-256 of the rebuilt file is the file's.
     let sha = snerf_stream::proto::to_hex(&Sha256::digest(&bytes));
     assert_eq!(r["sha256"], sha.as_str());

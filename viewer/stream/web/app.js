@@ -110,7 +110,7 @@ async function listAssets() {
   const { wt, writer, ctl } = await connect({ type: 'hello', version: 1, token, asset: null });
   const welcome = await readMsg(ctl);
   if (welcome.type !== 'welcome') throw new Error('unexpected ' + welcome.type);
-  await writer.write(frame({ type: 'list' }));
+  await writer.write(frame({ type: 'list', thumbs: true }));
   const listing = await readMsg(ctl);
   wt.close({ closeCode: 0, reason: 'done' });
   return listing.assets;
@@ -675,6 +675,20 @@ function attachControls(view, orbit, changed) {
   });
 }
 
+// A listing thumbnail (RGB8, base64) on a small canvas.
+function thumbCanvas(t) {
+  const c = document.createElement('canvas');
+  c.width = t.width; c.height = t.height; c.className = 'thumb';
+  const rgb = Uint8Array.from(atob(t.rgb), (ch) => ch.charCodeAt(0));
+  const img = new ImageData(t.width, t.height);
+  for (let i = 0; i < t.width * t.height; i++) {
+    img.data.set(rgb.subarray(3 * i, 3 * i + 3), 4 * i);
+    img.data[4 * i + 3] = 255;
+  }
+  c.getContext('2d').putImageData(img, 0, 0);
+  return c;
+}
+
 async function main() {
   if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
   if (typeof WebTransport === 'undefined') throw new Error('this browser has no WebTransport (it needs a secure context: https, or http on localhost)');
@@ -690,6 +704,9 @@ async function main() {
   const tbody = $('assets').querySelector('tbody');
   for (const a of assets) {
     const tr = document.createElement('tr');
+    const tdT = document.createElement('td');
+    if (a.thumb) tdT.appendChild(thumbCanvas(a.thumb));
+    tr.appendChild(tdT);
     for (const v of [a.name, `${(a.size / 1048576).toFixed(2)} MiB`, a.kind || '?']) {
       const td_ = document.createElement('td'); td_.textContent = v; tr.appendChild(td_);
     }
