@@ -73,6 +73,9 @@ pub struct Limits {
     /// Per-client pacing of block data, bytes per second (None: as fast as QUIC allows), so
     /// one client cannot take a whole uplink; also how tests stretch a stream in time.
     pub max_rate: Option<f64>,
+    /// The web viewer's generated certificate is replaced this often (it is valid 13 days;
+    /// browsers accept at most 14 for pinned hashes). Default 12 days.
+    pub web_cert_rotate: Duration,
     /// Record each batch of blocks committed to a stream, with the pose it was ordered for,
     /// in `ServerStats::send_log` (what tests check the send order on).
     pub log_sends: bool,
@@ -97,6 +100,7 @@ impl Default for Limits {
             congestion: Congestion::Cubic,
             log_sends: false,
             max_rate: None,
+            web_cert_rotate: Duration::from_secs(12 * 86400),
         }
     }
 }
@@ -189,6 +193,8 @@ pub struct ServerStats {
     /// Batches of blocks committed to streams, in order, all clients (only with
     /// `Limits::log_sends`).
     pub send_log: std::sync::Mutex<Vec<SentBatch>>,
+    /// Times the web viewer's generated certificate was replaced.
+    pub cert_rotations: AtomicU64,
 }
 
 /// One batch of BLKS chunks committed to a data stream, and the latest pose of the client
@@ -292,6 +298,12 @@ pub(crate) struct Shared {
 /// A connection-ending error: QUIC application code + reason sent to the client.
 #[derive(Debug)]
 struct Close(u32, String);
+
+impl Shared {
+    pub(crate) fn quiet(&self) -> bool {
+        self.quiet
+    }
+}
 
 pub(crate) fn log(shared: &Shared, who: SocketAddr, msg: &str) {
     if !shared.quiet {

@@ -60,9 +60,17 @@ pub struct WebInfo {
     pub cert_hash: Option<String>,
     /// The page is served over HTTPS (with `--cert/--key`), else plain HTTP.
     pub https: bool,
+    /// The generated certificate's hash now (it is rotated before it expires).
+    live_hash: Arc<std::sync::RwLock<Option<String>>>,
 }
 
 impl WebInfo {
+    /// SHA-256 of the generated WebTransport certificate in use now: `cert_hash` until the
+    /// first rotation (see `Limits::web_cert_rotate`). None with `--cert/--key`.
+    pub fn current_cert_hash(&self) -> Option<String> {
+        self.live_hash.read().map(|h| h.clone()).unwrap_or_else(|_| self.cert_hash.clone())
+    }
+
     /// `http://ADDR/`, or `https://…` with `--cert/--key` (the token goes in the fragment:
     /// `#token=…`).
     pub fn url(&self) -> String {
@@ -110,28 +118,44 @@ fn web_tls(
     user_cert: bool,
     addr: SocketAddr,
 ) -> Result<(rustls::ServerConfig, Option<String>)> {
-    use rustls::pki_types::{CertificateDer, PrivateKeyDer, PrivatePkcs8KeyDer};
+    use rustls::pki_types::{CertificateDer, PrivateKeyDer};
     let (certs, key, hash): (Vec<CertificateDer<'static>>, PrivateKeyDer<'static>, _) =
         if user_cert {
             (id.certs.clone(), id.key.clone_key(), None)
         } else {
-            let mut names = vec!["localhost".to_string(), "127.0.0.1".into(), "::1".into()];
-            if !addr.ip().is_unspecified() {
-                names.push(addr.ip().to_string());
-            }
-            let g = wtransport::Identity::self_signed_builder()
-                .subject_alt_names(names)
-                .from_now_utc()
-                .validity_days(CERT_DAYS)
-                .build()
-                .map_err(|e| anyhow!("cannot generate the WebTransport certificate: {}", e))?;
-            let der = g.certificate_chain().as_slice()[0].der().to_vec();
-            let hash = crate::tls::fingerprint(&der);
-            let key = PrivateKeyDer::Pkcs8(PrivatePkcs8KeyDer::from(
-                g.private_key().secret_der().to_vec(),
-            ));
-            (vec![CertificateDer::from(der)], key, Some(hash))
+            let (cert, key, hash) = generated_cert(addr)?;
+            (vec![cert], key, Some(hash))
         };
+    tls_config(certs, key).map(|c| (c, hash))
+}
+
+/// A fresh self-signed ECDSA P-256 certificate valid for `CERT_DAYS`, for the names a page
+/// on this machine or at `addr` uses; and its SHA-256.
+fn generated_cert(
+    addr: SocketAddr,
+) -> Result<(rustls::pki_types::CertificateDer<'static>, rustls::pki_types::PrivateKeyDer<'static>, String)> {
+    use rustls::pki_types::{CertificateDer, PrivateKeyDer, PrivatePkcs8KeyDer};
+    let mut names = vec!["localhost".to_string(), "127.0.0.1".into(), "::1".into()];
+    if !addr.ip().is_unspecified() {
+        names.push(addr.ip().to_string());
+    }
+    let g = wtransport::Identity::self_signed_builder()
+        .subject_alt_names(names)
+        .from_now_utc()
+        .validity_days(CERT_DAYS)
+        .build()
+        .map_err(|e| anyhow!("cannot generate the WebTransport certificate: {}", e))?;
+    let der = g.certificate_chain().as_slice()[0].der().to_vec();
+    let hash = crate::tls::fingerprint(&der);
+    let key = PrivateKeyDer::Pkcs8(PrivatePkcs8KeyDer::from(g.private_key().secret_der().to_vec()));
+    Ok((CertificateDer::from(der), key, hash))
+}
+
+/// TLS 1.3, ALPN h3, no 0-RTT.
+fn tls_config(
+    certs: Vec<rustls::pki_types::CertificateDer<'static>>,
+    key: rustls::pki_types::PrivateKeyDer<'static>,
+) -> Result<rustls::ServerConfig> {
     let mut cfg = rustls::ServerConfig::builder_with_provider(crate::tls::provider())
         .with_protocol_versions(&[&rustls::version::TLS13])
         .map_err(|e| anyhow!("TLS setup: {}", e))?
@@ -140,7 +164,7 @@ fn web_tls(
         .map_err(|e| anyhow!("WebTransport TLS identity: {}", e))?;
     cfg.alpn_protocols = vec![b"h3".to_vec()];
     cfg.max_early_data_size = 0;
-    Ok((cfg, hash))
+    Ok(cfg)
 }
 
 /// Bind the page (TCP) and WebTransport (UDP) on one port. Port 0 picks a free port for both.
@@ -156,11 +180,7 @@ pub(crate) fn bind(
         c.alpn_protocols = vec![b"http/1.1".to_vec()];
         tokio_rustls::TlsAcceptor::from(Arc::new(c))
     });
-    let mut t = transport(limits)?;
-    // HTTP/3 needs the client's control and QPACK streams and its CONNECT request; snerf/1
-    // adds one bidirectional control stream.
-    t.max_concurrent_bidi_streams(quinn::VarInt::from_u32(2))
-        .max_concurrent_uni_streams(quinn::VarInt::from_u32(3));
+    let t = wt_transport(limits)?;
     let mut last_err = None;
     for _ in 0..20 {
         let udp = crate::proto::udp_socket(addr)
@@ -187,6 +207,7 @@ pub(crate) fn bind(
         return Ok(WebParts {
             info: WebInfo {
                 addr: tcp_addr,
+                live_hash: Arc::new(std::sync::RwLock::new(cert_hash.clone())),
                 cert_hash,
                 https: page_tls.is_some(),
             },
@@ -202,18 +223,72 @@ pub(crate) fn bind(
     ))
 }
 
+/// The QUIC transport for WebTransport sessions: HTTP/3 needs the client's control and QPACK
+/// streams and its CONNECT request; snerf/1 adds one bidirectional control stream.
+fn wt_transport(limits: &crate::server::Limits) -> Result<quinn::TransportConfig> {
+    let mut t = transport(limits)?;
+    t.max_concurrent_bidi_streams(quinn::VarInt::from_u32(2))
+        .max_concurrent_uni_streams(quinn::VarInt::from_u32(3));
+    Ok(t)
+}
+
 /// Serve the page and WebTransport sessions until `stop`.
 pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Receiver<bool>) {
     let info = Arc::new(parts.info);
+    let wt = Arc::new(parts.wt);
     let http = tokio::spawn(http_loop(parts.http, parts.page_tls, info.clone(), stop.clone()));
-    wt_loop(shared, parts.wt, info.addr.port(), stop).await;
+    let rotate = info
+        .cert_hash
+        .is_some()
+        .then(|| tokio::spawn(rotate_loop(shared.clone(), wt.clone(), info.clone())));
+    wt_loop(shared, wt, info.addr.port(), stop).await;
     http.abort();
     let _ = http.await;
+    if let Some(r) = rotate {
+        r.abort();
+        let _ = r.await;
+    }
+}
+
+/// A generated certificate lives `CERT_DAYS`; every `Limits::web_cert_rotate` a new one
+/// replaces it for new sessions (running ones keep theirs), `/config.json` hands out its
+/// hash, and the server says so.
+async fn rotate_loop(
+    shared: Arc<Shared>,
+    wt: Arc<wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>>,
+    info: Arc<WebInfo>,
+) {
+    let every = shared.limits.web_cert_rotate.max(Duration::from_millis(100));
+    loop {
+        tokio::time::sleep(every).await;
+        let next = generated_cert(info.addr).and_then(|(c, k, hash)| {
+            let cfg = wtransport::ServerConfig::builder()
+                .with_bind_default(0)
+                .with_custom_tls_and_transport(tls_config(vec![c], k)?, wt_transport(&shared.limits)?)
+                .build();
+            wt.reload_config(cfg, false).context("reloading the WebTransport certificate")?;
+            Ok(hash)
+        });
+        match next {
+            Ok(hash) => {
+                if let Ok(mut h) = info.live_hash.write() {
+                    *h = Some(hash.clone());
+                }
+                shared.stats.cert_rotations.fetch_add(1, Ordering::Relaxed);
+                if !shared.quiet() {
+                    eprintln!(
+                        "snerf serve: web viewer certificate rotated (browsers accept at most 14 days): SHA-256 {hash}, valid {CERT_DAYS} days"
+                    );
+                }
+            }
+            Err(e) => eprintln!("snerf serve: cannot rotate the web viewer certificate: {e:#}"),
+        }
+    }
 }
 
 async fn wt_loop(
     shared: Arc<Shared>,
-    endpoint: wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>,
+    endpoint: Arc<wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>>,
     port: u16,
     mut stop: watch::Receiver<bool>,
 ) {
@@ -389,7 +464,7 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) 
             let cfg = serde_json::json!({
                 "protocol": crate::proto::PROTOCOL_VERSION,
                 "webtransport": format!("https://{}{}", host, SESSION_PATH),
-                "cert_hash": info.cert_hash,
+                "cert_hash": info.current_cert_hash(),
                 "workgroup": snerf_geometry::march::WORKGROUP,
             });
             (200, "application/json", cfg.to_string().into_bytes())

@@ -737,3 +737,33 @@ fn traversal_names_and_malformed_messages_are_refused_while_another_page_downloa
     assert!(h.stats().unauthorized.load(Ordering::Relaxed) >= 1);
     h.shutdown();
 }
+
+#[test]
+fn the_generated_certificate_is_rotated_and_pages_keep_connecting() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-rotate");
+    let state = TempDir::new("web-rotate-state");
+    let asset = static_asset(16, 8, 0.9, 5);
+    let bytes = write_asset(&asset, dir.path(), "scene");
+    let h = start_with(dir.path(), state.path(), Limits { web_cert_rotate: std::time::Duration::from_millis(700), ..Limits::default() });
+    let web = h.web().unwrap().clone();
+    let first = web.cert_hash.clone().unwrap();
+    let t0 = std::time::Instant::now();
+    while h.stats().cert_rotations.load(Ordering::Relaxed) == 0 {
+        assert!(t0.elapsed().as_secs() < 30, "no rotation");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let now = web.current_cert_hash().unwrap();
+    assert_ne!(now, first);
+    // /config.json hands out the new hash, and a page connects with it.
+    let host = format!("127.0.0.1:{}", web.addr.port());
+    let rt = runtime();
+    let cfg = rt.block_on(get(rt.block_on(tokio::net::TcpStream::connect(web.addr)).unwrap(), &host, "/config.json"));
+    let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
+    assert_ne!(cfg["cert_hash"].as_str().unwrap(), first);
+    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene")]));
+    let r = page(&b, &[&url, "done"]);
+    assert_eq!(r["error"], serde_json::Value::Null, "{}", r["error"]);
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
+    h.shutdown();
+}

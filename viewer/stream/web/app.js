@@ -95,6 +95,8 @@ let config = null;
 // True while an immersive WebXR session draws (its frame loop replaces the page's).
 let xrActive = false;
 async function connect(hello) {
+  // The server rotates its generated certificate: take the hash in use now.
+  config = await (await fetch('/config.json')).json();
   const opts = {};
   if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
   const wt = new WebTransport(config.webtransport, opts);
