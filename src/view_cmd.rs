@@ -23,7 +23,9 @@ pub struct ViewArgs {
     /// Vertical field of view in degrees.
     #[arg(long, default_value_t = 50.0, value_parser = crate::args::fov_degrees)]
     pub fov: f32,
-    /// Render left and right eyes side by side (the layout VR compositors and phone headsets take).
+    /// Render left and right eyes side by side, for displays that show each half to one eye
+    /// (3D monitors, phone viewers). Not a headset mode: on a headset, open the web viewer of
+    /// `snerf serve` and press Enter VR.
     #[arg(long)]
     pub stereo: bool,
     /// Eye separation in world units for --stereo.

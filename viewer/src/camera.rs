@@ -23,8 +23,9 @@ pub fn initial_camera(h: &Header, width: u32, height: u32, fov_y: f32) -> Camera
     camera_from_c2w(h.orbit().start_c2w(), width, height, fov_y)
 }
 
-/// Left/right eye cameras: `c2w` moved by ∓ipd/2 along its right axis (first column);
-/// each eye gets its own `eye_width` x `height` image.
+/// Left/right eye cameras for a side-by-side display: `snerf_geometry::camera::stereo_eyes`
+/// (the per-eye projection the web viewer's immersive mode uses too) with a symmetric
+/// projection of `fov_y` for an `eye_width` x `height` image per eye.
 pub fn stereo_pair(
     c2w: [[f32; 4]; 3],
     ipd: f32,
@@ -32,15 +33,8 @@ pub fn stereo_pair(
     height: u32,
     fov_y: f32,
 ) -> (Camera, Camera) {
-    let right = normalize([c2w[0][0], c2w[1][0], c2w[2][0]]);
-    let shift = |s: f32| {
-        let mut m = c2w;
-        for (r, row) in m.iter_mut().enumerate() {
-            row[3] += s * 0.5 * ipd * right[r];
-        }
-        camera_from_c2w(m, eye_width, height, fov_y)
-    };
-    (shift(-1.0), shift(1.0))
+    let proj = snerf_geometry::camera::perspective(fov_y, eye_width as f32 / height.max(1) as f32, 0.01, 100.0);
+    snerf_geometry::camera::stereo_eyes(c2w, ipd, &proj, eye_width, height)
 }
 
 /// One entry of a pose file.

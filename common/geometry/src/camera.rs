@@ -42,11 +42,56 @@ impl Pinhole {
         Pinhole { c2w, fx: f, fy: f, cx: 0.5 * width as f32, cy: 0.5 * height as f32, width, height }
     }
 
+    /// The camera of one eye given as WebXR does: a column-major OpenGL projection matrix
+    /// (possibly asymmetric) and the eye's pose, for a `width` x `height` image. The one
+    /// per-eye projection both the native `--stereo` view and the web viewer's immersive
+    /// mode use (`viewer/stream/web/xr.js` `eyeCamera` is this, in JavaScript; its test
+    /// compares the two).
+    pub fn from_projection(proj: &[f32; 16], c2w: C2w, width: u32, height: u32) -> Pinhole {
+        let (w, h) = (width as f32, height as f32);
+        Pinhole {
+            c2w,
+            fx: proj[0] * w / 2.0,
+            fy: proj[5] * h / 2.0,
+            cx: w / 2.0 * (1.0 - proj[8]),
+            cy: h / 2.0 * (1.0 + proj[9]),
+            width,
+            height,
+        }
+    }
+
     /// World origin and unit world direction through the centre of pixel (px, py).
     pub fn ray(&self, px: u32, py: u32) -> (Vec3, Vec3) {
         let dc = [(px as f32 + 0.5 - self.cx) / self.fx, -(py as f32 + 0.5 - self.cy) / self.fy, -1.0];
         (position(&self.c2w), camera_dir_to_world(&self.c2w, dc))
     }
+}
+
+/// A symmetric OpenGL perspective projection (column-major): vertical field of view `fov_y`
+/// degrees, aspect width/height, depth range [near, far].
+pub fn perspective(fov_y: f32, aspect: f32, near: f32, far: f32) -> [f32; 16] {
+    let f = 1.0 / (0.5 * fov_y.to_radians()).tan();
+    let mut m = [0.0; 16];
+    m[0] = f / aspect;
+    m[5] = f;
+    m[10] = (far + near) / (near - far);
+    m[11] = -1.0;
+    m[14] = 2.0 * far * near / (near - far);
+    m
+}
+
+/// The two eyes of a head pose `c2w` for a side-by-side display: each moved by ∓ipd/2 along
+/// the head's right axis, each with `proj`, through `Pinhole::from_projection`.
+pub fn stereo_eyes(c2w: C2w, ipd: f32, proj: &[f32; 16], eye_width: u32, height: u32) -> (Pinhole, Pinhole) {
+    let right = normalize([c2w[0][0], c2w[1][0], c2w[2][0]]);
+    let eye = |s: f32| {
+        let mut m = c2w;
+        for (r, row) in m.iter_mut().enumerate() {
+            row[3] += s * 0.5 * ipd * right[r];
+        }
+        Pinhole::from_projection(proj, m, eye_width, height)
+    };
+    (eye(-1.0), eye(1.0))
 }
 
 /// Where world point `p` lands in a pinhole camera (`c2w`, focal lengths and principal point
@@ -179,6 +224,38 @@ impl Orbit {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_projection_matrix_gives_the_pinhole_it_describes() {
+        let c2w = [[1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 2.0]];
+        // Symmetric: the same camera as from_fov.
+        let p = perspective(60.0, 4.0 / 3.0, 0.1, 100.0);
+        let a = Pinhole::from_projection(&p, c2w, 64, 48);
+        let b = Pinhole::from_fov(c2w, 64, 48, 60.0);
+        for (x, y) in [(a.fx, b.fx), (a.fy, b.fy), (a.cx, b.cx), (a.cy, b.cy)] {
+            assert!((x - y).abs() < 1e-4, "{x} vs {y}");
+        }
+        // An asymmetric frustum (glFrustum l, r, b, t at near n): its corners land on the
+        // image corners.
+        let (l, r, bt, t, n, f) = (-0.3f32, 0.5f32, -0.2f32, 0.4f32, 0.5f32, 50.0f32);
+        let mut m = [0.0f32; 16];
+        m[0] = 2.0 * n / (r - l);
+        m[5] = 2.0 * n / (t - bt);
+        m[8] = (r + l) / (r - l);
+        m[9] = (t + bt) / (t - bt);
+        m[10] = -(f + n) / (f - n);
+        m[11] = -1.0;
+        m[14] = -2.0 * f * n / (f - n);
+        let id = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+        let c = Pinhole::from_projection(&m, id, 80, 60);
+        let (x, y, _) = project(&id, c.fx, c.fy, c.cx, c.cy, [l, t, -n]).unwrap();
+        assert!(x.abs() < 1e-3 && y.abs() < 1e-3, "top-left corner at ({x}, {y})");
+        let (x, y, _) = project(&id, c.fx, c.fy, c.cx, c.cy, [r, bt, -n]).unwrap();
+        assert!((x - 80.0).abs() < 1e-3 && (y - 60.0).abs() < 1e-3, "bottom-right corner at ({x}, {y})");
+        // Stereo eyes: an IPD apart along the head's right axis, the same intrinsics.
+        let (le, re) = stereo_eyes(c2w, 0.064, &p, 64, 48);
+        assert!((re.c2w[0][3] - le.c2w[0][3] - 0.064).abs() < 1e-6 && le.fx == a.fx);
+    }
 
     #[test]
     fn orbit_is_upright_and_looks_at_the_centre() {

@@ -467,11 +467,16 @@ fn check_eyes(snap: &serde_json::Value, asset: &Asset, what: &str) -> Vec<snerf_
     let mut cams = Vec::new();
     for (i, e) in eyes.iter().enumerate() {
         let cam = cam_from_json(&e["cam"]);
-        // The intrinsics are the XR view's projection (column-major) for this viewport.
-        let p: Vec<f64> = e["projection"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
-        let (w, h) = (cam.width as f64, cam.height as f64);
-        assert!((cam.fx as f64 - p[0] * w / 2.0).abs() < 1e-3 && (cam.fy as f64 - p[5] * h / 2.0).abs() < 1e-3, "{what} eye {i}: intrinsics");
-        assert!((cam.cx as f64 - w / 2.0 * (1.0 - p[8])).abs() < 1e-3 && (cam.cy as f64 - h / 2.0 * (1.0 + p[9])).abs() < 1e-3);
+        // The intrinsics are the XR view's projection for this viewport, as the native
+        // per-eye code (`Pinhole::from_projection`, what `snerf view --stereo` uses) reads it.
+        let mut p = [0f32; 16];
+        for (k, x) in e["projection"].as_array().unwrap().iter().enumerate() {
+            p[k] = x.as_f64().unwrap() as f32;
+        }
+        let native = snerf_asset::Camera::from_projection(&p, cam.c2w, cam.width, cam.height);
+        for (a, b) in [(cam.fx, native.fx), (cam.fy, native.fy), (cam.cx, native.cx), (cam.cy, native.cy)] {
+            assert!((a - b).abs() < 1e-3, "{what} eye {i}: intrinsics {a} vs native {b}");
+        }
         let cpu = snerf_asset::render(asset, &cam, snap["time"].as_f64().unwrap_or(0.0) as f32);
         let rgba: Vec<serde_json::Value> = e["rgba"].as_array().unwrap().clone();
         let d = mean_abs_diff(&rgba, &cpu);
