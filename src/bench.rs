@@ -10,6 +10,7 @@ use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
 mod quality;
+mod web;
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCmd {
@@ -32,6 +33,11 @@ pub enum BenchCmd {
     /// run's own report as `snerf train` does it at each curve point, projected onto a
     /// 5-minute training run.
     Report(BenchReportArgs),
+    /// The web viewer beside the native client on loopback, one run: navigation to first
+    /// frame, WebTransport download rate, frame time in headless Chromium (flat and on an
+    /// emulated Quest 3) against wgpu (lavapipe without a GPU). Needs Chromium, Node.js and
+    /// playwright-core/iwer (`bash .ci/run` installs them).
+    Web(web::BenchWebArgs),
 }
 
 #[derive(Args, Debug)]
@@ -84,6 +90,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::View(a) => bench_view(a),
         BenchCmd::Stream(a) => bench_stream(&a.asset, a.rounds),
         BenchCmd::Quality(a) => quality::run(a),
+        BenchCmd::Web(a) => web::run(a),
         BenchCmd::Report(a) => report(a),
     }
 }

@@ -58,26 +58,41 @@ function frame(msg) {
   return out;
 }
 
-// Reads exact byte counts from a WebTransport stream.
+// Reads exact byte counts from a WebTransport stream. The pieces the stream delivers are kept
+// as they are and copied once into each record (appending them to one buffer would copy a
+// large record once per piece).
 class Reader {
-  constructor(readable) { this.r = readable.getReader(); this.buf = new Uint8Array(0); this.done = false; }
+  constructor(readable) { this.r = readable.getReader(); this.parts = []; this.len = 0; this.done = false; }
   async fill(n) {
-    while (this.buf.length < n && !this.done) {
+    while (this.len < n && !this.done) {
       const { value, done } = await this.r.read();
       if (done) { this.done = true; break; }
-      if (this.buf.length === 0) this.buf = value;
-      else { const b = new Uint8Array(this.buf.length + value.length); b.set(this.buf); b.set(value, this.buf.length); this.buf = b; }
+      if (value.length) { this.parts.push(value); this.len += value.length; }
     }
-    return this.buf.length >= n;
+    return this.len >= n;
   }
   // n bytes, or null at a clean end of stream before any of them.
   async take(n) {
     if (!(await this.fill(n))) {
-      if (this.buf.length === 0) return null;
+      if (this.len === 0) return null;
       throw new Error('stream ended inside a record');
     }
-    const out = this.buf.subarray(0, n);
-    this.buf = this.buf.subarray(n);
+    let out;
+    const p0 = this.parts[0];
+    if (p0.length >= n) {
+      out = p0.subarray(0, n);
+      if (p0.length === n) this.parts.shift(); else this.parts[0] = p0.subarray(n);
+    } else {
+      out = new Uint8Array(n);
+      let o = 0;
+      while (o < n) {
+        const p = this.parts[0], k = Math.min(p.length, n - o);
+        out.set(p.subarray(0, k), o);
+        o += k;
+        if (k === p.length) this.parts.shift(); else this.parts[0] = p.subarray(k);
+      }
+    }
+    this.len -= n;
     return out;
   }
 }
@@ -368,7 +383,8 @@ async function stream(name, gpu) {
   const capture = !!fixedCam || frag.has('capture');
   // Render scale: the fraction of the canvas's device pixels marched, chosen each frame to
   // hold the display's frame rate while the view moves; a still view is refined at 1.
-  let scale = 1, refined = true, lastInput = -1e9, playing = false, lastTick = null;
+  // The first frames start small (frame rate first) and grow while frames are fast.
+  let scale = fixedCam ? 1 : 0.25, refined = false, lastInput = -1e9, playing = false, lastTick = null;
   const rafTimes = [];
 
   function refreshMs() {
@@ -429,6 +445,7 @@ async function stream(name, gpu) {
     };
   }
   const { wt, ctl } = await connect(hello);
+  report.connectedAt = performance.now();
   const welcome = await readMsg(ctl);
   if (welcome.type !== 'welcome' || !welcome.asset) throw new Error('no asset in the welcome');
   const info = welcome.asset;
@@ -508,7 +525,7 @@ async function stream(name, gpu) {
     $('time').value = time;
   }
   const api = {
-    gpu, capture, ready, togglePlay, advance, sendPose: sendPoseRaw,
+    gpu, capture, ready, fixedScale: frag.has('xrscale') ? parseFloat(frag.get('xrscale')) : null, togglePlay, advance, sendPose: sendPoseRaw,
     renderer: () => r, header: () => h, orbit: () => orbit, time: () => time,
     playing: () => playing,
     setXR: (on) => { xrActive = on; if (!on) { dirty = true; refined = false; } },
@@ -579,6 +596,7 @@ async function stream(name, gpu) {
 
   // Records: u32 chunk index, then the chunk (tag, u32 length, u32 CRC-32, payload).
   let queue = Promise.resolve();
+  let received = 0; // whole records read off the streams
   async function readStream(s) {
     const rd = new Reader(s);
     for (;;) {
@@ -592,6 +610,7 @@ async function stream(name, gpu) {
       const ck = new Uint8Array(12 + len);
       ck.set(head.subarray(4)); ck.set(payload, 12);
       report.bytes += 16 + len;
+      received++;
       queue = queue.then(() => onChunk(index, ck)).catch(abort);
     }
   }
@@ -599,18 +618,22 @@ async function stream(name, gpu) {
   $('view').hidden = false;
   setStatus(`streaming ${info.name}: ${info.size} bytes in ${info.chunks} chunks`);
 
+  // The server closes a session some time after everything was acknowledged; by then every
+  // record is here even if not yet applied, and that is no failure.
   wt.closed.then(
-    (i) => abort(new Error(`the server closed the session (code ${i.closeCode}: ${i.reason})`)),
-    (e) => abort(new Error(`the session failed: ${e.message || e}`)),
+    (i) => { if (received < info.chunks) abort(new Error(`the server closed the session (code ${i.closeCode}: ${i.reason})`)); },
+    (e) => { if (received < info.chunks) abort(new Error(`the session failed: ${e.message || e}`)); },
   );
+  // A session ending once every record is in is no failure (see above).
+  const lost = (e) => { if (received < info.chunks) abort(e); };
   (async () => {
     const uni = wt.incomingUnidirectionalStreams.getReader();
     for (;;) {
       const { value, done } = await uni.read();
       if (done) return;
-      readStream(value).catch(abort);
+      readStream(value).catch(lost);
     }
-  })().catch(abort);
+  })().catch(lost);
   await complete;
   await queue;
   clearInterval(poseTimer);
@@ -628,8 +651,19 @@ async function stream(name, gpu) {
   redraw();
   // Wait for the complete frame (in VR the session draws it: no flat frame comes).
   while (!xrActive && (!report.lastFrame || !report.lastFrame.complete || busy || dirty)) await new Promise((res) => setTimeout(res, 10));
-  report.state = 'done';
-  setStatus(`${info.name}: ${total} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);
+  // Benchmarks (snerf bench web): n frames of the current view, each timed from submission
+  // to the GPU finishing (ms).
+  report.benchFrames = async (n, cam0) => {
+    const out = [];
+    for (let i = 0; i < n; i++) {
+      const cam = cam0 || camera(fixedCam ? 1 : scale);
+      const t = performance.now();
+      await r.render([{ cam, x: 0, y: 0 }], time, gpu.ctx.getCurrentTexture(), false);
+      out.push(performance.now() - t);
+    }
+    return out;
+  };
+  return info;
 }
 
 // Mouse, touch and keyboard: drag (one pointer) orbits, wheel or pinch (two pointers) zooms,
@@ -691,17 +725,7 @@ function thumbCanvas(t) {
   return c;
 }
 
-async function main() {
-  if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
-  if (typeof WebTransport === 'undefined') throw new Error('this browser has no WebTransport (it needs a secure context: https, or http on localhost)');
-  if (!navigator.gpu) throw new Error('this browser has no WebGPU');
-  config = await (await fetch('/config.json')).json();
-  const adapter = await navigator.gpu.requestAdapter();
-  if (!adapter) throw new Error('no WebGPU adapter');
-  report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
-  const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
-  device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
-  const assets = await listAssets();
+function showListing(assets) {
   report.listing = assets;
   const tbody = $('assets').querySelector('tbody');
   for (const a of assets) {
@@ -718,15 +742,38 @@ async function main() {
     const td2 = document.createElement('td'); td2.appendChild(b); tr.appendChild(td2);
     tbody.appendChild(tr);
   }
-  report.state = 'listed';
-  setStatus(`${assets.length} asset(s); choose one`);
+  return assets;
+}
+
+async function main() {
+  if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
+  if (typeof WebTransport === 'undefined') throw new Error('this browser has no WebTransport (it needs a secure context: https, or http on localhost)');
+  if (!navigator.gpu) throw new Error('this browser has no WebGPU');
+  config = await (await fetch('/config.json')).json();
+  // The listing, the GPU and (with an asset named) the stream start together: the first
+  // frame waits for none of the others.
+  const listing = listAssets().then(showListing);
+  listing.catch(() => {}); // awaited below; this only keeps an early failure from being "unhandled"
   const want = frag.get('asset');
-  if (!want) return;
+  const adapter = await navigator.gpu.requestAdapter();
+  if (!adapter) throw new Error('no WebGPU adapter');
+  report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
+  const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
+  device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
+  if (!want) {
+    const assets = await listing;
+    report.state = 'listed';
+    setStatus(`${assets.length} asset(s); choose one`);
+    return;
+  }
   const ctx = $('canvas').getContext('webgpu');
   ctx.configure({ device, format: navigator.gpu.getPreferredCanvasFormat(), alphaMode: 'opaque' });
   const pw = await fetch('/present.wgsl');
   if (!pw.ok) throw new Error('present shader: HTTP ' + pw.status);
-  await stream(want, { device, wg: config.workgroup, ctx, presentWgsl: await pw.text() });
+  const info = await stream(want, { device, wg: config.workgroup, ctx, presentWgsl: await pw.text() });
+  await listing;
+  report.state = 'done';
+  setStatus(`${info.name}: ${info.size} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);
 }
 
 main().catch(fail);

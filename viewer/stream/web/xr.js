@@ -129,7 +129,7 @@ export async function enterXR(api, report) {
   ctx.configure({ device: api.gpu.device, format: 'rgba8unorm', alphaMode: 'opaque' });
   // Dynamic render scale: the fraction of each eye's pixels marched, held to the display's
   // refresh (session.frameRate where the browser says it, else 72 Hz).
-  let scale = api.capture ? 1 : 0.5;
+  let scale = api.capture ? 1 : api.fixedScale ?? 0.5;
   let busy = false, last = null, lastPose = 0, grab = null;
   const pressed = new Map();
   session.addEventListener('select', () => api.togglePlay());
@@ -262,7 +262,8 @@ export async function enterXR(api, report) {
       xr.frames++;
       if (xr.firstFrameMs === null) { xr.firstFrameMs = performance.now() - t0; xr.state = 'running'; }
       const target = 1000 / (session.frameRate || 72);
-      if (!api.capture) {
+      xr.frameMs = (xr.frameMs || []).concat([ms]).slice(-64);
+      if (!api.capture && api.fixedScale == null) {
         const k = Math.sqrt((0.9 * target) / Math.max(ms, frameMs || ms, 0.1));
         if (k < 0.95 || (k > 1.1 && scale < 1)) scale = Math.min(1, Math.max(0.1, scale * Math.min(1.25, Math.max(0.6, k))));
       }
