@@ -42,7 +42,7 @@ try {
       window.__xr.installRuntime({ forceInstall: true });`);
     await page.goto(xrUrl);
     await page.waitForFunction(() => window.snerf.state === 'done' || window.snerf.state === 'error', null, { timeout: 600000, polling: 20 });
-    await page.click('#xr');
+    await page.click('#xr', { timeout: 600000 });
     await page.waitForFunction((n) => window.snerf.xr && (window.snerf.xr.error || (window.snerf.xr.frameMs || []).length >= n), frames, { timeout: 600000, polling: 20 });
     const x = await page.evaluate(() => { const x = window.snerf.xr; return { error: x.error, firstFrameMs: x.firstFrameMs, frameMs: x.frameMs, scale: x.scale, eyes: x.eyes && x.eyes.map((e) => e.viewport) }; });
     if (x.error) throw new Error('XR: ' + x.error);

@@ -772,3 +772,51 @@ fn the_generated_certificate_is_rotated_and_pages_keep_connecting() {
     assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
     h.shutdown();
 }
+
+#[test]
+fn a_page_resumes_when_the_server_restarts_mid_stream() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-resume");
+    let state = TempDir::new("web-resume-state");
+    let asset = static_asset(64, 8, 0.95, 9);
+    let bytes = write_asset(&asset, dir.path(), "scene");
+    // Paced, so the server can be stopped with part of the asset sent.
+    let a = start_with(dir.path(), state.path(), Limits { max_rate: Some(3.0e5), ..Limits::default() });
+    let web = a.web().unwrap().clone();
+    let url = format!("{}#{}", web.url(), fragment(&[("token", a.token()), ("asset", "scene")]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/page.mjs");
+    let child = Command::new(&b.0)
+        .arg(&script)
+        .arg(&b.2)
+        .args([url.as_str(), "done"])
+        .env("SNERF_CHROMIUM", &b.1)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while a.stats().bytes_sent.load(Ordering::Relaxed) < bytes.len() as u64 / 3 {
+        assert!(t0.elapsed().as_secs() < 120, "the download did not start");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let sent_a = a.stats().bytes_sent.load(Ordering::Relaxed);
+    a.shutdown();
+    // The same identity (state) and web port; the page reconnects and asks for the rest.
+    let mut o = ServeOptions::new(dir.path(), "127.0.0.1:0".parse().unwrap());
+    o.state_dir = Some(state.path().to_path_buf());
+    o.quiet = true;
+    o.web = Some(web.addr);
+    let bsrv = snerf_stream::spawn(o).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "page.mjs failed: {stderr}");
+    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    assert_eq!(r["error"], serde_json::Value::Null, "{}", r["error"]);
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
+    assert!(r["resumes"].as_u64().unwrap() >= 1, "{}", r["resumes"]);
+    assert_eq!(r["lastResume"]["resumed"], true);
+    let sent_b = bsrv.stats().bytes_sent.load(Ordering::Relaxed);
+    eprintln!("first server sent {sent_a} bytes, the second {sent_b}, of {}", bytes.len());
+    assert!(sent_b < bytes.len() as u64 - sent_a / 2, "the second server sent {sent_b} bytes: not only the rest");
+    bsrv.shutdown();
+}

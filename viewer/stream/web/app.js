@@ -444,7 +444,7 @@ async function stream(name, gpu) {
       time, fov_deg: fovOf(c),
     };
   }
-  const { wt, ctl } = await connect(hello);
+  let { wt, ctl } = await connect(hello);
   report.connectedAt = performance.now();
   const welcome = await readMsg(ctl);
   if (welcome.type !== 'welcome' || !welcome.asset) throw new Error('no asset in the welcome');
@@ -452,6 +452,7 @@ async function stream(name, gpu) {
   report.asset = info;
   report.state = 'streaming';
   report.arrivals = [];
+  report.resumes = 0;
   dgram = wt.datagrams.writable.getWriter();
   const poseTimer = setInterval(sendPose, 250);
 
@@ -596,7 +597,8 @@ async function stream(name, gpu) {
 
   // Records: u32 chunk index, then the chunk (tag, u32 length, u32 CRC-32, payload).
   let queue = Promise.resolve();
-  let received = 0; // whole records read off the streams
+  let received = 0; // distinct chunks whose whole record was read off a stream
+  const got = new Uint8Array(info.chunks);
   async function readStream(s) {
     const rd = new Reader(s);
     for (;;) {
@@ -610,6 +612,8 @@ async function stream(name, gpu) {
       const ck = new Uint8Array(12 + len);
       ck.set(head.subarray(4)); ck.set(payload, 12);
       report.bytes += 16 + len;
+      if (got[index]) continue;
+      got[index] = 1;
       received++;
       queue = queue.then(() => onChunk(index, ck)).catch(abort);
     }
@@ -619,21 +623,62 @@ async function stream(name, gpu) {
   setStatus(`streaming ${info.name}: ${info.size} bytes in ${info.chunks} chunks`);
 
   // The server closes a session some time after everything was acknowledged; by then every
-  // record is here even if not yet applied, and that is no failure.
-  wt.closed.then(
-    (i) => { if (received < info.chunks) abort(new Error(`the server closed the session (code ${i.closeCode}: ${i.reason})`)); },
-    (e) => { if (received < info.chunks) abort(new Error(`the session failed: ${e.message || e}`)); },
-  );
-  // A session ending once every record is in is no failure (see above).
-  const lost = (e) => { if (received < info.chunks) abort(e); };
-  (async () => {
-    const uni = wt.incomingUnidirectionalStreams.getReader();
-    for (;;) {
-      const { value, done } = await uni.read();
-      if (done) return;
-      readStream(value).catch(lost);
+  // record is here even if not yet applied, and that is no failure. A session lost earlier
+  // is resumed (PROTOCOL.md, "Resume"): a new session whose hello lists the chunks held
+  // (`have`, for this file's SHA-256), so only the rest is sent; a few tries, backing off.
+  const RESUME_TRIES = 6;
+  let tries = 0, resuming = false, current = wt;
+  const haveRanges = () => {
+    const out = [];
+    for (let i = 0; i < got.length; i++) {
+      if (!got[i]) continue;
+      if (out.length && out[out.length - 1][1] === i) out[out.length - 1][1] = i + 1; else out.push([i, i + 1]);
     }
-  })().catch(lost);
+    return out;
+  };
+  function attach(w) {
+    current = w;
+    const lost = (e) => ended(w, e);
+    w.closed.then(
+      (i) => ended(w, new Error(`the server closed the session (code ${i.closeCode}: ${i.reason})`), i.closeCode),
+      (e) => ended(w, new Error(`the session failed: ${e.message || e}`)),
+    );
+    (async () => {
+      const uni = w.incomingUnidirectionalStreams.getReader();
+      for (;;) {
+        const { value, done } = await uni.read();
+        if (done) return;
+        readStream(value).catch(lost);
+      }
+    })().catch(lost);
+  }
+  function ended(w, e, code) {
+    if (received >= info.chunks || w !== current || resuming) return;
+    // Refusals (bad token, no such asset, ...) are final; a lost connection is not.
+    if (code !== undefined && ![0, 6, 7, 10].includes(code)) { abort(e); return; }
+    if (tries >= RESUME_TRIES) { abort(e); return; }
+    resuming = true;
+    const delay = 250 * 2 ** tries++;
+    setStatus(`connection lost; resuming in ${delay} ms (${received} of ${info.chunks} chunks held)`);
+    setTimeout(async () => {
+      try {
+        const c = await connect({ ...hello, have: haveRanges(), resume_id: info.sha256 });
+        const wel = await readMsg(c.ctl);
+        if (wel.type !== 'welcome' || !wel.asset || wel.asset.sha256 !== info.sha256) throw new Error('the asset changed on the server');
+        report.resumes++;
+        report.lastResume = { resumed: wel.resumed, sending_chunks: wel.sending_chunks };
+        dgram = c.wt.datagrams.writable.getWriter();
+        resuming = false;
+        attach(c.wt);
+        sendPose();
+        setStatus(`resumed: ${wel.sending_chunks} chunks to come`);
+      } catch (err) {
+        resuming = false;
+        ended(current, err);
+      }
+    }, delay);
+  }
+  attach(wt);
   await complete;
   await queue;
   clearInterval(poseTimer);
@@ -646,7 +691,7 @@ async function stream(name, gpu) {
   for (const p of parts) { file.set(p, o); o += p.length; }
   report.sha256 = hex(new Uint8Array(await crypto.subtle.digest('SHA-256', file)));
   if (report.sha256 !== info.sha256) throw new Error(`SHA-256 mismatch: got ${report.sha256}, expected ${info.sha256}`);
-  wt.close({ closeCode: 0, reason: 'done' });
+  try { current.close({ closeCode: 0, reason: 'done' }); } catch { /* already closed */ }
   report.completeMs = performance.now() - t0;
   redraw();
   // Wait for the complete frame (in VR the session draws it: no flat frame comes).
