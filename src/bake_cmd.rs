@@ -34,16 +34,20 @@ pub struct BakeArgs {
     /// Voxels per block edge (blocks are the unit of storage and streaming).
     #[arg(long, default_value_t = BakeOptions::default().block, value_parser = crate::args::int_in::<u32>(4, 64, ""))]
     pub block: u32,
-    /// Keyframes of a dynamic scene, evenly spaced over its time range.
+    /// Time samples (keyframes) of a dynamic scene, evenly spaced over its time range.
     #[arg(long, default_value_t = BakeOptions::default().keyframes, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub keyframes: usize,
     /// Keep a block when some voxel reaches this opacity over one march step.
     #[arg(long, default_value_t = BakeOptions::default().min_alpha, value_parser = crate::args::unit_f32)]
     pub min_alpha: f32,
-    /// Dynamic scenes: share a block with the previous keyframe when no voxel's opacity (and
-    /// no seen colour) moved by more than this.
+    /// Dynamic scenes: a cell stores another of its sampled blocks only while that removes
+    /// more than this visible RMS difference per voxel (opacity, seen colour).
     #[arg(long, default_value_t = BakeOptions::default().reuse_tolerance, value_parser = crate::args::unit_f32)]
     pub reuse_tolerance: f32,
+    /// Dynamic scenes: largest asset size as a multiple of one static frame of the scene;
+    /// the cells that change most over time get the blocks.
+    #[arg(long, default_value_t = BakeOptions::default().time_budget, value_parser = crate::args::positive_f32)]
+    pub time_budget: f32,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
@@ -148,6 +152,7 @@ fn bake_one(
         min_alpha: a.min_alpha,
         visibility_views: a.visibility_views,
         reuse_tolerance: a.reuse_tolerance,
+        time_budget: a.time_budget,
         up: a.up,
     };
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");

@@ -15,3 +15,4 @@ pub mod faithfulness;
 pub mod gltf_export;
 pub mod marching_cubes;
 pub mod mesh_export;
+pub mod temporal;
