@@ -183,7 +183,22 @@ fn bake_one(
         bake_seconds,
         peak_rss_mb().unwrap_or(f64::NAN)
     );
+    if asset.is_dynamic() {
+        eprintln!(
+            "4D: {} time samples, {:.2}x one static frame ({:.2} MB), {} of {} cells change, {} blocks beyond one per cell",
+            asset.num_frames(),
+            summary.size_vs_static_frame,
+            summary.static_frame_bytes as f64 / 1e6,
+            summary.cells_changing,
+            summary.occupied_cells.iter().max().unwrap_or(&0),
+            report.extra_blocks
+        );
+    }
     if let Some(f) = &faith {
+        let times: Vec<String> = f.views.iter().filter_map(|v| v.time).map(|t| format!("{t:.3}")).collect();
+        if !times.is_empty() {
+            eprintln!("faithfulness at the held-out views' own times: {}", times.join(", "));
+        }
         eprintln!(
             "faithfulness on {} views: baked vs field {:.2} dB; test PSNR field {:.2} dB, baked {:.2} dB (drop {:.2} dB)",
             f.views.len(),
@@ -214,8 +229,23 @@ pub struct InspectArgs {
 pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
     let asset = Asset::read(&a.file)?;
     let bytes = std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0);
-    let s = serde_json::to_value(asset.summary(bytes))?;
+    let sum = asset.summary(bytes);
+    let s = serde_json::to_value(&sum)?;
     if !quiet {
+        eprintln!(
+            "{}: {:.2} MB, {:.2}x one static frame ({:.2} MB), {} frame(s)",
+            a.file.display(),
+            bytes as f64 / 1e6,
+            sum.size_vs_static_frame,
+            sum.static_frame_bytes as f64 / 1e6,
+            sum.frames
+        );
+        if let (Some(secs), Some(r)) = (sum.animation_seconds, &sum.bytes_per_second) {
+            eprintln!(
+                "animation {:.3} s: {:.0} bytes/s (header {:.0}, mlp {:.0}, grids {:.0}, blocks {:.0}); {} cells change over time",
+                secs, r.total, r.header, r.mlp, r.grids, r.blocks, sum.cells_changing
+            );
+        }
         eprintln!("{}", serde_json::to_string_pretty(&s)?);
     }
     Ok(json!({ "command": "inspect", "file": pj(&a.file), "summary": s }))

@@ -235,3 +235,78 @@ pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codeboo
         .map(|s| Codebook { error: s.cur.iter().sum(), stored: s.stored, assign: s.cur_from })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn optical_depth_in_front_is_the_best_axis_prefix_sum() {
+        let res = 5;
+        let s: Vec<f32> = (0..res * res * res).map(|i| ((i * 37) % 11) as f32 * 0.1).collect();
+        let d = optical_depth_in_front(&s, res);
+        let at = |x: usize, y: usize, z: usize| s[(z * res + y) * res + x];
+        for z in 0..res {
+            for y in 0..res {
+                for x in 0..res {
+                    let sums = [
+                        (0..x).map(|k| at(k, y, z)).sum::<f32>(),
+                        (x + 1..res).map(|k| at(k, y, z)).sum(),
+                        (0..y).map(|k| at(x, k, z)).sum(),
+                        (y + 1..res).map(|k| at(x, k, z)).sum(),
+                        (0..z).map(|k| at(x, y, k)).sum(),
+                        (z + 1..res).map(|k| at(x, y, k)).sum(),
+                    ];
+                    let want = sums.iter().copied().fold(f32::INFINITY, f32::min);
+                    let got = d[(z * res + y) * res + x];
+                    assert!((got - want).abs() < 1e-5, "({x},{y},{z}): {got} vs {want}");
+                }
+            }
+        }
+    }
+
+    /// A one-voxel "block" of density code `d` and colour `c`, fully visible.
+    fn cell(states: &[(u8, u8)]) -> CellSamples {
+        let mut alpha = [0.0f32; 256];
+        for (i, a) in alpha.iter_mut().enumerate() {
+            *a = i as f32 / 255.0;
+        }
+        CellSamples {
+            frames: (0..states.len()).collect(),
+            blocks: states.iter().map(|&(d, c)| vec![d, c, c, c, 0, 0, 0, 0]).collect(),
+            vis: states.iter().map(|_| vec![255]).collect(),
+            alpha,
+        }
+    }
+
+    #[test]
+    fn error_ignores_what_no_one_sees() {
+        let mut c = cell(&[(255, 10), (255, 200)]);
+        assert!(c.error(0, 1) > 0.1);
+        c.vis = vec![vec![0], vec![0]];
+        assert_eq!(c.error(0, 1), 0.0);
+        // transparent voxels' colour does not matter either
+        let c = cell(&[(0, 10), (0, 200)]);
+        assert_eq!(c.error(0, 1), 0.0);
+    }
+
+    #[test]
+    fn codebook_keeps_the_states_that_matter_within_budget() {
+        // a cell that never changes, and one that toggles between two states (A A B A B A)
+        let still = cell(&[(200, 50); 6]);
+        let toggling = cell(&[(255, 0), (255, 0), (255, 250), (255, 0), (255, 250), (255, 0)]);
+        // no budget: one block per cell, the toggling cell shows its majority state
+        let b = choose(&[cell(&[(200, 50); 6]), cell(&[(255, 0), (255, 0), (255, 250), (255, 0), (255, 250), (255, 0)])], 0, 0.0);
+        assert_eq!(b[0].stored.len(), 1);
+        assert_eq!(b[1].stored.len(), 1);
+        assert!(b[1].error > 0.0);
+        assert_eq!(b[1].assign.iter().map(|&j| toggling.blocks[j][1]).collect::<Vec<_>>(), vec![0; 6]);
+        // budget of several blocks: only the toggling cell takes one, and then is exact
+        let b = choose(&[still, toggling], 5, 1e-6);
+        assert_eq!(b[0].stored.len(), 1);
+        assert_eq!(b[1].stored.len(), 2);
+        assert_eq!(b[1].error, 0.0);
+        let shown: Vec<u8> = b[1].assign.iter().map(|&j| [0u8, 0, 250, 0, 250, 0][j]).collect();
+        assert_eq!(shown, vec![0, 0, 250, 0, 250, 0]);
+    }
+}
