@@ -175,7 +175,7 @@ fn codebook_4d_asset_matches_cpu_at_two_times() {
     let cs = cams(&a.header, 3, W, H);
     for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
         check(&format!("codebook 4D t={} cam {}", t, i), &a, &mut r, &cs[i], t);
-        let at = |t: f32| r.render(&cs[i], t).unwrap();
+        let mut at = |t: f32| r.render(&cs[i], t).unwrap();
         let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
         assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} is not a blend");
     }
