@@ -218,7 +218,8 @@ pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codeboo
     let mut added = 0;
     while added < extra {
         let Some(Gain(g, i)) = heap.pop() else { break };
-        if !(g >= min_gain) || g <= 0.0 {
+        // (a NaN gain stops too)
+        if g.is_nan() || g < min_gain || g <= 0.0 {
             break;
         }
         // the gain may be stale only if the cell changed since, which it did not (each cell
