@@ -190,7 +190,7 @@ fn bake_one(
             summary.size_vs_static_frame,
             summary.static_frame_bytes as f64 / 1e6,
             summary.cells_changing,
-            summary.occupied_cells.iter().max().unwrap_or(&0),
+            summary.cells_occupied_any_frame,
             report.extra_blocks
         );
     }
@@ -242,8 +242,8 @@ pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
         );
         if let (Some(secs), Some(r)) = (sum.animation_seconds, &sum.bytes_per_second) {
             eprintln!(
-                "animation {:.3} s: {:.0} bytes/s (header {:.0}, mlp {:.0}, grids {:.0}, blocks {:.0}); {} cells change over time",
-                secs, r.total, r.header, r.mlp, r.grids, r.blocks, sum.cells_changing
+                "animation {:.3} s: {:.0} bytes/s (header {:.0}, mlp {:.0}, grids {:.0}, blocks {:.0}); {} of {} cells change over time",
+                secs, r.total, r.header, r.mlp, r.grids, r.blocks, sum.cells_changing, sum.cells_occupied_any_frame
             );
         }
         eprintln!("{}", serde_json::to_string_pretty(&s)?);

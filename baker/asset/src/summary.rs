@@ -43,8 +43,10 @@ pub struct Summary {
     pub static_frame_bytes: u64,
     /// `bytes.total / static_frame_bytes`.
     pub size_vs_static_frame: f64,
-    /// Dynamic assets: cells whose frames point at more than one block (the moving part).
+    /// Dynamic assets: cells whose frames point at more than one block (the moving part),
+    /// of the cells occupied in any frame.
     pub cells_changing: u64,
+    pub cells_occupied_any_frame: u64,
     /// Dynamic assets with a time range of positive length: its length (the asset's time
     /// unit, seconds for captures) and each part's bytes per unit of it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -99,14 +101,12 @@ impl Asset {
         let blocks_bytes = present_blocks * block_chunk;
         let mean_occupied = occupied.iter().sum::<u64>() as f64 / occupied.len().max(1) as f64;
         let static_frame_bytes = head + mlp + grid_chunk + (mean_occupied * block_chunk as f64).round() as u64;
-        let mut cells_changing = 0u64;
-        if self.grids.len() > 1 {
-            for c in 0..cells as usize {
-                let first = self.grids[0].get(c).copied().unwrap_or(EMPTY);
-                if self.grids.iter().any(|g| g.get(c).copied().unwrap_or(EMPTY) != first) {
-                    cells_changing += 1;
-                }
-            }
+        let (mut cells_changing, mut cells_occupied_any_frame) = (0u64, 0u64);
+        for c in 0..cells as usize {
+            let at = |g: &Vec<u32>| g.get(c).copied().unwrap_or(EMPTY);
+            let first = self.grids.first().map_or(EMPTY, at);
+            cells_changing += self.grids.iter().any(|g| at(g) != first) as u64;
+            cells_occupied_any_frame += self.grids.iter().any(|g| at(g) != EMPTY) as u64;
         }
         let animation_seconds = h.time_range.map(|r| (r[1] - r[0]) as f64).filter(|&s| s > 0.0);
         let bytes_per_second = animation_seconds.map(|s| PartRates {
@@ -131,6 +131,7 @@ impl Asset {
             static_frame_bytes,
             size_vs_static_frame: file_bytes as f64 / static_frame_bytes.max(1) as f64,
             cells_changing,
+            cells_occupied_any_frame,
             animation_seconds,
             bytes_per_second,
         }
