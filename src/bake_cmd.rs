@@ -194,6 +194,14 @@ fn bake_one(
             report.extra_blocks
         );
     }
+    if asset.is_dynamic() && summary.size_vs_static_frame > a.time_budget as f64 * 1.005 {
+        eprintln!(
+            "note: over --time-budget {}: one block for each of the {} cells occupied at some time, plus {} grids, already costs this much",
+            a.time_budget,
+            summary.cells_occupied_any_frame,
+            asset.num_frames()
+        );
+    }
     if let Some(f) = &faith {
         let times: Vec<String> = f.views.iter().filter_map(|v| v.time).map(|t| format!("{t:.3}")).collect();
         if !times.is_empty() {

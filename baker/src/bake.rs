@@ -34,6 +34,10 @@ use snerf_trainer::train::Model;
 
 use crate::temporal::{self, CellSamples};
 
+/// Largest grid per axis the time codebook's visibility is computed on (finer bakes pool
+/// voxels into it, so its memory stays under 2 × 64 MiB).
+const VISIBILITY_RES: usize = 256;
+
 /// Sentinel of an empty indirection cell (the asset format's).
 const EMPTY: u32 = u32::MAX;
 
@@ -320,8 +324,12 @@ pub fn bake(
 fn visibility(cells: &[usize], kept: &[Option<Vec<u8>>], samples: &[CellSamples], res: usize, b: usize) -> Vec<Vec<u8>> {
     let g = res / b;
     let bb = b + 2;
-    // optical depth over one step of every voxel (interior voxels of kept blocks)
-    let mut s = vec![0.0f32; res * res * res];
+    // Optical depth over one step of every voxel (interior voxels of kept blocks), on a grid
+    // of at most VISIBILITY_RES³: k³ voxels pool into one cell holding their mean times k
+    // (the depth a ray crossing the cell meets).
+    let k = res.div_ceil(VISIBILITY_RES);
+    let vr = res.div_ceil(k);
+    let mut s = vec![0.0f32; vr * vr * vr];
     for (i, blk) in kept.iter().enumerate() {
         let Some(bytes) = blk else { continue };
         let c = cells[i];
@@ -331,12 +339,12 @@ fn visibility(cells: &[usize], kept: &[Option<Vec<u8>>], samples: &[CellSamples]
                 for x in 1..=b {
                     let a = samples[i].alpha[bytes[((z * bb + y) * bb + x) * 8] as usize];
                     let (gx, gy, gz) = (cx * b + x - 1, cy * b + y - 1, cz * b + z - 1);
-                    s[(gz * res + gy) * res + gx] = -(1.0 - a).max(1e-30).ln();
+                    s[((gz / k) * vr + gy / k) * vr + gx / k] += -(1.0 - a).max(1e-30).ln() / (k * k) as f32;
                 }
             }
         }
     }
-    let front = temporal::optical_depth_in_front(&s, res);
+    let front = temporal::optical_depth_in_front(&s, vr);
     kept.par_iter()
         .enumerate()
         .map(|(i, blk)| {
@@ -350,7 +358,7 @@ fn visibility(cells: &[usize], kept: &[Option<Vec<u8>>], samples: &[CellSamples]
             for z in 0..bb {
                 for y in 0..bb {
                     for x in 0..bb {
-                        let d = front[(at(z, 2) * res + at(y, 1)) * res + at(x, 0)];
+                        let d = front[((at(z, 2) / k) * vr + at(y, 1) / k) * vr + at(x, 0) / k];
                         v.push((255.0 * (-d).exp()).round() as u8);
                     }
                 }
