@@ -34,16 +34,20 @@ pub struct BakeArgs {
     /// Voxels per block edge (blocks are the unit of storage and streaming).
     #[arg(long, default_value_t = BakeOptions::default().block, value_parser = crate::args::int_in::<u32>(4, 64, ""))]
     pub block: u32,
-    /// Keyframes of a dynamic scene, evenly spaced over its time range.
+    /// Time samples (keyframes) of a dynamic scene, evenly spaced over its time range.
     #[arg(long, default_value_t = BakeOptions::default().keyframes, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub keyframes: usize,
     /// Keep a block when some voxel reaches this opacity over one march step.
     #[arg(long, default_value_t = BakeOptions::default().min_alpha, value_parser = crate::args::unit_f32)]
     pub min_alpha: f32,
-    /// Dynamic scenes: share a block with the previous keyframe when no voxel's opacity (and
-    /// no seen colour) moved by more than this.
+    /// Dynamic scenes: a cell stores another of its sampled blocks only while that removes
+    /// more than this visible RMS difference per voxel (opacity, seen colour).
     #[arg(long, default_value_t = BakeOptions::default().reuse_tolerance, value_parser = crate::args::unit_f32)]
     pub reuse_tolerance: f32,
+    /// Dynamic scenes: largest asset size as a multiple of one static frame of the scene;
+    /// the cells that change most over time get the blocks.
+    #[arg(long, default_value_t = BakeOptions::default().time_budget, value_parser = crate::args::positive_f32)]
+    pub time_budget: f32,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
@@ -148,6 +152,7 @@ fn bake_one(
         min_alpha: a.min_alpha,
         visibility_views: a.visibility_views,
         reuse_tolerance: a.reuse_tolerance,
+        time_budget: a.time_budget,
         up: a.up,
     };
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
@@ -178,7 +183,30 @@ fn bake_one(
         bake_seconds,
         peak_rss_mb().unwrap_or(f64::NAN)
     );
+    if asset.is_dynamic() {
+        eprintln!(
+            "4D: {} time samples, {:.2}x one static frame ({:.2} MB), {} of {} cells change, {} blocks beyond one per cell",
+            asset.num_frames(),
+            summary.size_vs_static_frame,
+            summary.static_frame_bytes as f64 / 1e6,
+            summary.cells_changing,
+            summary.cells_occupied_any_frame,
+            report.extra_blocks
+        );
+    }
+    if asset.is_dynamic() && summary.size_vs_static_frame > a.time_budget as f64 * 1.005 {
+        eprintln!(
+            "note: over --time-budget {}: one block for each of the {} cells occupied at some time, plus {} grids, already costs this much",
+            a.time_budget,
+            summary.cells_occupied_any_frame,
+            asset.num_frames()
+        );
+    }
     if let Some(f) = &faith {
+        let times: Vec<String> = f.views.iter().filter_map(|v| v.time).map(|t| format!("{t:.3}")).collect();
+        if !times.is_empty() {
+            eprintln!("faithfulness at the held-out views' own times: {}", times.join(", "));
+        }
         eprintln!(
             "faithfulness on {} views: baked vs field {:.2} dB; test PSNR field {:.2} dB, baked {:.2} dB (drop {:.2} dB)",
             f.views.len(),
@@ -209,8 +237,23 @@ pub struct InspectArgs {
 pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
     let asset = Asset::read(&a.file)?;
     let bytes = std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0);
-    let s = serde_json::to_value(asset.summary(bytes))?;
+    let sum = asset.summary(bytes);
+    let s = serde_json::to_value(&sum)?;
     if !quiet {
+        eprintln!(
+            "{}: {:.2} MB, {:.2}x one static frame ({:.2} MB), {} frame(s)",
+            a.file.display(),
+            bytes as f64 / 1e6,
+            sum.size_vs_static_frame,
+            sum.static_frame_bytes as f64 / 1e6,
+            sum.frames
+        );
+        if let (Some(secs), Some(r)) = (sum.animation_seconds, &sum.bytes_per_second) {
+            eprintln!(
+                "animation {:.3} s: {:.0} bytes/s (header {:.0}, mlp {:.0}, grids {:.0}, blocks {:.0}); {} of {} cells change over time",
+                secs, r.total, r.header, r.mlp, r.grids, r.blocks, sum.cells_changing, sum.cells_occupied_any_frame
+            );
+        }
         eprintln!("{}", serde_json::to_string_pretty(&s)?);
     }
     Ok(json!({ "command": "inspect", "file": pj(&a.file), "summary": s }))

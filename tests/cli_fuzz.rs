@@ -79,6 +79,7 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
                 ("--keyframes", vec!["1", "0"]),
                 ("--min-alpha", vec!["0", "0.5", "1", "1.5"]),
                 ("--reuse-tolerance", vec!["0", "0.03"]),
+                ("--time-budget", vec!["1.8", "0", "1e9", "nan"]),
                 ("--visibility-views", vec!["0", "2"]),
                 ("--eval-views", vec!["0", "1"]),
             ],

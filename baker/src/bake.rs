@@ -10,8 +10,9 @@
 //!    training views. Blocks buried inside objects are dropped.
 //! 4. Quantize to 8 bits (density as a logit over a range fitted to the march step).
 //!
-//! Dynamic scenes: one keyframe grid per time; a block that did not change (within a small
-//! code tolerance) since the previous keyframe is shared instead of stored again.
+//! Dynamic scenes: one indirection grid per time sample; each cell stores a small codebook
+//! of its sampled blocks and every sample points at the closest stored one (`temporal`),
+//! within a size budget relative to one static frame.
 
 use std::time::Instant;
 
@@ -20,6 +21,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 use snerf_asset::header::{DensityRange, Header, Keyframe, March, Orbit};
 use snerf_asset::mlp::ViewMlp;
+use snerf_asset::chunk::CHUNK_HEADER_LEN;
+use snerf_asset::mlp::MLP_FLOATS;
 use snerf_asset::quantize::{decode_voxel, encode_voxel};
 use snerf_asset::Asset;
 use snerf_data::{SceneKind, View};
@@ -28,6 +31,12 @@ use snerf_geometry::unbounded_dt;
 use snerf_trainer::render::{values_batch, WorkspacePool};
 use snerf_trainer::space::{dot, norm, sub, Vec3};
 use snerf_trainer::train::Model;
+
+use crate::temporal::{self, CellSamples};
+
+/// Largest grid per axis the time codebook's visibility is computed on (finer bakes pool
+/// voxels into it, so its memory stays under 2 × 64 MiB).
+const VISIBILITY_RES: usize = 256;
 
 /// Sentinel of an empty indirection cell (the asset format's).
 const EMPTY: u32 = u32::MAX;
@@ -39,23 +48,26 @@ pub struct BakeOptions {
     pub res: u32,
     /// Voxels per block edge (without the apron).
     pub block: u32,
-    /// Keyframes for dynamic scenes (ignored for static ones).
+    /// Time samples (keyframes) for dynamic scenes (ignored for static ones).
     pub keyframes: usize,
     /// A block is kept when some voxel's opacity over one march step reaches this.
     pub min_alpha: f32,
     /// Training views used for the visibility test (0: skip the test).
     pub visibility_views: usize,
-    /// Dynamic scenes: a block is shared with the previous keyframe when no voxel's opacity
-    /// over one step moved by more than this, and no colour or feature moved by more than
-    /// this times the voxel's opacity (colour where nothing is opaque is never seen).
+    /// Dynamic scenes: a cell stores another of its sampled blocks only while that removes
+    /// more than this visible RMS difference per voxel of one block (opacity over one step,
+    /// and colour/features weighted by opacity and visibility; `temporal`).
     pub reuse_tolerance: f32,
+    /// Dynamic scenes: the asset may be at most this many times one static frame (its mean
+    /// blocks per sample plus one grid) in size; the cells that change most get the blocks.
+    pub time_budget: f32,
     /// The scene's world up direction, overriding the one the training cameras imply.
     pub up: Option<[f32; 3]>,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 12, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.03, up: None }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None }
     }
 }
 
@@ -70,8 +82,17 @@ pub struct BakeReport {
     pub dropped_transparent: usize,
     /// Candidates no training camera can see.
     pub dropped_invisible: usize,
-    /// Cells that reuse the previous keyframe's block.
+    /// (cell, sample) entries served by a block sampled at another time.
     pub shared_blocks: usize,
+    /// Blocks each sample keeps (what a static bake at that time would store).
+    pub frame_blocks: Vec<usize>,
+    /// Estimated size of one static frame: mean kept blocks, one grid, header and MLP.
+    pub static_frame_bytes: u64,
+    /// Blocks stored beyond one per cell (dynamic scenes).
+    pub extra_blocks: usize,
+    /// What the codebook leaves unexplained (sum of `temporal` errors over cells and samples).
+    pub codebook_error: f64,
+    pub seconds_codebook: f64,
     pub atlas_blocks: usize,
     pub density_range: [f32; 2],
     pub seconds_visibility: f64,
@@ -120,9 +141,22 @@ pub fn bake(
 
     let bb = (b + 2) as usize;
     let block_voxels = bb * bb * bb;
-    let mut atlas: Vec<u8> = Vec::new();
-    let mut grids: Vec<Vec<u32>> = Vec::with_capacity(frames);
     let cells: Vec<usize> = (0..g * g * g).filter(|&c| candidates[c]).collect();
+    // Per candidate cell: the block the field holds at every sample that keeps one, with its
+    // voxels' visibility (dynamic scenes only).
+    let mut samples: Vec<CellSamples> = cells
+        .iter()
+        .map(|&c| {
+            let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+            let centre = [cx, cy, cz].map(|k| -1.0 + (k as f32 + 0.5) * 2.0 / g as f32);
+            let delta = march_delta(space.kind, step, &centre, space);
+            let alpha = std::array::from_fn(|code| {
+                let logit = decode_voxel(&[code as u8, 0, 0, 0, 0, 0, 0, 0], &range)[0];
+                -(-(logit.exp() * delta).min(80.0)).exp_m1()
+            });
+            CellSamples { frames: Vec::new(), blocks: Vec::new(), vis: Vec::new(), alpha }
+        })
+        .collect();
     let t0 = Instant::now();
     for (f, &tau) in field_times.iter().enumerate() {
         report.candidate_blocks += cells.len();
@@ -183,33 +217,77 @@ pub fn bake(
                 r
             })
             .collect();
-        let mut grid = vec![EMPTY; g * g * g];
-        let prev = grids.last();
-        for (&c, blk) in cells.iter().zip(blocks) {
-            match blk {
-                Evaluated::Transparent => report.dropped_transparent += 1,
-                Evaluated::Hidden => report.dropped_invisible += 1,
-                Evaluated::Kept(bytes) => {
-                    // share with the previous keyframe when nothing moved visibly
-                    if let Some(p) = prev.map(|p| p[c]).filter(|&p| p != EMPTY) {
-                        let old = &atlas[p as usize * bytes.len()..(p as usize + 1) * bytes.len()];
-                        let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
-                        let centre = [cx, cy, cz].map(|k| -1.0 + (k as f32 + 0.5) * 2.0 / g as f32);
-                        let delta = march_delta(space.kind, step, &centre, space);
-                        if visibly_same(old, &bytes, &range, delta, opts.reuse_tolerance) {
-                            grid[c] = p;
-                            report.shared_blocks += 1;
-                            continue;
-                        }
-                    }
-                    grid[c] = (atlas.len() / bytes.len()) as u32;
-                    atlas.extend_from_slice(&bytes);
+        let kept: Vec<Option<Vec<u8>>> = blocks
+            .into_iter()
+            .map(|blk| match blk {
+                Evaluated::Transparent => {
+                    report.dropped_transparent += 1;
+                    None
                 }
+                Evaluated::Hidden => {
+                    report.dropped_invisible += 1;
+                    None
+                }
+                Evaluated::Kept(bytes) => Some(bytes),
+            })
+            .collect();
+        report.frame_blocks.push(kept.iter().filter(|k| k.is_some()).count());
+        let vis = if dynamic { visibility(&cells, &kept, &samples, res as usize, b as usize) } else { Vec::new() };
+        for (i, blk) in kept.into_iter().enumerate() {
+            if let Some(bytes) = blk {
+                samples[i].frames.push(f);
+                samples[i].blocks.push(bytes);
+                samples[i].vis.push(vis.get(i).cloned().unwrap_or_default());
             }
         }
-        grids.push(grid);
     }
     report.seconds_evaluate = t0.elapsed().as_secs_f64();
+
+    // One static frame: the mean blocks a sample keeps, one grid, header and MLP.
+    let block_chunk = (CHUNK_HEADER_LEN + 8 + block_voxels * 8) as f64;
+    let grid_chunk = (CHUNK_HEADER_LEN + 4 + 4 * g * g * g) as f64;
+    let fixed = 4096.0 + (CHUNK_HEADER_LEN + 4 * MLP_FLOATS) as f64;
+    let mean_blocks = report.frame_blocks.iter().sum::<usize>() as f64 / frames as f64;
+    report.static_frame_bytes = (fixed + grid_chunk + mean_blocks * block_chunk) as u64;
+    let with_time = samples.iter().filter(|s| !s.frames.is_empty()).count();
+    let t0 = Instant::now();
+    progress("time codebook", 0, 1);
+    let extra = if frames > 1 {
+        let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - frames as f64 * grid_chunk;
+        ((budget / block_chunk).floor() - with_time as f64).max(0.0) as usize
+    } else {
+        0
+    };
+    let min_gain = opts.reuse_tolerance * opts.reuse_tolerance * block_voxels as f32;
+    let books = temporal::choose(&samples, extra, min_gain);
+    report.seconds_codebook = t0.elapsed().as_secs_f64();
+
+    // Atlas: every cell's first block (its medoid over time) in cell order, then the extra
+    // ones in the order they were chosen per cell: a client streaming the file in order has
+    // the whole scene at its most typical state first.
+    let mut atlas: Vec<u8> = Vec::new();
+    let mut grids: Vec<Vec<u32>> = vec![vec![EMPTY; g * g * g]; frames];
+    let mut index: Vec<Vec<u32>> = books.iter().map(|bk| vec![EMPTY; bk.assign.len()]).collect();
+    for pass in 0..2 {
+        for (i, bk) in books.iter().enumerate() {
+            let stored = if pass == 0 { &bk.stored[..bk.stored.len().min(1)] } else { bk.stored.get(1..).unwrap_or(&[]) };
+            for &j in stored {
+                index[i][j] = (atlas.len() / (block_voxels * 8)) as u32;
+                atlas.extend_from_slice(&samples[i].blocks[j]);
+            }
+        }
+    }
+    for (i, bk) in books.iter().enumerate() {
+        for (k, &j) in bk.assign.iter().enumerate() {
+            grids[samples[i].frames[k]][cells[i]] = index[i][j];
+            if j != k {
+                report.shared_blocks += 1;
+            }
+        }
+        report.codebook_error += bk.error as f64;
+    }
+    report.extra_blocks = books.iter().map(|bk| bk.stored.len().saturating_sub(1)).sum();
+    drop(samples);
     let atlas_blocks = atlas.len() / (block_voxels * 8);
     if atlas_blocks == 0 {
         bail!("nothing to bake: no block of the field is both opaque (alpha >= {}) and visible", opts.min_alpha);
@@ -240,18 +318,54 @@ pub fn bake(
     Ok((asset, report))
 }
 
-/// Whether two quantized blocks look the same: opacity over one step `delta` within `tol`
-/// everywhere, colours and features within `tol` wherever they are seen.
-fn visibly_same(a: &[u8], b: &[u8], range: &DensityRange, delta: f32, tol: f32) -> bool {
-    a.chunks_exact(8).zip(b.chunks_exact(8)).all(|(va, vb)| {
-        let va: &[u8; 8] = va.try_into().expect("8 channels");
-        let vb: &[u8; 8] = vb.try_into().expect("8 channels");
-        let (da, db) = (decode_voxel(va, range), decode_voxel(vb, range));
-        let alpha = |logit: f32| 1.0 - (-logit.exp() * delta).exp();
-        let (aa, ab) = (alpha(da[0]), alpha(db[0]));
-        let seen = aa.max(ab);
-        (aa - ab).abs() <= tol && (1..8).all(|c| (da[c] - db[c]).abs() * seen <= tol)
-    })
+/// Visibility (0..=255) of every voxel of every kept block of one sample: the light from
+/// outside the grid that reaches the voxel along the best axis direction, through this
+/// sample's kept blocks (`temporal::optical_depth_in_front`).
+fn visibility(cells: &[usize], kept: &[Option<Vec<u8>>], samples: &[CellSamples], res: usize, b: usize) -> Vec<Vec<u8>> {
+    let g = res / b;
+    let bb = b + 2;
+    // Optical depth over one step of every voxel (interior voxels of kept blocks), on a grid
+    // of at most VISIBILITY_RES³: k³ voxels pool into one cell holding their mean times k
+    // (the depth a ray crossing the cell meets).
+    let k = res.div_ceil(VISIBILITY_RES);
+    let vr = res.div_ceil(k);
+    let mut s = vec![0.0f32; vr * vr * vr];
+    for (i, blk) in kept.iter().enumerate() {
+        let Some(bytes) = blk else { continue };
+        let c = cells[i];
+        let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+        for z in 1..=b {
+            for y in 1..=b {
+                for x in 1..=b {
+                    let a = samples[i].alpha[bytes[((z * bb + y) * bb + x) * 8] as usize];
+                    let (gx, gy, gz) = (cx * b + x - 1, cy * b + y - 1, cz * b + z - 1);
+                    s[((gz / k) * vr + gy / k) * vr + gx / k] += -(1.0 - a).max(1e-30).ln() / (k * k) as f32;
+                }
+            }
+        }
+    }
+    let front = temporal::optical_depth_in_front(&s, vr);
+    kept.par_iter()
+        .enumerate()
+        .map(|(i, blk)| {
+            if blk.is_none() {
+                return Vec::new();
+            }
+            let c = cells[i];
+            let base = [c % g, (c / g) % g, c / (g * g)].map(|k| (k * b) as isize - 1);
+            let at = |k: usize, a: usize| (base[a] + k as isize).clamp(0, res as isize - 1) as usize;
+            let mut v = Vec::with_capacity(bb * bb * bb);
+            for z in 0..bb {
+                for y in 0..bb {
+                    for x in 0..bb {
+                        let d = front[((at(z, 2) / k) * vr + at(y, 1) / k) * vr + at(x, 0) / k];
+                        v.push((255.0 * (-d).exp()).round() as u8);
+                    }
+                }
+            }
+            v
+        })
+        .collect()
 }
 
 /// What became of one candidate block.

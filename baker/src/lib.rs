@@ -2,7 +2,8 @@
 //!
 //! Data flow: trainer checkpoint -> `bake`: candidate blocks from the occupancy grid ->
 //! dense evaluation of each block (+ apron) -> drop transparent and never-seen blocks ->
-//! 8-bit quantization -> `snerf_asset::Asset` (written by the asset crate). `faithfulness`
+//! 8-bit quantization -> (dynamic scenes: `temporal` picks each cell's codebook of sampled
+//! blocks within a size budget) -> `snerf_asset::Asset` (written by the asset crate). `faithfulness`
 //! scores the baked asset against the field it came from. `marching_cubes` + `gltf_export`
 //! turn the baked density and colour into a mesh for engines.
 
@@ -15,3 +16,4 @@ pub mod faithfulness;
 pub mod gltf_export;
 pub mod marching_cubes;
 pub mod mesh_export;
+pub mod temporal;

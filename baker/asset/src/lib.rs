@@ -41,4 +41,4 @@ pub use mlp::ViewMlp;
 pub use quantize::{decode_density, encode_density, encode_voxel, quantize_unit};
 pub use render::{contact_strip, orbit, render, render_pixel, render_ray, write_png, Camera, Frame, PixelResult};
 pub use sample::{Loc, TimeSlot};
-pub use summary::{PartBytes, Summary};
+pub use summary::{PartBytes, PartRates, Summary};

@@ -1,5 +1,6 @@
 //! What `snerf inspect` prints: sizes and occupancy, including what each extra keyframe of
-//! a dynamic asset costs (the point of sharing unchanged blocks between frames).
+//! a dynamic asset costs (the point of sharing blocks between frames), its size against one
+//! static frame of the same scene, and its bytes per second of animation, per part.
 
 use serde::{Deserialize, Serialize};
 
@@ -37,6 +38,31 @@ pub struct Summary {
     pub keyframe_bytes: Vec<u64>,
     /// Blocks no frame points at (wasted space; a good baker has none).
     pub unreferenced_blocks: u64,
+    /// One static frame of this scene: preamble, HEAD, VMLP, one grid, and one block per
+    /// occupied cell of the average frame (what storing a single time would cost).
+    pub static_frame_bytes: u64,
+    /// `bytes.total / static_frame_bytes`.
+    pub size_vs_static_frame: f64,
+    /// Dynamic assets: cells whose frames point at more than one block (the moving part),
+    /// of the cells occupied in any frame.
+    pub cells_changing: u64,
+    pub cells_occupied_any_frame: u64,
+    /// Dynamic assets with a time range of positive length: its length (the asset's time
+    /// unit, seconds for captures) and each part's bytes per unit of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation_seconds: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bytes_per_second: Option<PartRates>,
+}
+
+/// Bytes per second of animation of each part of a dynamic asset.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PartRates {
+    pub header: f64,
+    pub mlp: f64,
+    pub grids: f64,
+    pub blocks: f64,
+    pub total: f64,
 }
 
 impl Asset {
@@ -69,6 +95,27 @@ impl Asset {
             per_frame.push(if grid.is_empty() { 0 } else { grid_chunk } + new_blocks * block_chunk);
         }
         let present_blocks = self.present.iter().filter(|&&p| p).count() as u64;
+        let head = PREAMBLE_LEN as u64 + CHUNK_HEADER_LEN as u64 + head_len;
+        let mlp = CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64;
+        let grids_bytes = self.grids.iter().filter(|g| !g.is_empty()).count() as u64 * grid_chunk;
+        let blocks_bytes = present_blocks * block_chunk;
+        let mean_occupied = occupied.iter().sum::<u64>() as f64 / occupied.len().max(1) as f64;
+        let static_frame_bytes = head + mlp + grid_chunk + (mean_occupied * block_chunk as f64).round() as u64;
+        let (mut cells_changing, mut cells_occupied_any_frame) = (0u64, 0u64);
+        for c in 0..cells as usize {
+            let at = |g: &Vec<u32>| g.get(c).copied().unwrap_or(EMPTY);
+            let first = self.grids.first().map_or(EMPTY, at);
+            cells_changing += self.grids.iter().any(|g| at(g) != first) as u64;
+            cells_occupied_any_frame += self.grids.iter().any(|g| at(g) != EMPTY) as u64;
+        }
+        let animation_seconds = h.time_range.map(|r| (r[1] - r[0]) as f64).filter(|&s| s > 0.0);
+        let bytes_per_second = animation_seconds.map(|s| PartRates {
+            header: head as f64 / s,
+            mlp: mlp as f64 / s,
+            grids: grids_bytes as f64 / s,
+            blocks: blocks_bytes as f64 / s,
+            total: file_bytes as f64 / s,
+        });
         Summary {
             kind: h.kind,
             res: h.res,
@@ -77,16 +124,16 @@ impl Asset {
             atlas_blocks: h.atlas_blocks,
             occupied_fraction: occupied.iter().map(|&o| o as f64 / cells.max(1) as f64).collect(),
             occupied_cells: occupied,
-            bytes: PartBytes {
-                header: PREAMBLE_LEN as u64 + CHUNK_HEADER_LEN as u64 + head_len,
-                mlp: CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64,
-                grids: self.grids.iter().filter(|g| !g.is_empty()).count() as u64 * grid_chunk,
-                blocks: present_blocks * block_chunk,
-                total: file_bytes,
-            },
+            bytes: PartBytes { header: head, mlp, grids: grids_bytes, blocks: blocks_bytes, total: file_bytes },
             frame0_bytes: per_frame.first().copied().unwrap_or(0),
             keyframe_bytes: per_frame.iter().skip(1).copied().collect(),
             unreferenced_blocks: seen.iter().filter(|&&s| !s).count() as u64,
+            static_frame_bytes,
+            size_vs_static_frame: file_bytes as f64 / static_frame_bytes.max(1) as f64,
+            cells_changing,
+            cells_occupied_any_frame,
+            animation_seconds,
+            bytes_per_second,
         }
     }
 }

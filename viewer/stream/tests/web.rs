@@ -307,9 +307,14 @@ fn a_4d_asset_at_two_times_an_unbounded_and_a_forward_scene_render_like_the_cpu_
     assert!(a.rgb.iter().zip(&c.rgb).any(|(x, y)| (x - y).abs() > 0.05), "the two times look the same");
     check_render(&b, &h, &moving, "moving", 0.5);
     check_render(&b, &h, &moving, "moving", 1.75);
+    // As the baker's time codebook writes them: frame 3's cells point at frame 1's blocks.
+    let mut cyc = dynamic_asset(16, 8, 0.9, 4, 33);
+    cyc.grids[3] = cyc.grids[1].clone();
+    let cycle = Asset::from_bytes(&write_asset(&cyc, dir.path(), "cycle")).unwrap();
+    check_render(&b, &h, &cycle, "cycle", 2.5);
     let r = check_render(&b, &h, &outdoor, "outdoor", 0.0);
     let kinds: Vec<&str> = r["listing"].as_array().unwrap().iter().map(|e| e["kind"].as_str().unwrap()).collect();
-    assert_eq!(kinds, ["forward", "object", "unbounded"]);
+    assert_eq!(kinds, ["object", "forward", "object", "unbounded"]);
     check_render(&b, &h, &front, "front", 0.0);
     h.shutdown();
 }
