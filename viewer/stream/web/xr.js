@@ -111,6 +111,13 @@ export async function enterXR(api, report) {
   const layer = new XRWebGLLayer(session, gl, { antialias: false, depth: false, alpha: false });
   session.updateRenderState({ baseLayer: layer });
   if ('fixedFoveation' in layer) layer.fixedFoveation = 0.5;
+  // The display's highest refresh rate up to 90 Hz (120 where that is all it offers): the
+  // render scale then adapts to hold it.
+  const rates = session.supportedFrameRates ? Array.from(session.supportedFrameRates) : [];
+  if (rates.length && session.updateTargetFrameRate) {
+    const want = rates.filter((r) => r <= 90).sort((a, b) => b - a)[0] ?? Math.min(...rates);
+    await session.updateTargetFrameRate(want).catch(() => {});
+  }
   const ref = await session.requestReferenceSpace('local-floor');
   const place = placement(api.header(), api.orbit());
   const rig = { p: [0, 0, 0], yaw: 0 };
