@@ -26,7 +26,7 @@ try {
     page.on('pageerror', (e) => console.error('page error:', e.message));
     await page.goto(flatUrl);
     await page.waitForFunction(() => window.snerf && (window.snerf.state === 'done' || window.snerf.state === 'error'), null, { timeout: 600000, polling: 20 });
-    const r = await page.evaluate(() => { const s = window.snerf; return { state: s.state, error: s.error, adapter: s.adapter, firstFrameAt: s.firstFrameAt, firstFrameMs: s.firstFrameMs, firstFrame: s.firstFrame, connectedAt: s.connectedAt, completeAt: s.completeAt, completeMs: s.completeMs, bytes: s.bytes, sha256: s.sha256 }; });
+    const r = await page.evaluate(() => { const s = window.snerf; return { state: s.state, error: s.error, adapter: s.adapter, firstFrameAt: s.firstFrameAt, firstFrameMs: s.firstFrameMs, firstFrame: s.firstFrame, connectedAt: s.connectedAt, downloadedAt: s.downloadedAt, completeAt: s.completeAt, completeMs: s.completeMs, bytes: s.bytes, sha256: s.sha256, marks: s.marks, crcMs: s.crcMs }; });
     if (r.state !== 'done') throw new Error('page: ' + r.error);
     const times = await page.evaluate(([n, c]) => window.snerf.benchFrames(n, JSON.parse(c)), [frames, camJson]);
     out.flat = { ...r, frameMs: median(times), frameTimes: times };

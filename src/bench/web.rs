@@ -95,7 +95,8 @@ pub fn run(a: &BenchWebArgs) -> Result<Value> {
     let f = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
     let pf = &page["flat"];
     let size = std::fs::metadata(&a.asset)?.len() as f64;
-    let wt_mb_s = size / (1 << 20) as f64 / ((f(pf, "completeAt") - f(pf, "connectedAt")) / 1e3);
+    // From the session being ready to the last record read off a stream.
+    let wt_mb_s = size / (1 << 20) as f64 / ((f(pf, "downloadedAt") - f(pf, "connectedAt")) / 1e3);
     let native_mb_s = size / (1 << 20) as f64 / stream.quic_transfer.as_secs_f64();
     let web_frame = f(pf, "frameMs");
     let xr_frame = f(&page["xr"], "frameMsMedian");

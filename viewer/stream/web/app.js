@@ -20,7 +20,7 @@ const fixedCam = frag.get('cam') ? JSON.parse(frag.get('cam')) : null;
 const report = (window.snerf = {
   state: 'starting', error: null, listing: null, asset: null, sha256: null, bytes: 0,
   chunks: 0, blocks: 0, firstFrameMs: null, frames: 0, frame: null, firstFrame: null,
-  adapter: null,
+  adapter: null, marks: {}, crcMs: 0,
 });
 
 function setStatus(s) { $('status').textContent = s; }
@@ -36,18 +36,25 @@ const td = new TextDecoder();
 const u32 = (b, o) => (b[o] | (b[o + 1] << 8) | (b[o + 2] << 16) | (b[o + 3] << 24)) >>> 0;
 const hex = (b) => Array.from(b, (x) => x.toString(16).padStart(2, '0')).join('');
 const unhex = (s) => new Uint8Array(s.match(/../g).map((x) => parseInt(x, 16)));
+// CRC-32 (IEEE), slicing by 4: four table lookups per 4 bytes instead of one per byte.
 const CRC = (() => {
-  const t = new Uint32Array(256);
+  const t = new Uint32Array(1024);
   for (let n = 0; n < 256; n++) {
     let c = n;
     for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
     t[n] = c >>> 0;
   }
+  for (let n = 0; n < 256; n++) for (let k = 1; k < 4; k++) t[256 * k + n] = (t[256 * (k - 1) + n] >>> 8) ^ t[t[256 * (k - 1) + n] & 255];
   return t;
 })();
 function crc32(b) {
-  let c = 0xffffffff;
-  for (let i = 0; i < b.length; i++) c = CRC[(c ^ b[i]) & 255] ^ (c >>> 8);
+  let c = 0xffffffff, i = 0;
+  const n = b.length;
+  for (; i + 4 <= n; i += 4) {
+    c ^= b[i] | (b[i + 1] << 8) | (b[i + 2] << 16) | (b[i + 3] << 24);
+    c = CRC[768 + (c & 255)] ^ CRC[512 + ((c >>> 8) & 255)] ^ CRC[256 + ((c >>> 16) & 255)] ^ CRC[c >>> 24];
+  }
+  for (; i < n; i++) c = CRC[(c ^ b[i]) & 255] ^ (c >>> 8);
   return (c ^ 0xffffffff) >>> 0;
 }
 function frame(msg) {
@@ -446,6 +453,7 @@ async function stream(name, gpu) {
   }
   let { wt, ctl } = await connect(hello);
   report.connectedAt = performance.now();
+  report.marks.connected = report.connectedAt;
   const welcome = await readMsg(ctl);
   if (welcome.type !== 'welcome' || !welcome.asset) throw new Error('no asset in the welcome');
   const info = welcome.asset;
@@ -560,6 +568,7 @@ async function stream(name, gpu) {
     report.chunks++;
     if (report.chunks === info.chunks) finish();
     if (tag === 'HEAD') {
+      report.marks.header = performance.now();
       h = JSON.parse(td.decode(p));
       orbit = orbitOf(h);
       view.elevation = orbit.elevation;
@@ -568,7 +577,10 @@ async function stream(name, gpu) {
       const dyn = h.frames && h.frames.length > 1 ? 1 : 0;
       const res = await fetch(`/march.wgsl?kind=${kind}&dynamic=${dyn}&block=${h.block}`);
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
-      r = new Renderer(gpu.device, h, await res.text(), gpu.presentWgsl, gpu.wg);
+      const code = await res.text();
+      report.marks.shader = performance.now();
+      r = new Renderer(gpu.device, h, code, gpu.presentWgsl, gpu.wg);
+      report.marks.pipeline = performance.now();
       sendPose();
       offerXR();
       if (dyn) {
@@ -608,13 +620,17 @@ async function stream(name, gpu) {
       if (index >= info.chunks || len > info.size) throw new Error(`bad record for chunk ${index}`);
       const payload = len ? await rd.take(len) : new Uint8Array(0);
       if (!payload && len) throw new Error('stream ended inside a record');
-      if (crc32(payload) !== crc) throw new Error(`chunk ${index}: checksum mismatch`);
+      const tc = performance.now();
+      const bad = crc32(payload) !== crc;
+      report.crcMs += performance.now() - tc;
+      if (bad) throw new Error(`chunk ${index}: checksum mismatch`);
       const ck = new Uint8Array(12 + len);
       ck.set(head.subarray(4)); ck.set(payload, 12);
       report.bytes += 16 + len;
       if (got[index]) continue;
       got[index] = 1;
       received++;
+      if (received === info.chunks) report.downloadedAt = performance.now();
       queue = queue.then(() => onChunk(index, ck)).catch(abort);
     }
   }
@@ -802,8 +818,10 @@ async function main() {
   const want = frag.get('asset');
   const adapter = await navigator.gpu.requestAdapter();
   if (!adapter) throw new Error('no WebGPU adapter');
+  report.marks.adapter = performance.now();
   report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
   const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
+  report.marks.device = performance.now();
   device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
   if (!want) {
     const assets = await listing;
