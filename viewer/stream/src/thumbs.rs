@@ -17,9 +17,12 @@ pub const THUMB_H: u32 = 48;
 /// Files larger than this get no thumbnail (reading one would hold up the listing).
 const MAX_FILE: u64 = 512 << 20;
 
+/// A file's size and modification time: a cached thumbnail is redrawn when either changes.
+type Stamp = (u64, Option<SystemTime>);
+
 #[derive(Default)]
 pub struct Thumbs {
-    cache: Mutex<HashMap<PathBuf, (u64, Option<SystemTime>, Option<Thumb>)>>,
+    cache: Mutex<HashMap<PathBuf, (Stamp, Option<Thumb>)>>,
 }
 
 impl Thumbs {
@@ -27,14 +30,14 @@ impl Thumbs {
     /// async workers). None for an unreadable or oversized file.
     pub fn get(&self, path: &Path) -> Option<Thumb> {
         let meta = std::fs::metadata(path).ok()?;
-        let key = (meta.len(), meta.modified().ok());
-        if let Some((len, m, t)) = self.cache.lock().ok()?.get(path) {
-            if (*len, *m) == key {
+        let stamp: Stamp = (meta.len(), meta.modified().ok());
+        if let Some((s, t)) = self.cache.lock().ok()?.get(path) {
+            if *s == stamp {
                 return t.clone();
             }
         }
         let t = if meta.len() <= MAX_FILE { render(path) } else { None };
-        self.cache.lock().ok()?.insert(path.to_path_buf(), (key.0, key.1, t.clone()));
+        self.cache.lock().ok()?.insert(path.to_path_buf(), (stamp, t.clone()));
         t
     }
 }

@@ -694,7 +694,7 @@ fn the_head_pose_reorders_what_the_server_sends_next() {
     let turned = with_pose.iter().position(|(p, _)| p.forward == fb).unwrap();
     let pose = with_pose[turned].0;
     // Every block still unsent at the turn that the new view needs...
-    let sent_before: std::collections::HashSet<u32> = log.iter().take_while(|b| b.pose.map_or(true, |p| p.forward != pose.forward)).flat_map(|b| b.chunks.clone()).collect();
+    let sent_before: std::collections::HashSet<u32> = log.iter().take_while(|b| b.pose.is_none_or(|p| p.forward != pose.forward)).flat_map(|b| b.chunks.clone()).collect();
     let needed: Vec<u32> = served.blks.iter().map(|b| b.chunk).filter(|c| !sent_before.contains(c) && in_cone(&pose, *c)).collect();
     let all_in = served.blks.iter().filter(|b| in_cone(&pose, b.chunk)).count();
     eprintln!("turned pose {:?}: {} blocks in its cone of {}, {} sent before", pose, all_in, served.blks.len(), sent_before.len());
