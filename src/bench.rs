@@ -258,6 +258,10 @@ pub struct BenchViewArgs {
     /// Also time stereo 2x(1920x1080), the VR case.
     #[arg(long)]
     pub stereo: bool,
+    /// A 4D asset: also time its first time sample as a static asset of exactly that
+    /// occupancy (`Asset::frame_as_static`), same cameras, and print the playback ratio.
+    #[arg(long)]
+    pub static_twin: bool,
 }
 
 fn bench_view(a: &BenchViewArgs) -> Result<Value> {
@@ -266,7 +270,19 @@ fn bench_view(a: &BenchViewArgs) -> Result<Value> {
     let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
     let r = snerf_viewer::bench_view_with(&asset, &opts)?;
     eprintln!("{r}");
-    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r }))
+    let twin = if a.static_twin {
+        anyhow::ensure!(asset.is_dynamic(), "{}: --static-twin needs a 4D asset", a.asset.display());
+        let s = asset.frame_as_static(0)?;
+        let t = snerf_viewer::bench_view_with(&s, &opts)?;
+        eprintln!(
+            "static twin (time sample 0 alone, {} of {} blocks): GPU median {:.1} ms; 4D playback / static = {:.2}",
+            s.header.atlas_blocks, asset.header.atlas_blocks, t.gpu_median_ms, r.gpu_median_ms / t.gpu_median_ms
+        );
+        Some(json!({ "report": t, "ratio": r.gpu_median_ms / t.gpu_median_ms }))
+    } else {
+        None
+    };
+    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r, "static_twin": twin }))
 }
 
 fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {

@@ -43,6 +43,36 @@ impl Asset {
         self.header.is_dynamic()
     }
 
+    /// One time sample of a dynamic asset as a static asset of exactly that occupancy: frame
+    /// `f`'s grid and only the blocks it uses (renumbered in order of first use). What a 4D
+    /// asset's playback cost is compared with (`snerf bench view --static-twin`).
+    pub fn frame_as_static(&self, f: usize) -> Result<Asset> {
+        ensure!(f < self.grids.len(), "frame {} of {}", f, self.grids.len());
+        let bb = self.block_bytes();
+        let mut remap = std::collections::HashMap::new();
+        let mut atlas = Vec::new();
+        let mut grid = self.grids[f].clone();
+        for e in grid.iter_mut() {
+            if *e == EMPTY {
+                continue;
+            }
+            let next = remap.len() as u32;
+            let n = *remap.entry(*e).or_insert_with(|| {
+                let i = *e as usize;
+                atlas.extend_from_slice(&self.atlas[i * bb..(i + 1) * bb]);
+                next
+            });
+            *e = n;
+        }
+        let mut header = self.header.clone();
+        header.frames = None;
+        header.time_range = None;
+        header.atlas_blocks = remap.len() as u32;
+        let a = Asset { header, mlp: self.mlp.clone(), grids: vec![grid], atlas, present: vec![true; remap.len()] };
+        a.validate()?;
+        Ok(a)
+    }
+
     /// Stored bytes of block `i` (None if out of range or not yet arrived).
     pub fn block(&self, i: u32) -> Option<&[u8]> {
         if !*self.present.get(i as usize)? {

@@ -237,6 +237,24 @@ fn dynamic_render_follows_time() {
     assert_eq!(render_ray(&a, o, d, 0.0), render_ray(&a, o, d, 1.7));
 }
 
+#[test]
+fn a_frame_as_a_static_asset_renders_as_that_frame() {
+    let a = sphere_asset(true);
+    let times: Vec<f32> = a.header.frames.as_ref().unwrap().iter().map(|k| k.time).collect();
+    for (f, &t) in times.iter().enumerate() {
+        let s = a.frame_as_static(f).unwrap();
+        assert!(!s.is_dynamic() && s.header.frames.is_none() && s.grids.len() == 1);
+        // Only the blocks that frame uses.
+        let used: std::collections::HashSet<u32> = a.grids[f].iter().copied().filter(|&e| e != snerf_asset::EMPTY).collect();
+        assert_eq!(s.header.atlas_blocks as usize, used.len());
+        let cam = snerf_asset::orbit(&a.header, 3, 1, 32, 24, 40.0);
+        assert_eq!(snerf_asset::render(&s, &cam, 0.0).rgb, snerf_asset::render(&a, &cam, t).rgb, "frame {f}");
+        // And it survives the file format.
+        assert_eq!(snerf_asset::Asset::from_bytes(&s.to_bytes()).unwrap().atlas, s.atlas);
+    }
+    assert!(a.frame_as_static(times.len()).is_err());
+}
+
 /// The march spelled out literally from the format description, with no empty-space
 /// skipping and no box clipping: every lattice point is visited.
 fn reference_ray(a: &Asset, ow: [f32; 3], dw: [f32; 3]) -> (f32, [f32; 7], f32, u32) {
