@@ -6,17 +6,12 @@
 // asset for the immersive mode on an emulated Meta Quest 3 (iwer) at EYE_W x EYE_H per eye
 // (render scale pinned at 1). Prints JSON with the page's timings (performance.now(): ms
 // since navigation start).
-import { createRequire } from 'module';
+import { launchChromium } from '../viewer/stream/tests/web/launch.mjs';
 import { readFileSync } from 'fs';
 
 const [pwDir, flatUrl, xrUrl, framesArg, eyeW, eyeH, camJson] = process.argv.slice(2);
 const frames = +framesArg;
-const require = createRequire(pwDir + '/');
-const { chromium } = require('playwright-core');
-const args = ['--no-sandbox', '--disable-background-networking', '--disable-component-update', '--no-first-run',
-  '--enable-unsafe-webgpu', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist', '--enable-gpu',
-  '--enable-features=Vulkan', '--use-vulkan=swiftshader', '--use-angle=swiftshader'];
-const browser = await chromium.launch({ executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium', headless: true, args });
+const browser = await launchChromium(pwDir);
 const median = (a) => { const s = [...a].sort((x, y) => x - y); return s[s.length >> 1]; };
 const out = {};
 try {

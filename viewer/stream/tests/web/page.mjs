@@ -3,22 +3,11 @@
 // Waits until window.snerf.state is STATE or 'error', prints the page's report as JSON.
 // With OTHER_ORIGIN_WT_URL: instead opens a page of another origin (another loopback port)
 // that tries a WebTransport session to the server, and prints its result.
-import { createRequire } from 'module';
+import { launchChromium } from './launch.mjs';
 
 const [pwDir, url, want, otherWt, certHash] = process.argv.slice(2);
-const require = createRequire(pwDir + '/');
-const { chromium } = require('playwright-core');
 
-const browser = await chromium.launch({
-  executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  // WebGPU is behind --enable-unsafe-webgpu on Linux; SwiftShader provides the adapter
-  // without a GPU. Presenting a WebGPU canvas needs the compositor on SwiftShader Vulkan too
-  // (with the default GL compositor the first present loses Dawn's instance).
-  args: ['--no-sandbox', '--disable-background-networking', '--disable-component-update', '--no-first-run',
-    '--enable-unsafe-webgpu', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist', '--enable-gpu',
-    '--enable-features=Vulkan', '--use-vulkan=swiftshader', '--use-angle=swiftshader'],
-});
+const browser = await launchChromium(pwDir);
 try {
   const page = await browser.newPage();
   page.on('console', (m) => console.error('page:', m.text()));

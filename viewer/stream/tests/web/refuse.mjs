@@ -5,18 +5,10 @@
 // encoded traversal name, an oversized length, a frame that is not JSON, and a garbage
 // datagram with a wrong token; each probe reports what it received. Prints
 // {download: window.snerf of A, probes: [...]}.
-import { createRequire } from 'module';
+import { launchChromium } from './launch.mjs';
 
 const [pwDir, downloadUrl, probeUrl, token] = process.argv.slice(2);
-const require = createRequire(pwDir + '/');
-const { chromium } = require('playwright-core');
-const browser = await chromium.launch({
-  executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--disable-background-networking', '--disable-component-update', '--no-first-run',
-    '--enable-unsafe-webgpu', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist', '--enable-gpu',
-    '--enable-features=Vulkan', '--use-vulkan=swiftshader', '--use-angle=swiftshader'],
-});
+const browser = await launchChromium(pwDir);
 try {
   const a = await browser.newPage();
   const b = await browser.newPage();

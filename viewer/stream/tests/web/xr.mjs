@@ -6,21 +6,13 @@
 // window.snerf.xr (eyes with cameras, raw XR matrices, marched pixels and what the WebGL
 // layer shows). With `early`: enters VR while the asset still streams, turns the head
 // around a moment later, waits for the stream to end and prints {turnedAt, posesSent}.
-import { createRequire } from 'module';
+import { launchChromium } from './launch.mjs';
 import { readFileSync } from 'fs';
 
 const [pwDir, url, width, height, mode] = process.argv.slice(2);
-const require = createRequire(pwDir + '/');
-const { chromium } = require('playwright-core');
 const iwer = readFileSync(pwDir + '/node_modules/iwer/build/iwer.min.js', 'utf8');
 
-const browser = await chromium.launch({
-  executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium',
-  headless: true,
-  args: ['--no-sandbox', '--disable-background-networking', '--disable-component-update', '--no-first-run',
-    '--enable-unsafe-webgpu', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist', '--enable-gpu',
-    '--enable-features=Vulkan', '--use-vulkan=swiftshader', '--use-angle=swiftshader'],
-});
+const browser = await launchChromium(pwDir);
 const log = (...a) => console.error(...a);
 try {
   // iwer sizes the XR framebuffer to the window: WIDTH x HEIGHT, two eyes side by side.
