@@ -509,13 +509,33 @@ fn check_eyes(snap: &serde_json::Value, asset: &Asset, what: &str) -> Vec<snerf_
     cams
 }
 
+/// iwer's build under the test assets, or None after saying why (panics under CI).
+fn iwer(b: &(PathBuf, PathBuf, PathBuf)) -> Option<PathBuf> {
+    let iwer = b.2.join("../iwer/build/iwer.min.js");
+    if iwer.exists() {
+        return Some(iwer);
+    }
+    assert!(std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"), "no iwer at {} (.ci/run installs it)", iwer.display());
+    eprintln!("skipping the immersive test: no iwer at {}", iwer.display());
+    None
+}
+
+/// Run tests/web/xr.mjs on `url` with extra arguments; its JSON report.
+fn xr_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, extra: &[&str]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/xr.mjs");
+    let out = Command::new(&b.0).arg(&script).arg(b.2.join("../..")).arg(url).args(extra).env("SNERF_CHROMIUM", &b.1).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
+        eprintln!("{stderr}");
+    }
+    assert!(out.status.success(), "xr.mjs failed: {stderr}");
+    serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap()
+}
+
 #[test]
 fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_and_follows_the_headset() {
     let Some(b) = browser() else { return };
-    let iwer = b.2.join("../iwer/build/iwer.min.js");
-    if !iwer.exists() {
-        assert!(std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"), "no iwer at {} (.ci/run installs it)", iwer.display());
-        eprintln!("skipping the immersive test: no iwer at {}", iwer.display());
+    if iwer(&b).is_none() {
         return;
     }
     let dir = TempDir::new("web-xr");
@@ -524,14 +544,7 @@ fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_
     write_asset(&asset, dir.path(), "scene");
     let h = start(dir.path(), state.path());
     let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1")]));
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/xr.mjs");
-    let out = Command::new(&b.0).arg(&script).arg(b.2.join("../..")).arg(&url).env("SNERF_CHROMIUM", &b.1).output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
-        eprintln!("{stderr}");
-    }
-    assert!(out.status.success(), "xr.mjs failed: {stderr}");
-    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    let r = xr_page(&b, &url, &[]);
     let before = &r["before"];
     let cams0 = check_eyes(before, &asset, "before");
     eprintln!("first immersive frame {} ms after Enter VR", before["firstFrameMs"]);
@@ -642,9 +655,7 @@ fn the_blocks_in_view_arrive_first() {
 #[test]
 fn the_head_pose_reorders_what_the_server_sends_next() {
     let Some(b) = browser() else { return };
-    let iwer = b.2.join("../iwer/build/iwer.min.js");
-    if !iwer.exists() {
-        assert!(std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"), "no iwer at {}", iwer.display());
+    if iwer(&b).is_none() {
         return;
     }
     let dir = TempDir::new("web-xr-order");
@@ -664,11 +675,7 @@ fn the_head_pose_reorders_what_the_server_sends_next() {
     };
     let h = start_with(dir.path(), state.path(), limits);
     let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "around")]));
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/xr.mjs");
-    let out = Command::new(&b.0).args([script.as_os_str(), b.2.join("../..").as_os_str()]).arg(&url).args(["192", "96", "early"]).env("SNERF_CHROMIUM", &b.1).output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "xr.mjs failed: {stderr}");
-    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    let r = xr_page(&b, &url, &["192", "96", "early"]);
     eprintln!("{}", r);
     assert_eq!(r["end"]["state"], "done", "{}", r);
     assert_eq!(r["end"]["xr"]["error"], serde_json::Value::Null);

@@ -419,17 +419,8 @@ async function stream(name, gpu) {
     const f = (0.5 * hh) / Math.tan((0.5 * 40 * Math.PI) / 180);
     return { c2w, fx: f, fy: f, cx: w / 2, cy: hh / 2, width: w, height: hh };
   }
-  function poseBytes() {
-    const c = camera(scale);
-    const b = new ArrayBuffer(40), dv = new DataView(b);
-    dv.setUint8(0, 0x53); dv.setUint8(1, 0x50); dv.setUint8(2, 1); dv.setUint8(3, 0);
-    dv.setUint32(4, ++seq, true);
-    const fwd = [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]];
-    [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3], ...fwd, time, fovOf(c)].forEach((v, i) => dv.setFloat32(8 + 4 * i, v, true));
-    return new Uint8Array(b);
-  }
-  function sendPose() { if (dgram && orbit && !xrActive) dgram.write(poseBytes()).catch(() => {}); }
-  // A pose from elsewhere (the XR head): eye, forward (world), field of view in degrees.
+  // The 40-byte pose datagram (PROTOCOL.md): eye, forward (world), playback time, field of
+  // view in degrees. The flat page's orbit camera and the XR head both go through it.
   function sendPoseRaw(eye, fwd, fov) {
     if (!dgram) return;
     const b = new ArrayBuffer(40), dv = new DataView(b);
@@ -439,6 +430,11 @@ async function stream(name, gpu) {
     dgram.write(new Uint8Array(b)).catch(() => {});
     report.posesSent = seq;
     report.lastPose = { eye, forward: fwd, fov };
+  }
+  function sendPose() {
+    if (!orbit || xrActive) return;
+    const c = camera(scale);
+    sendPoseRaw([c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]], fovOf(c));
   }
 
   // The pose goes in the hello when it is known already (a fixed camera), so the very first
