@@ -1055,6 +1055,7 @@ async fn session(
     }
     // Control loop: List may follow; anything else is out of order.
     let mut control_open = true;
+    let mut linger: Option<tokio::time::Instant> = None;
     loop {
         tokio::select! {
             f = read_frame(recv.quic(), limits.max_message), if control_open => {
@@ -1086,15 +1087,16 @@ async fn session(
                 match r {
                     None => asset_task = false,
                     Some(Ok(Ok(()))) => {
-                        // Everything sent and acknowledged; give the client a moment to close.
-                        tokio::select! {
-                            _ = conn.quic().closed() => return Ok(()),
-                            _ = tokio::time::sleep(limits.linger) => return Err(Close(code::DONE, "transfer complete".into())),
-                        }
+                        // Everything sent and acknowledged; give the client a moment to close,
+                        // still answering List meanwhile (the loop keeps reading control).
+                        linger = Some(tokio::time::Instant::now() + limits.linger);
                     }
                     Some(Ok(Err(c))) => return Err(c),
                     Some(Err(_)) => return Ok(()),
                 }
+            }
+            _ = tokio::time::sleep_until(linger.unwrap_or_else(tokio::time::Instant::now)), if linger.is_some() => {
+                return Err(Close(code::DONE, "transfer complete".into()));
             }
             _ = conn.quic().closed() => return Ok(()),
         }

@@ -776,3 +776,39 @@ fn serve_prints_data_on_stdout_and_the_banner_on_stderr() {
     );
     assert!(!stdout.contains("snerf serve"), "{}", stdout);
 }
+
+/// After the whole asset is sent the server lingers for the client to close; a List in that
+/// window is still answered (it used to go unread until the linger closed the connection).
+#[test]
+fn list_is_answered_after_the_transfer_completes() {
+    let (_dir, server, _) = setup("linger");
+    let rt = runtime();
+    rt.block_on(async {
+        let mut s = open_session(
+            server.addr(),
+            server.fingerprint(),
+            hello(server.token(), Some("scene")),
+            &ClientOptions::default(),
+        )
+        .await
+        .unwrap();
+        // QUIC acknowledges stream data the application has not read yet, so the small
+        // asset completes without this client reading it.
+        let st = server.stats();
+        let t0 = Instant::now();
+        while !(st.streams_started.load(Ordering::Relaxed) > 0
+            && st.streams_completed.load(Ordering::Relaxed) == st.streams_started.load(Ordering::Relaxed))
+        {
+            assert!(t0.elapsed() < Duration::from_secs(30), "the transfer never completed");
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let l = tokio::time::timeout(Duration::from_secs(5), s.list())
+            .await
+            .expect("List went unanswered after the transfer completed")
+            .unwrap();
+        assert_eq!(l[0].name, "scene");
+        s.close();
+    });
+    server.shutdown();
+}
