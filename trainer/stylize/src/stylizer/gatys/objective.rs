@@ -1,5 +1,6 @@
-//! The Gatys et al. objective as SNeRF uses it: content loss at relu4_1, style loss on Gram
-//! matrices at relu1_1, relu2_1, relu3_1 and relu4_1, with hand-written gradients.
+//! The Gatys et al. objective as SNeRF uses it: content loss at one tap of a feature network
+//! (VGG's relu4_1), style loss on Gram matrices at every tap (relu1_1 .. relu4_1), with
+//! hand-written gradients.
 //!
 //! Both losses are *relative* squared errors (divided by the target's squared norm), so
 //! their scale does not depend on the layer widths or the weights' magnitudes; this keeps
@@ -10,7 +11,7 @@
 
 use super::gemm::{gemm, View, ViewMut};
 use super::layers::Planes;
-use super::vgg::{Vgg, CONTENT_TAP, TAPS};
+use super::net::FeatureNet;
 
 /// `F F^T / n` for `F` = `[c, n]`.
 pub fn gram(f: &Planes) -> Vec<f32> {
@@ -38,23 +39,24 @@ fn sq_norm(v: &[f32]) -> f64 {
 
 /// Style and content targets plus weights; evaluates the loss and its image gradient.
 pub struct Objective<'a> {
-    vgg: &'a Vgg,
+    net: &'a dyn FeatureNet,
     content_target: Planes,
-    style_grams: &'a [Vec<f32>; TAPS],
+    style_grams: &'a [Vec<f32>],
     pub content_weight: f64,
     pub style_weight: f64,
 }
 
 /// Grams of the style image at each tap.
-pub fn style_grams(vgg: &Vgg, style_rgb: &Planes) -> [Vec<f32>; TAPS] {
-    let trace = vgg.forward(style_rgb);
-    std::array::from_fn(|t| gram(trace.tap(t)))
+pub fn style_grams(net: &dyn FeatureNet, style_rgb: &Planes) -> Vec<Vec<f32>> {
+    let trace = net.forward(style_rgb);
+    (0..net.taps()).map(|t| gram(trace.tap(t))).collect()
 }
 
 impl<'a> Objective<'a> {
-    pub fn new(vgg: &'a Vgg, content_rgb: &Planes, style_grams: &'a [Vec<f32>; TAPS], content_weight: f64, style_weight: f64) -> Objective<'a> {
-        let trace = vgg.forward(content_rgb);
-        Objective { vgg, content_target: trace.tap(CONTENT_TAP).clone(), style_grams, content_weight, style_weight }
+    pub fn new(net: &'a dyn FeatureNet, content_rgb: &Planes, style_grams: &'a [Vec<f32>], content_weight: f64, style_weight: f64) -> Objective<'a> {
+        assert_eq!(style_grams.len(), net.taps(), "one style Gram per tap");
+        let trace = net.forward(content_rgb);
+        Objective { net, content_target: trace.tap(net.content_tap()).clone(), style_grams, content_weight, style_weight }
     }
 
     /// Loss only.
@@ -69,32 +71,34 @@ impl<'a> Objective<'a> {
     }
 
     fn evaluate(&self, rgb: &Planes, want_grad: bool) -> (f64, Option<Planes>) {
-        let trace = self.vgg.forward(rgb);
+        let trace = self.net.forward(rgb);
+        let taps = self.net.taps();
+        let content_tap = self.net.content_tap();
         let mut total = 0.0f64;
-        let mut tap_grads: [Option<Planes>; TAPS] = Default::default();
+        let mut tap_grads: Vec<Option<Planes>> = vec![None; taps];
 
         // Content: w_c |F - P|^2 / |P|^2  ->  dF = 2 w_c (F - P) / |P|^2.
-        let f = trace.tap(CONTENT_TAP);
+        let f = trace.tap(content_tap);
         let p = &self.content_target;
         let p_norm = sq_norm(&p.data) + 1e-12;
         let diff: Vec<f32> = f.data.iter().zip(&p.data).map(|(a, b)| a - b).collect();
         total += self.content_weight * sq_norm(&diff) / p_norm;
         if want_grad && self.content_weight != 0.0 {
             let k = (2.0 * self.content_weight / p_norm) as f32;
-            tap_grads[CONTENT_TAP] = Some(Planes { c: f.c, h: f.h, w: f.w, data: diff.iter().map(|d| d * k).collect() });
+            tap_grads[content_tap] = Some(Planes { c: f.c, h: f.h, w: f.w, data: diff.iter().map(|d| d * k).collect() });
         }
 
-        // Style: (w_s / TAPS) |G - A|^2 / |A|^2 with G = F F^T / n
-        //   dG = 2 (w_s / TAPS) (G - A) / |A|^2,  dF = (dG + dG^T) F / n = 2 dG F / n.
+        // Style: (w_s / taps) |G - A|^2 / |A|^2 with G = F F^T / n
+        //   dG = 2 (w_s / taps) (G - A) / |A|^2,  dF = (dG + dG^T) F / n = 2 dG F / n.
         if self.style_weight != 0.0 {
-            for t in 0..TAPS {
+            for t in 0..taps {
                 let f = trace.tap(t);
                 let (c, n) = (f.c, f.h * f.w);
                 let a = &self.style_grams[t];
                 let a_norm = sq_norm(a) + 1e-12;
                 let g = gram(f);
                 let gd: Vec<f32> = g.iter().zip(a).map(|(x, y)| x - y).collect();
-                let w = self.style_weight / TAPS as f64;
+                let w = self.style_weight / taps as f64;
                 total += w * sq_norm(&gd) / a_norm;
                 if !want_grad {
                     continue;
@@ -120,7 +124,7 @@ impl<'a> Objective<'a> {
                 }
             }
         }
-        let grad = want_grad.then(|| self.vgg.backward(&trace, &tap_grads));
+        let grad = want_grad.then(|| self.net.backward(&trace, &tap_grads));
         (total, grad)
     }
 }

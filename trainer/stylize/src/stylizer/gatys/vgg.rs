@@ -6,6 +6,7 @@
 //! RGB in [0, 1] normalised with the ImageNet mean and std, as the weights expect.
 
 use super::layers::{maxpool_backward, maxpool_forward, Planes};
+use super::net::{FeatureNet, Trace};
 use super::weights::VggWeights;
 
 pub const IMAGENET_MEAN: [f32; 3] = [0.485, 0.456, 0.406];
@@ -40,21 +41,6 @@ const OPS: [Op; 11] = [
 /// Which op's output is each tap (relu1_1, relu2_1, relu3_1, relu4_1).
 const TAP_OPS: [usize; TAPS] = [0, 3, 6, 10];
 
-/// Everything the backward pass needs from a forward pass.
-pub struct Trace {
-    /// `acts[0]` is the normalised input, `acts[i + 1]` the output of op `i`.
-    acts: Vec<Planes>,
-    /// Argmax indices of each pool op (indexed by op).
-    pool_args: Vec<Option<Vec<u32>>>,
-}
-
-impl Trace {
-    /// The activation at tap `t` (0..4).
-    pub fn tap(&self, t: usize) -> &Planes {
-        &self.acts[TAP_OPS[t] + 1]
-    }
-}
-
 pub struct Vgg {
     pub weights: VggWeights,
 }
@@ -64,8 +50,28 @@ impl Vgg {
         Vgg { weights }
     }
 
+}
+
+impl FeatureNet for Vgg {
+    fn name(&self) -> &str {
+        "vgg16"
+    }
+
+    fn taps(&self) -> usize {
+        TAPS
+    }
+
+    fn content_tap(&self) -> usize {
+        CONTENT_TAP
+    }
+
+    /// Three pools before relu4_1.
+    fn min_side(&self) -> usize {
+        16
+    }
+
     /// Normalises a planar RGB image in [0, 1] and runs the network, recording activations.
-    pub fn forward(&self, rgb: &Planes) -> Trace {
+    fn forward(&self, rgb: &Planes) -> Trace {
         let mut x = rgb.clone();
         let n = x.h * x.w;
         for c in 0..3 {
@@ -87,12 +93,12 @@ impl Vgg {
             acts.push(out);
             pool_args.push(arg);
         }
-        Trace { acts, pool_args }
+        Trace { acts, aux: pool_args, taps: TAP_OPS.iter().map(|o| o + 1).collect() }
     }
 
     /// Gradient w.r.t. the un-normalised input image, given gradients w.r.t. the taps
     /// (`None` = zero).
-    pub fn backward(&self, trace: &Trace, tap_grads: &[Option<Planes>; TAPS]) -> Planes {
+    fn backward(&self, trace: &Trace, tap_grads: &[Option<Planes>]) -> Planes {
         let last = trace.acts.last().unwrap();
         let mut g = Planes::zeros(last.c, last.h, last.w);
         for (i, op) in OPS.iter().enumerate().rev() {
@@ -105,7 +111,7 @@ impl Vgg {
             }
             g = match op {
                 Op::Conv(c) => self.weights.convs[*c].backward_relu(&trace.acts[i + 1], &g),
-                Op::Pool => maxpool_backward(&trace.acts[i], trace.pool_args[i].as_ref().unwrap(), &g),
+                Op::Pool => maxpool_backward(&trace.acts[i], trace.aux[i].as_ref().unwrap(), &g),
             };
         }
         let n = g.h * g.w;
