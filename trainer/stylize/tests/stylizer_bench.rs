@@ -2,11 +2,13 @@
 //!   cargo test --release -p snerf-stylize --test stylizer_bench -- --ignored --nocapture
 //! - tract vs onnxruntime for `arbitrary` on one 384x384 view, side by side in one run
 //!   (the bar: tract <= 1.5x onnxruntime);
-//! - gatys optimisation step time at 128x128 with full-width (random) VGG-16 weights.
+//! - gatys optimisation step time at 128x128 with full-width (random) VGG-16 weights, and
+//!   with the MobileNetV2 features at 128, 256 and 512.
 
 mod stylizer_support;
 
-use snerf_stylize::stylizer::gatys::{step_time, VggWeights, VGG16_WIDTHS};
+use snerf_stylize::stylizer::gatys::{net_step_time, step_time, MobileNet, VggWeights, VGG16_WIDTHS};
+use snerf_stylize::stylizer::{model_path, ARBITRARY_PREDICT};
 use snerf_stylize::stylizer::{bench_arbitrary, bench_onnxruntime, models_dir};
 use stylizer_support::models_or_skip;
 
@@ -36,8 +38,14 @@ fn bench_tract_vs_onnxruntime_384() {
 #[test]
 #[ignore]
 fn bench_gatys_step_128() {
-    let t = step_time(VggWeights::random(VGG16_WIDTHS, 1), 128, 3);
-    println!("gatys: {t:.3} s per Adam step at 128x128 (full-width VGG-16, random weights, {} threads)", rayon::current_num_threads());
+    let vgg = step_time(VggWeights::random(VGG16_WIDTHS, 1), 128, 3);
+    println!("gatys: {vgg:.3} s per Adam step at 128x128 (full-width VGG-16, random weights, {} threads)", rayon::current_num_threads());
+    let Some(opts) = models_or_skip("bench_gatys_step_128 (MobileNetV2)") else { return };
+    let net = MobileNet::load(&model_path(ARBITRARY_PREDICT, &opts).unwrap()).unwrap();
+    for size in [128, 256, 512] {
+        let t = net_step_time(&net, size, 5);
+        println!("gatys: {t:.4} s per Adam step at {size}x{size} (MobileNetV2 from arbitrary_predict.onnx){}", if size == 128 { format!(", {:.1}x faster than VGG-16", vgg / t) } else { String::new() });
+    }
 }
 
 /// Correlation between the gradient magnitudes of two images (how much of the content's

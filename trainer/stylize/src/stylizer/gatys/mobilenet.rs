@@ -327,6 +327,15 @@ impl FeatureNet for MobileNet {
     }
 }
 
+/// The output columns `a..b` whose input column `ox * stride + shift` lies inside `0..w`.
+fn valid_columns(ow: usize, w: usize, stride: usize, shift: isize) -> (usize, usize) {
+    let (s, w) = (stride as isize, w as isize);
+    // ox * s + shift >= 0  <=>  ox >= ceil(-shift / s);  ox * s + shift <= w - 1.
+    let a = if shift >= 0 { 0 } else { (-shift + s - 1) / s };
+    let b = if w - 1 - shift < 0 { 0 } else { (w - 1 - shift) / s + 1 };
+    (a.max(0) as usize, (b.min(ow as isize).max(a)) as usize)
+}
+
 impl Conv {
     fn out_size(&self, h: usize, w: usize) -> (usize, usize) {
         let oh = (h + self.pad[0] + self.pad[2]).saturating_sub(self.k) / self.stride + 1;
@@ -377,10 +386,15 @@ impl Conv {
                                 }
                                 let row = &xc[iy as usize * x.w..][..x.w];
                                 let yr = &mut yc[oy * ow..][..ow];
-                                for (ox, yv) in yr.iter_mut().enumerate() {
-                                    let ix = (ox * s) as isize + kx as isize - pl;
-                                    if ix >= 0 && ix < x.w as isize {
-                                        *yv += wv * row[ix as usize];
+                                let (a, b) = valid_columns(ow, x.w, s, kx as isize - pl);
+                                if s == 1 {
+                                    let off = (a as isize + kx as isize - pl) as usize;
+                                    for (yv, xv) in yr[a..b].iter_mut().zip(&row[off..off + (b - a)]) {
+                                        *yv += wv * xv;
+                                    }
+                                } else {
+                                    for ox in a..b {
+                                        yr[ox] += wv * row[ox * s + kx - pl as usize];
                                     }
                                 }
                             }
@@ -449,10 +463,15 @@ impl Conv {
                             }
                             let grow = &gyc[oy * ow..][..ow];
                             let xrow = &mut gxc[iy as usize * x.w..][..x.w];
-                            for (ox, gv) in grow.iter().enumerate() {
-                                let ix = (ox * s) as isize + kx as isize - pl;
-                                if ix >= 0 && ix < x.w as isize {
-                                    xrow[ix as usize] += wv * gv;
+                            let (a, b) = valid_columns(ow, x.w, s, kx as isize - pl);
+                            if s == 1 {
+                                let off = (a as isize + kx as isize - pl) as usize;
+                                for (xv, gv) in xrow[off..off + (b - a)].iter_mut().zip(&grow[a..b]) {
+                                    *xv += wv * gv;
+                                }
+                            } else {
+                                for ox in a..b {
+                                    xrow[ox * s + kx - pl as usize] += wv * grow[ox];
                                 }
                             }
                         }
