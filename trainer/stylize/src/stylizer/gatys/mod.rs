@@ -72,20 +72,58 @@ pub fn image_from_planes(p: &Planes) -> Image {
 /// Adam on the pixels of `start`, projected to [0, 1] after each step. Returns the result
 /// and the loss before each step.
 pub fn optimize(objective: &Objective, start: &Planes, steps: usize, lr: f32) -> (Planes, Vec<f64>) {
+    optimize_shifted(&[(0, 0, objective)], start, steps, lr)
+}
+
+/// The pixel offsets whose crops `optimize_shifted` cycles through.
+pub const JITTER: [(usize, usize); 4] = [(0, 0), (1, 1), (0, 1), (1, 0)];
+
+/// `planes` without its first `dy` rows and `dx` columns.
+pub fn crop(p: &Planes, dy: usize, dx: usize) -> Planes {
+    if dy == 0 && dx == 0 {
+        return p.clone();
+    }
+    let (h, w) = (p.h - dy, p.w - dx);
+    let mut out = Planes::zeros(p.c, h, w);
+    for c in 0..p.c {
+        for y in 0..h {
+            let src = (c * p.h + y + dy) * p.w + dx;
+            out.data[(c * h + y) * w..(c * h + y + 1) * w].copy_from_slice(&p.data[src..src + w]);
+        }
+    }
+    out
+}
+
+/// Adam as in `optimize`, step `k` evaluating objective `k mod n` on the image cropped by
+/// that objective's offset (its gradient is zero on the cropped-off rows and columns).
+///
+/// Why: a stride-2 first layer (MobileNetV2's stem) sees even and odd pixels through
+/// different kernel taps, so its input gradient carries a checkerboard that Adam turns into
+/// a pixel-level grid the network itself is nearly blind to. Shifting the sampling grid by
+/// one pixel from step to step averages that parity out.
+pub fn optimize_shifted(objectives: &[(usize, usize, &Objective)], start: &Planes, steps: usize, lr: f32) -> (Planes, Vec<f64>) {
     let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
     let mut x = start.clone();
     let mut m = vec![0.0f32; x.data.len()];
     let mut v = vec![0.0f32; x.data.len()];
     let mut losses = Vec::with_capacity(steps);
+    let (h, w) = (x.h, x.w);
     for step in 1..=steps {
-        let (loss, g) = objective.loss_and_grad(&x);
+        let (dy, dx, objective) = objectives[(step - 1) % objectives.len()];
+        let (loss, gc) = objective.loss_and_grad(&crop(&x, dy, dx));
         losses.push(loss);
         let (c1, c2) = (1.0 - b1.powi(step as i32), 1.0 - b2.powi(step as i32));
-        for i in 0..x.data.len() {
-            m[i] = b1 * m[i] + (1.0 - b1) * g.data[i];
-            v[i] = b2 * v[i] + (1.0 - b2) * g.data[i] * g.data[i];
-            let update = lr * (m[i] / c1) / ((v[i] / c2).sqrt() + eps);
-            x.data[i] = (x.data[i] - update).clamp(0.0, 1.0);
+        for c in 0..x.c {
+            for y in 0..h {
+                for xx in 0..w {
+                    let i = (c * h + y) * w + xx;
+                    let g = if y >= dy && xx >= dx { gc.data[(c * gc.h + y - dy) * gc.w + xx - dx] } else { 0.0 };
+                    m[i] = b1 * m[i] + (1.0 - b1) * g;
+                    v[i] = b2 * v[i] + (1.0 - b2) * g * g;
+                    let update = lr * (m[i] / c1) / ((v[i] / c2).sqrt() + eps);
+                    x.data[i] = (x.data[i] - update).clamp(0.0, 1.0);
+                }
+            }
         }
     }
     (x, losses)
@@ -149,8 +187,14 @@ impl GatysStylizer {
             content.clone()
         };
         let start = planes_from_image(&work);
-        let objective = Objective::new(self.net.as_ref(), &start, &self.grams, CONTENT_WEIGHT, STYLE_WEIGHT * self.strength as f64);
-        let (out, losses) = optimize(&objective, &start, self.steps, LEARNING_RATE);
+        let style_weight = STYLE_WEIGHT * self.strength as f64;
+        // One objective per sampling offset, each with the content target of its own crop.
+        let objectives: Vec<(usize, usize, Objective)> = JITTER
+            .iter()
+            .map(|&(dy, dx)| (dy, dx, Objective::new(self.net.as_ref(), &crop(&start, dy, dx), &self.grams, CONTENT_WEIGHT, style_weight)))
+            .collect();
+        let refs: Vec<(usize, usize, &Objective)> = objectives.iter().map(|(dy, dx, o)| (*dy, *dx, o)).collect();
+        let (out, losses) = optimize_shifted(&refs, &start, self.steps, LEARNING_RATE);
         Ok((resize(&image_from_planes(&out), content.width, content.height), losses))
     }
 }
