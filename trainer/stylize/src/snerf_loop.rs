@@ -40,6 +40,13 @@
 //! (most of the steps in round 1) flattens the curve further only by making round 1 worse,
 //! so it is not the default. Runs recorded before these options resume as they were.
 //!
+//! The paper's own way out, an optimizing stylizer started from the render (`gatys` with
+//! `Content::Render`), does not converge here either (BENCH.md §5b): Adam's normalized steps
+//! move every pixel by about the learning rate whatever the gradient, so each round's
+//! stylization of an already stylized render adds fresh pixel-scale texture, and the warp
+//! error doubles over five rounds. `gatys` on the fixed realistic content behaves like the
+//! feed-forward stylizers above.
+//!
 //! A stylization run lives in its own directory (`SRUN`): `checkpoint.snerfck` (the field,
 //! loadable by every command that takes a run), `stylize.json` (options, the source run, and
 //! one record per finished round: wall time, fit, style distance, consistency) and
