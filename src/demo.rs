@@ -154,6 +154,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         step_schedule: crate::stylize_cmd::DEFAULT_STEP_SCHEDULE.into(),
         lr_schedule: crate::stylize_cmd::DEFAULT_LR_SCHEDULE.into(),
         round_steps: crate::stylize_cmd::DEFAULT_ROUND_STEPS.into(),
+        targets: crate::stylize_cmd::DEFAULT_TARGETS.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

@@ -120,6 +120,9 @@ pub const DEFAULT_CONTENT: &str = "realistic";
 pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
 pub const DEFAULT_LR_SCHEDULE: &str = "run";
 pub const DEFAULT_ROUND_STEPS: &str = "equal";
+/// Each round fuses the previous round's fused targets (BENCH.md §5d: the only setting
+/// measured whose round 5 is more consistent than its round 1).
+pub const DEFAULT_TARGETS: &str = "consensus";
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
@@ -181,6 +184,12 @@ pub struct StylizeArgs {
     /// in proportion to 1/t: most in round 1).
     #[arg(long, default_value = DEFAULT_ROUND_STEPS, value_parser = ["equal", "harmonic"])]
     pub round_steps: String,
+    /// What each round fuses: once (the stylizations of the realistic renders, every round)
+    /// or consensus (the previous round's fused targets, re-fused through the current depth,
+    /// so the views' targets agree a little more each round). Needs --content realistic and
+    /// --fuse-views > 0.
+    #[arg(long, default_value = DEFAULT_TARGETS, value_parser = ["once", "consensus"])]
+    pub targets: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -288,6 +297,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         step_schedule: option_enum("--step-schedule", &a.step_schedule)?,
         lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
         round_steps: option_enum("--round-steps", &a.round_steps)?,
+        targets: option_enum("--targets", &a.targets)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

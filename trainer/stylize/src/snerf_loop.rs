@@ -68,6 +68,7 @@ use snerf_trainer::render::WorkspacePool;
 use snerf_trainer::run_dir::RunDir;
 use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
 
+mod consensus;
 mod partial;
 
 use crate::consistency::{self, PathGeometry};
@@ -113,6 +114,22 @@ pub struct StylizeOptions {
     /// How the training steps are spread over the rounds (before this option: `Equal`).
     #[serde(default)]
     pub round_steps: RoundSteps,
+    /// What each round fuses (before this option: `Once`).
+    #[serde(default)]
+    pub targets: Targets,
+}
+
+/// What each round's fusion starts from (with `Content::Realistic` and fusion on).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Targets {
+    /// The stylizations of the realistic renders, every round.
+    #[default]
+    Once,
+    /// The previous round's fused targets: every round reprojects each view's target into its
+    /// neighbours through the current depth and takes the median again, so texture the views
+    /// disagree on is reconciled a little more each round instead of being fitted.
+    Consensus,
 }
 
 /// Training steps of each round; the run's total is `rounds × steps_per_round` either way.
@@ -332,6 +349,7 @@ pub fn run(
     // `Content::Realistic`: the stylizations of the realistic renders, made once per process
     // (the stylizers are deterministic, so a resumed run makes the same ones again).
     let mut fixed: Option<Vec<Image>> = None;
+    let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
@@ -364,6 +382,10 @@ pub fn run(
                 let stylized = match opts.content {
                     Content::Render => stylize_all(stylizer, &renders, &views, opts.style_res, round + 1, progress)?,
                     Content::Realistic => {
+                        if fixed.is_none() && consensus_on && round > 0 {
+                            // A resumed run continues the consensus of the last round begun.
+                            fixed = consensus::load(out, round, views.len())?;
+                        }
                         if fixed.is_none() {
                             let content: Vec<Image> = views
                                 .iter()
@@ -380,7 +402,15 @@ pub fn run(
                 // (2a) fuse each target with its neighbours; (2b) a damped step toward it
                 let (fused, fused_fraction) = if opts.fuse_views > 0 {
                     let (f, frac) = fusion::fuse(&stylized, &geoms, opts.fuse_views);
-                    (f, Some(frac))
+                    if consensus_on {
+                        // The next round fuses these again (through its own depth).
+                        let f = consensus::quantize(f);
+                        consensus::save(out, round + 1, &f)?;
+                        fixed = Some(f.clone());
+                        (f, Some(frac))
+                    } else {
+                        (f, Some(frac))
+                    }
                 } else {
                     (stylized.clone(), None)
                 };

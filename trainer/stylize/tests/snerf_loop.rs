@@ -73,6 +73,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         step_schedule: Default::default(),
         lr_schedule: Default::default(),
         round_steps: Default::default(),
+        targets: Default::default(),
     }
 }
 
@@ -215,6 +216,44 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
     let first: f64 = means[..views].iter().sum::<f64>() / views as f64;
     let last: f64 = means[2 * views..].iter().sum::<f64>() / views as f64;
     assert!(last > first + 0.01, "render content did not see the field change: round 1 mean {first:.4}, round 3 {last:.4}");
+}
+
+/// `Targets::Consensus`: each round fuses the last round's fused targets; they are saved per
+/// round, so a resumed run continues the iteration without stylizing again.
+#[test]
+fn consensus_targets_carry_over_rounds_and_resumes() {
+    let dir = tmp("consensus");
+    let (data, run) = trained_run(&dir);
+    let style = style_png(&dir);
+    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
+    let style_img = stylizer::load_style_image(&style).unwrap();
+    let out = dir.join("srun");
+    let mut o = options(&run, &data.root, &style, 1, false);
+    o.steps_per_round = 20;
+    o.consistency_frames = 0;
+    o.content = snerf_loop::Content::Realistic;
+    o.step_schedule = snerf_loop::StepSchedule::Harmonic;
+    o.target_step = 1.0;
+    o.lr_schedule = snerf_loop::LrSchedule::Run;
+    o.targets = snerf_loop::Targets::Consensus;
+    let st = Counting { calls: Default::default(), means: Default::default() };
+    snerf_loop::run(&o, &data, &source, &st, None, &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(st.calls.into_inner(), 12, "round 1 stylizes every view once");
+    let views_in = |round: usize| std::fs::read_dir(out.join(format!("consensus/round_{round}"))).map(|d| d.count()).unwrap_or(0);
+    assert_eq!(views_in(1), 12);
+    // Resume for three rounds in a new process: the consensus of round 1 is read back.
+    o.rounds = 3;
+    let st = Counting { calls: Default::default(), means: Default::default() };
+    let s = snerf_loop::run(&o, &data, &source, &st, None, &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(s.rounds_done, 3);
+    assert_eq!(st.calls.into_inner(), 0, "a resumed consensus run must not stylize again");
+    assert_eq!((views_in(1), views_in(2), views_in(3)), (0, 12, 12), "rounds kept: the last two");
+    // Without saved consensus (deleted) the resumed run falls back to stylizing once.
+    std::fs::remove_dir_all(out.join("consensus")).unwrap();
+    o.rounds = 4;
+    let st = Counting { calls: Default::default(), means: Default::default() };
+    snerf_loop::run(&o, &data, &source, &st, None, &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(st.calls.into_inner(), 12);
 }
 
 #[test]

@@ -1,0 +1,56 @@
+//! The consensus targets of `Targets::Consensus`: each round's fused targets, kept for the
+//! next round to fuse again, and saved per round (`consensus/round_N/view_III.png`) so a
+//! resumed run continues the same iteration. They are quantized to 8 bits whether saved or
+//! not (the field trains on 8-bit targets anyway), so a resumed run and an uninterrupted one
+//! compute the same thing.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use crate::stylizer::{save_png, Image};
+
+fn round_dir(out: &Path, round: usize) -> PathBuf {
+    out.join("consensus").join(format!("round_{round}"))
+}
+
+/// Rounds each value to the nearest of 256 levels in [0, 1].
+pub fn quantize(imgs: Vec<Image>) -> Vec<Image> {
+    imgs.into_iter()
+        .map(|mut im| {
+            for v in &mut im.data {
+                *v = ((v.clamp(0.0, 1.0) * 255.0 + 0.5).floor()) / 255.0;
+            }
+            im
+        })
+        .collect()
+}
+
+/// Saves round `round`'s (1-based) consensus and removes rounds before `round - 1` (a run
+/// killed during round `round` restarts it from round `round - 1`'s).
+pub fn save(out: &Path, round: usize, targets: &[Image]) -> Result<()> {
+    let dir = round_dir(out, round);
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    for (i, t) in targets.iter().enumerate() {
+        save_png(&dir.join(format!("view_{i:03}.png")), t)?;
+    }
+    for old in 1..round.saturating_sub(1) {
+        let _ = std::fs::remove_dir_all(round_dir(out, old));
+    }
+    Ok(())
+}
+
+/// Round `round`'s consensus for `views` views, if saved (all of it, or None).
+pub fn load(out: &Path, round: usize, views: usize) -> Result<Option<Vec<Image>>> {
+    let dir = round_dir(out, round);
+    let mut imgs = Vec::with_capacity(views);
+    for i in 0..views {
+        let path = dir.join(format!("view_{i:03}.png"));
+        if !path.exists() {
+            return Ok(None);
+        }
+        let img = image::open(&path).with_context(|| format!("{}: cannot read", path.display()))?.to_rgb32f();
+        imgs.push(Image { width: img.width() as usize, height: img.height() as usize, data: img.into_raw() });
+    }
+    Ok(Some(imgs))
+}
