@@ -33,12 +33,22 @@
 //! - `LrSchedule::Run`: the learning rate decays once over all rounds instead of restarting
 //!   every round, so later rounds refine instead of re-fitting.
 //!
-//! The command's defaults use all three (measured against each alone, BENCH.md §5b: the
-//! warp error of round 5 is 6–42% above round 1's, against 3–5× with the published
-//! loop, and the style distance is flat). What is left is the field still fitting the same
-//! fixed targets, not new texture: round 1 ends under-fitted. `RoundSteps::Harmonic`
-//! (most of the steps in round 1) flattens the curve further only by making round 1 worse,
-//! so it is not the default. Runs recorded before these options resume as they were.
+//! With those three alone (BENCH.md §5b) the warp error of round 5 is still 6–42% above
+//! round 1's (against 3–5× with the published loop): the targets are fixed, and the field,
+//! under-fitted after round 1, keeps fitting more of the disagreement they still hold.
+//! `RoundSteps::Harmonic` (most of the steps in round 1) flattens the curve only by making
+//! round 1 worse, so it is not the default.
+//!
+//! - `Targets::Consensus` (the default) removes that last source: each round fuses the
+//!   previous round's *fused* targets again, through the current (better) depth, instead of
+//!   the raw stylizations. Fusion is a per-pixel median over a view and its reprojected
+//!   neighbours; iterated, it is a consensus over the view graph: texture the views agree
+//!   on is a fixed point of it and stays, texture they disagree on is pulled toward what the
+//!   neighbours painted, a little more each round. The targets therefore become more
+//!   consistent round by round, and so does the field fitted to them (BENCH.md §5d: round
+//!   5 below round 1 on warp error and style distance).
+//!
+//! Runs recorded before these options resume as they were.
 //!
 //! The paper's own way out, an optimizing stylizer started from the render (`gatys` with
 //! `Content::Render`), does not converge here either (BENCH.md §5b): Adam's normalized steps
