@@ -120,7 +120,7 @@ pub const DEFAULT_CONTENT: &str = "realistic";
 pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
 pub const DEFAULT_LR_SCHEDULE: &str = "run";
 pub const DEFAULT_ROUND_STEPS: &str = "equal";
-/// Each round fuses the previous round's fused targets (BENCH.md §5d: the only setting
+/// Each round fuses the previous round's fused targets (BENCH.md §5c: the only setting
 /// measured whose round 5 is more consistent than its round 1).
 pub const DEFAULT_TARGETS: &str = "consensus";
 

@@ -45,7 +45,7 @@
 //!   neighbours; iterated, it is a consensus over the view graph: texture the views agree
 //!   on is a fixed point of it and stays, texture they disagree on is pulled toward what the
 //!   neighbours painted, a little more each round. The targets therefore become more
-//!   consistent round by round, and so does the field fitted to them (BENCH.md §5d: round
+//!   consistent round by round, and so does the field fitted to them (BENCH.md §5c: round
 //!   5 below round 1 on warp error and style distance).
 //!
 //! Runs recorded before these options resume as they were.
