@@ -25,7 +25,8 @@ fn shifted(x: &Planes, dir: &[f32], h: f32) -> Planes {
     Planes { data: x.data.iter().zip(dir).map(|(a, d)| a + h * d).collect(), ..x.clone() }
 }
 
-fn conv(cin: usize, cout: usize, groups: usize, k: usize, stride: usize, pad: [usize; 4], clip: bool, seed: u64) -> Conv {
+/// `(cin, cout, groups)`, kernel `k` and stride `stride`, random weights from `seed`.
+fn conv((cin, cout, groups): (usize, usize, usize), k: usize, stride: usize, pad: [usize; 4], clip: bool, seed: u64) -> Conv {
     let n = cout * (cin / groups) * k * k;
     let scale = 1.5 / ((cin / groups) * k * k) as f32;
     Conv {
@@ -46,15 +47,15 @@ fn conv(cin: usize, cout: usize, groups: usize, k: usize, stride: usize, pad: [u
 /// a stride-2 depthwise block, and a global mean.
 fn small_net() -> MobileNet {
     let ops = vec![
-        Op::Conv { input: 0, conv: conv(3, 6, 1, 3, 2, [0, 0, 1, 1], true, 1) }, // act 1
-        Op::Conv { input: 1, conv: conv(6, 12, 1, 1, 1, [0; 4], true, 2) },      // 2: expand
-        Op::Conv { input: 2, conv: conv(12, 12, 12, 3, 1, [1; 4], true, 3) },    // 3: depthwise
-        Op::Conv { input: 3, conv: conv(12, 6, 1, 1, 1, [0; 4], false, 4) },     // 4: project
+        Op::Conv { input: 0, conv: conv((3, 6, 1), 3, 2, [0, 0, 1, 1], true, 1) }, // act 1
+        Op::Conv { input: 1, conv: conv((6, 12, 1), 1, 1, [0; 4], true, 2) },      // 2: expand
+        Op::Conv { input: 2, conv: conv((12, 12, 12), 3, 1, [1; 4], true, 3) },    // 3: depthwise
+        Op::Conv { input: 3, conv: conv((12, 6, 1), 1, 1, [0; 4], false, 4) },     // 4: project
         Op::Add { a: 4, b: 1 },                                                 // 5: shortcut
-        Op::Conv { input: 5, conv: conv(6, 12, 1, 1, 1, [0; 4], true, 5) },      // 6
-        Op::Conv { input: 6, conv: conv(12, 12, 12, 3, 2, [0, 0, 1, 1], true, 6) }, // 7: 1/4
+        Op::Conv { input: 5, conv: conv((6, 12, 1), 1, 1, [0; 4], true, 5) },      // 6
+        Op::Conv { input: 6, conv: conv((12, 12, 12), 3, 2, [0, 0, 1, 1], true, 6) }, // 7: 1/4
         Op::Mean { input: 7 },                                                  // 8
-        Op::Conv { input: 8, conv: conv(12, 5, 1, 1, 1, [0; 4], false, 7) },     // 9: head
+        Op::Conv { input: 8, conv: conv((12, 5, 1), 1, 1, [0; 4], false, 7) },     // 9: head
     ];
     MobileNet { ops, tap_acts: vec![1, 3, 5, 7], output_act: 9 }
 }
