@@ -51,7 +51,7 @@
 //! Runs recorded before these options resume as they were.
 //!
 //! The paper's own way out, an optimizing stylizer started from the render (`gatys` with
-//! `Content::Render`), does not converge here either (BENCH.md §5b): Adam's normalized steps
+//! `Content::Render`), does not converge here either (BENCH.md §5d): Adam's normalized steps
 //! move every pixel by about the learning rate whatever the gradient, so each round's
 //! stylization of an already stylized render adds fresh pixel-scale texture, and the warp
 //! error doubles over five rounds. `gatys` on the fixed realistic content behaves like the
