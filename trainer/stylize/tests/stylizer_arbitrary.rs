@@ -100,6 +100,7 @@ fn spec_errors() {
     let bad = StylizerOptions { strength: 1.5, ..Default::default() };
     let e = from_spec("color", None, &bad).err().unwrap().to_string();
     assert!(e.contains("strength"), "{e}");
+    // gatys needs no weight file (it uses the installed style network) but a style image
     let e = from_spec("gatys", None, &opts).err().unwrap().to_string();
-    assert!(e.contains("safetensors") && e.contains("torchvision"), "{e}");
+    assert!(e.contains("style image"), "{e}");
 }
