@@ -357,7 +357,9 @@ pub fn run(
     };
     let style_samples = path.as_ref().map(|p| p.style_reference(style));
     // `Content::Realistic`: the stylizations of the realistic renders, made once per process
-    // (the stylizers are deterministic, so a resumed run makes the same ones again).
+    // (the stylizers are deterministic, so a resumed run makes the same ones again); with
+    // consensus targets, the last round's fused targets instead (saved, so a resumed run
+    // reads them back).
     let mut fixed: Option<Vec<Image>> = None;
     let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
@@ -411,16 +413,14 @@ pub fn run(
                 };
                 // (2a) fuse each target with its neighbours; (2b) a damped step toward it
                 let (fused, fused_fraction) = if opts.fuse_views > 0 {
-                    let (f, frac) = fusion::fuse(&stylized, &geoms, opts.fuse_views);
+                    let (mut f, frac) = fusion::fuse(&stylized, &geoms, opts.fuse_views);
                     if consensus_on {
                         // The next round fuses these again (through its own depth).
-                        let f = consensus::quantize(f);
+                        f = consensus::quantize(f);
                         consensus::save(out, round + 1, &f)?;
                         fixed = Some(f.clone());
-                        (f, Some(frac))
-                    } else {
-                        (f, Some(frac))
                     }
+                    (f, Some(frac))
                 } else {
                     (stylized.clone(), None)
                 };

@@ -7,22 +7,7 @@ use std::path::Path;
 
 use snerf_stylize::stylizer::gatys::{optimize, planes_from_image, style_grams, GatysStylizer, Objective, Planes, Vgg, VggWeights, CONV_INDICES};
 use snerf_stylize::stylizer::{from_spec, save_png, Stylizer, StylizerOptions};
-use stylizer_support::{assert_finite_in_range, content_image, style_image};
-
-/// Deterministic pseudo-random numbers in [-1, 1].
-fn noise(n: usize, seed: u64) -> Vec<f32> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-        })
-        .collect()
-}
-
-fn shifted(x: &Planes, dir: &[f32], h: f32) -> Planes {
-    Planes { data: x.data.iter().zip(dir).map(|(a, d)| a + h * d).collect(), ..x.clone() }
-}
+use stylizer_support::{assert_finite_in_range, content_image, noise, shifted, style_image};
 
 #[test]
 fn gradient_matches_central_differences() {

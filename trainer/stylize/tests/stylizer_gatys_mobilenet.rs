@@ -8,22 +8,7 @@ mod stylizer_support;
 use snerf_stylize::stylizer::gatys::mobilenet::{Conv, Op};
 use snerf_stylize::stylizer::gatys::{planes_from_image, style_grams, FeatureNet, GatysStylizer, MobileNet, Objective, Planes};
 use snerf_stylize::stylizer::{model_path, Image, StyleEmbedder, Stylizer, ARBITRARY_PREDICT};
-use stylizer_support::{assert_finite_in_range, content_image, models_or_skip, style_image};
-
-/// Deterministic pseudo-random numbers in [-1, 1].
-fn noise(n: usize, seed: u64) -> Vec<f32> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-    (0..n)
-        .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-        })
-        .collect()
-}
-
-fn shifted(x: &Planes, dir: &[f32], h: f32) -> Planes {
-    Planes { data: x.data.iter().zip(dir).map(|(a, d)| a + h * d).collect(), ..x.clone() }
-}
+use stylizer_support::{assert_finite_in_range, content_image, models_or_skip, noise, shifted, style_image};
 
 /// `(cin, cout, groups)`, kernel `k` and stride `stride`, random weights from `seed`.
 fn conv((cin, cout, groups): (usize, usize, usize), k: usize, stride: usize, pad: [usize; 4], clip: bool, seed: u64) -> Conv {

@@ -8,13 +8,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::stylizer::{save_png, Image};
+use crate::stylizer::{image_from_png, save_png, Image};
 
 fn round_dir(out: &Path, round: usize) -> PathBuf {
     out.join("consensus").join(format!("round_{round}"))
 }
 
-/// Rounds each value to the nearest of 256 levels in [0, 1].
+/// Rounds each value to the nearest of 256 levels in [0, 1], as `save_png` stores it.
 pub fn quantize(imgs: Vec<Image>) -> Vec<Image> {
     imgs.into_iter()
         .map(|mut im| {
@@ -49,8 +49,7 @@ pub fn load(out: &Path, round: usize, views: usize) -> Result<Option<Vec<Image>>
         if !path.exists() {
             return Ok(None);
         }
-        let img = image::open(&path).with_context(|| format!("{}: cannot read", path.display()))?.to_rgb32f();
-        imgs.push(Image { width: img.width() as usize, height: img.height() as usize, data: img.into_raw() });
+        imgs.push(image_from_png(&path)?);
     }
     Ok(Some(imgs))
 }

@@ -1,6 +1,7 @@
 //! Shared by the stylizer tests: model availability (skip or fail), test images.
 #![allow(dead_code)]
 
+use snerf_stylize::stylizer::gatys::Planes;
 use snerf_stylize::stylizer::{models_dir, Image, StylizerOptions, MODEL_FILES, SETUP_COMMAND};
 
 /// Options pointing at the model directory, or None (test skipped with a note) when the
@@ -58,4 +59,20 @@ pub fn style_image(width: usize, height: usize) -> Image {
 pub fn assert_finite_in_range(img: &Image) {
     assert_eq!(img.data.len(), img.width * img.height * 3);
     assert!(img.data.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)), "output has values outside [0,1] or non-finite");
+}
+
+/// Deterministic pseudo-random numbers in [-1, 1] (directions for gradient checks).
+pub fn noise(n: usize, seed: u64) -> Vec<f32> {
+    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        })
+        .collect()
+}
+
+/// `x + h * dir`.
+pub fn shifted(x: &Planes, dir: &[f32], h: f32) -> Planes {
+    Planes { data: x.data.iter().zip(dir).map(|(a, d)| a + h * d).collect(), ..x.clone() }
 }

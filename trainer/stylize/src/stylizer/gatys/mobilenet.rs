@@ -166,8 +166,8 @@ impl MobileNet {
                     if p.len() != 4 || attr_ints(n, "dilations").is_some_and(|d| d.iter().any(|&v| v != 1)) {
                         bail!("Conv {:?}: only 2-D convolutions without dilation are supported", n.name);
                     }
-                    let cout = if groups > 1 { groups } else { w.len() / (k * k) / Self::channels(&ops, x)? };
                     let cin = Self::channels(&ops, x)?;
+                    let cout = if groups > 1 { groups } else { w.len() / (k * k) / cin.max(1) };
                     if w.len() != cout * (cin / groups) * k * k || (groups != 1 && groups != cin) {
                         bail!("Conv {:?}: {} weights do not fit {cout}x{cin}/{groups}x{k}x{k}", n.name, w.len());
                     }
