@@ -69,6 +69,11 @@ pub struct TrainArgs {
     /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
     #[arg(long, value_parser = crate::args::int_in::<u32>(16, 4096, ""))]
     pub resolution: Option<u32>,
+    /// Rays per silhouette pixel: 1, 4, 9 or 16 (default 4 for static objects, 1 otherwise).
+    /// A pixel whose neighbourhood is partly covered is trained and rendered as the mean of
+    /// rays spread over its square, as the views were rendered; 1 is one ray through its centre.
+    #[arg(long, value_parser = crate::args::int_in::<usize>(1, 16, ""))]
+    pub pixel_rays: Option<usize>,
     /// Write a checkpoint at least every this many seconds of training (a killed run loses
     /// at most this much).
     #[arg(long, default_value_t = 30.0, value_parser = crate::args::non_negative)]
@@ -145,6 +150,9 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     if let Some(r) = a.resolution {
         cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r].into_iter().map(|x| x.max(2)).collect();
     }
+    if let Some(k) = a.pixel_rays {
+        cfg.pixel_rays = k;
+    }
     let seconds = match (a.steps, a.minutes) {
         (None, None) => Some(300.0),
         (_, m) => m.map(|m| m * 60.0),
@@ -171,6 +179,7 @@ impl TrainArgs {
             ("--lr-final", "/lr_final", self.lr_final.is_some()),
             ("--distortion", "/distortion", self.distortion.is_some()),
             ("--tv", "/tv", self.tv.is_some()),
+            ("--pixel-rays", "/pixel_rays", self.pixel_rays.is_some()),
             ("--batch", "/batch_rays", self.batch.is_some()),
             ("--batch-samples", "/batch_samples", self.batch_samples.is_some()),
             ("--seed", "/seed", self.seed != 0),

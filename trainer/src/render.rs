@@ -84,6 +84,8 @@ pub struct ChunkStats {
     pub distortion_sum: f64,
     pub samples: u64,
     pub rays: u64,
+    /// Pixels the rays make up (each pixel's loss term is the mean of its rays).
+    pub pixels: u64,
     /// Nanoseconds per phase (see [`PHASES`]), summed over threads.
     pub ns: [u64; 6],
 }
@@ -102,6 +104,7 @@ impl ChunkStats {
             distortion_sum: self.distortion_sum + b.distortion_sum,
             samples: self.samples + b.samples,
             rays: self.rays + b.rays,
+            pixels: self.pixels + b.pixels,
             ns,
         }
     }
@@ -247,6 +250,21 @@ fn shade(value: &[f32; V], t_final: f32, spec: &[f32; VOUT], bg: &[f32; 3]) -> [
     [0, 1, 2].map(|c| value[c] + acc * spec[c] + t_final * bg[c])
 }
 
+/// Fixed sub-pixel positions of `k` rays (a side x side grid of cell centres): how a
+/// renderer takes the mean over a pixel's square.
+pub fn subpixel_grid(k: usize) -> Vec<(f32, f32)> {
+    let side = (k.max(1) as f32).sqrt().round() as usize;
+    (0..side * side).map(|j| (((j % side) as f32 + 0.5) / side as f32, ((j / side) as f32 + 0.5) / side as f32)).collect()
+}
+
+/// Colour of ray `ri` of the chunk (forward only, after `forward_field`).
+fn ray_colour(field: &Field, ws: &mut Workspace, ri: usize, ray: &Ray, bg: &[f32; 3]) -> [f32; 3] {
+    ws.gather(ri);
+    let comp = composite::forward(&ws.c_sigma, &ws.c_delta, &ws.c_v);
+    let (spec, _) = field.layout.view.forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
+    shade(&comp.value, comp.t_final, &spec, bg)
+}
+
 /// Render rays without gradients.
 pub fn render_chunk(
     field: &Field,
@@ -283,9 +301,11 @@ pub fn render_chunk(
 }
 
 /// One training chunk: forward, mean-squared-error loss against the targets, and the full
-/// backward into `ws.grad`. `loss_scale` multiplies dL/dcolour (1 / (3 * batch rays)).
+/// backward into `ws.grad`. `loss_scale` multiplies dL/dcolour (1 / (3 * batch pixels)).
 /// `distortion` > 0 adds that weight times the distortion loss of every ray (normalized
-/// grid-space distances), which clears fog in forward-facing and unbounded scenes.
+/// grid-space distances; a pixel of k rays weighs each by 1/k), which clears fog in
+/// forward-facing and unbounded scenes. `groups` splits the tasks into pixels (consecutive
+/// rays sharing one target, compared with their mean colour); empty means a ray per pixel.
 pub fn train_chunk(
     field: &Field,
     space: &SceneSpace,
@@ -294,8 +314,10 @@ pub fn train_chunk(
     ws: &mut Workspace,
     loss_scale: f32,
     distortion: f32,
+    groups: &[u16],
 ) -> ChunkStats {
-    let mut stats = ChunkStats { rays: tasks.len() as u64, ..Default::default() };
+    let pixels = if groups.is_empty() { tasks.len() } else { groups.len() };
+    let mut stats = ChunkStats { rays: tasks.len() as u64, pixels: pixels as u64, ..Default::default() };
     ws.forward_field(field, space, occ, tasks, true, &mut stats.ns);
     let mut clock = std::time::Instant::now();
     let n = ws.samples.len();
@@ -304,10 +326,38 @@ pub fn train_chunk(
     ws.d_out.clear();
     ws.d_out.resize(n * OUT, 0.0);
     let view = field.layout.view;
+    // Pixel groups: `groups[g]` consecutive rays make one pixel (none given: one ray each).
+    let mut group_end = 0usize;
+    let mut next_group = groups.iter();
+    let mut k = 1usize;
+    let mut mean = [0.0f32; 3];
     for (ri, task) in tasks.iter().enumerate() {
+        // A pixel is the mean of its k rays: its loss is (mean - target)^2, so each ray's
+        // colour gradient is 2 (mean - target) / k.
+        if ri == group_end {
+            k = next_group.next().map_or(1, |&g| g.max(1) as usize).min(tasks.len() - ri);
+            group_end = ri + k;
+            if k > 1 {
+                let mut m = [0.0f32; 3];
+                for (j, t) in tasks[ri..group_end].iter().enumerate() {
+                    let rgb = match t.ray {
+                        Some(r) => ray_colour(field, ws, ri + j, &r, &t.bg),
+                        None => t.bg,
+                    };
+                    for c in 0..3 {
+                        m[c] += rgb[c] / k as f32;
+                    }
+                }
+                let e: f32 = (0..3).map(|c| (m[c] - task.target[c]).powi(2)).sum();
+                stats.loss_sum += e as f64;
+                mean = m;
+            }
+        }
         let Some(ray) = task.ray else {
-            let e: f32 = (0..3).map(|c| (task.bg[c] - task.target[c]).powi(2)).sum();
-            stats.loss_sum += e as f64;
+            if k == 1 {
+                let e: f32 = (0..3).map(|c| (task.bg[c] - task.target[c]).powi(2)).sum();
+                stats.loss_sum += e as f64;
+            }
             continue;
         };
         ws.gather(ri);
@@ -317,9 +367,13 @@ pub fn train_chunk(
         let rgb = shade(&comp.value, comp.t_final, &spec, &task.bg);
         let mut d_rgb = [0.0f32; 3];
         for c in 0..3 {
-            let e = rgb[c] - task.target[c];
-            stats.loss_sum += (e * e) as f64;
-            d_rgb[c] = 2.0 * e * loss_scale;
+            if k == 1 {
+                let e = rgb[c] - task.target[c];
+                stats.loss_sum += (e * e) as f64;
+                d_rgb[c] = 2.0 * e * loss_scale;
+            } else {
+                d_rgb[c] = 2.0 * (mean[c] - task.target[c]) * loss_scale / k as f32;
+            }
         }
         let acc = comp.value[7];
         // colour = value[0..3] + acc * spec + T_N * bg
@@ -354,7 +408,7 @@ pub fn train_chunk(
             ws.c_gw.resize(m, 0.0);
             let l = composite::distortion(&ws.c_w, &ws.c_mid, &ws.c_len, &mut ws.c_gw);
             stats.distortion_sum += l as f64;
-            let scale = distortion * 3.0 * loss_scale;
+            let scale = distortion * 3.0 * loss_scale / k as f32;
             for gw in ws.c_gw.iter_mut() {
                 *gw *= scale;
             }

@@ -52,6 +52,16 @@ pub struct TrainConfig {
     pub freeze_view: bool,
     pub seed: u64,
     pub field: FieldConfig,
+    /// Rays per silhouette pixel (a square number, up to [`MAX_PIXEL_RAYS`]): such a pixel
+    /// is trained and rendered as the mean of rays stratified over its square, the way the
+    /// views were made (a supersampling renderer, a camera sensor). 4 for static objects;
+    /// 1 (one ray through the centre) elsewhere and in checkpoints from before it existed.
+    #[serde(default = "one")]
+    pub pixel_rays: usize,
+}
+
+fn one() -> usize {
+    1
 }
 
 impl TrainConfig {
@@ -98,6 +108,8 @@ impl TrainConfig {
             freeze_view: false,
             seed: 0,
             field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
+            // Static objects only: forward, unbounded and dynamic scenes were not re-measured.
+            pixel_rays: if data.kind == SceneKind::Object && !data.dynamic { 4 } else { 1 },
         }
     }
 }
@@ -130,6 +142,9 @@ impl TrainConfig {
         count("occupancy_res", self.occupancy_res, 1024)?;
         count("steps_per_diagonal", self.steps_per_diagonal, 1 << 16)?;
         count("occupancy_every", self.occupancy_every as usize, 1 << 20)?;
+        count("pixel_rays", self.pixel_rays, MAX_PIXEL_RAYS)?;
+        let side = (self.pixel_rays as f64).sqrt().round() as usize;
+        anyhow::ensure!(side * side == self.pixel_rays, "training setting pixel_rays must be a square number: 1, 4, 9 or 16 (is {})", self.pixel_rays);
         let f = &self.field;
         anyhow::ensure!(!f.resolutions.is_empty() && f.resolutions.len() <= 8, "training setting field.resolutions must have 1..=8 levels");
         for &r in f.resolutions.iter().chain(&f.time_resolutions) {
@@ -142,6 +157,41 @@ impl TrainConfig {
         anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden.is_multiple_of(4), "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
         Ok(())
     }
+}
+
+/// Most rays a training pixel may take (a 4x4 grid).
+pub const MAX_PIXEL_RAYS: usize = 16;
+
+/// One bit per pixel of `views` (in order, row-major): the pixel's 3x3 neighbourhood holds
+/// both covered and uncovered alpha, i.e. it lies on a silhouette. There the colour is the
+/// coverage-weighted mean over the pixel's square (what a supersampling renderer or a camera
+/// sensor records), which no single ray through the centre of a sharp edge can return.
+pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
+    let total: usize = views.iter().map(|v| (v.intrinsics.width * v.intrinsics.height) as usize).sum();
+    let mut bits = vec![0u64; total.div_ceil(64)];
+    let mut base = 0usize;
+    for v in views {
+        let (w, h) = (v.intrinsics.width as usize, v.intrinsics.height as usize);
+        let alpha = |x: usize, y: usize| v.rgba[(y * w + x) * 4 + 3];
+        for y in 0..h {
+            for x in 0..w {
+                let (mut lo, mut hi) = (255u8, 0u8);
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let a = alpha(xx, yy);
+                        lo = lo.min(a);
+                        hi = hi.max(a);
+                    }
+                }
+                if lo < 255 && hi > 0 {
+                    let p = base + y * w + x;
+                    bits[p / 64] |= 1 << (p % 64);
+                }
+            }
+        }
+        base += w * h;
+    }
+    bits
 }
 
 /// How many pixels the scene's box spans across in the median training view: the finest detail
@@ -169,12 +219,14 @@ pub fn pixels_across_box(data: &Dataset) -> Option<f32> {
     Some(px[px.len() / 2])
 }
 
-/// What a renderer needs: the scene mapping, the field and its occupancy grid.
+/// What a renderer needs: the scene mapping, the field and its occupancy grid, and how many
+/// rays a silhouette pixel takes (the training setting `pixel_rays`).
 #[derive(Clone, Debug)]
 pub struct Model {
     pub space: SceneSpace,
     pub field: Field,
     pub occ: Occupancy,
+    pub pixel_rays: usize,
 }
 
 /// One point of the error-against-time curve.
@@ -204,6 +256,9 @@ pub struct Trainer {
     has_alpha: bool,
     /// Cumulative pixel counts, for uniform sampling of pixels across views.
     cum_pixels: Vec<usize>,
+    /// One bit per training pixel (indexed like `cum_pixels`): on a silhouette (see
+    /// [`silhouette_mask`]), where the pixel is rendered as the mean of `pixel_rays` rays.
+    edge: Vec<u64>,
 }
 
 /// Statistics of one step.
@@ -240,11 +295,12 @@ pub fn views_have_alpha(views: &[View]) -> bool {
 
 impl Trainer {
     pub fn new(data: &Dataset, cfg: TrainConfig) -> Result<Trainer> {
+        let pixel_rays = cfg.pixel_rays;
         let space = SceneSpace::from_dataset(data)?;
         let field = Field::new(cfg.field.clone(), cfg.seed)?;
         let occ = Occupancy::new(cfg.occupancy_res, cfg.steps_per_diagonal);
         let adam = Adam::new(field.params.len());
-        let mut t = Trainer::from_parts(data, cfg, Model { space, field, occ }, adam)?;
+        let mut t = Trainer::from_parts(data, cfg, Model { space, field, occ, pixel_rays }, adam)?;
         if t.model.space.kind == SceneKind::Object && t.has_alpha {
             t.carve();
         }
@@ -252,9 +308,10 @@ impl Trainer {
     }
 
     /// Rebuild a trainer around saved state (resume) and the dataset's training views.
-    pub fn from_parts(data: &Dataset, cfg: TrainConfig, model: Model, adam: Adam) -> Result<Trainer> {
+    pub fn from_parts(data: &Dataset, cfg: TrainConfig, mut model: Model, adam: Adam) -> Result<Trainer> {
         anyhow::ensure!(!data.train.is_empty(), "{}: no training views", data.root.display());
         cfg.validate()?;
+        model.pixel_rays = cfg.pixel_rays; // the model renders as it is trained
         let views = data.train.clone();
         let mut cum = Vec::with_capacity(views.len());
         let mut total = 0usize;
@@ -264,6 +321,7 @@ impl Trainer {
         }
         let has_alpha = views_have_alpha(&views);
         let pool = WorkspacePool::new(model.field.params.len());
+        let edge = silhouette_mask(&views);
         Ok(Trainer {
             rng: Rng::new(cfg.seed ^ 0x5eed),
             rays_next: cfg.batch_rays.max(1),
@@ -278,6 +336,7 @@ impl Trainer {
             views,
             has_alpha,
             cum_pixels: cum,
+            edge,
         })
     }
 
@@ -298,6 +357,7 @@ impl Trainer {
             })
             .collect();
         self.has_alpha = views_have_alpha(&views);
+        self.edge = silhouette_mask(&views);
         self.views = views;
         Ok(())
     }
@@ -357,10 +417,15 @@ impl Trainer {
         self.model.occ.refresh_bits();
     }
 
-    fn sample_tasks(&mut self, n: usize) -> Vec<RayTask> {
+    /// About `n` rays for random pixels across all training views, and the pixel groups
+    /// they make: a pixel on a silhouette gets `pixel_rays` rays (stratified over its
+    /// square), any other one ray through its centre.
+    fn sample_tasks(&mut self, n: usize) -> (Vec<RayTask>, Vec<u16>) {
         let total = *self.cum_pixels.last().unwrap();
-        let mut tasks = Vec::with_capacity(n);
-        for _ in 0..n {
+        let side = (self.cfg.pixel_rays as f32).sqrt().round() as usize;
+        let mut tasks = Vec::with_capacity(n + side * side);
+        let mut groups = Vec::with_capacity(n);
+        while tasks.len() < n {
             let p = self.rng.below(total);
             let vi = self.cum_pixels.partition_point(|&c| c <= p);
             let v = &self.views[vi];
@@ -375,10 +440,21 @@ impl Trainer {
                 [0.0; 3]
             };
             let target = [0, 1, 2].map(|c| px[c] as f32 / 255.0 * a + bg[c] * (1.0 - a));
-            let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time);
-            tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
+            if side < 2 || self.edge[p / 64] >> (p % 64) & 1 == 0 {
+                let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time);
+                tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
+                groups.push(1);
+                continue;
+            }
+            for j in 0..side * side {
+                let sx = ((j % side) as f32 + self.rng.uniform()) / side as f32;
+                let sy = ((j / side) as f32 + self.rng.uniform()) / side as f32;
+                let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + sx, y as f32 + sy, v.time);
+                tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
+            }
+            groups.push((side * side) as u16);
         }
-        tasks
+        (tasks, groups)
     }
 
     /// Learning-rate multiplier at `progress` in [0,1] of the budget (exponential decay).
@@ -390,15 +466,28 @@ impl Trainer {
     /// One optimization step.
     pub fn step(&mut self, progress: f64) -> StepStats {
         let t0 = Instant::now();
-        let tasks = self.sample_tasks(self.rays_next);
-        let loss_scale = 1.0 / (3.0 * tasks.len() as f32);
+        let (tasks, groups) = self.sample_tasks(self.rays_next);
+        let loss_scale = 1.0 / (3.0 * groups.len() as f32);
         let model = &self.model;
         let pool = &self.pool;
         let distortion = self.cfg.distortion;
-        let stats = tasks
-            .par_chunks(self.cfg.chunk_rays)
-            .map(|chunk| {
-                pool.with(|ws| train_chunk(&model.field, &model.space, &model.occ, chunk, ws, loss_scale, distortion))
+        // chunks of about `chunk_rays` rays that never split a pixel's rays
+        let mut chunks = Vec::new();
+        let (mut t0_, mut g0) = (0usize, 0usize);
+        let mut t = 0usize;
+        for (g, &size) in groups.iter().enumerate() {
+            t += size as usize;
+            if t - t0_ >= self.cfg.chunk_rays || g + 1 == groups.len() {
+                chunks.push((t0_..t, g0..g + 1));
+                (t0_, g0) = (t, g + 1);
+            }
+        }
+        let stats = chunks
+            .into_par_iter()
+            .map(|(tr, gr)| {
+                pool.with(|ws| {
+                    train_chunk(&model.field, &model.space, &model.occ, &tasks[tr], ws, loss_scale, distortion, &groups[gr])
+                })
             })
             .reduce(ChunkStats::default, ChunkStats::merge);
         let t_chunks = t0.elapsed().as_secs_f64();
@@ -440,7 +529,7 @@ impl Trainer {
             self.rays_next = want.clamp(256, self.cfg.max_batch_rays.max(256));
         }
         StepStats {
-            loss: stats.loss_sum / (3.0 * stats.rays.max(1) as f64),
+            loss: stats.loss_sum / (3.0 * stats.pixels.max(1) as f64),
             samples: stats.samples,
             seconds: secs,
             chunk_seconds: t_chunks,

@@ -190,10 +190,11 @@ fn view_mlp_backward_matches_finite_differences() {
 }
 
 /// The whole fused training chunk: its gradient of the loss against finite differences of
-/// the loss it reports, for parameters in every group.
+/// the loss it reports, for parameters in every group; with one ray per pixel, and with
+/// pixels of 3 rays whose mean is compared to the pixel's target.
 #[test]
 fn fused_training_chunk_gradient_matches_finite_differences() {
-    for dynamic in [false, true] {
+    for (dynamic, k) in [(false, 1), (true, 1), (false, 3)] {
         let mut field = small_field(dynamic);
         // moderate densities so rays neither terminate early nor stay empty
         field.params[field.layout.b2] = 1.0;
@@ -212,16 +213,23 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
                 }
             })
             .collect();
+        // the rays of one pixel share its target and background
+        let tasks: Vec<RayTask> = tasks
+            .iter()
+            .enumerate()
+            .map(|(i, t)| RayTask { target: tasks[i / k * k].target, bg: tasks[i / k * k].bg, ..*t })
+            .collect();
         assert!(tasks.iter().all(|t| t.ray.is_some()));
-        // with loss_scale 1 the gradient is of Σ (rgb - target)² + 3 λ Σ distortion
+        let groups = vec![k as u16; tasks.len() / k];
+        // with loss_scale 1 the gradient is of Σ_pixels (mean rgb - target)² + 3 λ / k Σ distortion
         let lambda = if dynamic { 0.0 } else { 0.05 };
         let loss_of = |f: &Field| -> f64 {
             let mut ws = Workspace::new(f.params.len());
-            let s = train_chunk(f, &space, &occ, &tasks, &mut ws, 1.0, lambda);
-            s.loss_sum + 3.0 * lambda as f64 * s.distortion_sum
+            let s = train_chunk(f, &space, &occ, &tasks, &mut ws, 1.0, lambda, &groups);
+            s.loss_sum + 3.0 * lambda as f64 / k as f64 * s.distortion_sum
         };
         let mut ws = Workspace::new(field.params.len());
-        let stats = train_chunk(&field, &space, &occ, &tasks, &mut ws, 1.0, lambda);
+        let stats = train_chunk(&field, &space, &occ, &tasks, &mut ws, 1.0, lambda, &groups);
         assert!(lambda == 0.0 || stats.distortion_sum > 0.0);
         assert!(stats.samples > 50, "rays must cross the field ({} samples)", stats.samples);
         let grad = ws.grad.clone();
@@ -239,7 +247,7 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
             let mut fb = field.clone();
             fb.params[i] -= h;
             let num = (loss_of(&fa) - loss_of(&fb)) / (2.0 * h as f64);
-            assert_close(&format!("param {i} (dynamic={dynamic})"), grad[i] as f64, num, 5e-2, 5e-4);
+            assert_close(&format!("param {i} (dynamic={dynamic}, rays per pixel {k})"), grad[i] as f64, num, 5e-2, 5e-4);
             checked += 1;
         }
         assert!(checked > 20);

@@ -139,7 +139,7 @@ fn render_one(field: &Field, space: &SceneSpace, task: RayTask) -> RayResult {
     let mut ws = Workspace::new(field.params.len());
     let mut out = [RayResult::default()];
     render_chunk(field, space, &occ, &[task], &mut ws, &mut out);
-    let loss = train_chunk(field, space, &occ, &[task], &mut ws, 1.0, 0.01);
+    let loss = train_chunk(field, space, &occ, &[task], &mut ws, 1.0, 0.01, &[]);
     assert!(loss.loss_sum.is_finite());
     assert!(all_finite(&ws.grad), "gradient not finite");
     out[0]

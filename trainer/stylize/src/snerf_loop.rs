@@ -343,7 +343,12 @@ pub fn run(
             (state, trainer_from(source.clone(), data, opts)?)
         }
     };
-    let realistic = Model { space: source.model.space.clone(), field: source.model.field.clone(), occ: source.model.occ.clone() };
+    let realistic = Model {
+        space: source.model.space.clone(),
+        field: source.model.field.clone(),
+        occ: source.model.occ.clone(),
+        pixel_rays: source.model.pixel_rays,
+    };
     let realistic_pool = WorkspacePool::new(realistic.field.params.len());
     let views = pick_views(&data.train, opts.views);
     let has_alpha = views_have_alpha(&data.train);
