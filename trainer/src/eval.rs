@@ -22,7 +22,8 @@ pub struct Rendered {
     pub samples: u64,
 }
 
-/// Render a camera (c2w in OpenGL convention) at a time, over a background colour.
+/// Render a camera (c2w in OpenGL convention) at a time, over a background colour, the way
+/// the model was trained: silhouette pixels as the mean of `model.pixel_rays` rays.
 pub fn render_camera(
     model: &Model,
     pool: &WorkspacePool,
@@ -30,6 +31,20 @@ pub fn render_camera(
     k: &Intrinsics,
     time: Option<f32>,
     bg: Vec3,
+) -> Rendered {
+    render_camera_with(model, pool, c2w, k, time, bg, model.pixel_rays)
+}
+
+/// [`render_camera`] with `pixel_rays` rays on silhouette pixels (1: one ray through every
+/// pixel's centre, as the baked asset's renderers draw).
+pub fn render_camera_with(
+    model: &Model,
+    pool: &WorkspacePool,
+    c2w: &[[f32; 4]; 3],
+    k: &Intrinsics,
+    time: Option<f32>,
+    bg: Vec3,
+    pixel_rays: usize,
 ) -> Rendered {
     let (w, h) = (k.width as usize, k.height as usize);
     let render = |pixels: &[(usize, f32, f32)]| -> Vec<RayResult> {
@@ -48,7 +63,7 @@ pub fn render_camera(
         out
     };
     let mut results = render(&(0..w * h).map(|p| (p, 0.5, 0.5)).collect::<Vec<_>>());
-    let sub = crate::render::subpixel_grid(model.pixel_rays);
+    let sub = crate::render::subpixel_grid(pixel_rays);
     if sub.len() > 1 {
         // Silhouette pixels (mixed coverage around them, the trainer's rule on rendered
         // opacity) again, as the mean over their square, as they were trained.
