@@ -65,7 +65,8 @@ fn static_object_bakes_faithfully_and_without_time_data() {
     let f = faithfulness::measure(&t.model, &t.pool, &asset, &data.test, 4).unwrap();
     eprintln!("{f:#?}\n{report:#?}");
     assert!(f.mean_baked_vs_field >= 30.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);
-    assert!(f.drop_db <= 1.0, "baking loses {:.2} dB on test views", f.drop_db);
+    // the bake's own loss, like with like (one ray per pixel on both sides)
+    assert!(f.bake_loss_db <= 1.0, "baking loses {:.2} dB on test views", f.bake_loss_db);
     let back = snerf_asset::Asset::read(&file).unwrap();
     assert_eq!(back.atlas, asset.atlas);
 }
