@@ -306,6 +306,7 @@ pub fn render_chunk(
 /// grid-space distances; a pixel of k rays weighs each by 1/k), which clears fog in
 /// forward-facing and unbounded scenes. `groups` splits the tasks into pixels (consecutive
 /// rays sharing one target, compared with their mean colour); empty means a ray per pixel.
+#[allow(clippy::too_many_arguments)]
 pub fn train_chunk(
     field: &Field,
     space: &SceneSpace,

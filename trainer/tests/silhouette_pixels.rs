@@ -7,7 +7,7 @@ use snerf_trainer::render::subpixel_grid;
 use snerf_trainer::train::silhouette_mask;
 
 fn view(w: u32, h: u32, alpha: impl Fn(u32, u32) -> u8) -> View {
-    let rgba = (0..h).flat_map(|y| (0..w).flat_map(move |x| [10, 20, 30, 0]).collect::<Vec<_>>()).collect::<Vec<u8>>();
+    let rgba = [10u8, 20, 30, 0].repeat((w * h) as usize);
     let mut v = View {
         path: "v.png".into(),
         intrinsics: Intrinsics { width: w, height: h, fx: 10.0, fy: 10.0, cx: w as f32 / 2.0, cy: h as f32 / 2.0, distortion: [0.0; 4] },
