@@ -88,14 +88,26 @@ pub fn render_camera_with(
 /// Rendered opacity in the 3x3 neighbourhood of (x, y) is neither all covered nor all
 /// empty: the pixel is on a silhouette (the same rule the trainer applies to target alpha).
 pub fn mixed_coverage(opacity: &[f32], w: usize, h: usize, x: usize, y: usize) -> bool {
-    let (mut lo, mut hi) = (1.0f32, 0.0f32);
+    let (lo, hi) = min_max_3x3(w, h, x, y, |i| opacity[i]);
+    lo < 1.0 - 1.0 / 255.0 && hi > 1.0 / 255.0
+}
+
+/// The smallest and largest of `at(pixel index)` over the 3x3 neighbourhood of (x, y) in a
+/// `w` x `h` image (clipped at the borders): the one home of the silhouette rule's window.
+pub fn min_max_3x3<T: Copy + PartialOrd>(w: usize, h: usize, x: usize, y: usize, at: impl Fn(usize) -> T) -> (T, T) {
+    let (mut lo, mut hi) = (at(y * w + x), at(y * w + x));
     for yy in y.saturating_sub(1)..(y + 2).min(h) {
         for xx in x.saturating_sub(1)..(x + 2).min(w) {
-            lo = lo.min(opacity[yy * w + xx]);
-            hi = hi.max(opacity[yy * w + xx]);
+            let a = at(yy * w + xx);
+            if a < lo {
+                lo = a;
+            }
+            if a > hi {
+                hi = a;
+            }
         }
     }
-    lo < 1.0 - 1.0 / 255.0 && hi > 1.0 / 255.0
+    (lo, hi)
 }
 
 /// The mean of a pixel's rays (depth weighted by opacity).

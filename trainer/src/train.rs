@@ -172,17 +172,9 @@ pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
     let mut base = 0usize;
     for v in views {
         let (w, h) = (v.intrinsics.width as usize, v.intrinsics.height as usize);
-        let alpha = |x: usize, y: usize| v.rgba[(y * w + x) * 4 + 3];
         for y in 0..h {
             for x in 0..w {
-                let (mut lo, mut hi) = (255u8, 0u8);
-                for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                        let a = alpha(xx, yy);
-                        lo = lo.min(a);
-                        hi = hi.max(a);
-                    }
-                }
+                let (lo, hi) = crate::eval::min_max_3x3(w, h, x, y, |i| v.rgba[i * 4 + 3]);
                 if lo < 255 && hi > 0 {
                     let p = base + y * w + x;
                     bits[p / 64] |= 1 << (p % 64);
@@ -473,13 +465,13 @@ impl Trainer {
         let distortion = self.cfg.distortion;
         // chunks of about `chunk_rays` rays that never split a pixel's rays
         let mut chunks = Vec::new();
-        let (mut t0_, mut g0) = (0usize, 0usize);
+        let (mut start, mut g0) = (0usize, 0usize);
         let mut t = 0usize;
         for (g, &size) in groups.iter().enumerate() {
             t += size as usize;
-            if t - t0_ >= self.cfg.chunk_rays || g + 1 == groups.len() {
-                chunks.push((t0_..t, g0..g + 1));
-                (t0_, g0) = (t, g + 1);
+            if t - start >= self.cfg.chunk_rays || g + 1 == groups.len() {
+                chunks.push((start..t, g0..g + 1));
+                (start, g0) = (t, g + 1);
             }
         }
         let stats = chunks
