@@ -173,6 +173,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             one_round: None,
             frames: CONSISTENCY_FRAMES,
             out: None,
+            save_frames: false,
             opts: DataOpts::default(),
         },
         true,

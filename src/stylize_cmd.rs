@@ -8,9 +8,9 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::ProgressBar;
 use serde_json::{json, Value};
-use snerf_stylize::consistency::{self, MethodScores, PathGeometry};
+use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters};
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
-use snerf_stylize::stylizer::{self, Image, StyleEmbedder, Stylizer, StylizerOptions};
+use snerf_stylize::stylizer::{self, Image, Stylizer, StylizerOptions};
 use snerf_trainer::checkpoint;
 
 use crate::args::{bar, DataOpts};
@@ -63,9 +63,9 @@ impl StylizerArgs {
         stylizer::from_spec(&self.stylizer, style, &self.options())
     }
 
-    /// The style-embedding model, when installed (style distances need it).
-    pub fn embedder(&self) -> Option<StyleEmbedder> {
-        StyleEmbedder::new(&self.options()).ok()
+    /// The networks of the style distances, those that are installed.
+    pub fn meters(&self) -> StyleMeters {
+        StyleMeters::open(&self.options())
     }
 }
 
@@ -219,7 +219,7 @@ impl Progress for Bars {
     fn round_done(&mut self, r: &RoundRecord) {
         if !self.quiet {
             self.pb.println(format!(
-                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {} (embedding {}), consistency short {} long {}",
+                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {} (Gram {}, embedding {}), consistency short {} long {}",
                 r.round,
                 r.wall_seconds,
                 r.render_seconds,
@@ -227,6 +227,7 @@ impl Progress for Bars {
                 r.train_seconds,
                 r.fit_psnr,
                 fmt_opt(r.style_swd.map(|s| s.total), 4),
+                fmt_opt(r.style_gram, 4),
                 fmt_opt(r.style_distance, 3),
                 fmt_opt(r.short_range, 5),
                 fmt_opt(r.long_range, 5)
@@ -278,7 +279,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         Some(p) => stylizer::load_style_image(p)?,
         None => style_reference(stylizer.as_ref())?,
     };
-    let embedder = a.s.embedder();
+    let meters = a.s.meters();
     let opts = StylizeOptions {
         source_run: absolute(&a.run),
         data: absolute(&data_path),
@@ -306,7 +307,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         out: a.out.clone(),
         live: snerf_report::live::LiveReport::new(),
     };
-    let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), embedder.as_ref(), &style_img, &a.out, &mut bars)?;
+    let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), &meters, &style_img, &a.out, &mut bars)?;
     bars.pb.finish_and_clear();
     bars.live.stylize(&a.out, serde_json::to_value(&state)?);
     if !quiet {
@@ -358,6 +359,10 @@ pub struct ConsistencyArgs {
     /// Where to write consistency.json, consistency.md and consistency.png (default: SRUN).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Also write every frame of the path as PNGs in OUT/frames/: realistic_NN, per_frame_NN,
+    /// snerf_NN, and mask_NN (the scene pixels the style distances pool).
+    #[arg(long)]
+    pub save_frames: bool,
     #[command(flatten)]
     pub opts: DataOpts,
 }
@@ -383,18 +388,16 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let has_style = !o.style.as_os_str().is_empty();
     let style_path = has_style.then_some(o.style.as_path());
     let stylizer = sargs.build(style_path)?;
-    let embedder = sargs.embedder();
+    let meters = sargs.meters();
     let style_img = match style_path {
         Some(p) => stylizer::load_style_image(p)?,
         None => style_reference(stylizer.as_ref())?,
     };
-    let style_emb = embedder.as_ref().map(|e| e.embed(&style_img)).transpose()?;
-    let style_ref = embedder.as_ref().zip(style_emb.as_deref());
 
     let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
     pb.set_message("realistic geometry");
     let path = PathGeometry::new(&realistic, &pool, &data, a.frames)?;
-    let style_samples = path.style_reference(&style_img);
+    let targets = meters.targets(&path, &style_img)?;
     pb.inc(1);
     pb.set_message("per-frame baseline");
     let mut per_frame = Vec::with_capacity(path.realistic.len());
@@ -408,17 +411,17 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     // The unstylized field is the floor of the warp error (resampling, aliasing) and shows
     // how far from the style the scene starts.
     let mut methods = vec![
-        MethodScores::of("Realistic field (no stylization)", &path, &path.realistic, style_ref, &style_samples)?,
-        MethodScores::of("Per-frame image stylization", &path, &per_frame, style_ref, &style_samples)?,
+        MethodScores::of("Realistic field (no stylization)", &path, &path.realistic, &meters, &targets)?,
+        MethodScores::of("Per-frame image stylization", &path, &per_frame, &meters, &targets)?,
     ];
     let mut one_round_frames = None;
     if let Some(r1) = &a.one_round {
         let (m1, p1) = RunDir::new(r1).load_model()?;
         let frames = path.render(&m1, &p1);
-        methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, style_ref, &style_samples)?);
+        methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, &meters, &targets)?);
         one_round_frames = Some(frames);
     }
-    methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, style_ref, &style_samples)?);
+    methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, &meters, &targets)?);
     pb.inc(1);
     pb.finish_and_clear();
 
@@ -433,10 +436,12 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "long_range": sn.long_range / pf.long_range,
         "style_distance": sn.style_distance.zip(pf.style_distance).map(|(a, b)| a / b),
         "style_swd": sn.style_swd.total / pf.style_swd.total,
+        "style_gram": sn.style_gram.zip(pf.style_gram).map(|(a, b)| a / b),
     });
     // The style metric is only worth reading when it separates the unstylized scene from a
     // stylized one: the realistic field must be well farther from the style than per-frame.
     let realistic_over_per_frame = methods[0].style_swd.total / pf.style_swd.total;
+    let gram_realistic_over_per_frame = methods[0].style_gram.zip(pf.style_gram).map(|(a, b)| a / b);
     // contact sheet: style | realistic | per-frame | (1 round) | SNeRF, for two frames far apart
     let far = (a.frames - 1).min(7.max(a.frames / 2));
     let style_tile = &style_img;
@@ -450,13 +455,37 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         rows.push(row);
     }
     checkpoint::write_png_atomic(&out.join("consistency.png"), &consistency::grid_image(&rows))?;
+    if a.save_frames {
+        let dir = out.join("frames");
+        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        for (name, frames) in [("realistic", &path.realistic), ("per_frame", &per_frame), ("snerf", &snerf_frames)] {
+            for (i, f) in frames.iter().enumerate() {
+                stylizer::save_png(&dir.join(format!("{name}_{i:02}.png")), f)?;
+            }
+        }
+        for (i, m) in path.masks().iter().enumerate() {
+            let data = m.iter().flat_map(|&v| [if v { 1.0 } else { 0.0 }; 3]).collect();
+            stylizer::save_png(&dir.join(format!("mask_{i:02}.png")), &Image { width: path.intr.width as usize, height: path.intr.height as usize, data })?;
+        }
+    }
+    let separation = |r: f64| if r >= 1.5 { "valid: at least 1.5×" } else { "below 1.5×: this distance does not tell much on this pair" };
+    let gram_line = match (sn.style_gram.zip(pf.style_gram), gram_realistic_over_per_frame) {
+        (Some((g_sn, g_pf)), Some(r)) => format!(
+            "Gram style distance (Gram matrices of ImageNet MobileNetV2 features at 1/2..1/16 resolution, same frames; \
+             not independent for `gatys`, which minimizes it): SNeRF / per-frame {:.3}×; it separates the realistic field \
+             from per-frame stylization by {r:.2}× ({}).\n\n",
+            g_sn / g_pf,
+            separation(r)
+        ),
+        _ => String::new(),
+    };
     let md = format!(
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`; {}; warped-frame MSE (RGB in [0,1]) over covered, \
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
          Style distance: sliced Wasserstein between the scene pixels of 8 path frames and the style picture, \
          colour (Oklab) + texture (contrast-normalized 5×5 patches at 3 scales); it separates the realistic field from per-frame \
-         stylization by {:.2}× ({}).\n\nContact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
+         stylization by {:.2}× ({}).\n\n{gram_line}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
         consistency::path_description(data.kind, a.frames),
@@ -466,7 +495,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         sn.long_range / pf.long_range,
         sn.style_swd.total / pf.style_swd.total,
         realistic_over_per_frame,
-        if realistic_over_per_frame >= 1.5 { "valid: at least 1.5×" } else { "below 1.5×: style distances on this pair do not tell much" },
+        separation(realistic_over_per_frame),
         if one_round_frames.is_some() { " | 1 round" } else { "" },
     );
     std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
@@ -478,6 +507,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "methods": methods,
         "snerf_over_per_frame": ratios,
         "style_metric_realistic_over_per_frame": realistic_over_per_frame,
+        "style_gram_realistic_over_per_frame": gram_realistic_over_per_frame,
         "rounds": state.records,
         "seconds": t0.elapsed().as_secs_f64(),
         "table": table,

@@ -175,21 +175,24 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         let col = colors.of(&s.label);
         let recs = &s.data["state"]["records"];
         let run = &s.label;
+        // The Gram style distance where the records have it (independent of the stylizers but
+        // `gatys`); older records only have the Magenta embedding distance.
+        let key = if recs.as_array().into_iter().flatten().any(|r| num(&r["style_gram"]).is_some()) { "style_gram" } else { "style_distance" };
         fit.series.push(series(run, "fit_psnr", run.clone(), col, false, true, pairs(recs, "wall_seconds", "fit_psnr")));
-        style.series.push(series(run, "style_distance", run.clone(), col, false, true, pairs(recs, "wall_seconds", "style_distance")));
+        style.series.push(series(run, key, run.clone(), col, false, true, pairs(recs, "wall_seconds", key)));
         cons.series.push(series(run, "short_range", run.clone(), col, false, true, pairs(recs, "wall_seconds", "short_range")));
         cons.series.push(series(run, "long_range", format!("{run} long range"), col, true, true, pairs(recs, "wall_seconds", "long_range")));
         for r in recs.as_array().into_iter().flatten() {
             let head = vec![run.clone(), fmt(num(&r["round"]), 0), fmt(num(&r["wall_seconds"]), 1)];
             fit.table.rows.push([head.clone(), vec![fmt(num(&r["fit_psnr"]), 2)]].concat());
-            if num(&r["style_distance"]).is_some() {
-                style.table.rows.push([head.clone(), vec![fmt(num(&r["style_distance"]), 4)]].concat());
+            if num(&r[key]).is_some() {
+                style.table.rows.push([head.clone(), vec![fmt(num(&r[key]), 4)]].concat());
             }
             if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
                 cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
             }
         }
-        style.hlines.extend(references(s, "style_distance", ""));
+        style.hlines.extend(references(s, key, ""));
         cons.hlines.extend(references(s, "short_range", ", short range"));
         cons.hlines.extend(references(s, "long_range", ", long range"));
     }

@@ -6,9 +6,11 @@
 //! the numbers compare stylizations, not depth estimates.
 //!
 //! Consistency alone can be bought by washing the style out, so style distances come with
-//! it: the weight-free `style_metric` (colour and texture distributions of the scene's pixels
-//! against the style picture; no stylizer aims at it) and, when the model is installed, the
-//! distance between Magenta style embeddings of the frames and of the style image.
+//! it (`StyleMeters`): the weight-free `style_metric` (colour and texture distributions of the
+//! scene's pixels against the style picture; no stylizer aims at it), and, when the model is
+//! installed, `style_gram` (Gram matrices of ImageNet features, independent of every stylizer
+//! but `gatys`) and the distance between Magenta style embeddings of the frames and of the
+//! style image (the space `arbitrary` aims at).
 
 use anyhow::Result;
 use serde::Serialize;
@@ -19,8 +21,9 @@ use snerf_trainer::render::WorkspacePool;
 use snerf_trainer::space::{norm, sub, Vec3};
 use snerf_trainer::train::{views_have_alpha, Model};
 
+use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleSamples, StyleScore};
-use crate::stylizer::{Image, StyleEmbedder};
+use crate::stylizer::{Image, StyleEmbedder, StylizerOptions};
 
 /// Cameras per full circle of the novel path: 5° apart on an orbit, so (i, i+1) is a small
 /// motion and (i, i+7) a large one, as in the paper's test trajectories.
@@ -156,14 +159,25 @@ impl PathGeometry {
         self.opacity.iter().map(|op| op.iter().map(|&a| a > COVERED).collect()).collect()
     }
 
+    /// Up to 8 evenly spaced frames with their scene masks: what the style distances pool.
+    fn style_frames<'a>(&self, frames: &'a [Image], masks: &'a [Vec<bool>]) -> Vec<(&'a Image, Option<&'a [bool]>)> {
+        let n = frames.len().min(8);
+        (0..n).map(|k| k * frames.len() / n.max(1)).map(|i| (&frames[i], Some(masks[i].as_slice()))).collect()
+    }
+
     /// The weight-free style distance of `frames` (their scene pixels, up to 8 evenly spaced
     /// frames pooled) to the style picture's samples (`style_metric::reference`).
     pub fn style_score(&self, frames: &[Image], style: &StyleSamples) -> StyleScore {
         let masks = self.masks();
-        let n = frames.len().min(8);
-        let picked: Vec<usize> = (0..n).map(|k| k * frames.len() / n.max(1)).collect();
-        let set: Vec<(&Image, Option<&[bool]>)> = picked.iter().map(|&i| (&frames[i], Some(masks[i].as_slice()))).collect();
-        style_metric::distance(&StyleSamples::of(&set), style)
+        style_metric::distance(&StyleSamples::of(&self.style_frames(frames, &masks)), style)
+    }
+
+    /// The Gram style distance of the same frames and masks (`style_gram`), the frames
+    /// composited on the scene's own opacity first: a feature's receptive field reaches past
+    /// the mask, and paint a per-frame stylizer puts into empty space must not count.
+    pub fn style_gram(&self, frames: &[Image], metric: &GramMetric, style: &Grams) -> Result<f64> {
+        let (masks, composited) = (self.masks(), self.masked(frames));
+        Ok(style_gram::distance(&metric.grams(&self.style_frames(&composited, &masks))?, style))
     }
 
     /// The style picture's samples at this path's pixel footprint.
@@ -208,6 +222,59 @@ pub fn style_distance_frames(embedder: &StyleEmbedder, frames: &[Image], style_e
     Ok(sum / n.max(1) as f64)
 }
 
+/// The networks the style distances need, each present when its model is installed (the
+/// weight-free distance needs none).
+#[derive(Clone, Default)]
+pub struct StyleMeters {
+    pub embedder: Option<StyleEmbedder>,
+    pub gram: Option<GramMetric>,
+}
+
+/// The style picture, prepared once for every style distance at a path's footprint.
+pub struct StyleTargets {
+    embedding: Option<Vec<f32>>,
+    samples: StyleSamples,
+    grams: Option<Grams>,
+}
+
+/// One set of frames scored by every style distance.
+#[derive(Clone, Copy, Debug)]
+pub struct StyleScores {
+    pub embedding: Option<f64>,
+    pub swd: StyleScore,
+    pub gram: Option<f64>,
+}
+
+impl StyleMeters {
+    /// Opens whichever networks are installed (none is required).
+    pub fn open(opts: &StylizerOptions) -> StyleMeters {
+        StyleMeters { embedder: StyleEmbedder::new(opts).ok(), gram: GramMetric::open(opts).ok() }
+    }
+
+    pub fn targets(&self, path: &PathGeometry, style: &Image) -> Result<StyleTargets> {
+        let (w, h) = (path.intr.width as usize, path.intr.height as usize);
+        Ok(StyleTargets {
+            embedding: self.embedder.as_ref().map(|e| e.embed(style)).transpose()?,
+            samples: path.style_reference(style),
+            grams: self.gram.as_ref().map(|g| g.reference(style, w, h)).transpose()?,
+        })
+    }
+
+    /// Every style distance of `frames` (renders along `path`) to the style picture.
+    pub fn score(&self, path: &PathGeometry, frames: &[Image], targets: &StyleTargets) -> Result<StyleScores> {
+        Ok(StyleScores {
+            embedding: self
+                .embedder
+                .as_ref()
+                .zip(targets.embedding.as_deref())
+                .map(|(e, s)| style_distance_frames(e, &path.masked(frames), s))
+                .transpose()?,
+            swd: path.style_score(frames, &targets.samples),
+            gram: self.gram.as_ref().zip(targets.grams.as_ref()).map(|(g, s)| path.style_gram(frames, g, s)).transpose()?,
+        })
+    }
+}
+
 /// The scores of one method.
 #[derive(Clone, Debug, Serialize)]
 pub struct MethodScores {
@@ -218,22 +285,20 @@ pub struct MethodScores {
     pub style_distance: Option<f64>,
     /// The weight-free style distance (`style_metric`): colour + texture.
     pub style_swd: StyleScore,
+    /// The Gram style distance (`style_gram`; None without the model).
+    pub style_gram: Option<f64>,
 }
 
 impl MethodScores {
-    pub fn of(
-        method: &str,
-        path: &PathGeometry,
-        frames: &[Image],
-        style: Option<(&StyleEmbedder, &[f32])>,
-        style_samples: &StyleSamples,
-    ) -> Result<MethodScores> {
+    pub fn of(method: &str, path: &PathGeometry, frames: &[Image], meters: &StyleMeters, targets: &StyleTargets) -> Result<MethodScores> {
+        let style = meters.score(path, frames, targets)?;
         Ok(MethodScores {
             method: method.to_string(),
             short_range: path.warp_error(frames, 1),
             long_range: path.warp_error(frames, 7),
-            style_distance: style.map(|(e, s)| style_distance_frames(e, &path.masked(frames), s)).transpose()?,
-            style_swd: path.style_score(frames, style_samples),
+            style_distance: style.embedding,
+            style_swd: style.swd,
+            style_gram: style.gram,
         })
     }
 }
@@ -241,17 +306,18 @@ impl MethodScores {
 /// Markdown table in the layout of the paper's Tables 1 and 2.
 pub fn markdown_table(methods: &[MethodScores]) -> String {
     let mut s = String::from(
-        "| Method | Short-range error ↓ | Long-range error ↓ | Style distance (colour + texture) ↓ | Embedding style distance ↓ |\n|---|---:|---:|---:|---:|\n",
+        "| Method | Short-range error ↓ | Long-range error ↓ | Style distance (colour + texture) ↓ | Gram style distance ↓ | Embedding style distance ↓ |\n|---|---:|---:|---:|---:|---:|\n",
     );
     for m in methods {
         s += &format!(
-            "| {} | {:.5} | {:.5} | {:.4} ({:.4} + {:.4}) | {} |\n",
+            "| {} | {:.5} | {:.5} | {:.4} ({:.4} + {:.4}) | {} | {} |\n",
             m.method,
             m.short_range,
             m.long_range,
             m.style_swd.total,
             m.style_swd.color,
             m.style_swd.texture,
+            m.style_gram.map(|d| format!("{d:.4}")).unwrap_or_else(|| "n/a".into()),
             m.style_distance.map(|d| format!("{d:.3}")).unwrap_or_else(|| "n/a".into())
         );
     }

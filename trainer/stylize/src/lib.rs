@@ -8,6 +8,8 @@
 //!   range) and style distances, for SNeRF and the per-frame baseline.
 //! - `style_metric`: a weight-free style distance (sliced Wasserstein over Oklab colours and
 //!   texture patches) that no stylizer aims at.
+//! - `style_gram`: a style distance on Gram matrices of ImageNet features (independent of
+//!   every stylizer but `gatys`, which minimizes it).
 //! - `fusion`: multi-view fusion of the stylized targets through the field's depth.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
@@ -22,5 +24,6 @@ pub mod consistency;
 pub mod fusion;
 pub mod paintings;
 pub mod snerf_loop;
+pub mod style_gram;
 pub mod style_metric;
 pub mod stylizer;

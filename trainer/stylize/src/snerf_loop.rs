@@ -81,7 +81,7 @@ use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
 mod consensus;
 mod partial;
 
-use crate::consistency::{self, PathGeometry};
+use crate::consistency::{self, PathGeometry, StyleMeters};
 use crate::fusion::{self, ViewGeometry};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer};
 
@@ -255,6 +255,10 @@ pub struct RoundRecord {
     /// style picture; None without a consistency path.
     #[serde(default)]
     pub style_swd: Option<crate::style_metric::StyleScore>,
+    /// The Gram style distance (`style_gram`) of the same frames; None without a path or
+    /// without the model.
+    #[serde(default)]
+    pub style_gram: Option<f64>,
     /// Fraction of scene pixels whose target was fused with at least one neighbour.
     #[serde(default)]
     pub fused_fraction: Option<f64>,
@@ -304,7 +308,7 @@ pub fn run(
     data: &Dataset,
     source: &snerf_trainer::checkpoint::Checkpoint,
     stylizer: &dyn Stylizer,
-    embedder: Option<&StyleEmbedder>,
+    meters: &StyleMeters,
     style: &Image,
     out: &Path,
     progress: &mut dyn Progress,
@@ -353,14 +357,15 @@ pub fn run(
     let views = pick_views(&data.train, opts.views);
     let has_alpha = views_have_alpha(&data.train);
     let bg = eval_background(has_alpha);
-    let style_embedding = embedder.map(|e| e.embed(style)).transpose()?;
+    // Without a path (no per-round consistency) the embedding distance of held-out views.
+    let style_embedding = meters.embedder.as_ref().map(|e| e.embed(style)).transpose()?;
     // The geometry of the novel path comes from the realistic field, once.
     let path = if opts.consistency_frames > 1 {
         Some(PathGeometry::new(&realistic, &realistic_pool, data, opts.consistency_frames)?)
     } else {
         None
     };
-    let style_samples = path.as_ref().map(|p| p.style_reference(style));
+    let style_targets = path.as_ref().map(|p| meters.targets(p, style)).transpose()?;
     // `Content::Realistic`: the stylizations of the realistic renders, made once per process
     // (the stylizers are deterministic, so a resumed run makes the same ones again); with
     // consensus targets, the last round's fused targets instead (saved, so a resumed run
@@ -480,17 +485,16 @@ pub fn run(
         // measure (not counted as round time)
         wall += t_round.elapsed().as_secs_f64();
         progress.phase(round + 1, opts.rounds, "measure", 1);
-        let style = embedder.zip(style_embedding.as_deref());
-        let (style_distance, short_range, long_range, style_swd) = match &path {
-            Some(p) => {
+        let (style_distance, short_range, long_range, style_swd, style_gram) = match (&path, &style_targets) {
+            (Some(p), Some(targets)) => {
                 let frames = p.render(&trainer.model, &trainer.pool);
-                let d = style.map(|(e, s)| consistency::style_distance_frames(e, &p.masked(&frames), s)).transpose()?;
-                let swd = style_samples.as_ref().map(|s| p.style_score(&frames, s));
-                (d, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)), swd)
+                let style = meters.score(p, &frames, targets)?;
+                (style.embedding, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)), Some(style.swd), style.gram)
             }
-            None => {
+            _ => {
+                let style = meters.embedder.as_ref().zip(style_embedding.as_deref());
                 let d = style.map(|(e, s)| style_distance_of(&trainer.model, &trainer.pool, data, bg, e, s)).transpose()?;
-                (d, None, None, None)
+                (d, None, None, None, None)
             }
         };
         let record = RoundRecord {
@@ -504,6 +508,7 @@ pub fn run(
             short_range,
             long_range,
             style_swd,
+            style_gram,
             fused_fraction,
             target_step: Some(opts.step_of_round(round + 1)),
         };

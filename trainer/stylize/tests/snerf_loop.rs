@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use snerf_data::{load, LoadOptions};
-use snerf_stylize::consistency::PathGeometry;
+use snerf_stylize::consistency::{PathGeometry, StyleMeters};
 use snerf_stylize::snerf_loop::{self, Quiet, StylizeOptions};
 use snerf_stylize::stylizer::{self, Image, StylizerOptions};
 use snerf_trainer::checkpoint;
@@ -90,13 +90,13 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     // a run; other changed options are refused)
     let out = dir.join("srun");
     let o1 = options(&run, &data.root, &style, 1, false);
-    let s1 = snerf_loop::run(&o1, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).unwrap();
+    let s1 = snerf_loop::run(&o1, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s1.rounds_done, 1);
     let mut other = o1.clone();
     other.steps_per_round = 41;
-    assert!(snerf_loop::run(&other, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).is_err());
+    assert!(snerf_loop::run(&other, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).is_err());
     let o2 = options(&run, &data.root, &style, 2, false);
-    let s = snerf_loop::run(&o2, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).unwrap();
+    let s = snerf_loop::run(&o2, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s.rounds_done, 2);
     assert_eq!(s.records.len(), 2);
     assert!(s.records.iter().all(|r| r.short_range.is_some_and(|x| x.is_finite())), "{:?}", s.records);
@@ -104,7 +104,7 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     assert!(s.records.iter().all(|r| r.fused_fraction.is_some_and(|f| f > 0.3)), "{:?}", s.records);
     assert!(out.join("rounds/round_2.png").exists());
     // a finished run re-run with the same options does nothing more
-    let again = snerf_loop::run(&o2, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).unwrap();
+    let again = snerf_loop::run(&o2, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(again.records.len(), 2);
     let geo = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
     let plane_end = source.model.field.layout.plane_end;
@@ -114,7 +114,7 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     // appearance only: planes, shared layer and the density output stay bit-identical
     let out = dir.join("appearance");
     let oa = options(&run, &data.root, &style, 1, true);
-    snerf_loop::run(&oa, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).unwrap();
+    snerf_loop::run(&oa, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let app = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
     let l = &source.model.field.layout;
     let (a, b) = (&source.model.field.params, &app.model.field.params);
@@ -133,7 +133,7 @@ fn stylized_field_is_more_consistent_than_per_frame_stylization() {
     let style_img = stylizer::load_style_image(&style).unwrap();
     let out = dir.join("srun");
     let o = options(&run, &data.root, &style, 2, false);
-    snerf_loop::run(&o, &data, &source, st.as_ref(), None, &style_img, &out, &mut Quiet).unwrap();
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let stylized = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
     let pool = snerf_trainer::render::WorkspacePool::new(source.model.field.params.len());
     let path = PathGeometry::new(&source.model, &pool, &data, 12).unwrap();
@@ -201,7 +201,7 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
         o.step_schedule = snerf_loop::StepSchedule::Harmonic;
         o.target_step = 1.0;
         o.lr_schedule = snerf_loop::LrSchedule::Run;
-        let s = snerf_loop::run(&o, &data, &source, &st, None, &style_img, &dir.join(format!("{content:?}")), &mut Quiet).unwrap();
+        let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &dir.join(format!("{content:?}")), &mut Quiet).unwrap();
         assert_eq!(s.rounds_done, 3);
         let steps: Vec<f32> = s.records.iter().map(|r| r.target_step.unwrap()).collect();
         assert_eq!(steps, vec![1.0, 0.5, 1.0 / 3.0]);
@@ -237,14 +237,14 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     o.lr_schedule = snerf_loop::LrSchedule::Run;
     o.targets = snerf_loop::Targets::Consensus;
     let st = Counting { calls: Default::default(), means: Default::default() };
-    snerf_loop::run(&o, &data, &source, &st, None, &style_img, &out, &mut Quiet).unwrap();
+    snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12, "round 1 stylizes every view once");
     let views_in = |round: usize| std::fs::read_dir(out.join(format!("consensus/round_{round}"))).map(|d| d.count()).unwrap_or(0);
     assert_eq!(views_in(1), 12);
     // Resume for three rounds in a new process: the consensus of round 1 is read back.
     o.rounds = 3;
     let st = Counting { calls: Default::default(), means: Default::default() };
-    let s = snerf_loop::run(&o, &data, &source, &st, None, &style_img, &out, &mut Quiet).unwrap();
+    let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s.rounds_done, 3);
     assert_eq!(st.calls.into_inner(), 0, "a resumed consensus run must not stylize again");
     assert_eq!((views_in(1), views_in(2), views_in(3)), (0, 12, 12), "rounds kept: the last two");
@@ -252,7 +252,7 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     std::fs::remove_dir_all(out.join("consensus")).unwrap();
     o.rounds = 4;
     let st = Counting { calls: Default::default(), means: Default::default() };
-    snerf_loop::run(&o, &data, &source, &st, None, &style_img, &out, &mut Quiet).unwrap();
+    snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12);
 }
 

@@ -1,6 +1,7 @@
 //! The weight-free style distance on real paintings (Debian gcompris-qt-data, installed by
 //! scripts/setup-styles.sh): a stylization toward a painting is closer to it than the photo
-//! it started from, with a weight-free stylizer, the Magenta network and `gatys`.
+//! it started from, with a weight-free stylizer, the Magenta network and `gatys`; and the
+//! Gram style distance (`style_gram`) measures what `gatys` minimizes.
 
 mod stylizer_support;
 
@@ -74,6 +75,67 @@ fn stylized_photo_is_closer_to_the_painting_than_the_photo() {
                 assert!(d_out.color < 0.85 * d_photo.color, "{} / color: {d_out:?} vs photo {d_photo:?}", p.key);
             } else {
                 assert!(d_out.texture < d_photo.texture, "{} / {spec}: texture {d_out:?} vs photo {d_photo:?}", p.key);
+            }
+        }
+    }
+}
+
+/// The Gram style distance (`style_gram`): zero for the painting against itself, the
+/// paintings apart from each other, a background outside the mask mostly ignored, and `gatys`
+/// (which minimizes these very statistics) moves a photo toward each painting. How
+/// `arbitrary`'s output scores is printed, not asserted: on 128² views it is *farther* than
+/// the unstylized views (BENCH.md §5e).
+#[test]
+fn gram_distance_measures_what_gatys_minimizes() {
+    use snerf_stylize::style_gram::{distance as gram_distance, GramMetric};
+    use snerf_stylize::stylizer::Image;
+    let Some(dir) = paintings_or_skip("gram_distance_measures_what_gatys_minimizes") else { return };
+    let Some(opts) = models_or_skip("gram_distance_measures_what_gatys_minimizes") else { return };
+    let metric = GramMetric::open(&opts).unwrap();
+    let photo = content_image(128, 112);
+    let imgs: Vec<_> = PAINTINGS.iter().map(|p| load_style_image(&paintings::verified_path(&dir, p).unwrap()).unwrap()).collect();
+    let refs: Vec<_> = imgs.iter().map(|i| metric.reference(i, photo.width, photo.height).unwrap()).collect();
+    for i in 0..refs.len() {
+        assert_eq!(gram_distance(&refs[i], &refs[i]), 0.0);
+        for j in 0..refs.len() {
+            if i != j {
+                let d = gram_distance(&refs[i], &refs[j]);
+                assert!(d > 0.1, "{} and {} look alike to the Gram distance: {d}", PAINTINGS[i].key, PAINTINGS[j].key);
+            }
+        }
+    }
+    // The photo framed by two different backgrounds, masked to the photo: the same Grams.
+    let (w, h) = (photo.width + 32, photo.height + 32);
+    let framed = |bg: [f32; 3]| {
+        let mut img = Image::filled(w, h, bg);
+        for y in 0..photo.height {
+            for x in 0..photo.width {
+                let (s, d) = ((y * photo.width + x) * 3, ((y + 16) * w + x + 16) * 3);
+                img.data[d..d + 3].copy_from_slice(&photo.data[s..s + 3]);
+            }
+        }
+        img
+    };
+    let mask: Vec<bool> = (0..w * h).map(|p| (16..16 + photo.width).contains(&(p % w)) && (16..16 + photo.height).contains(&(p / w))).collect();
+    let (white, black) = (framed([1.0; 3]), framed([0.0; 3]));
+    let masked = |img: &Image| metric.grams(&[(img, Some(mask.as_slice()))]).unwrap();
+    let same = gram_distance(&masked(&white), &masked(&black));
+    let unmasked = gram_distance(&metric.grams(&[(&white, None)]).unwrap(), &metric.grams(&[(&black, None)]).unwrap());
+    println!("framed photo, masked {same:.5}, unmasked {unmasked:.4}");
+    // Deep taps' receptive fields reach past the mask, so the background still shows a
+    // little (which is why `PathGeometry::style_gram` composites frames on one background
+    // first); the mask must still remove most of it.
+    assert!(same < 0.5 * unmasked, "the mask does not keep the background out: masked {same}, unmasked {unmasked}");
+    let s_photo = metric.grams(&[(&photo, None)]).unwrap();
+    for (p, r) in PAINTINGS.iter().zip(&refs) {
+        let path = paintings::verified_path(&dir, p).unwrap();
+        let d_photo = gram_distance(&s_photo, r);
+        for spec in ["gatys", "arbitrary"] {
+            let out = from_spec(spec, Some(&path), &opts).unwrap().stylize(&photo).unwrap();
+            let d_out = gram_distance(&metric.grams(&[(&out, None)]).unwrap(), r);
+            println!("{} / {spec}: Gram distance photo {d_photo:.4} -> stylized {d_out:.4} ({:.2}x)", p.key, d_photo / d_out);
+            if spec == "gatys" {
+                assert!(d_out < 0.8 * d_photo, "{}: gatys left the Grams as far as the photo's: {d_out} vs {d_photo}", p.key);
             }
         }
     }

