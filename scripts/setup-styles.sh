@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# Fetch real paintings to use as styles in tests and benchmarks, from Debian's
-# gcompris-qt-data (GPL-3.0-or-later packaging of public-domain works from the WebMuseum):
-# its `paintings` puzzle ships each painting as tiles inside a Qt resource file
-# (/usr/share/gcompris-qt/rcc/paintings.rcc). One tile of each painting below is taken out,
-# verified by SHA-256 and put in the style directory the Rust side reads:
+# Fetch real paintings to use as styles in tests, benchmarks and `--style painting:KEY`, from
+# Debian's gcompris-qt-data (GPL-3.0-or-later packaging of public-domain works from the
+# WebMuseum): its `paintings` puzzle ships each painting as jigsaw pieces inside a Qt resource
+# file (/usr/share/gcompris-qt/rcc/paintings.rcc). Every piece of the three paintings below is
+# taken out, verified by SHA-256 and put in the style directory the Rust side reads, which
+# puts each painting back together (trainer/stylize/src/paintings.rs) as KEY.png:
 #   $SNERF_STYLES, else ${XDG_CACHE_HOME:-$HOME/.cache}/snerf/styles
-#   gogh_auvert_3.webp                  Vincent van Gogh, Village Street in Auvers (1890)
-#   renoir-moulin_de_la_galette-2.webp  Pierre-Auguste Renoir, Bal du moulin de la Galette (1876)
-#   kandinky_3.webp                     Wassily Kandinsky, Composition VIII (1923)
+#   vangogh     gogh_auvert_{1..6}.webp                  Vincent van Gogh, Village Street in Auvers (1890)
+#   renoir      renoir-moulin_de_la_galette-{1..6}.webp  Pierre-Auguste Renoir, Bal du moulin de la Galette (1876)
+#   kandinsky   kandinky_{1..8}.webp                     Wassily Kandinsky, Composition VIII (1923)
 # Idempotent: does nothing when the files are already there with the right hashes. Uses the
 # installed package when present, else `apt-get download` (no root needed) into a temporary
 # directory. Exits non-zero only when the paintings cannot be obtained.
@@ -18,9 +19,26 @@ RCC_IN_PACKAGE=usr/share/gcompris-qt/rcc/paintings.rcc
 RCC_SHA256=1276d4f9c26f94ec130833c03bea5185f61b4f986df6981182cdb1be69e9db98
 # Same constants as trainer/stylize/src/paintings.rs.
 declare -A SHA256=(
+  [gogh_auvert_1.webp]=81f84ce20f31486197f459635ddeef042344c694af6fa130418a36b1d45a6904
+  [gogh_auvert_2.webp]=c4518c2389a6c572ad1ea623479e7a5030f3aa59dedc9c4cac73d55cda96c86c
   [gogh_auvert_3.webp]=1aefb708e7c36a0e4c7c718e8cd2fd37d8321d7a4018d916f149314e4d4bfb98
+  [gogh_auvert_4.webp]=8cdc157e260d5d1864198c72951275c405b6f74568c836f285781caba0895f3c
+  [gogh_auvert_5.webp]=4bcb1e64c44022b79a56aba86643fdca26bad5d2a908c56400240fe9f08f1142
+  [gogh_auvert_6.webp]=b8ab1e32b422995ced0bce842a126da84a9db9d3eaba003934eee3c7ed915204
+  [renoir-moulin_de_la_galette-1.webp]=78880d194c3be92da64d89bca581e09c699303f7848c84f653f6cca0a14e2422
   [renoir-moulin_de_la_galette-2.webp]=297bdebac908b464b7b76a3555cbfa2192816bc660859dadc6041caae5f55617
+  [renoir-moulin_de_la_galette-3.webp]=185c721373176d28f518a5625894def2389bd29b0be65ddef802a48e34898c57
+  [renoir-moulin_de_la_galette-4.webp]=182d1f65643f33d6583b9a3b3a6831af42dc0f0e11c65414e5656e13e619dbf7
+  [renoir-moulin_de_la_galette-5.webp]=593aaecdb2bc1cfbd6524348538abdd82242f4d70aaeb20a3b932d494e2d9c1f
+  [renoir-moulin_de_la_galette-6.webp]=e9358ce944f2f77fc618d6c3d357e3e3aec4dc7626bff40be1b994ad2bf640a0
+  [kandinky_1.webp]=67bcd29206ed353a21f6ea5526d1b4f77f4647f6d7e1d8f3f4bef6c2298b65c5
+  [kandinky_2.webp]=0315468377f7f36584bb0e46e1e201a525aa7c1bc9d1685af7990248c68a7255
   [kandinky_3.webp]=f9518aa6512a0e454a22e850f77d43ed7509e8a098fb5dad5ad22c10fd32e51b
+  [kandinky_4.webp]=92e3ebbaa42df5af6129dcb749a0f6cfa9749a469410077b6d8d00ac2b886db9
+  [kandinky_5.webp]=9fab6cfbfb69cb6f4089ba1bf81cf40e32b4b61125ca1ef9ae50c1461362377f
+  [kandinky_6.webp]=4d96b7997185047abc6ca0c77d9c742c9b9aea6514e14e5cb7865d4b723aff54
+  [kandinky_7.webp]=b7567aacb05ec786f11d4a0da407b95d4a1b38675b2462646cd515e865cce500
+  [kandinky_8.webp]=0c7b9d5d01972843c9a4049007bb8b22c8ab352f656782d5fd7dd4dfb9cea297
 )
 
 log() { echo "setup-styles: $*" >&2; }

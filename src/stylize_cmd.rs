@@ -9,6 +9,7 @@ use clap::Args;
 use indicatif::ProgressBar;
 use serde_json::{json, Value};
 use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters};
+use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
 use snerf_stylize::stylizer::{self, Image, Stylizer, StylizerOptions};
 use snerf_trainer::checkpoint;
@@ -73,7 +74,8 @@ impl StylizerArgs {
 pub struct StylizeImageArgs {
     /// The content image (PNG, JPEG or WebP).
     pub content: PathBuf,
-    /// The style image.
+    /// The style image (PNG, JPEG or WebP), or `painting:KEY` for a painting installed by
+    /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky).
     #[arg(long)]
     pub style: Option<PathBuf>,
     #[arg(long)]
@@ -93,14 +95,15 @@ pub fn to_rgb8(img: &Image) -> image::RgbImage {
 }
 
 pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
+    let style = a.style.as_deref().map(paintings::resolve_style).transpose()?;
     let mut inputs = vec![Input::File(&a.content)];
-    if let Some(s) = &a.style {
+    if let Some(s) = &style {
         inputs.push(Input::File(s));
     }
     check_output("--out", &a.out, &inputs)?;
     let content = read_image(&a.content)?;
     let t0 = Instant::now();
-    let s = a.s.build(a.style.as_deref())?;
+    let s = a.s.build(style.as_deref())?;
     let load = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let out = snerf_loop::stylize_at(s.as_ref(), &content, 0)?;
@@ -123,6 +126,8 @@ pub const DEFAULT_ROUND_STEPS: &str = "equal";
 /// Each round fuses the previous round's fused targets (BENCH.md §5c: the only setting
 /// measured whose round 5 is more consistent than its round 1).
 pub const DEFAULT_TARGETS: &str = "consensus";
+/// Default `--region`.
+pub const DEFAULT_REGION: &str = "object";
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
@@ -133,7 +138,8 @@ fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T>
 pub struct StylizeArgs {
     /// A trained (realistic) run directory.
     pub run: PathBuf,
-    /// The style image.
+    /// The style image (PNG, JPEG or WebP), or `painting:KEY` for a painting installed by
+    /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky).
     #[arg(long)]
     pub style: Option<PathBuf>,
     /// The stylized run directory (resumes when it holds a run with the same options).
@@ -190,6 +196,12 @@ pub struct StylizeArgs {
     /// --fuse-views > 0.
     #[arg(long, default_value = DEFAULT_TARGETS, value_parser = ["once", "consensus"])]
     pub targets: String,
+    /// What of each view the stylizer paints: object (views with a silhouette: the object's
+    /// box with a margin, at the scale the whole view would be painted at, so the empty
+    /// background does not set the stylizer's statistics; other views whole) or view (the
+    /// whole view, as runs made before this option).
+    #[arg(long, default_value = DEFAULT_REGION, value_parser = ["object", "view"])]
+    pub region: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -256,8 +268,9 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         None => RunDir::new(&a.run).dataset()?,
     };
     let data = a.opts.load(&data_path)?;
+    let style = a.style.as_deref().map(paintings::resolve_style).transpose()?;
     // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.
-    for (what, p) in [("RUN", Some(&a.run)), ("--out", Some(&a.out)), ("--style", a.style.as_ref()), ("--data", Some(&data_path))] {
+    for (what, p) in [("RUN", Some(&a.run)), ("--out", Some(&a.out)), ("--style", style.as_ref()), ("--data", Some(&data_path))] {
         if let Some(p) = p.filter(|p| p.to_str().is_none()) {
             bail!("{what} {}: the stylized run records this path, and its JSON holds UTF-8 names only; rename it", p.display());
         }
@@ -265,7 +278,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     // The stylized run is a run of its own: never the realistic run's directory (its
     // checkpoint would be overwritten), never inside the dataset.
     let mut inputs = vec![Input::Tree(&a.run), Input::Tree(&data.root)];
-    if let Some(s) = &a.style {
+    if let Some(s) = &style {
         inputs.push(Input::File(s));
     }
     check_output("--out", &a.out, &inputs)?;
@@ -274,8 +287,8 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         bail!("{}: no checkpoint here; run `snerf train` first", a.run.display());
     }
     let source = checkpoint::load(&ck_path)?;
-    let stylizer = a.s.build(a.style.as_deref())?;
-    let style_img = match &a.style {
+    let stylizer = a.s.build(style.as_deref())?;
+    let style_img = match &style {
         Some(p) => stylizer::load_style_image(p)?,
         None => style_reference(stylizer.as_ref())?,
     };
@@ -283,7 +296,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     let opts = StylizeOptions {
         source_run: absolute(&a.run),
         data: absolute(&data_path),
-        style: a.style.as_deref().map(absolute).unwrap_or_default(),
+        style: style.as_deref().map(absolute).unwrap_or_default(),
         stylizer: a.s.stylizer.clone(),
         strength: a.s.strength,
         rounds: a.rounds,
@@ -299,6 +312,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
         round_steps: option_enum("--round-steps", &a.round_steps)?,
         targets: option_enum("--targets", &a.targets)?,
+        region: option_enum("--region", &a.region)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {
@@ -401,8 +415,12 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     pb.inc(1);
     pb.set_message("per-frame baseline");
     let mut per_frame = Vec::with_capacity(path.realistic.len());
-    for f in &path.realistic {
-        per_frame.push(snerf_loop::stylize_at(stylizer.as_ref(), f, o.style_res)?);
+    // painted as the run painted its training views: with `--region object`, the object's
+    // box (the realistic field's silhouette in each frame)
+    let masks = path.masks();
+    for (f, m) in path.realistic.iter().zip(&masks) {
+        let mask = (o.region == snerf_loop::Region::Object && path.has_silhouette()).then_some(m.as_slice());
+        per_frame.push(snerf_loop::stylize_region(stylizer.as_ref(), f, mask, o.style_res)?);
     }
     pb.inc(1);
     pb.set_message("SNeRF");
@@ -480,7 +498,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         _ => String::new(),
     };
     let md = format!(
-        "# Cross-view consistency\n\nStylizer `{}`, style `{}`; {}; warped-frame MSE (RGB in [0,1]) over covered, \
+        "# Cross-view consistency\n\nStylizer `{}`, style `{}`, painting {} (the per-frame baseline too); {}; warped-frame MSE (RGB in [0,1]) over covered, \
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
          Style distance: sliced Wasserstein between the scene pixels of 8 path frames and the style picture, \
@@ -488,6 +506,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
          stylization by {:.2}× ({}).\n\n{gram_line}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
+        if o.region == snerf_loop::Region::Object && path.has_silhouette() { "the object's box in each view" } else { "whole views" },
         consistency::path_description(data.kind, a.frames),
         100.0 * path.coverage(),
         table,
@@ -503,6 +522,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "command": "consistency",
         "srun": crate::args::pj(&a.srun),
         "frames": a.frames,
+        "region": o.region,
         "coverage": path.coverage(),
         "methods": methods,
         "snerf_over_per_frame": ratios,

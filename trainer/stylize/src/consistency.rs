@@ -45,6 +45,8 @@ pub struct PathGeometry {
     points: Vec<Vec<Option<Vec3>>>,
     /// The realistic field's opacity per pixel.
     opacity: Vec<Vec<f32>>,
+    /// Whether the training views have a silhouette (alpha): a bounded object.
+    silhouette: bool,
 }
 
 impl PathGeometry {
@@ -56,7 +58,8 @@ impl PathGeometry {
         intr.distortion = [0.0; 4];
         // Dynamic scenes: the path holds time still (mid-sequence), so reprojection is exact.
         let time = data.dynamic.then_some(0.5);
-        let bg = eval_background(views_have_alpha(&data.train));
+        let silhouette = views_have_alpha(&data.train);
+        let bg = eval_background(silhouette);
         let mut images = Vec::with_capacity(frames);
         let mut points = Vec::with_capacity(frames);
         let mut opacity = Vec::with_capacity(frames);
@@ -80,7 +83,12 @@ impl PathGeometry {
             points.push(pts);
             opacity.push(r.opacity);
         }
-        Ok(PathGeometry { cams, intr, time, bg, realistic: images, points, opacity })
+        Ok(PathGeometry { cams, intr, time, bg, realistic: images, points, opacity, silhouette })
+    }
+
+    /// Whether the scene is a bounded object with a silhouette in its training views.
+    pub fn has_silhouette(&self) -> bool {
+        self.silhouette
     }
 
     /// Render the path from another (e.g. stylized) model.

@@ -1,7 +1,14 @@
-//! Real paintings for styles in tests and benchmarks: public-domain works, one tile of each,
-//! taken by `scripts/setup-styles.sh` from Debian's `gcompris-qt-data` (the `paintings`
-//! puzzle; the WebMuseum's scans, packaged under GPL-3.0-or-later) and checked by SHA-256
-//! here as there.
+//! Real paintings for styles in tests, benchmarks and the CLI (`--style painting:KEY`):
+//! public-domain works from Debian's `gcompris-qt-data` (the `paintings` puzzle; the
+//! WebMuseum's scans, packaged under GPL-3.0-or-later).
+//!
+//! The package ships each painting cut into jigsaw pieces (binary alpha, tabs and blanks)
+//! plus a board file that places each piece by its centre on a 702×515 board.
+//! `scripts/setup-styles.sh` extracts the pieces (SHA-256 checked there as here); `path`
+//! puts them back together into the whole painting, once, as `KEY.png` in the style
+//! directory. A single piece is not a usable style: a quarter of a piece's rectangle is
+//! transparent, which a style loader has to fill with something the painter never painted
+//! (white, here), and a piece holds a sixth of the composition.
 
 use std::path::{Path, PathBuf};
 
@@ -11,34 +18,73 @@ use sha2::{Digest, Sha256};
 /// The command that fetches the paintings.
 pub const SETUP_COMMAND: &str = "bash scripts/setup-styles.sh";
 
+/// The prefix of a `--style` argument that names a painting here instead of a file.
+pub const STYLE_PREFIX: &str = "painting:";
+
+/// The puzzle board every piece position is a fraction of (`board*_0.qml`).
+const BOARD: (f64, f64) = (702.0, 515.0);
+
+/// One jigsaw piece: its file in the package and its centre as a fraction of the board.
 #[derive(Clone, Copy, Debug)]
-pub struct Painting {
-    /// Short name used by tests and benchmarks.
-    pub key: &'static str,
+pub struct Piece {
     pub file: &'static str,
-    pub title: &'static str,
     pub sha256: &'static str,
+    pub x: f64,
+    pub y: f64,
 }
 
-/// The same files and hashes as `scripts/setup-styles.sh`.
+#[derive(Clone, Copy, Debug)]
+pub struct Painting {
+    /// Short name used by tests, benchmarks and `--style painting:KEY`.
+    pub key: &'static str,
+    pub title: &'static str,
+    pub pieces: &'static [Piece],
+}
+
+const fn piece(file: &'static str, sha256: &'static str, x: f64, y: f64) -> Piece {
+    Piece { file, sha256, x, y }
+}
+
+/// The same files and hashes as `scripts/setup-styles.sh`; positions from the package's
+/// `board22_0.qml`, `board1_0.qml` and `board19_0.qml`.
 pub const PAINTINGS: [Painting; 3] = [
     Painting {
         key: "vangogh",
-        file: "gogh_auvert_3.webp",
         title: "Vincent van Gogh, Village Street in Auvers (1890)",
-        sha256: "1aefb708e7c36a0e4c7c718e8cd2fd37d8321d7a4018d916f149314e4d4bfb98",
+        pieces: &[
+            piece("gogh_auvert_1.webp", "81f84ce20f31486197f459635ddeef042344c694af6fa130418a36b1d45a6904", 0.204, 0.224),
+            piece("gogh_auvert_2.webp", "c4518c2389a6c572ad1ea623479e7a5030f3aa59dedc9c4cac73d55cda96c86c", 0.489, 0.224),
+            piece("gogh_auvert_3.webp", "1aefb708e7c36a0e4c7c718e8cd2fd37d8321d7a4018d916f149314e4d4bfb98", 0.774, 0.224),
+            piece("gogh_auvert_4.webp", "8cdc157e260d5d1864198c72951275c405b6f74568c836f285781caba0895f3c", 0.204, 0.681),
+            piece("gogh_auvert_5.webp", "4bcb1e64c44022b79a56aba86643fdca26bad5d2a908c56400240fe9f08f1142", 0.489, 0.681),
+            piece("gogh_auvert_6.webp", "b8ab1e32b422995ced0bce842a126da84a9db9d3eaba003934eee3c7ed915204", 0.774, 0.681),
+        ],
     },
     Painting {
         key: "renoir",
-        file: "renoir-moulin_de_la_galette-2.webp",
         title: "Pierre-Auguste Renoir, Bal du moulin de la Galette (1876)",
-        sha256: "297bdebac908b464b7b76a3555cbfa2192816bc660859dadc6041caae5f55617",
+        pieces: &[
+            piece("renoir-moulin_de_la_galette-1.webp", "78880d194c3be92da64d89bca581e09c699303f7848c84f653f6cca0a14e2422", 0.255, 0.283),
+            piece("renoir-moulin_de_la_galette-2.webp", "297bdebac908b464b7b76a3555cbfa2192816bc660859dadc6041caae5f55617", 0.533, 0.283),
+            piece("renoir-moulin_de_la_galette-3.webp", "185c721373176d28f518a5625894def2389bd29b0be65ddef802a48e34898c57", 0.782, 0.327),
+            piece("renoir-moulin_de_la_galette-4.webp", "182d1f65643f33d6583b9a3b3a6831af42dc0f0e11c65414e5656e13e619dbf7", 0.226, 0.651),
+            piece("renoir-moulin_de_la_galette-5.webp", "593aaecdb2bc1cfbd6524348538abdd82242f4d70aaeb20a3b932d494e2d9c1f", 0.504, 0.651),
+            piece("renoir-moulin_de_la_galette-6.webp", "e9358ce944f2f77fc618d6c3d357e3e3aec4dc7626bff40be1b994ad2bf640a0", 0.781, 0.69),
+        ],
     },
     Painting {
         key: "kandinsky",
-        file: "kandinky_3.webp",
         title: "Wassily Kandinsky, Composition VIII (1923)",
-        sha256: "f9518aa6512a0e454a22e850f77d43ed7509e8a098fb5dad5ad22c10fd32e51b",
+        pieces: &[
+            piece("kandinky_1.webp", "67bcd29206ed353a21f6ea5526d1b4f77f4647f6d7e1d8f3f4bef6c2298b65c5", 0.167, 0.283),
+            piece("kandinky_2.webp", "0315468377f7f36584bb0e46e1e201a525aa7c1bc9d1685af7990248c68a7255", 0.405, 0.283),
+            piece("kandinky_3.webp", "f9518aa6512a0e454a22e850f77d43ed7509e8a098fb5dad5ad22c10fd32e51b", 0.642, 0.228),
+            piece("kandinky_4.webp", "92e3ebbaa42df5af6129dcb749a0f6cfa9749a469410077b6d8d00ac2b886db9", 0.85, 0.228),
+            piece("kandinky_5.webp", "9fab6cfbfb69cb6f4089ba1bf81cf40e32b4b61125ca1ef9ae50c1461362377f", 0.138, 0.673),
+            piece("kandinky_6.webp", "4d96b7997185047abc6ca0c77d9c742c9b9aea6514e14e5cb7865d4b723aff54", 0.376, 0.673),
+            piece("kandinky_7.webp", "b7567aacb05ec786f11d4a0da407b95d4a1b38675b2462646cd515e865cce500", 0.642, 0.618),
+            piece("kandinky_8.webp", "0c7b9d5d01972843c9a4049007bb8b22c8ab352f656782d5fd7dd4dfb9cea297", 0.85, 0.618),
+        ],
     },
 ];
 
@@ -61,19 +107,102 @@ pub fn by_key(key: &str) -> Result<Painting> {
     })
 }
 
-/// Path of an installed painting in `dir`, its SHA-256 verified. Errors name the file and
-/// say how to install it.
-pub fn verified_path(dir: &Path, p: &Painting) -> Result<PathBuf> {
-    let path = dir.join(p.file);
-    let bytes = std::fs::read(&path).with_context(|| format!("{}: painting not installed; run `{SETUP_COMMAND}`", path.display()))?;
-    let got = format!("{:x}", Sha256::digest(&bytes));
-    if got != p.sha256 {
-        bail!("{}: SHA-256 {got}, expected {}; run `{SETUP_COMMAND}` again", path.display(), p.sha256);
+/// A `--style` argument: `painting:KEY` is the assembled painting (installed on first use),
+/// anything else a file path, returned as it is.
+pub fn resolve_style(arg: &Path) -> Result<PathBuf> {
+    match arg.to_str().and_then(|s| s.strip_prefix(STYLE_PREFIX)) {
+        Some(key) => path(&styles_dir(), &by_key(key)?),
+        None => Ok(arg.to_path_buf()),
     }
-    Ok(path)
 }
 
-/// Whether every painting is installed in `dir` (presence only; `verified_path` checks).
+/// Bytes of an installed piece in `dir`, its SHA-256 verified. Errors name the file and say
+/// how to install it.
+pub fn verified_piece(dir: &Path, piece: &Piece) -> Result<Vec<u8>> {
+    let path = dir.join(piece.file);
+    let bytes = std::fs::read(&path).with_context(|| format!("{}: painting not installed; run `{SETUP_COMMAND}`", path.display()))?;
+    let got = format!("{:x}", Sha256::digest(&bytes));
+    if got != piece.sha256 {
+        bail!("{}: SHA-256 {got}, expected {}; run `{SETUP_COMMAND}` again", path.display(), piece.sha256);
+    }
+    Ok(bytes)
+}
+
+/// Whether every piece of every painting is installed in `dir` (presence only).
 pub fn all_installed(dir: &Path) -> bool {
-    PAINTINGS.iter().all(|p| dir.join(p.file).is_file())
+    PAINTINGS.iter().all(|p| p.pieces.iter().all(|q| dir.join(q.file).is_file()))
+}
+
+/// The whole painting from its verified pieces: each piece drawn with its top-left corner at
+/// `round(centre − size / 2)` on the board (how the puzzle lays a solved piece), then the
+/// picture cropped to the rectangle whose every border row and column is at least 99%
+/// covered (the board's outline is ragged by a pixel or two where tabs meet the edge).
+/// Errors if a pixel inside that rectangle is still uncovered.
+pub fn assemble(dir: &Path, p: &Painting) -> Result<image::RgbImage> {
+    let mut placed = Vec::with_capacity(p.pieces.len());
+    for q in p.pieces {
+        let bytes = verified_piece(dir, q)?;
+        let img = image::load_from_memory(&bytes).with_context(|| format!("{}: not a readable image", dir.join(q.file).display()))?.to_rgba8();
+        let x0 = (q.x * BOARD.0 - img.width() as f64 / 2.0).round() as i64;
+        let y0 = (q.y * BOARD.1 - img.height() as f64 / 2.0).round() as i64;
+        placed.push((x0, y0, img));
+    }
+    let left = placed.iter().map(|(x, _, _)| *x).min().unwrap_or(0);
+    let top = placed.iter().map(|(_, y, _)| *y).min().unwrap_or(0);
+    let right = placed.iter().map(|(x, _, i)| x + i.width() as i64).max().unwrap_or(0);
+    let bottom = placed.iter().map(|(_, y, i)| y + i.height() as i64).max().unwrap_or(0);
+    let (w, h) = ((right - left) as usize, (bottom - top) as usize);
+    let mut rgb = vec![0u8; w * h * 3];
+    let mut covered = vec![false; w * h];
+    for (x0, y0, img) in &placed {
+        for (x, y, px) in img.enumerate_pixels() {
+            if px[3] >= 128 {
+                let i = (y as i64 + y0 - top) as usize * w + (x as i64 + x0 - left) as usize;
+                rgb[i * 3..i * 3 + 3].copy_from_slice(&px.0[..3]);
+                covered[i] = true;
+            }
+        }
+    }
+    let (mut x0, mut x1, mut y0, mut y1) = (0usize, w, 0usize, h);
+    let row = |y: usize, x0: usize, x1: usize| (x0..x1).filter(|&x| covered[y * w + x]).count() as f64 / (x1 - x0) as f64;
+    let col = |x: usize, y0: usize, y1: usize| (y0..y1).filter(|&y| covered[y * w + x]).count() as f64 / (y1 - y0) as f64;
+    while x1 - x0 > 2 && y1 - y0 > 2 {
+        let edges = [row(y0, x0, x1), row(y1 - 1, x0, x1), col(x0, y0, y1), col(x1 - 1, y0, y1)];
+        let (k, least) = edges.iter().copied().enumerate().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+        if least >= 0.99 {
+            break;
+        }
+        match k {
+            0 => y0 += 1,
+            1 => y1 -= 1,
+            2 => x0 += 1,
+            _ => x1 -= 1,
+        }
+    }
+    let holes = (y0..y1).flat_map(|y| (x0..x1).map(move |x| (x, y))).filter(|&(x, y)| !covered[y * w + x]).count();
+    if holes > 0 {
+        bail!("{}: its {} pieces leave {holes} pixels uncovered; the package's pieces have changed", p.key, p.pieces.len());
+    }
+    let mut out = image::RgbImage::new((x1 - x0) as u32, (y1 - y0) as u32);
+    for (x, y, px) in out.enumerate_pixels_mut() {
+        let i = (y as usize + y0) * w + x as usize + x0;
+        px.0.copy_from_slice(&rgb[i * 3..i * 3 + 3]);
+    }
+    Ok(out)
+}
+
+/// `dir/KEY.png`, the whole painting, assembled from the verified pieces and written
+/// (temp file, then rename) when it is missing or differs from what the pieces give.
+pub fn path(dir: &Path, p: &Painting) -> Result<PathBuf> {
+    let out = dir.join(format!("{}.png", p.key));
+    let img = assemble(dir, p)?;
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png).context("encoding the painting as PNG")?;
+    if std::fs::read(&out).ok().as_deref() != Some(png.as_slice()) {
+        // a name of our own per process and thread, so parallel tests never share a temp file
+        let tmp = dir.join(format!(".{}.{}.{:?}.tmp", p.key, std::process::id(), std::thread::current().id()));
+        std::fs::write(&tmp, &png).with_context(|| format!("{}: cannot write", tmp.display()))?;
+        std::fs::rename(&tmp, &out).with_context(|| format!("{}: cannot write", out.display()))?;
+    }
+    Ok(out)
 }

@@ -127,6 +127,10 @@ pub struct StylizeOptions {
     /// What each round fuses (before this option: `Once`).
     #[serde(default)]
     pub targets: Targets,
+    /// What of each view the stylizer is given (absent in a `stylize.json` written before
+    /// this option: the whole view, as those runs were made).
+    #[serde(default)]
+    pub region: Region,
 }
 
 /// What each round's fusion starts from (with `Content::Realistic` and fusion on).
@@ -152,6 +156,22 @@ pub enum RoundSteps {
     /// In proportion to 1/t, as the harmonic target step: most of the budget goes to round 1,
     /// where the style is taken; later rounds, whose targets change by O(1/t), refine.
     Harmonic,
+}
+
+/// What of a view the stylizer paints.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Region {
+    /// The whole view.
+    #[default]
+    View,
+    /// Views with a silhouette (bounded objects): the object's box, with a margin of 1/16 of
+    /// the view, at the scale the whole view would be painted at (`Stylizer::stylize_crop`).
+    /// A feed-forward stylizer normalizes its features over its whole input; an object view
+    /// is mostly empty background, so over the whole view the background's statistics set
+    /// how the object is painted (a bright halo, grain at the silhouette; BENCH.md §5f).
+    /// Views without a silhouette, and boxes that fill the view, are painted whole.
+    Object,
 }
 
 /// The image the stylizer is given for each training view.
@@ -402,7 +422,7 @@ pub fn run(
                 progress.phase(round + 1, opts.rounds, "stylize", views.len() as u64);
                 let t0 = Instant::now();
                 let stylized = match opts.content {
-                    Content::Render => stylize_all(stylizer, &renders, &views, opts.style_res, round + 1, progress)?,
+                    Content::Render => stylize_all(stylizer, &renders, &views, opts, round + 1, progress)?,
                     Content::Realistic => {
                         if fixed.is_none() && consensus_on && round > 0 {
                             // A resumed run continues the consensus of the last round begun.
@@ -416,7 +436,7 @@ pub fn run(
                                     Image { width: r.width, height: r.height, data: r.rgb }
                                 })
                                 .collect();
-                            fixed = Some(stylize_all(stylizer, &content, &views, opts.style_res, round + 1, progress)?);
+                            fixed = Some(stylize_all(stylizer, &content, &views, opts, round + 1, progress)?);
                         }
                         fixed.clone().expect("stylized above")
                     }
@@ -525,21 +545,61 @@ pub fn run(
     Ok(state)
 }
 
-/// Stylize each image on its own (round `round`, for messages and progress).
+/// Stylize each image on its own (round `round`, for messages and progress); with
+/// `Region::Object`, each view's object box (its alpha above one half).
 fn stylize_all(
     stylizer: &dyn Stylizer,
     images: &[Image],
     views: &[View],
-    style_res: usize,
+    opts: &StylizeOptions,
     round: usize,
     progress: &mut dyn Progress,
 ) -> Result<Vec<Image>> {
     let mut out = Vec::with_capacity(images.len());
     for (i, r) in images.iter().enumerate() {
-        let s = stylize_at(stylizer, r, style_res)
+        let mask: Option<Vec<bool>> =
+            (opts.region == Region::Object && views_have_alpha(std::slice::from_ref(&views[i]))).then(|| views[i].rgba.chunks_exact(4).map(|p| p[3] >= 128).collect());
+        let s = stylize_region(stylizer, r, mask.as_deref(), opts.style_res)
             .with_context(|| format!("round {round}: stylizing training view {}", views[i].path.display()))?;
         out.push(s);
         progress.tick(i as u64 + 1, "");
+    }
+    Ok(out)
+}
+
+/// `stylize_at`, or with a mask (true = object), only the object's box: the mask's bounding
+/// box grown by 1/16 of the view's longer side, painted at the whole view's scale
+/// (`Stylizer::stylize_crop`); the view outside the box keeps its own pixels. An empty mask,
+/// or a box that fills the view, is the whole view.
+pub fn stylize_region(stylizer: &dyn Stylizer, img: &Image, mask: Option<&[bool]>, res: usize) -> Result<Image> {
+    let (w, h) = (img.width, img.height);
+    let Some(mask) = mask else { return stylize_at(stylizer, img, res) };
+    let mut b = (w, h, 0, 0);
+    for (p, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
+        let (x, y) = (p % w, p / w);
+        b = (b.0.min(x), b.1.min(y), b.2.max(x + 1), b.3.max(y + 1));
+    }
+    let margin = w.max(h).div_ceil(16);
+    let (x0, y0, x1, y1) = (b.0.saturating_sub(margin), b.1.saturating_sub(margin), (b.2 + margin).min(w), (b.3 + margin).min(h));
+    if x1 <= x0 || y1 <= y0 || (x1 - x0 == w && y1 - y0 == h) {
+        return stylize_at(stylizer, img, res);
+    }
+    let part = crate::stylizer::image_ops::crop(img, x0, y0, x1 - x0, y1 - y0);
+    // `res` scales the view (and so the crop) before painting, as `stylize_at` does
+    let long = w.max(h);
+    let view_long = if res == 0 { long } else { res };
+    let k = view_long as f32 / long as f32;
+    let scaled = if res == 0 || res == long {
+        part.clone()
+    } else {
+        resize(&part, ((part.width as f32 * k).round() as usize).max(1), ((part.height as f32 * k).round() as usize).max(1))
+    };
+    let painted = check_output(stylizer, &scaled, stylizer.stylize_crop(&scaled, view_long)?)?;
+    let painted = if painted.width == part.width && painted.height == part.height { painted } else { resize(&painted, part.width, part.height) };
+    let mut out = img.clone();
+    for y in y0..y1 {
+        let row = (y - y0) * part.width * 3;
+        out.data[(y * w + x0) * 3..(y * w + x1) * 3].copy_from_slice(&painted.data[row..row + part.width * 3]);
     }
     Ok(out)
 }

@@ -7,13 +7,15 @@
 //! features occur together, whatever their exact pixels), and they are what `gatys`
 //! minimizes, so the record can say how far each round is from the painting in those terms.
 //!
-//! What it does not do (measured, BENCH.md §5e): on 128² views it does not separate
-//! `arbitrary`'s per-frame stylization from the unstylized scene. The per-frame output is
-//! *farther* from the painting than the realistic field on all nine model × painting pairs
-//! measured (realistic ÷ per-frame 0.42–0.84), at every painting scale tried (½× to 2.8× the
-//! frames' footprint): the fine, high-contrast grain the network paints at 384 and that
-//! shrinks to 128 raises every tap's activations, which raw Grams weigh above which
-//! features co-occur. Read it as "how far in Gram terms", not as "how painted".
+//! What it does not do (measured, BENCH.md §5e, §5f): on 128² object views it does not
+//! separate `arbitrary`'s per-frame stylization from the unstylized scene. With whole views
+//! painted, the per-frame output is *farther* from the painting than the realistic field on
+//! all nine model × painting pairs measured (realistic ÷ per-frame 0.42–0.84), at every
+//! painting scale tried (½× to 2.8× the frames' footprint): the fine, high-contrast grain
+//! and halo the network paints around an object on an empty background raise every tap's
+//! activations, which raw Grams weigh above which features co-occur. With the object's box
+//! painted (`snerf_loop::Region::Object`) it is 0.95–1.48. Read it as "how far in Gram
+//! terms", not as "how painted".
 //!
 //! The network is the MobileNetV2 trunk of Magenta's style prediction network
 //! (`stylizer::gatys::MobileNet`, from `arbitrary_predict.onnx`, which the setup step

@@ -74,6 +74,8 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         lr_schedule: Default::default(),
         round_steps: Default::default(),
         targets: Default::default(),
+        // the object's box (these views have a silhouette)
+        region: snerf_stylize::snerf_loop::Region::Object,
     }
 }
 

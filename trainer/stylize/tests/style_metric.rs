@@ -26,9 +26,10 @@ fn paintings_or_skip(test: &str) -> Option<std::path::PathBuf> {
 #[test]
 fn paintings_load_and_each_is_nearest_to_itself() {
     let Some(dir) = paintings_or_skip("paintings_load_and_each_is_nearest_to_itself") else { return };
-    let imgs: Vec<_> = PAINTINGS.iter().map(|p| load_style_image(&paintings::verified_path(&dir, p).unwrap()).unwrap()).collect();
+    let imgs: Vec<_> = PAINTINGS.iter().map(|p| load_style_image(&paintings::path(&dir, p).unwrap()).unwrap()).collect();
     for (p, img) in PAINTINGS.iter().zip(&imgs) {
-        assert!(img.width >= 100 && img.height >= 100, "{}: {}x{}", p.file, img.width, img.height);
+        // the whole painting, not one of its pieces (each at most 264 pixels on a side)
+        assert!(img.width >= 590 && img.height >= 440, "{}: {}x{}", p.key, img.width, img.height);
     }
     let samples: Vec<StyleSamples> = imgs.iter().map(|i| reference(i, 128, 128)).collect();
     for i in 0..samples.len() {
@@ -42,10 +43,27 @@ fn paintings_load_and_each_is_nearest_to_itself() {
             }
         }
     }
-    // a wrong hash is an error naming the file
-    let bad = paintings::Painting { sha256: "00", ..PAINTINGS[0] };
-    let e = paintings::verified_path(&dir, &bad).unwrap_err().to_string();
-    assert!(e.contains(PAINTINGS[0].file) && e.contains("SHA-256"), "{e}");
+    // a changed piece is an error naming the file, and nothing is assembled from it
+    let tmp = std::env::temp_dir().join(format!("snerf-paintings-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    for q in PAINTINGS[0].pieces {
+        std::fs::copy(dir.join(q.file), tmp.join(q.file)).unwrap();
+    }
+    let first = PAINTINGS[0].pieces[0].file;
+    let mut bytes = std::fs::read(tmp.join(first)).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(tmp.join(first), bytes).unwrap();
+    let e = paintings::path(&tmp, &PAINTINGS[0]).unwrap_err().to_string();
+    assert!(e.contains(first) && e.contains("SHA-256"), "{e}");
+    assert!(!tmp.join(format!("{}.png", PAINTINGS[0].key)).exists());
+    std::fs::remove_dir_all(&tmp).unwrap();
+    // `--style painting:KEY` is the same file
+    let named = paintings::resolve_style(std::path::Path::new("painting:kandinsky")).unwrap();
+    if paintings::styles_dir() == dir {
+        assert_eq!(named, dir.join("kandinsky.png"));
+    }
+    assert!(paintings::resolve_style(std::path::Path::new("painting:monet")).unwrap_err().to_string().contains("vangogh"));
 }
 
 #[test]
@@ -59,7 +77,7 @@ fn stylized_photo_is_closer_to_the_painting_than_the_photo() {
         specs.push(("gatys", opts));
     }
     for p in &PAINTINGS {
-        let path = paintings::verified_path(&dir, p).unwrap();
+        let path = paintings::path(&dir, p).unwrap();
         let style = reference(&load_style_image(&path).unwrap(), photo.width, photo.height);
         let d_photo = distance(&StyleSamples::of_image(&photo), &style);
         for (spec, opts) in &specs {
@@ -93,7 +111,7 @@ fn gram_distance_measures_what_gatys_minimizes() {
     let Some(opts) = models_or_skip("gram_distance_measures_what_gatys_minimizes") else { return };
     let metric = GramMetric::open(&opts).unwrap();
     let photo = content_image(128, 112);
-    let imgs: Vec<_> = PAINTINGS.iter().map(|p| load_style_image(&paintings::verified_path(&dir, p).unwrap()).unwrap()).collect();
+    let imgs: Vec<_> = PAINTINGS.iter().map(|p| load_style_image(&paintings::path(&dir, p).unwrap()).unwrap()).collect();
     let refs: Vec<_> = imgs.iter().map(|i| metric.reference(i, photo.width, photo.height).unwrap()).collect();
     for i in 0..refs.len() {
         assert_eq!(gram_distance(&refs[i], &refs[i]), 0.0);
@@ -128,7 +146,7 @@ fn gram_distance_measures_what_gatys_minimizes() {
     assert!(same < 0.5 * unmasked, "the mask does not keep the background out: masked {same}, unmasked {unmasked}");
     let s_photo = metric.grams(&[(&photo, None)]).unwrap();
     for (p, r) in PAINTINGS.iter().zip(&refs) {
-        let path = paintings::verified_path(&dir, p).unwrap();
+        let path = paintings::path(&dir, p).unwrap();
         let d_photo = gram_distance(&s_photo, r);
         for spec in ["gatys", "arbitrary"] {
             let out = from_spec(spec, Some(&path), &opts).unwrap().stylize(&photo).unwrap();

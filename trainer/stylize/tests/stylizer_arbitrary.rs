@@ -95,6 +95,58 @@ fn large_view_modes_split_the_bands_as_documented() {
     assert!(eb > 3.0 * er && eb > 0.5 * en, "Bands lost the fine band: {eb} (resize {er}, native {en})");
 }
 
+/// `stylize_crop` paints a crop at its whole view's scale: a view given as its own crop is
+/// the plain stylization (the same network input), and a crop is painted at the view's
+/// scale, not brought to 384 on its own.
+#[test]
+fn a_crop_is_painted_at_its_views_scale() {
+    let Some(opts) = models_or_skip("a_crop_is_painted_at_its_views_scale") else { return };
+    let s = ArbitraryStylizer::new(&style_image(256, 256), &opts).unwrap();
+    let view = content_image(128, 128);
+    let whole = s.stylize(&view).unwrap();
+    let as_crop = s.stylize_crop(&view, 128).unwrap();
+    assert!(whole.mean_abs_diff(&as_crop) < 1e-6, "the view as its own crop differs: {}", whole.mean_abs_diff(&as_crop));
+    // a 64x48 crop of that view, painted at the view's scale (x3) and, as a picture of its
+    // own, at 384 (x6): different stroke scales give different images of the right size
+    let part = resize(&view, 64, 48);
+    let at_view = s.stylize_crop(&part, 128).unwrap();
+    let alone = s.stylize(&part).unwrap();
+    assert_eq!((at_view.width, at_view.height), (64, 48));
+    assert_finite_in_range(&at_view);
+    assert!(at_view.mean_abs_diff(&alone) > 0.01, "the crop ignored its view's scale");
+}
+
+/// `stylize_region` with an object mask paints the object's box only (grown by 1/16 of the
+/// view) and leaves the rest of the view as it was; a mask whose box fills the view is the
+/// whole view's stylization.
+#[test]
+fn region_stylization_paints_the_object_box() {
+    use snerf_stylize::snerf_loop::{stylize_at, stylize_region};
+    let dir = tempfile::tempdir().unwrap();
+    let st = from_spec("color", Some(&style_file(dir.path())), &StylizerOptions::default()).unwrap();
+    let (w, h) = (96, 80);
+    let view = content_image(w, h);
+    // object: a 30x20 block at (40, 30); box with the 6-pixel margin: x 34..76, y 24..56
+    let mask: Vec<bool> = (0..w * h).map(|p| (40..70).contains(&(p % w)) && (30..50).contains(&(p / w))).collect();
+    let out = stylize_region(st.as_ref(), &view, Some(&mask), 0).unwrap();
+    let inside = |x: usize, y: usize| (34..76).contains(&x) && (24..56).contains(&y);
+    let mut changed_inside = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) * 3;
+            if inside(x, y) {
+                changed_inside += (out.data[i..i + 3] != view.data[i..i + 3]) as usize;
+            } else {
+                assert_eq!(out.data[i..i + 3], view.data[i..i + 3], "pixel ({x}, {y}) outside the box changed");
+            }
+        }
+    }
+    assert!(changed_inside > 42 * 32 / 2, "the box was not painted ({changed_inside} pixels changed)");
+    let full = vec![true; w * h];
+    let whole = stylize_region(st.as_ref(), &view, Some(&full), 0).unwrap();
+    assert_eq!(whole.data, stylize_at(st.as_ref(), &view, 0).unwrap().data);
+}
+
 #[test]
 fn missing_models_give_the_setup_command() {
     let dir = tempfile::tempdir().unwrap();

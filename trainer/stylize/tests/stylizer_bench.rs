@@ -90,7 +90,7 @@ fn seam_ratio(img: &snerf_stylize::stylizer::Image) -> f64 {
 #[test]
 #[ignore]
 fn bench_large_views() {
-    use snerf_stylize::paintings::{styles_dir, verified_path, PAINTINGS};
+    use snerf_stylize::paintings::{path, styles_dir, PAINTINGS};
     use snerf_stylize::style_gram::{distance, GramMetric};
     use snerf_stylize::stylizer::{image_from_png, load_style_image, resize, style_distance, ArbitraryStylizer, LargeViews, StyleEmbedder, Stylizer};
     let Some(opts) = models_or_skip("bench_large_views") else { return };
@@ -101,7 +101,7 @@ fn bench_large_views() {
         Err(_) => vec![("synthetic".into(), stylizer_support::content_image(1008, 756))],
     };
     for painting in PAINTINGS {
-        let Ok(path) = verified_path(&styles_dir(), &painting) else {
+        let Ok(path) = path(&styles_dir(), &painting) else {
             println!("{}: not installed (bash scripts/setup-styles.sh)", painting.key);
             continue;
         };

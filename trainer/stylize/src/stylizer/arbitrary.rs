@@ -204,8 +204,15 @@ impl ArbitraryStylizer {
         } else {
             (content.width, content.height)
         };
+        self.run_at(content, w, h, embedding)
+    }
+
+    /// Runs the transform network on `content` resized to `w x h` (reflect-padded to a
+    /// multiple of 8, and to at least 64, so the deepest layer keeps a few pixels), and
+    /// resizes the result back.
+    fn run_at(&self, content: &Image, w: usize, h: usize, embedding: &[f32]) -> Result<Image> {
         let small = resize(content, w, h);
-        let (pw, ph) = (w.div_ceil(8) * 8, h.div_ceil(8) * 8);
+        let (pw, ph) = (w.max(64).div_ceil(8) * 8, h.max(64).div_ceil(8) * 8);
         let padded = reflect_pad(&small, pw, ph);
         let out = self.nets.transform_raw(&padded.data, ph, pw, embedding)?;
         let out = crop(&Image { width: pw, height: ph, data: out }, 0, 0, w, h);
@@ -239,6 +246,37 @@ impl Stylizer for ArbitraryStylizer {
                 add_detail_band(&coarse, &fine, self.content_size)
             }
             _ => self.stylize_square(content, &embedding)?,
+        };
+        super::image_ops::clamp01(&mut out);
+        Ok(out)
+    }
+
+    /// The crop at the scale its whole view gets (`content_size / view_long`, or the view's
+    /// own for the detail band of a large view), so a crop's strokes are the view's strokes;
+    /// the network normalizes over the crop alone.
+    fn stylize_crop(&self, content: &Image, view_long: usize) -> Result<Image> {
+        let embedding = self.embedding_for(content)?;
+        let long = content.width.max(content.height);
+        let s = self.content_size as f32 / view_long.max(1) as f32;
+        let at = |scale: f32| {
+            let k = scale.min(MAX_NATIVE_SIDE as f32 / long as f32);
+            (((content.width as f32 * k).round() as usize).max(1), ((content.height as f32 * k).round() as usize).max(1))
+        };
+        let (cw, ch) = at(s);
+        let coarse = self.run_at(content, cw, ch, &embedding)?;
+        let large = view_long > self.content_size;
+        let mut out = match self.large {
+            LargeViews::Resize => coarse,
+            _ if !large => coarse,
+            LargeViews::Native => {
+                let (nw, nh) = at(1.0);
+                self.run_at(content, nw, nh, &embedding)?
+            }
+            LargeViews::Bands => {
+                let (nw, nh) = at(1.0);
+                let fine = self.run_at(content, nw, nh, &embedding)?;
+                add_detail_band(&coarse, &fine, cw.max(ch))
+            }
         };
         super::image_ops::clamp01(&mut out);
         Ok(out)

@@ -21,7 +21,7 @@ mod fake_quant;
 mod finite_guard;
 pub mod gatys;
 mod image_files;
-mod image_ops;
+pub(crate) mod image_ops;
 mod model_files;
 mod onnx_file;
 mod preset;
@@ -103,6 +103,14 @@ pub trait Stylizer: Send + Sync {
     fn name(&self) -> String;
     /// Stylizes `content`; the output has the same width and height.
     fn stylize(&self, content: &Image) -> Result<Image>;
+    /// Stylizes `crop`, a part of a view whose longer side is `view_long` pixels, as that
+    /// part of the whole view would be: the same stroke size, the crop's own statistics.
+    /// Stylizers whose strokes do not depend on the input's size take the crop as a picture
+    /// of its own.
+    fn stylize_crop(&self, crop: &Image, view_long: usize) -> Result<Image> {
+        let _ = view_long;
+        self.stylize(crop)
+    }
 }
 
 /// Knobs shared by the stylizers; each reads the ones it needs.
