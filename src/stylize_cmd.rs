@@ -417,9 +417,10 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let mut per_frame = Vec::with_capacity(path.realistic.len());
     // painted as the run painted its training views: with `--region object`, the object's
     // box (the realistic field's silhouette in each frame)
+    let by_box = o.region == snerf_loop::Region::Object && path.has_silhouette();
     let masks = path.masks();
     for (f, m) in path.realistic.iter().zip(&masks) {
-        let mask = (o.region == snerf_loop::Region::Object && path.has_silhouette()).then_some(m.as_slice());
+        let mask = by_box.then_some(m.as_slice());
         per_frame.push(snerf_loop::stylize_region(stylizer.as_ref(), f, mask, o.style_res)?);
     }
     pb.inc(1);
@@ -506,7 +507,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
          stylization by {:.2}× ({}).\n\n{gram_line}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
-        if o.region == snerf_loop::Region::Object && path.has_silhouette() { "the object's box in each view" } else { "whole views" },
+        if by_box { "the object's box in each view" } else { "whole views" },
         consistency::path_description(data.kind, a.frames),
         100.0 * path.coverage(),
         table,

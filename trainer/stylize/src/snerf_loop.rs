@@ -589,12 +589,10 @@ pub fn stylize_region(stylizer: &dyn Stylizer, img: &Image, mask: Option<&[bool]
     let long = w.max(h);
     let view_long = if res == 0 { long } else { res };
     let k = view_long as f32 / long as f32;
-    let scaled = if res == 0 || res == long {
-        part.clone()
-    } else {
-        resize(&part, ((part.width as f32 * k).round() as usize).max(1), ((part.height as f32 * k).round() as usize).max(1))
-    };
-    let painted = check_output(stylizer, &scaled, stylizer.stylize_crop(&scaled, view_long)?)?;
+    let scaled = (view_long != long)
+        .then(|| resize(&part, ((part.width as f32 * k).round() as usize).max(1), ((part.height as f32 * k).round() as usize).max(1)));
+    let input = scaled.as_ref().unwrap_or(&part);
+    let painted = check_output(stylizer, input, stylizer.stylize_crop(input, view_long)?)?;
     let painted = if painted.width == part.width && painted.height == part.height { painted } else { resize(&painted, part.width, part.height) };
     let mut out = img.clone();
     for y in y0..y1 {

@@ -262,21 +262,15 @@ impl Stylizer for ArbitraryStylizer {
             let k = scale.min(MAX_NATIVE_SIDE as f32 / long as f32);
             (((content.width as f32 * k).round() as usize).max(1), ((content.height as f32 * k).round() as usize).max(1))
         };
-        let (cw, ch) = at(s);
-        let coarse = self.run_at(content, cw, ch, &embedding)?;
+        let ((cw, ch), (nw, nh)) = (at(s), at(1.0));
         let large = view_long > self.content_size;
         let mut out = match self.large {
-            LargeViews::Resize => coarse,
-            _ if !large => coarse,
-            LargeViews::Native => {
-                let (nw, nh) = at(1.0);
-                self.run_at(content, nw, nh, &embedding)?
+            LargeViews::Native if large => self.run_at(content, nw, nh, &embedding)?,
+            LargeViews::Bands if large => {
+                let coarse = self.run_at(content, cw, ch, &embedding)?;
+                add_detail_band(&coarse, &self.run_at(content, nw, nh, &embedding)?, cw.max(ch))
             }
-            LargeViews::Bands => {
-                let (nw, nh) = at(1.0);
-                let fine = self.run_at(content, nw, nh, &embedding)?;
-                add_detail_band(&coarse, &fine, cw.max(ch))
-            }
+            _ => self.run_at(content, cw, ch, &embedding)?,
         };
         super::image_ops::clamp01(&mut out);
         Ok(out)
