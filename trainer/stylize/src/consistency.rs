@@ -2,8 +2,10 @@
 //! camera path; for frame pairs (i, i+1) (short range) and (i, i+7) (long range) warp
 //! stylized frame i into frame j with the correspondence obtained by reprojecting the
 //! *realistic* field's depth, drop occluded and uncovered pixels, and report the mean squared
-//! RGB error (colours in [0,1]) over what is left. The same geometry scores every method, so
-//! the numbers compare stylizations, not depth estimates.
+//! RGB error (colours in [0,1]) over what is left. Frame i is read only where its pixels
+//! show the same surface (`reproject`): a warp that interpolated across a silhouette would
+//! charge the stylization with the background's colour. The same geometry scores every
+//! method, so the numbers compare stylizations, not depth estimates.
 //!
 //! Consistency alone can be bought by washing the style out, so style distances come with
 //! it (`StyleMeters`): the weight-free `style_metric` (colour and texture distributions of the
@@ -18,9 +20,10 @@ use snerf_data::{Dataset, Intrinsics, SceneKind};
 use snerf_trainer::camera_path::orbit;
 use snerf_trainer::eval::{eval_background, render_camera};
 use snerf_trainer::render::WorkspacePool;
-use snerf_trainer::space::{norm, sub, Vec3};
+use snerf_trainer::space::Vec3;
 use snerf_trainer::train::{views_have_alpha, Model};
 
+use crate::reproject::{Seen, COVERED};
 use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleSamples, StyleScore};
 use crate::stylizer::{Image, StyleEmbedder, StylizerOptions};
@@ -28,10 +31,6 @@ use crate::stylizer::{Image, StyleEmbedder, StylizerOptions};
 /// Cameras per full circle of the novel path: 5° apart on an orbit, so (i, i+1) is a small
 /// motion and (i, i+7) a large one, as in the paper's test trajectories.
 pub const PATH_STEPS_PER_TURN: usize = 72;
-/// A pixel counts as covered by the scene above this realistic opacity.
-const COVERED: f32 = 0.5;
-/// Relative depth tolerance of the occlusion test.
-const OCCLUSION_TOL: f32 = 0.03;
 
 /// The novel path and the realistic field's geometry along it.
 pub struct PathGeometry {
@@ -117,20 +116,12 @@ impl PathGeometry {
         let (mut sum, mut count) = (0.0f64, 0u64);
         for i in 0..frames.len().saturating_sub(gap) {
             let j = i + gap;
-            let o_i = [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]];
+            let seen = Seen { origin: [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]], width: w, height: h, points: &self.points[i] };
             for (p, pt) in self.points[j].iter().enumerate() {
                 let Some(x) = pt else { continue };
                 let Some((u, v, dist)) = self.project(i, *x) else { continue };
-                if !(u >= 0.5 && v >= 0.5 && u <= w as f32 - 0.5 && v <= h as f32 - 0.5) {
-                    continue;
-                }
-                // occlusion: frame i must see (about) the same point at that pixel
-                let q = (v as usize).min(h - 1) * w + (u as usize).min(w - 1);
-                let Some(seen) = self.points[i][q] else { continue };
-                if (norm(sub(seen, o_i)) - dist).abs() > OCCLUSION_TOL * dist {
-                    continue;
-                }
-                let warped = bilinear(&frames[i], u - 0.5, v - 0.5);
+                // frame i's colour at the point, from its pixels that show that surface
+                let Some(warped) = seen.colour(&frames[i], u, v, dist) else { continue };
                 let target = &frames[j].data[p * 3..p * 3 + 3];
                 sum += (0..3).map(|c| ((warped[c] - target[c]) as f64).powi(2)).sum::<f64>() / 3.0;
                 count += 1;
@@ -201,20 +192,6 @@ impl PathGeometry {
 }
 
 /// Bilinear sample at continuous index coordinates (pixel centres at integers).
-fn bilinear(img: &Image, x: f32, y: f32) -> [f32; 3] {
-    let x0 = (x.floor() as usize).min(img.width - 1);
-    let y0 = (y.floor() as usize).min(img.height - 1);
-    let x1 = (x0 + 1).min(img.width - 1);
-    let y1 = (y0 + 1).min(img.height - 1);
-    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-    let px = |xx: usize, yy: usize| &img.data[(yy * img.width + xx) * 3..(yy * img.width + xx) * 3 + 3];
-    [0, 1, 2].map(|c| {
-        let a = px(x0, y0)[c] * (1.0 - fx) + px(x1, y0)[c] * fx;
-        let b = px(x0, y1)[c] * (1.0 - fx) + px(x1, y1)[c] * fx;
-        a * (1.0 - fy) + b * fy
-    })
-}
-
 pub fn embedding_distance(a: &[f32], b: &[f32]) -> f64 {
     a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>().sqrt()
 }

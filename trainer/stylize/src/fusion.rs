@@ -11,12 +11,10 @@ use rayon::prelude::*;
 use snerf_data::Intrinsics;
 use snerf_trainer::space::{norm, sub, Vec3};
 
+use crate::reproject::{Seen, COVERED};
+
 use crate::stylizer::Image;
 
-/// A pixel counts as a scene pixel above this opacity.
-const COVERED: f32 = 0.5;
-/// Relative depth tolerance of the occlusion test.
-const OCCLUSION_TOL: f32 = 0.03;
 
 /// One training view's camera and the surface point the current field shows at each pixel.
 pub struct ViewGeometry {
@@ -61,34 +59,13 @@ impl ViewGeometry {
     }
 
 
-    /// The colour of `img` (this view's image) at world point `x` when this view sees it.
+    /// The colour of `img` (this view's image) at world point `x` when this view sees it
+    /// (`reproject::Seen::colour`: only taps that show the same surface).
     fn sample_visible(&self, img: &Image, x: Vec3) -> Option<[f32; 3]> {
-        let (w, h) = (self.intr.width as usize, self.intr.height as usize);
         let (u, v, dist) = self.project(x)?;
-        if !(u >= 0.5 && v >= 0.5 && u <= w as f32 - 0.5 && v <= h as f32 - 0.5) {
-            return None;
-        }
-        let q = (v as usize).min(h - 1) * w + (u as usize).min(w - 1);
-        let seen = self.points[q]?;
-        if (norm(sub(seen, self.origin())) - dist).abs() > OCCLUSION_TOL * dist {
-            return None;
-        }
-        Some(bilinear(img, u - 0.5, v - 0.5))
+        let seen = Seen { origin: self.origin(), width: self.intr.width as usize, height: self.intr.height as usize, points: &self.points };
+        seen.colour(img, u, v, dist)
     }
-}
-
-fn bilinear(img: &Image, x: f32, y: f32) -> [f32; 3] {
-    let x0 = (x.floor().max(0.0) as usize).min(img.width - 1);
-    let y0 = (y.floor().max(0.0) as usize).min(img.height - 1);
-    let x1 = (x0 + 1).min(img.width - 1);
-    let y1 = (y0 + 1).min(img.height - 1);
-    let (fx, fy) = ((x - x0 as f32).clamp(0.0, 1.0), (y - y0 as f32).clamp(0.0, 1.0));
-    let px = |xx: usize, yy: usize| &img.data[(yy * img.width + xx) * 3..(yy * img.width + xx) * 3 + 3];
-    [0, 1, 2].map(|c| {
-        let a = px(x0, y0)[c] * (1.0 - fx) + px(x1, y0)[c] * fx;
-        let b = px(x0, y1)[c] * (1.0 - fx) + px(x1, y1)[c] * fx;
-        a * (1.0 - fy) + b * fy
-    })
 }
 
 /// The `k` views nearest to each view (by camera centre).

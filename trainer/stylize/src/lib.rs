@@ -11,6 +11,8 @@
 //! - `style_gram`: a style distance on Gram matrices of ImageNet features (independent of
 //!   every stylizer but `gatys`, which minimizes it).
 //! - `fusion`: multi-view fusion of the stylized targets through the field's depth.
+//! - `reproject`: one view's colour at a world point (occlusion test, bilinear over the
+//!   pixels that show that surface); fusion and the consistency measurement share it.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then
@@ -23,6 +25,7 @@
 pub mod consistency;
 pub mod fusion;
 pub mod paintings;
+pub mod reproject;
 pub mod snerf_loop;
 pub mod style_gram;
 pub mod style_metric;

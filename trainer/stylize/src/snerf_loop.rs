@@ -408,12 +408,15 @@ pub fn run(
                 progress.phase(round + 1, opts.rounds, "render", views.len() as u64);
                 let t0 = Instant::now();
                 let mut renders = Vec::with_capacity(views.len());
+                // what the field paints at each pixel, before the background is laid under it
+                let mut painted = Vec::with_capacity(views.len());
                 let mut geoms = Vec::with_capacity(views.len());
                 for (i, v) in views.iter().enumerate() {
                     let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
                     if opts.fuse_views > 0 {
                         geoms.push(ViewGeometry::from_render(&trainer.model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity));
                     }
+                    painted.push(if has_alpha { unpremultiply(r.width, r.height, &r.rgb, &r.opacity, bg) } else { Image { width: r.width, height: r.height, data: r.rgb.clone() } });
                     renders.push(Image { width: r.width, height: r.height, data: r.rgb });
                     progress.tick(i as u64 + 1, "");
                 }
@@ -456,7 +459,11 @@ pub fn run(
                 };
                 let step = opts.step_of_round(round + 1);
                 let targets: Vec<Image> = if step < 1.0 {
-                    renders.iter().zip(&fused).map(|(r, f)| fusion::step_toward(r, f, step)).collect()
+                    // A target is the colour of the surface alone (training lays a random
+                    // background under it by the view's alpha), so the step starts from the
+                    // field's own colour, not from its render over the eval background:
+                    // otherwise every round would lay the background into the rims again.
+                    painted.iter().zip(&fused).map(|(r, f)| fusion::step_toward(r, f, step)).collect()
                 } else {
                     fused
                 };
@@ -543,6 +550,21 @@ pub fn run(
         partial::clear(out);
     }
     Ok(state)
+}
+
+/// The colour a render shows before its background: `(rgb − (1 − opacity) × bg) / opacity`,
+/// where the opacity is above 1/255 (elsewhere the pixel has no colour of its own; the
+/// render's is kept, and training gives such pixels alpha 0 anyway).
+fn unpremultiply(width: usize, height: usize, rgb: &[f32], opacity: &[f32], bg: [f32; 3]) -> Image {
+    let mut data = rgb.to_vec();
+    for (px, &a) in data.chunks_exact_mut(3).zip(opacity) {
+        if a > 1.0 / 255.0 {
+            for c in 0..3 {
+                px[c] = ((px[c] - (1.0 - a) * bg[c]) / a).clamp(0.0, 1.0);
+            }
+        }
+    }
+    Image { width, height, data }
 }
 
 /// Stylize each image on its own (round `round`, for messages and progress); with
@@ -697,4 +719,31 @@ fn write_round_sheet(path: &Path, renders: &[Image], stylized: &[Image], targets
         picked.iter().map(|&i| &targets[i]).collect(),
     ];
     checkpoint::write_png_atomic(path, &consistency::grid_image(&rows))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rim pixel rendered over the eval background gives back the surface's own colour, so
+    /// a damped target step there does not carry the background into the target.
+    #[test]
+    fn unpremultiply_recovers_the_surface_colour() {
+        let bg = [1.0, 1.0, 1.0];
+        let surface = [0.3f32, 0.2, 0.1];
+        let opacity = [1.0f32, 0.6, 0.1, 0.0];
+        let rgb: Vec<f32> = opacity.iter().flat_map(|&a| (0..3).map(move |c| surface[c] * a + bg[c] * (1.0 - a))).collect();
+        let out = unpremultiply(4, 1, &rgb, &opacity, bg);
+        assert_eq!((out.width, out.height), (4, 1));
+        for p in 0..3 {
+            for c in 0..3 {
+                assert!((out.data[p * 3 + c] - surface[c]).abs() < 1e-5, "pixel {p}: {:?}", &out.data[p * 3..p * 3 + 3]);
+            }
+        }
+        // no coverage: the render's colour is kept (training gives the pixel alpha 0)
+        assert_eq!(&out.data[9..12], &rgb[9..12]);
+        // a plain step from the composited render would have whitened the rim
+        let target = fusion::step_toward(&Image { width: 4, height: 1, data: rgb.clone() }, &Image::filled(4, 1, surface), 0.5);
+        assert!(target.data[4] > surface[1] + 0.05);
+    }
 }
