@@ -9,7 +9,10 @@
 //! its nearest views (reprojected through the current field's depth) painted at the same
 //! surface point, so the field is asked for one colour per point; (2b) the target is a
 //! damped step from the current render toward that fused stylization
-//! (`render + β_t × (fused − render)`).
+//! (`render + β_t × (fused − render)`), the render taken before its background is laid
+//! under it (`unpremultiply`): a target is a surface colour, and a render composited over
+//! the eval background would whiten the silhouette's rim a little more every round
+//! (BENCH.md §5g).
 //!
 //! Why the published loop does not converge, and what does. Write a round as the iteration
 //! `x_{t+1} = x_t + β_t (T(x_t) − x_t)`, where `x` is the field's renders of the training
