@@ -191,7 +191,6 @@ impl PathGeometry {
     }
 }
 
-/// Bilinear sample at continuous index coordinates (pixel centres at integers).
 pub fn embedding_distance(a: &[f32], b: &[f32]) -> f64 {
     a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>().sqrt()
 }

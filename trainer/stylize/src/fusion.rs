@@ -12,9 +12,7 @@ use snerf_data::Intrinsics;
 use snerf_trainer::space::{norm, sub, Vec3};
 
 use crate::reproject::{Seen, COVERED};
-
 use crate::stylizer::Image;
-
 
 /// One training view's camera and the surface point the current field shows at each pixel.
 pub struct ViewGeometry {

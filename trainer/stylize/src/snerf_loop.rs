@@ -411,15 +411,18 @@ pub fn run(
                 progress.phase(round + 1, opts.rounds, "render", views.len() as u64);
                 let t0 = Instant::now();
                 let mut renders = Vec::with_capacity(views.len());
-                // what the field paints at each pixel, before the background is laid under it
-                let mut painted = Vec::with_capacity(views.len());
+                // with a silhouette: what the field paints at each pixel, before the background
+                // is laid under it (without one, the renders themselves)
+                let mut painted = Vec::new();
                 let mut geoms = Vec::with_capacity(views.len());
                 for (i, v) in views.iter().enumerate() {
                     let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
                     if opts.fuse_views > 0 {
                         geoms.push(ViewGeometry::from_render(&trainer.model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity));
                     }
-                    painted.push(if has_alpha { unpremultiply(r.width, r.height, &r.rgb, &r.opacity, bg) } else { Image { width: r.width, height: r.height, data: r.rgb.clone() } });
+                    if has_alpha {
+                        painted.push(unpremultiply(r.width, r.height, &r.rgb, &r.opacity, bg));
+                    }
                     renders.push(Image { width: r.width, height: r.height, data: r.rgb });
                     progress.tick(i as u64 + 1, "");
                 }
@@ -466,7 +469,8 @@ pub fn run(
                     // background under it by the view's alpha), so the step starts from the
                     // field's own colour, not from its render over the eval background:
                     // otherwise every round would lay the background into the rims again.
-                    painted.iter().zip(&fused).map(|(r, f)| fusion::step_toward(r, f, step)).collect()
+                    let from = if has_alpha { &painted } else { &renders };
+                    from.iter().zip(&fused).map(|(r, f)| fusion::step_toward(r, f, step)).collect()
                 } else {
                     fused
                 };
