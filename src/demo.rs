@@ -155,6 +155,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         lr_schedule: crate::stylize_cmd::DEFAULT_LR_SCHEDULE.into(),
         round_steps: crate::stylize_cmd::DEFAULT_ROUND_STEPS.into(),
         targets: crate::stylize_cmd::DEFAULT_TARGETS.into(),
+        fusion: crate::stylize_cmd::DEFAULT_FUSION.into(),
         region: crate::stylize_cmd::DEFAULT_REGION.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),

@@ -126,6 +126,9 @@ pub const DEFAULT_ROUND_STEPS: &str = "equal";
 /// Each round fuses the previous round's fused targets (BENCH.md §5c: the only setting
 /// measured whose round 5 is more consistent than its round 1).
 pub const DEFAULT_TARGETS: &str = "consensus";
+/// Fresh stylizations are fused by giving each surface point its nearest painter (BENCH.md
+/// §5h: the same consistency as the median after five rounds, with more of the painting).
+pub const DEFAULT_FUSION: &str = "owner";
 /// Default `--region`.
 pub const DEFAULT_REGION: &str = "object";
 
@@ -196,6 +199,12 @@ pub struct StylizeArgs {
     /// --fuse-views > 0.
     #[arg(long, default_value = DEFAULT_TARGETS, value_parser = ["once", "consensus"])]
     pub targets: String,
+    /// How fresh stylizations are fused (every round with --targets once, the first round
+    /// with consensus): owner (each surface point takes what the nearest view that sees it
+    /// painted: one painting's strokes per point) or median (the per-channel median of the
+    /// view and its --fuse-views nearest views at that point: a blend).
+    #[arg(long, default_value = DEFAULT_FUSION, value_parser = ["owner", "median"])]
+    pub fusion: String,
     /// What of each view the stylizer paints: object (views with a silhouette: the object's
     /// box with a margin, at the scale the whole view would be painted at, so the empty
     /// background does not set the stylizer's statistics; other views whole) or view (the
@@ -312,6 +321,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
         round_steps: option_enum("--round-steps", &a.round_steps)?,
         targets: option_enum("--targets", &a.targets)?,
+        fusion: option_enum("--fusion", &a.fusion)?,
         region: option_enum("--region", &a.region)?,
     };
     let wall = Instant::now();

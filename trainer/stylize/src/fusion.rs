@@ -6,6 +6,15 @@
 //! nearest training views (skipping views where that point is hidden or off-screen), and the
 //! target becomes the per-channel median of the view's own colour and those reprojected
 //! colours. A surface point then has (about) one target colour, whatever view shows it.
+//!
+//! `fuse_owner` is the other rule: each surface point takes the colour that the nearest view
+//! seeing it painted there (the point's own view where that is the nearest). Every view then
+//! reads the same painter at a point, so the targets agree as the median's do, but a point
+//! keeps one painting's strokes where the median blends five views' different strokes into
+//! a flatter, browner average (BENCH.md §5h). Nearest by camera centre: for views around an
+//! object, the view that sees a surface from closest sees it largest and, mostly, most
+//! frontally. Where the painter changes, a seam: consistent across views, since the choice
+//! depends on the point alone.
 
 use rayon::prelude::*;
 use snerf_data::Intrinsics;
@@ -132,6 +141,45 @@ pub fn fuse(targets: &[Image], geoms: &[ViewGeometry], k: usize) -> (Vec<Image>,
     (results.into_iter().map(|r| r.0).collect(), helped as f64 / scene.max(1) as f64)
 }
 
+/// One painter per surface point (see the module doc): every scene pixel of view i takes the
+/// colour that the view nearest to its surface point (by camera centre) and seeing it
+/// painted there; view i's own colour when it is that view. Every view is a candidate, so
+/// the choice depends on the point alone, not on which view asks. Returns the targets and
+/// the fraction of scene pixels painted by another view.
+pub fn fuse_owner(targets: &[Image], geoms: &[ViewGeometry]) -> (Vec<Image>, f64) {
+    assert_eq!(targets.len(), geoms.len());
+    let origins: Vec<Vec3> = geoms.iter().map(|g| g.origin()).collect();
+    let results: Vec<(Image, usize, usize)> = (0..targets.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut out = targets[i].clone();
+            let (mut scene, mut other) = (0usize, 0usize);
+            let mut order: Vec<(f32, usize)> = Vec::with_capacity(geoms.len());
+            for (p, pt) in geoms[i].points.iter().enumerate() {
+                let Some(x) = pt else { continue };
+                scene += 1;
+                order.clear();
+                order.extend(origins.iter().enumerate().map(|(j, o)| (norm(sub(*o, *x)), j)));
+                order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                for &(_, j) in &order {
+                    if j == i {
+                        break;
+                    }
+                    if let Some(rgb) = geoms[j].sample_visible(&targets[j], *x) {
+                        out.data[p * 3..p * 3 + 3].copy_from_slice(&rgb);
+                        other += 1;
+                        break;
+                    }
+                }
+            }
+            (out, scene, other)
+        })
+        .collect();
+    let scene: usize = results.iter().map(|r| r.1).sum();
+    let other: usize = results.iter().map(|r| r.2).sum();
+    (results.into_iter().map(|r| r.0).collect(), other as f64 / scene.max(1) as f64)
+}
+
 /// `render + step * (target - render)`, per pixel: a damped step from the current render
 /// toward the stylized target (step 1: the target itself).
 pub fn step_toward(render: &Image, target: &Image, step: f32) -> Image {
@@ -155,9 +203,8 @@ mod tests {
     }
 
     /// Three cameras over a plane z = 0; each sees the plane; the middle one's target has an
-    /// outlier stripe that its two neighbours do not: fusion removes it.
-    #[test]
-    fn fusion_takes_the_median_of_views_of_the_same_point() {
+    /// outlier stripe that its two neighbours do not.
+    fn three_views_of_a_plane() -> (Vec<ViewGeometry>, Vec<Image>) {
         let (w, h) = (32usize, 32usize);
         let intr = Intrinsics { width: w as u32, height: h as u32, fx: 40.0, fy: 40.0, cx: 16.0, cy: 16.0, distortion: [0.0; 4] };
         let mut geoms = Vec::new();
@@ -185,6 +232,13 @@ mod tests {
             geoms.push(ViewGeometry { c2w, intr, points });
             targets.push(Image { width: w, height: h, data });
         }
+        (geoms, targets)
+    }
+
+    #[test]
+    fn fusion_takes_the_median_of_views_of_the_same_point() {
+        let (geoms, targets) = three_views_of_a_plane();
+        let w = 32usize;
         let (fused, helped) = fuse(&targets, &geoms, 2);
         assert!(helped > 0.8, "{helped}");
         let p = 16 * w + 16;
@@ -197,5 +251,34 @@ mod tests {
         // nothing to fuse with: unchanged
         let (same, _) = fuse(&targets, &geoms, 0);
         assert_eq!(same[1].data, targets[1].data);
+    }
+
+    /// Every view's target at a surface point is what the nearest camera that sees the point
+    /// painted there: the views agree, and each keeps what it painted itself where it is the
+    /// nearest (the middle view's stripe lies under the middle camera).
+    #[test]
+    fn owner_fusion_gives_every_point_its_nearest_painter() {
+        let (geoms, targets) = three_views_of_a_plane();
+        let (fused, other) = fuse_owner(&targets, &geoms);
+        assert!(other > 0.2 && other < 0.9, "{other}");
+        let w = 32usize;
+        for (i, g) in geoms.iter().enumerate() {
+            for (p, x) in g.points.iter().enumerate() {
+                let x = x.unwrap();
+                // the owner: the camera whose centre (cx, 0, 5) is nearest, all see the plane
+                let owner = [-0.3f32, 0.0, 0.3].iter().enumerate().min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs())).unwrap().0;
+                let got = &fused[i].data[p * 3..p * 3 + 3];
+                if owner == i {
+                    assert_eq!(got, &targets[i].data[p * 3..p * 3 + 3], "view {i} pixel {p} is its own");
+                } else if let Some(want) = geoms[owner].sample_visible(&targets[owner], x) {
+                    for c in 0..3 {
+                        assert!((got[c] - want[c]).abs() < 1e-6, "view {i} pixel {p}: {got:?} vs owner {owner}'s {want:?}");
+                    }
+                }
+            }
+        }
+        // the stripe the middle view painted under its own camera stays in its target
+        let p = 16 * w + 16;
+        assert_eq!(&fused[1].data[p * 3..p * 3 + 3], &[1.0, 0.0, 0.0]);
     }
 }

@@ -10,7 +10,8 @@
 //!   texture patches) that no stylizer aims at.
 //! - `style_gram`: a style distance on Gram matrices of ImageNet features (independent of
 //!   every stylizer but `gatys`, which minimizes it).
-//! - `fusion`: multi-view fusion of the stylized targets through the field's depth.
+//! - `fusion`: multi-view fusion of the stylized targets through the field's depth (a median
+//!   over neighbouring views, or one painter per surface point).
 //! - `reproject`: one view's colour at a world point (occlusion test, bilinear over the
 //!   pixels that show that surface); fusion and the consistency measurement share it.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.

@@ -50,6 +50,13 @@
 //!   neighbours painted, a little more each round. The targets therefore become more
 //!   consistent round by round, and so does the field fitted to them (BENCH.md §5c: round
 //!   5 below round 1 on warp error and style distance).
+//! - `Fusion::Owner` (the default) is how the first round fuses the fresh stylizations: each
+//!   surface point takes what the nearest view that sees it painted (`fusion::fuse_owner`),
+//!   instead of the median of five views' different strokes. Those targets already agree
+//!   wherever the geometry is right, so the consensus rounds that follow have only seams and
+//!   misregistration left to reconcile and average little of the painting away (BENCH.md
+//!   §5h: round 5's warp error 2–27% above a median start's, its style distance to the
+//!   painting 8–30% below; the ratio to per-frame stylization below 1 on every pair measured).
 //!
 //! Runs recorded before these options resume as they were.
 //!
@@ -130,6 +137,9 @@ pub struct StylizeOptions {
     /// What each round fuses (before this option: `Once`).
     #[serde(default)]
     pub targets: Targets,
+    /// How fresh stylizations are fused (before this option: `Median`).
+    #[serde(default)]
+    pub fusion: Fusion,
     /// What of each view the stylizer is given (absent in a `stylize.json` written before
     /// this option: the whole view, as those runs were made).
     #[serde(default)]
@@ -147,6 +157,20 @@ pub enum Targets {
     /// neighbours through the current depth and takes the median again, so texture the views
     /// disagree on is reconciled a little more each round instead of being fitted.
     Consensus,
+}
+
+/// How a round fuses fresh stylizations (every round with `Targets::Once`, the first round
+/// with `Targets::Consensus`, whose later rounds take the median of the previous consensus).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Fusion {
+    /// The per-channel median of a view's colour and its `fuse_views` nearest views' colours
+    /// at the same surface point (`fusion::fuse`).
+    #[default]
+    Median,
+    /// Each surface point takes the colour the nearest view that sees it painted there
+    /// (`fusion::fuse_owner`): one painting's strokes per point instead of a blend of five.
+    Owner,
 }
 
 /// Training steps of each round; the run's total is `rounds × steps_per_round` either way.
@@ -282,7 +306,8 @@ pub struct RoundRecord {
     /// without the model.
     #[serde(default)]
     pub style_gram: Option<f64>,
-    /// Fraction of scene pixels whose target was fused with at least one neighbour.
+    /// Fraction of scene pixels whose target took other views' colours (median: fused with at
+    /// least one neighbour; owner: painted by another view).
     #[serde(default)]
     pub fused_fraction: Option<f64>,
     /// The target step this round used (`StylizeOptions::step_of_round`).
@@ -324,6 +349,20 @@ pub fn pick_views(views: &[View], n: usize) -> Vec<View> {
     (0..n).map(|i| views[i * views.len() / n].clone()).collect()
 }
 
+/// "name: recorded → asked" for each option in which `asked` differs from `recorded` (the
+/// rounds aside: more or fewer rounds extend or end the same run).
+fn differing_options(recorded: &StylizeOptions, asked: &StylizeOptions) -> Vec<String> {
+    let (Ok(serde_json::Value::Object(a)), Ok(serde_json::Value::Object(b))) =
+        (serde_json::to_value(recorded), serde_json::to_value(asked))
+    else {
+        return vec!["options".into()];
+    };
+    a.iter()
+        .filter(|(k, v)| k.as_str() != "rounds" && b.get(*k) != Some(*v))
+        .map(|(k, v)| format!("{k}: {v} recorded, {} asked", b.get(k).cloned().unwrap_or_default()))
+        .collect()
+}
+
 /// Start or resume a stylization run in `out`. `source` is the realistic model.
 #[allow(clippy::too_many_arguments)]
 pub fn run(
@@ -351,12 +390,10 @@ pub fn run(
             let same = StylizeOptions { rounds: opts.rounds, ..state.options.clone() } == *opts;
             if !same {
                 bail!(
-                    "{}: holds a stylization run with other options (style {}, stylizer {}, {} rounds); \
-                     choose another --out or repeat the same options to resume",
+                    "{}: holds a stylization run with other options ({}); choose another --out or \
+                     repeat the same options to resume",
                     out.display(),
-                    state.options.style.display(),
-                    state.options.stylizer,
-                    state.options.rounds
+                    differing_options(&state.options, opts).join(", ")
                 );
             }
             let ck = if state.rounds_done > 0 { checkpoint::load(&ck_path)? } else { source.clone() };
@@ -394,6 +431,8 @@ pub fn run(
     // consensus targets, the last round's fused targets instead (saved, so a resumed run
     // reads them back).
     let mut fixed: Option<Vec<Image>> = None;
+    // whether `fixed` holds a consensus (fused before) rather than fresh stylizations
+    let mut fixed_is_consensus = false;
     let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     for round in state.rounds_done..opts.rounds {
@@ -430,12 +469,13 @@ pub fn run(
                 // (2) stylize each render independently (or the realistic renders, once)
                 progress.phase(round + 1, opts.rounds, "stylize", views.len() as u64);
                 let t0 = Instant::now();
-                let stylized = match opts.content {
-                    Content::Render => stylize_all(stylizer, &renders, &views, opts, round + 1, progress)?,
+                let (stylized, stylized_is_consensus) = match opts.content {
+                    Content::Render => (stylize_all(stylizer, &renders, &views, opts, round + 1, progress)?, false),
                     Content::Realistic => {
                         if fixed.is_none() && consensus_on && round > 0 {
                             // A resumed run continues the consensus of the last round begun.
                             fixed = consensus::load(out, round, views.len())?;
+                            fixed_is_consensus = fixed.is_some();
                         }
                         if fixed.is_none() {
                             let content: Vec<Image> = views
@@ -447,17 +487,23 @@ pub fn run(
                                 .collect();
                             fixed = Some(stylize_all(stylizer, &content, &views, opts, round + 1, progress)?);
                         }
-                        fixed.clone().expect("stylized above")
+                        (fixed.clone().expect("stylized above"), fixed_is_consensus)
                     }
                 };
                 // (2a) fuse each target with its neighbours; (2b) a damped step toward it
                 let (fused, fused_fraction) = if opts.fuse_views > 0 {
-                    let (mut f, frac) = fusion::fuse(&stylized, &geoms, opts.fuse_views);
+                    // fresh stylizations by `opts.fusion`; a consensus by the median again
+                    let (mut f, frac) = if opts.fusion == Fusion::Owner && !stylized_is_consensus {
+                        fusion::fuse_owner(&stylized, &geoms)
+                    } else {
+                        fusion::fuse(&stylized, &geoms, opts.fuse_views)
+                    };
                     if consensus_on {
                         // The next round fuses these again (through its own depth).
                         f = consensus::quantize(f);
                         consensus::save(out, round + 1, &f)?;
                         fixed = Some(f.clone());
+                        fixed_is_consensus = true;
                     }
                     (f, Some(frac))
                 } else {

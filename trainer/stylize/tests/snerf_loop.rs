@@ -74,6 +74,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         lr_schedule: Default::default(),
         round_steps: Default::default(),
         targets: Default::default(),
+        fusion: Default::default(),
         // the object's box (these views have a silhouette)
         region: snerf_stylize::snerf_loop::Region::Object,
     }
@@ -238,6 +239,8 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     o.target_step = 1.0;
     o.lr_schedule = snerf_loop::LrSchedule::Run;
     o.targets = snerf_loop::Targets::Consensus;
+    // as the command line: round 1 gives each point its nearest painter, later rounds the median
+    o.fusion = snerf_loop::Fusion::Owner;
     let st = Counting { calls: Default::default(), means: Default::default() };
     snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12, "round 1 stylizes every view once");
