@@ -648,6 +648,15 @@ fn the_blocks_in_view_arrive_first() {
     assert_eq!(arrivals.len(), served.blks.len());
     let first: std::collections::HashSet<u32> = arrivals[..needed.len()].iter().copied().collect();
     eprintln!("{} of {} blocks in view; the first {} to arrive: {} of them in view", needed.len(), served.blks.len(), needed.len(), first.intersection(&needed).count());
+    if first != needed {
+        // Which side reordered: the server's send order, and the poses its batches were
+        // ordered for (a later pose than the hello's would reorder what is left).
+        let sent: Vec<u32> = log.iter().flat_map(|b| b.chunks.iter().copied()).collect();
+        let sent_first: std::collections::HashSet<u32> = sent.iter().take(needed.len()).copied().collect();
+        let mut poses: Vec<String> = log.iter().map(|b| format!("{:?}", b.pose)).collect();
+        poses.dedup();
+        eprintln!("server sent {} in view among its first {}; batch poses: {poses:?}", sent_first.intersection(&needed).count(), needed.len());
+    }
     assert_eq!(first, needed);
     h.shutdown();
 }
