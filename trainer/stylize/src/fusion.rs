@@ -97,6 +97,38 @@ fn median(v: &mut [f32]) -> f32 {
     }
 }
 
+/// Every view's target with each scene pixel replaced by `pixel(scratch, i, p, x)` (view i,
+/// pixel p showing world point x) where that returns a colour; pixels that show no surface,
+/// and those it returns None for, keep their own. `S` is per-view scratch space. Returns the
+/// targets and the fraction of scene pixels replaced.
+fn per_scene_pixel<S: Default>(
+    targets: &[Image],
+    geoms: &[ViewGeometry],
+    pixel: impl Fn(&mut S, usize, usize, Vec3) -> Option<[f32; 3]> + Sync,
+) -> (Vec<Image>, f64) {
+    assert_eq!(targets.len(), geoms.len());
+    let results: Vec<(Image, usize, usize)> = (0..targets.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut out = targets[i].clone();
+            let (mut scene, mut replaced) = (0usize, 0usize);
+            let mut scratch = S::default();
+            for (p, pt) in geoms[i].points.iter().enumerate() {
+                let Some(x) = pt else { continue };
+                scene += 1;
+                if let Some(rgb) = pixel(&mut scratch, i, p, *x) {
+                    out.data[p * 3..p * 3 + 3].copy_from_slice(&rgb);
+                    replaced += 1;
+                }
+            }
+            (out, scene, replaced)
+        })
+        .collect();
+    let scene: usize = results.iter().map(|r| r.1).sum();
+    let replaced: usize = results.iter().map(|r| r.2).sum();
+    (results.into_iter().map(|r| r.0).collect(), replaced as f64 / scene.max(1) as f64)
+}
+
 /// Fuse each view's target with its `k` nearest views' targets (see the module doc).
 /// Pixels that show no surface keep their own colour. Returns the fused targets and the
 /// fraction of scene pixels that had at least one neighbour's colour.
@@ -106,39 +138,20 @@ pub fn fuse(targets: &[Image], geoms: &[ViewGeometry], k: usize) -> (Vec<Image>,
         return (targets.to_vec(), 0.0);
     }
     let nb = neighbours(geoms, k);
-    let results: Vec<(Image, usize, usize)> = (0..targets.len())
-        .into_par_iter()
-        .map(|i| {
-            let mut out = targets[i].clone();
-            let (mut scene, mut helped) = (0usize, 0usize);
-            let mut vals: [Vec<f32>; 3] = Default::default();
-            for (p, pt) in geoms[i].points.iter().enumerate() {
-                let Some(x) = pt else { continue };
-                scene += 1;
-                for (c, v) in vals.iter_mut().enumerate() {
-                    v.clear();
-                    v.push(targets[i].data[p * 3 + c]);
-                }
-                for &j in &nb[i] {
-                    if let Some(rgb) = geoms[j].sample_visible(&targets[j], *x) {
-                        for c in 0..3 {
-                            vals[c].push(rgb[c]);
-                        }
-                    }
-                }
-                if vals[0].len() > 1 {
-                    helped += 1;
-                    for (c, v) in vals.iter_mut().enumerate() {
-                        out.data[p * 3 + c] = median(v);
-                    }
+    per_scene_pixel(targets, geoms, |vals: &mut [Vec<f32>; 3], i, p, x| {
+        for (c, v) in vals.iter_mut().enumerate() {
+            v.clear();
+            v.push(targets[i].data[p * 3 + c]);
+        }
+        for &j in &nb[i] {
+            if let Some(rgb) = geoms[j].sample_visible(&targets[j], x) {
+                for c in 0..3 {
+                    vals[c].push(rgb[c]);
                 }
             }
-            (out, scene, helped)
-        })
-        .collect();
-    let scene: usize = results.iter().map(|r| r.1).sum();
-    let helped: usize = results.iter().map(|r| r.2).sum();
-    (results.into_iter().map(|r| r.0).collect(), helped as f64 / scene.max(1) as f64)
+        }
+        (vals[0].len() > 1).then(|| [0, 1, 2].map(|c| median(&mut vals[c])))
+    })
 }
 
 /// One painter per surface point (see the module doc): every scene pixel of view i takes the
@@ -147,37 +160,14 @@ pub fn fuse(targets: &[Image], geoms: &[ViewGeometry], k: usize) -> (Vec<Image>,
 /// the choice depends on the point alone, not on which view asks. Returns the targets and
 /// the fraction of scene pixels painted by another view.
 pub fn fuse_owner(targets: &[Image], geoms: &[ViewGeometry]) -> (Vec<Image>, f64) {
-    assert_eq!(targets.len(), geoms.len());
     let origins: Vec<Vec3> = geoms.iter().map(|g| g.origin()).collect();
-    let results: Vec<(Image, usize, usize)> = (0..targets.len())
-        .into_par_iter()
-        .map(|i| {
-            let mut out = targets[i].clone();
-            let (mut scene, mut other) = (0usize, 0usize);
-            let mut order: Vec<(f32, usize)> = Vec::with_capacity(geoms.len());
-            for (p, pt) in geoms[i].points.iter().enumerate() {
-                let Some(x) = pt else { continue };
-                scene += 1;
-                order.clear();
-                order.extend(origins.iter().enumerate().map(|(j, o)| (norm(sub(*o, *x)), j)));
-                order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                for &(_, j) in &order {
-                    if j == i {
-                        break;
-                    }
-                    if let Some(rgb) = geoms[j].sample_visible(&targets[j], *x) {
-                        out.data[p * 3..p * 3 + 3].copy_from_slice(&rgb);
-                        other += 1;
-                        break;
-                    }
-                }
-            }
-            (out, scene, other)
-        })
-        .collect();
-    let scene: usize = results.iter().map(|r| r.1).sum();
-    let other: usize = results.iter().map(|r| r.2).sum();
-    (results.into_iter().map(|r| r.0).collect(), other as f64 / scene.max(1) as f64)
+    per_scene_pixel(targets, geoms, |order: &mut Vec<(f32, usize)>, i, _, x| {
+        order.clear();
+        order.extend(origins.iter().enumerate().map(|(j, o)| (norm(sub(*o, x)), j)));
+        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        // the nearest view that sees x, unless view i itself comes first
+        order.iter().take_while(|&&(_, j)| j != i).find_map(|&(_, j)| geoms[j].sample_visible(&targets[j], x))
+    })
 }
 
 /// `render + step * (target - render)`, per pixel: a damped step from the current render

@@ -429,10 +429,9 @@ pub fn run(
     // `Content::Realistic`: the stylizations of the realistic renders, made once per process
     // (the stylizers are deterministic, so a resumed run makes the same ones again); with
     // consensus targets, the last round's fused targets instead (saved, so a resumed run
-    // reads them back).
-    let mut fixed: Option<Vec<Image>> = None;
-    // whether `fixed` holds a consensus (fused before) rather than fresh stylizations
-    let mut fixed_is_consensus = false;
+    // reads them back). The flag says which: `opts.fusion` applies to fresh stylizations, a
+    // consensus is fused by the median again.
+    let mut fixed: Option<(Vec<Image>, bool)> = None;
     let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     for round in state.rounds_done..opts.rounds {
@@ -474,8 +473,7 @@ pub fn run(
                     Content::Realistic => {
                         if fixed.is_none() && consensus_on && round > 0 {
                             // A resumed run continues the consensus of the last round begun.
-                            fixed = consensus::load(out, round, views.len())?;
-                            fixed_is_consensus = fixed.is_some();
+                            fixed = consensus::load(out, round, views.len())?.map(|c| (c, true));
                         }
                         if fixed.is_none() {
                             let content: Vec<Image> = views
@@ -485,9 +483,9 @@ pub fn run(
                                     Image { width: r.width, height: r.height, data: r.rgb }
                                 })
                                 .collect();
-                            fixed = Some(stylize_all(stylizer, &content, &views, opts, round + 1, progress)?);
+                            fixed = Some((stylize_all(stylizer, &content, &views, opts, round + 1, progress)?, false));
                         }
-                        (fixed.clone().expect("stylized above"), fixed_is_consensus)
+                        fixed.clone().expect("stylized above")
                     }
                 };
                 // (2a) fuse each target with its neighbours; (2b) a damped step toward it
@@ -502,8 +500,7 @@ pub fn run(
                         // The next round fuses these again (through its own depth).
                         f = consensus::quantize(f);
                         consensus::save(out, round + 1, &f)?;
-                        fixed = Some(f.clone());
-                        fixed_is_consensus = true;
+                        fixed = Some((f.clone(), true));
                     }
                     (f, Some(frac))
                 } else {
