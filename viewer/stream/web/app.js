@@ -20,7 +20,7 @@ const fixedCam = frag.get('cam') ? JSON.parse(frag.get('cam')) : null;
 const report = (window.snerf = {
   state: 'starting', error: null, listing: null, asset: null, sha256: null, bytes: 0,
   chunks: 0, blocks: 0, firstFrameMs: null, frames: 0, frame: null, firstFrame: null,
-  adapter: null, marks: {}, crcMs: 0,
+  adapter: null, marks: {}, crcMs: 0, rotationRetries: 0,
 });
 
 function setStatus(s) { $('status').textContent = s; }
@@ -116,13 +116,30 @@ async function readMsg(rd) {
 let config = null;
 // True while an immersive WebXR session draws (its frame loop replaces the page's).
 let xrActive = false;
+// How often a handshake is tried again after the certificate was rotated under it.
+const ROTATION_RETRIES = 3;
 async function connect(hello) {
-  // The server rotates its generated certificate: take the hash in use now.
-  config = await (await fetch('/config.json')).json();
-  const opts = {};
-  if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
-  const wt = new WebTransport(config.webtransport, opts);
-  await wt.ready;
+  let wt;
+  for (let attempt = 0; ; attempt++) {
+    // The server rotates its generated certificate: take the hash in use now.
+    config = await (await fetch('/config.json')).json();
+    const opts = {};
+    if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
+    wt = new WebTransport(config.webtransport, opts);
+    wt.closed.catch(() => {}); // a failed handshake rejects this too; `ready` reports it
+    try {
+      await wt.ready;
+      break;
+    } catch (e) {
+      // A rotation between reading the hash and the handshake fails the handshake with a hash
+      // that is no longer the server's: read the new one and try again. Any other failure
+      // (the server down, a hash that has not changed) is the caller's to handle.
+      if (!config.cert_hash || attempt >= ROTATION_RETRIES) throw e;
+      const now = await (await fetch('/config.json')).json();
+      if (now.cert_hash === config.cert_hash) throw e;
+      report.rotationRetries += 1;
+    }
+  }
   const bidi = await wt.createBidirectionalStream();
   const writer = bidi.writable.getWriter();
   const ctl = new Reader(bidi.readable);
