@@ -643,11 +643,28 @@ fn the_blocks_in_view_arrive_first() {
     assert!(pose.forward[2] < -0.99 && (pose.fov_deg - 60.0).abs() < 0.5, "{:?}", pose);
     let needed: std::collections::HashSet<u32> = served.blks.iter().filter(|b| in_cone(b, &pose)).map(|b| b.chunk).collect();
     assert!(needed.len() >= 4 && needed.len() * 3 < served.blks.len(), "{} of {} blocks in view", needed.len(), served.blks.len());
-    // The page's arrival order (chunk indices): the first |needed| are exactly those in view.
-    let arrivals: Vec<u32> = r["arrivals"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap() as u32).collect();
-    assert_eq!(arrivals.len(), served.blks.len());
+    // What the page received (chunk indices), stream by stream in the order it accepted the
+    // streams, in order within each: the first |needed| are exactly those in view. (The page
+    // reads streams concurrently, so where two are in flight their records may be applied
+    // interleaved: the order blocks were applied can swap a batch's last block with the
+    // next batch's first.)
+    let applied: Vec<u32> = r["arrivals"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap() as u32).collect();
+    let streams: Vec<u64> = r["arrivalStreams"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+    assert_eq!(applied.len(), served.blks.len());
+    assert_eq!(streams.len(), applied.len());
+    let mut by_stream: Vec<(u64, u32)> = streams.iter().copied().zip(applied.iter().copied()).collect();
+    by_stream.sort_by_key(|a| a.0); // stable: keeps the order within a stream
+    let arrivals: Vec<u32> = by_stream.iter().map(|a| a.1).collect();
     let first: std::collections::HashSet<u32> = arrivals[..needed.len()].iter().copied().collect();
-    eprintln!("{} of {} blocks in view; the first {} to arrive: {} of them in view", needed.len(), served.blks.len(), needed.len(), first.intersection(&needed).count());
+    let first_applied: std::collections::HashSet<u32> = applied[..needed.len()].iter().copied().collect();
+    eprintln!(
+        "{} of {} blocks in view; the first {} received: {} of them in view ({} of the first applied)",
+        needed.len(),
+        served.blks.len(),
+        needed.len(),
+        first.intersection(&needed).count(),
+        first_applied.intersection(&needed).count()
+    );
     if first != needed {
         // Which side reordered: the server's send order, and the poses its batches were
         // ordered for (a later pose than the hello's would reorder what is left).

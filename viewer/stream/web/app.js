@@ -472,7 +472,12 @@ async function stream(name, gpu) {
   const info = welcome.asset;
   report.asset = info;
   report.state = 'streaming';
+  // Blocks in the order they were applied, and the stream each came on (numbered as the
+  // page accepted them). Streams are read concurrently, so records of two streams in flight
+  // may be applied interleaved; by stream, then in order, is the order the server sent.
   report.arrivals = [];
+  report.arrivalStreams = [];
+  let streamsAccepted = 0;
   report.resumes = 0;
   dgram = wt.datagrams.writable.getWriter();
   const poseTimer = setInterval(sendPose, 250);
@@ -572,11 +577,11 @@ async function stream(name, gpu) {
       `first frame ${report.firstFrameMs === null ? '-' : report.firstFrameMs.toFixed(0) + ' ms'}`;
   }
 
-  async function onChunk(index, ck) {
+  async function onChunk(index, ck, stream) {
     const tag = td.decode(ck.subarray(0, 4));
     const p = ck.subarray(12);
     if (chunks[index]) return;
-    if (!r && tag !== 'HEAD') { pendingChunks.push([index, ck]); return; }
+    if (!r && tag !== 'HEAD') { pendingChunks.push([index, ck, stream]); return; }
     chunks[index] = ck;
     report.chunks++;
     if (report.chunks === info.chunks) finish();
@@ -603,14 +608,14 @@ async function stream(name, gpu) {
         tb.oninput = () => { time = parseFloat(tb.value); sendPose(); redraw(); };
         $('play').onclick = togglePlay;
       }
-      for (const q of pendingChunks.splice(0)) await onChunk(q[0], q[1]);
+      for (const q of pendingChunks.splice(0)) await onChunk(q[0], q[1], q[2]);
     } else if (tag === 'VMLP') { r.setMlp(p); r.mlp = true; }
     else if (tag === 'GRID') { r.setGrid(u32(p, 0), new Uint32Array(p.slice(4).buffer)); }
     else if (tag === 'BLKS') {
       const first = u32(p, 0), n = u32(p, 4);
       r.setBlocks(first, n, p.subarray(8));
       report.blocks += n;
-      if (report.arrivals.length < 65536) report.arrivals.push(index);
+      if (report.arrivals.length < 65536) { report.arrivals.push(index); report.arrivalStreams.push(stream); }
     }
     if (ready()) {
       // The first frame is drawn as soon as the small parts are in, before more blocks are
@@ -624,7 +629,7 @@ async function stream(name, gpu) {
   let queue = Promise.resolve();
   let received = 0; // distinct chunks whose whole record was read off a stream
   const got = new Uint8Array(info.chunks);
-  async function readStream(s) {
+  async function readStream(s, stream) {
     const rd = new Reader(s);
     for (;;) {
       const head = await rd.take(16);
@@ -644,7 +649,7 @@ async function stream(name, gpu) {
       got[index] = 1;
       received++;
       if (received === info.chunks) report.downloadedAt = performance.now();
-      queue = queue.then(() => onChunk(index, ck)).catch(abort);
+      queue = queue.then(() => onChunk(index, ck, stream)).catch(abort);
     }
   }
   if (!fixedCam) attachControls(view, () => orbit, touched);
@@ -677,7 +682,7 @@ async function stream(name, gpu) {
       for (;;) {
         const { value, done } = await uni.read();
         if (done) return;
-        readStream(value).catch(lost);
+        readStream(value, streamsAccepted++).catch(lost);
       }
     })().catch(lost);
   }
