@@ -156,6 +156,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         round_steps: crate::stylize_cmd::DEFAULT_ROUND_STEPS.into(),
         targets: crate::stylize_cmd::DEFAULT_TARGETS.into(),
         fusion: crate::stylize_cmd::DEFAULT_FUSION.into(),
+        fusion_read: crate::stylize_cmd::DEFAULT_FUSION_READ.into(),
         region: crate::stylize_cmd::DEFAULT_REGION.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),

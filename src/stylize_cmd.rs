@@ -129,6 +129,10 @@ pub const DEFAULT_TARGETS: &str = "consensus";
 /// Fresh stylizations are fused by giving each surface point its nearest painter (BENCH.md
 /// §5h: the same consistency as the median after five rounds, with more of the painting).
 pub const DEFAULT_FUSION: &str = "owner";
+/// Fusion copies pixels instead of resampling them (BENCH.md §5i: bilinear reads blur the
+/// consensus targets a little every round, and the painting's contrast with them; copying
+/// keeps round 5 at least as close to the painting as round 1, for twice the warp error).
+pub const DEFAULT_FUSION_READ: &str = "nearest";
 /// Default `--region`.
 pub const DEFAULT_REGION: &str = "object";
 
@@ -205,6 +209,11 @@ pub struct StylizeArgs {
     /// view and its --fuse-views nearest views at that point: a blend).
     #[arg(long, default_value = DEFAULT_FUSION, value_parser = ["owner", "median"])]
     pub fusion: String,
+    /// How fusion reads another view's colour at a surface point: nearest (the pixel the point
+    /// falls in, copied) or bilinear (the mean of the four around it: a small blur, which the
+    /// consensus rounds compound; runs made before this option).
+    #[arg(long, default_value = DEFAULT_FUSION_READ, value_parser = ["nearest", "bilinear"])]
+    pub fusion_read: String,
     /// What of each view the stylizer paints: object (views with a silhouette: the object's
     /// box with a margin, at the scale the whole view would be painted at, so the empty
     /// background does not set the stylizer's statistics; other views whole) or view (the
@@ -322,6 +331,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         round_steps: option_enum("--round-steps", &a.round_steps)?,
         targets: option_enum("--targets", &a.targets)?,
         fusion: option_enum("--fusion", &a.fusion)?,
+        fusion_read: option_enum("--fusion-read", &a.fusion_read)?,
         region: option_enum("--region", &a.region)?,
     };
     let wall = Instant::now();

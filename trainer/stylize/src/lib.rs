@@ -12,8 +12,9 @@
 //!   every stylizer but `gatys`, which minimizes it).
 //! - `fusion`: multi-view fusion of the stylized targets through the field's depth (a median
 //!   over neighbouring views, or one painter per surface point).
-//! - `reproject`: one view's colour at a world point (occlusion test, bilinear over the
-//!   pixels that show that surface); fusion and the consistency measurement share it.
+//! - `reproject`: one view's colour at a world point (occlusion test; bilinear over the
+//!   pixels that show that surface, or the nearest of them); fusion and the consistency
+//!   measurement share it.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then

@@ -10,6 +10,12 @@
 //! background then reports an error that belongs to the interpolation, not to the
 //! stylization, and fusion carries that background into the targets' rims, a little more
 //! each consensus round (BENCH.md §5g).
+//!
+//! `Seen::nearest` is the other read, for fusion: the colour of the pixel the point falls in,
+//! under the same visibility rule. A bilinear read is a small blur; fusion that reads
+//! bilinearly blurs the targets once per round, and iterated over consensus rounds that
+//! takes the painting's contrast away (BENCH.md §5i). The nearest pixel copies what was
+//! painted.
 
 use snerf_trainer::space::{norm, sub, Vec3};
 
@@ -34,18 +40,31 @@ impl Seen<'_> {
         self.points[q].is_some_and(|s| (norm(sub(s, self.origin)) - dist).abs() <= OCCLUSION_TOL * dist)
     }
 
-    /// The colour of `img` (this view's image) at the point that projects to continuous pixel
-    /// coordinates (u, v) (pixel x spans [x, x+1)) from distance `dist`; None when the view
-    /// does not see it (off the image, background, or occluded).
-    pub fn colour(&self, img: &Image, u: f32, v: f32, dist: f32) -> Option<[f32; 3]> {
+    /// The pixel that continuous pixel coordinates (u, v) fall in, when the view sees the
+    /// point there from distance `dist` (inside the image's pixel centres, not background,
+    /// not occluded).
+    fn seen_pixel(&self, u: f32, v: f32, dist: f32) -> Option<usize> {
         let (w, h) = (self.width, self.height);
         if !(u >= 0.5 && v >= 0.5 && u <= w as f32 - 0.5 && v <= h as f32 - 0.5) {
             return None;
         }
         let q = (v as usize).min(h - 1) * w + (u as usize).min(w - 1);
-        if !self.shows(q, dist) {
-            return None;
-        }
+        self.shows(q, dist).then_some(q)
+    }
+
+    /// The colour of `img`'s pixel that the point falls in, where `colour` would read one:
+    /// no resampling, so a read changes no colour.
+    pub fn nearest(&self, img: &Image, u: f32, v: f32, dist: f32) -> Option<[f32; 3]> {
+        let q = self.seen_pixel(u, v, dist)?;
+        Some([0, 1, 2].map(|c| img.data[q * 3 + c]))
+    }
+
+    /// The colour of `img` (this view's image) at the point that projects to continuous pixel
+    /// coordinates (u, v) (pixel x spans [x, x+1)) from distance `dist`; None when the view
+    /// does not see it (off the image, background, or occluded).
+    pub fn colour(&self, img: &Image, u: f32, v: f32, dist: f32) -> Option<[f32; 3]> {
+        let (w, h) = (self.width, self.height);
+        let q = self.seen_pixel(u, v, dist)?;
         let (x, y) = (u - 0.5, v - 0.5);
         let x0 = (x.floor().max(0.0) as usize).min(w - 1);
         let y0 = (y.floor().max(0.0) as usize).min(h - 1);
@@ -90,5 +109,22 @@ mod tests {
         assert!(seen.colour(&img, 2.6, 0.5, 5.0).is_none());
         // a point farther than the surface the pixel shows is occluded
         assert!(seen.colour(&img, 1.0, 0.5, 6.0).is_none());
+    }
+
+    /// The nearest read returns the pixel the point falls in, unmixed, and sees what the
+    /// bilinear read sees.
+    #[test]
+    fn the_nearest_read_copies_a_pixel_under_the_same_visibility() {
+        let img = Image { width: 4, height: 1, data: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0] };
+        let p = Some([0.0, 0.0, 0.0]);
+        let points = [p, p, None, None];
+        let seen = Seen { origin: [0.0, 0.0, 5.0], width: 4, height: 1, points: &points };
+        assert_eq!(seen.nearest(&img, 0.9, 0.5, 5.0), Some([1.0, 0.0, 0.0]));
+        assert_eq!(seen.nearest(&img, 1.1, 0.5, 5.0), Some([0.0, 1.0, 0.0]));
+        assert_eq!(seen.nearest(&img, 1.9, 0.5, 5.0), Some([0.0, 1.0, 0.0]));
+        for (u, d) in [(2.6, 5.0), (1.0, 6.0), (0.2, 5.0)] {
+            assert_eq!(seen.nearest(&img, u, 0.5, d), None, "u {u}, dist {d}");
+            assert_eq!(seen.colour(&img, u, 0.5, d), None, "u {u}, dist {d}");
+        }
     }
 }

@@ -57,6 +57,12 @@
 //!   misregistration left to reconcile and average little of the painting away (BENCH.md
 //!   §5h: round 5's warp error 2–27% above a median start's, its style distance to the
 //!   painting 8–30% below; the ratio to per-frame stylization below 1 on every pair measured).
+//! - `fusion::Read::Nearest` (the default): fusion copies the pixel a surface point falls in
+//!   instead of mixing four. A bilinear read blurs a little, and the consensus rounds
+//!   compound it: the targets lost 30% of their lightness contrast over five rounds, and
+//!   round 5's style distance ended above round 1's on 3 of 9 pairs. Copying, round 5 is no
+//!   worse than round 1 on every pair, for a warp error about twice as large (still a fifth
+//!   of per-frame stylization's; BENCH.md §5i).
 //!
 //! Runs recorded before these options resume as they were.
 //!
@@ -140,6 +146,9 @@ pub struct StylizeOptions {
     /// How fresh stylizations are fused (before this option: `Median`).
     #[serde(default)]
     pub fusion: Fusion,
+    /// How fusion reads the other views' colours (before this option: `Bilinear`).
+    #[serde(default)]
+    pub fusion_read: fusion::Read,
     /// What of each view the stylizer is given (absent in a `stylize.json` written before
     /// this option: the whole view, as those runs were made).
     #[serde(default)]
@@ -492,9 +501,9 @@ pub fn run(
                 let (fused, fused_fraction) = if opts.fuse_views > 0 {
                     // fresh stylizations by `opts.fusion`; a consensus by the median again
                     let (mut f, frac) = if opts.fusion == Fusion::Owner && !stylized_is_consensus {
-                        fusion::fuse_owner(&stylized, &geoms)
+                        fusion::fuse_owner(&stylized, &geoms, opts.fusion_read)
                     } else {
-                        fusion::fuse(&stylized, &geoms, opts.fuse_views)
+                        fusion::fuse(&stylized, &geoms, opts.fuse_views, opts.fusion_read)
                     };
                     if consensus_on {
                         // The next round fuses these again (through its own depth).

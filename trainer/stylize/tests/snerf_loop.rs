@@ -75,6 +75,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         round_steps: Default::default(),
         targets: Default::default(),
         fusion: Default::default(),
+        fusion_read: Default::default(),
         // the object's box (these views have a silhouette)
         region: snerf_stylize::snerf_loop::Region::Object,
     }
@@ -239,8 +240,10 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     o.target_step = 1.0;
     o.lr_schedule = snerf_loop::LrSchedule::Run;
     o.targets = snerf_loop::Targets::Consensus;
-    // as the command line: round 1 gives each point its nearest painter, later rounds the median
+    // as the command line: round 1 gives each point its nearest painter, later rounds the
+    // median, reading the pixel each point falls in
     o.fusion = snerf_loop::Fusion::Owner;
+    o.fusion_read = snerf_stylize::fusion::Read::Nearest;
     let st = Counting { calls: Default::default(), means: Default::default() };
     snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12, "round 1 stylizes every view once");
