@@ -696,11 +696,13 @@ async function stream(name, gpu) {
     setStatus(`connection lost; resuming in ${delay} ms (${received} of ${info.chunks} chunks held)`);
     setTimeout(async () => {
       try {
-        const c = await connect({ ...hello, have: haveRanges(), resume_id: info.sha256 });
+        const have = haveRanges();
+        const held = have.reduce((n, [a, b]) => n + b - a, 0);
+        const c = await connect({ ...hello, have, resume_id: info.sha256 });
         const wel = await readMsg(c.ctl);
         if (wel.type !== 'welcome' || !wel.asset || wel.asset.sha256 !== info.sha256) throw new Error('the asset changed on the server');
         report.resumes++;
-        report.lastResume = { resumed: wel.resumed, sending_chunks: wel.sending_chunks };
+        report.lastResume = { resumed: wel.resumed, sending_chunks: wel.sending_chunks, held };
         dgram = c.wt.datagrams.writable.getWriter();
         resuming = false;
         attach(c.wt);
