@@ -305,27 +305,27 @@ mod tests {
     fn owner_fusion_gives_every_point_its_nearest_painter() {
         let (geoms, targets) = three_views_of_a_plane();
         for read in [Read::Nearest, Read::Bilinear] {
-        let (fused, other) = fuse_owner(&targets, &geoms, read);
-        assert!(other > 0.2 && other < 0.9, "{other}");
-        let w = 32usize;
-        for (i, g) in geoms.iter().enumerate() {
-            for (p, x) in g.points.iter().enumerate() {
-                let x = x.unwrap();
-                // the owner: the camera whose centre (cx, 0, 5) is nearest, all see the plane
-                let owner = [-0.3f32, 0.0, 0.3].iter().enumerate().min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs())).unwrap().0;
-                let got = &fused[i].data[p * 3..p * 3 + 3];
-                if owner == i {
-                    assert_eq!(got, &targets[i].data[p * 3..p * 3 + 3], "view {i} pixel {p} is its own");
-                } else if let Some(want) = geoms[owner].sample_visible(&targets[owner], x, read) {
-                    for c in 0..3 {
-                        assert!((got[c] - want[c]).abs() < 1e-6, "view {i} pixel {p}: {got:?} vs owner {owner}'s {want:?}");
+            let (fused, other) = fuse_owner(&targets, &geoms, read);
+            assert!(other > 0.2 && other < 0.9, "{other}");
+            let w = 32usize;
+            for (i, g) in geoms.iter().enumerate() {
+                for (p, x) in g.points.iter().enumerate() {
+                    let x = x.unwrap();
+                    // the owner: the camera whose centre (cx, 0, 5) is nearest, all see the plane
+                    let owner = [-0.3f32, 0.0, 0.3].iter().enumerate().min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs())).unwrap().0;
+                    let got = &fused[i].data[p * 3..p * 3 + 3];
+                    if owner == i {
+                        assert_eq!(got, &targets[i].data[p * 3..p * 3 + 3], "view {i} pixel {p} is its own");
+                    } else if let Some(want) = geoms[owner].sample_visible(&targets[owner], x, read) {
+                        for c in 0..3 {
+                            assert!((got[c] - want[c]).abs() < 1e-6, "view {i} pixel {p}: {got:?} vs owner {owner}'s {want:?}");
+                        }
                     }
                 }
             }
-        }
-        // the stripe the middle view painted under its own camera stays in its target
-        let p = 16 * w + 16;
-        assert_eq!(&fused[1].data[p * 3..p * 3 + 3], &[1.0, 0.0, 0.0]);
+            // the stripe the middle view painted under its own camera stays in its target
+            let p = 16 * w + 16;
+            assert_eq!(&fused[1].data[p * 3..p * 3 + 3], &[1.0, 0.0, 0.0]);
         }
     }
 }

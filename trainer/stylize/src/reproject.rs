@@ -93,14 +93,19 @@ impl Seen<'_> {
 mod tests {
     use super::*;
 
-    /// A 4×1 strip: two scene pixels (red, green) then two background pixels (white). Between
-    /// the scene pixels the read is the plain bilinear mean; between green and background it
-    /// is green alone; on the background, nothing.
-    #[test]
-    fn background_taps_are_left_out() {
+    /// A 4×1 strip: two scene pixels (red, green) at distance 5 from the camera, then two
+    /// background pixels (white).
+    fn strip() -> (Image, [Option<Vec3>; 4]) {
         let img = Image { width: 4, height: 1, data: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0] };
         let p = Some([0.0, 0.0, 0.0]);
-        let points = [p, p, None, None];
+        (img, [p, p, None, None])
+    }
+
+    /// On the strip: between the scene pixels the read is the plain bilinear mean; between
+    /// green and background it is green alone; on the background, nothing.
+    #[test]
+    fn background_taps_are_left_out() {
+        let (img, points) = strip();
         let seen = Seen { origin: [0.0, 0.0, 5.0], width: 4, height: 1, points: &points };
         let mid = seen.colour(&img, 1.0, 0.5, 5.0).unwrap();
         assert!((mid[0] - 0.5).abs() < 1e-6 && (mid[1] - 0.5).abs() < 1e-6, "{mid:?}");
@@ -115,9 +120,7 @@ mod tests {
     /// bilinear read sees.
     #[test]
     fn the_nearest_read_copies_a_pixel_under_the_same_visibility() {
-        let img = Image { width: 4, height: 1, data: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0] };
-        let p = Some([0.0, 0.0, 0.0]);
-        let points = [p, p, None, None];
+        let (img, points) = strip();
         let seen = Seen { origin: [0.0, 0.0, 5.0], width: 4, height: 1, points: &points };
         assert_eq!(seen.nearest(&img, 0.9, 0.5, 5.0), Some([1.0, 0.0, 0.0]));
         assert_eq!(seen.nearest(&img, 1.1, 0.5, 5.0), Some([0.0, 1.0, 0.0]));
