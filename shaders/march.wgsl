@@ -33,7 +33,9 @@ struct Params {
     background: vec4<f32>,
     // res, grid cells per axis, atlas blocks per row (x), atlas blocks per column (y)
     grid: vec4<u32>,
-    // grid offset of keyframe k0, of keyframe k1 (in entries), k0 == k1, unused
+    // grid offset of keyframe k0, of keyframe k1 (in entries), k0 == k1, pass: 0 draws one
+    // ray through every pixel's centre; s > 1 draws the silhouette pixels of that first pass
+    // again as the mean of s x s rays (render.rs `render`)
     frames: vec4<u32>,
     // 1 / atlas texture size (hardware filtering only)
     inv_tex: vec4<f32>,
@@ -56,11 +58,15 @@ struct Sample {
 @group(0) @binding(2) var<uniform> mlp: array<vec4<f32>, 225>;
 @group(0) @binding(3) var<storage, read_write> out_rgba: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> out_depth: array<f32>;
-// bindings 5.. (atlas textures, sampler) come with the atlas snippet
+// bindings 5..7 (atlas textures, sampler) come with the atlas snippet
+// the first pass's opacity, which the silhouette pass reads around each pixel (out_rgba
+// cannot serve: the silhouette pass rewrites it while neighbours still read)
+@group(0) @binding(8) var<storage, read_write> cover: array<f32>;
 
 const EMPTY: u32 = 0xffffffffu;
-// MAX_OPTICAL_DEPTH, UNBOUNDED_NEAR, UNBOUNDED_FAR, NDC_MIN_DZ and MAX_ITERS are prepended
-// from snerf_geometry::march (the one definition the trainer and the CPU reference use).
+// MAX_OPTICAL_DEPTH, UNBOUNDED_NEAR, UNBOUNDED_FAR, NDC_MIN_DZ, MAX_ITERS, COVER_EMPTY and
+// COVER_FULL are prepended from snerf_geometry (the one definition the trainer and the CPU
+// reference use).
 const PI: f32 = 3.14159265358979;
 
 // ---- compositing state (render.rs `Accum`) ----
@@ -450,18 +456,19 @@ fn view_mlp(dir: vec3<f32>) -> vec3<f32> {
     return o.xyz;
 }
 
-@compute @workgroup_size(WG, WG, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let width = P.view.x;
-    let height = P.view.y;
-    if (gid.x >= width || gid.y >= height) {
-        return;
-    }
+struct Px {
+    rgb: vec3<f32>,
+    opacity: f32,
+    depth: f32,
+}
+
+// One ray through the point (sx, sy) of pixel (x, y)'s square: render.rs `render_ray`.
+fn render_at(x: u32, y: u32, sx: f32, sy: f32) -> Px {
     accum_reset();
-    // render.rs `camera_ray`
+    // render.rs `camera_ray` (Pinhole::ray_at)
     let dc = vec3<f32>(
-        (f32(gid.x) + 0.5 - P.intr.z) / P.intr.x,
-        -(f32(gid.y) + 0.5 - P.intr.w) / P.intr.y,
+        (f32(x) + sx - P.intr.z) / P.intr.x,
+        -(f32(y) + sy - P.intr.w) / P.intr.y,
         -1.0,
     );
     let ow = vec3<f32>(P.c2w0.w, P.c2w1.w, P.c2w2.w);
@@ -470,7 +477,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         P.c2w1.x * dc.x + P.c2w1.y * dc.y + P.c2w1.z * dc.z,
         P.c2w2.x * dc.x + P.c2w2.y * dc.y + P.c2w2.z * dc.z,
     )));
-    // render.rs `render_ray`
     let o = rot_vec(ow - P.center_scale.xyz) * P.center_scale.w;
     let d = normalize3(rot_vec(dw));
     if (KIND == 0u) {
@@ -494,7 +500,60 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (acc_w > 1.0e-6) {
         depth = acc_depth / acc_w;
     }
+    return Px(rgb, acc_w, depth);
+}
+
+// snerf_geometry::silhouette::mixed_coverage on the first pass's opacity of this view.
+fn on_silhouette(x: u32, y: u32) -> bool {
+    let width = P.view.x;
+    let height = P.view.y;
+    var lo = cover[y * P.view.w + P.view.z + x];
+    var hi = lo;
+    for (var yy = max(y, 1u) - 1u; yy < min(y + 2u, height); yy = yy + 1u) {
+        for (var xx = max(x, 1u) - 1u; xx < min(x + 2u, width); xx = xx + 1u) {
+            let a = cover[yy * P.view.w + P.view.z + xx];
+            lo = min(lo, a);
+            hi = max(hi, a);
+        }
+    }
+    return lo < COVER_FULL && hi > COVER_EMPTY;
+}
+
+@compute @workgroup_size(WG, WG, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = P.view.x;
+    let height = P.view.y;
+    if (gid.x >= width || gid.y >= height) {
+        return;
+    }
     let idx = gid.y * P.view.w + P.view.z + gid.x;
-    out_rgba[idx] = vec4<f32>(rgb, acc_w);
+    let side = P.frames.w;
+    if (side == 0u) {
+        let p = render_at(gid.x, gid.y, 0.5, 0.5);
+        out_rgba[idx] = vec4<f32>(p.rgb, p.opacity);
+        out_depth[idx] = p.depth;
+        cover[idx] = p.opacity;
+        return;
+    }
+    if (!on_silhouette(gid.x, gid.y)) {
+        return;
+    }
+    // snerf_geometry::silhouette::mean_of_rays over subpixel_grid(side * side)
+    var rgb = vec3<f32>(0.0);
+    var opacity = 0.0;
+    var depth = 0.0;
+    let n = side * side;
+    for (var j = 0u; j < n; j = j + 1u) {
+        let p = render_at(gid.x, gid.y, (f32(j % side) + 0.5) / f32(side), (f32(j / side) + 0.5) / f32(side));
+        rgb = rgb + p.rgb;
+        opacity = opacity + p.opacity;
+        depth = depth + p.depth * p.opacity;
+    }
+    if (opacity > 1.0e-6) {
+        depth = depth / opacity;
+    } else {
+        depth = 0.0;
+    }
+    out_rgba[idx] = vec4<f32>(rgb / f32(n), opacity / f32(n));
     out_depth[idx] = depth;
 }

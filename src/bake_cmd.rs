@@ -208,7 +208,7 @@ fn bake_one(
             eprintln!("faithfulness at the held-out views' own times: {}", times.join(", "));
         }
         eprintln!(
-            "faithfulness on {} views: baked vs field {:.2} dB; test PSNR field {:.2} dB, baked {:.2} dB (drop {:.2} dB; baking itself {:.2} dB, one ray per pixel against the field's silhouette means {:.2} dB)",
+            "faithfulness on {} views: baked vs field {:.2} dB; test PSNR field {:.2} dB, baked {:.2} dB (drop {:.2} dB; baking itself {:.2} dB, drawing silhouettes unlike the field {:.2} dB)",
             f.views.len(),
             f.mean_baked_vs_field,
             f.mean_field_vs_truth,

@@ -124,6 +124,28 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     let diff = diff.map(|x| x / (48.0 * 32.0));
     eprintln!("snerf serve web page vs snerf render: mean |diff| per channel {diff:?} (of 255)");
     assert!(diff.iter().all(|&x| x <= 2.0), "mean |diff| {diff:?} > 2/255");
+    // The object was trained with silhouette pixels as the mean of 4 rays, and the page draws
+    // them so (march.wgsl's second pass): where that rule changes the CPU reference, the page
+    // is the 4-ray image, not the one-ray one.
+    assert_eq!(asset.header.pixel_rays, 4, "a static object's asset carries the trainer's rule");
+    let four = snerf_asset::render(&asset, &cam, 0.0);
+    let mut centre_only = asset.clone();
+    centre_only.header.pixel_rays = 1;
+    let one = snerf_asset::render(&centre_only, &cam, 0.0);
+    let (mut to_four, mut to_one, mut changed) = (0.0f64, 0.0f64, 0);
+    for p in 0..48 * 32 {
+        if (0..3).all(|c| (four.rgb[p * 3 + c] - one.rgb[p * 3 + c]).abs() < 2.0 / 255.0) {
+            continue;
+        }
+        changed += 1;
+        for c in 0..3 {
+            let web = rgba[4 * p + c].as_f64().unwrap();
+            to_four += (web - four.rgb[p * 3 + c] as f64).abs();
+            to_one += (web - one.rgb[p * 3 + c] as f64).abs();
+        }
+    }
+    eprintln!("silhouette pixels the rule changes: {changed}; page vs 4 rays {to_four:.4}, vs one ray {to_one:.4}");
+    assert!(changed > 0 && to_four < 0.1 * to_one, "the page does not draw silhouette pixels as the mean of 4 rays ({to_four} vs {to_one} over {changed} pixels)");
     drop(server);
     let _ = std::fs::remove_dir_all(&d);
 }

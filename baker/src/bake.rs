@@ -305,6 +305,8 @@ pub fn bake(
     header.density = range;
     header.march = March { step, t_terminate: snerf_trainer::render::T_TERMINATE };
     header.background = bg;
+    // The asset's renderers draw silhouette pixels as the field was trained to be drawn.
+    header.pixel_rays = model.pixel_rays as u32;
     if dynamic {
         let (lo, hi) = space.time_range;
         header.time_range = Some([lo, hi]);

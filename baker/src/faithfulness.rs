@@ -16,12 +16,14 @@ use snerf_trainer::train::Model;
 pub struct ViewFaithfulness {
     pub name: String,
     pub time: Option<f32>,
-    /// Baked render vs the field's render, both one ray per pixel (dB).
+    /// Baked render vs the field's render, both drawn the asset's way (its `pixel_rays` on
+    /// silhouette pixels) (dB).
     pub baked_vs_field: f64,
     /// Field vs ground truth (drawn as trained: silhouette pixels as the mean of several
-    /// rays), the same with one ray per pixel, baked vs ground truth (dB).
+    /// rays), the same drawn the asset's way (equal unless the asset was written with
+    /// another rule), baked vs ground truth (dB).
     pub field_vs_truth: f64,
-    pub field_one_ray_vs_truth: f64,
+    pub field_as_asset_vs_truth: f64,
     pub baked_vs_truth: f64,
 }
 
@@ -30,14 +32,14 @@ pub struct Faithfulness {
     pub views: Vec<ViewFaithfulness>,
     pub mean_baked_vs_field: f64,
     pub mean_field_vs_truth: f64,
-    pub mean_field_one_ray_vs_truth: f64,
+    pub mean_field_as_asset_vs_truth: f64,
     pub mean_baked_vs_truth: f64,
     /// field_vs_truth - baked_vs_truth: the test-view PSNR a user sees change from the field's
     /// evaluation to the baked asset.
     pub drop_db: f64,
-    /// field_one_ray_vs_truth - baked_vs_truth: what baking itself costs, like with like (the
-    /// asset's renderers take one ray per pixel). drop_db - bake_loss_db is what the one-ray
-    /// renderers give up on silhouettes that the field's evaluation draws as pixel means.
+    /// field_as_asset_vs_truth - baked_vs_truth: what baking itself costs, like with like.
+    /// drop_db - bake_loss_db is what the asset's renderers give up by drawing silhouettes
+    /// another way than the field was trained (0 for assets baked with the field's rule).
     pub bake_loss_db: f64,
     pub seconds_field: f64,
     pub seconds_baked: f64,
@@ -60,10 +62,10 @@ pub fn measure(model: &Model, pool: &WorkspacePool, asset: &Asset, views: &[View
         let t0 = std::time::Instant::now();
         let field = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
         t_field += t0.elapsed().as_secs_f64();
-        // The bake's own error compares like with like: the asset's renderers take one ray
-        // per pixel, so the field is drawn that way too (it may take more on silhouettes).
-        let centre = if model.pixel_rays > 1 {
-            render_camera_with(model, pool, &v.c2w, &v.intrinsics, v.time, bg, 1).rgb
+        // The bake's own error compares like with like: the field drawn the way the asset's
+        // renderers draw (the same rule unless the asset was written with another).
+        let centre = if model.pixel_rays != asset.header.pixel_rays as usize {
+            render_camera_with(model, pool, &v.c2w, &v.intrinsics, v.time, bg, asset.header.pixel_rays as usize).rgb
         } else {
             field.rgb.clone()
         };
@@ -78,18 +80,18 @@ pub fn measure(model: &Model, pool: &WorkspacePool, asset: &Asset, views: &[View
             time: v.time,
             baked_vs_field: psnr(&baked.rgb, &clamp(&centre)),
             field_vs_truth: psnr(&f, &truth),
-            field_one_ray_vs_truth: psnr(&clamp(&centre), &truth),
+            field_as_asset_vs_truth: psnr(&clamp(&centre), &truth),
             baked_vs_truth: psnr(&baked.rgb, &truth),
         });
     }
     let mean = |f: &dyn Fn(&ViewFaithfulness) -> f64| out.iter().map(f).sum::<f64>() / out.len().max(1) as f64;
     let (bf, ft, bt) = (mean(&|v| v.baked_vs_field), mean(&|v| v.field_vs_truth), mean(&|v| v.baked_vs_truth));
-    let f1 = mean(&|v| v.field_one_ray_vs_truth);
+    let f1 = mean(&|v| v.field_as_asset_vs_truth);
     Ok(Faithfulness {
         views: out,
         mean_baked_vs_field: bf,
         mean_field_vs_truth: ft,
-        mean_field_one_ray_vs_truth: f1,
+        mean_field_as_asset_vs_truth: f1,
         mean_baked_vs_truth: bt,
         drop_db: ft - bt,
         bake_loss_db: f1 - bt,

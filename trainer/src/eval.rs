@@ -85,42 +85,14 @@ pub fn render_camera_with(
     }
 }
 
-/// Rendered opacity in the 3x3 neighbourhood of (x, y) is neither all covered nor all
-/// empty: the pixel is on a silhouette (the same rule the trainer applies to target alpha).
-pub fn mixed_coverage(opacity: &[f32], w: usize, h: usize, x: usize, y: usize) -> bool {
-    let (lo, hi) = min_max_3x3(w, h, x, y, |i| opacity[i]);
-    lo < 1.0 - 1.0 / 255.0 && hi > 1.0 / 255.0
-}
+/// The silhouette rule's window and test: one home, shared with the asset's renderers.
+pub use snerf_geometry::silhouette::{min_max_3x3, mixed_coverage};
 
-/// The smallest and largest of `at(pixel index)` over the 3x3 neighbourhood of (x, y) in a
-/// `w` x `h` image (clipped at the borders): the one home of the silhouette rule's window.
-pub fn min_max_3x3<T: Copy + PartialOrd>(w: usize, h: usize, x: usize, y: usize, at: impl Fn(usize) -> T) -> (T, T) {
-    let (mut lo, mut hi) = (at(y * w + x), at(y * w + x));
-    for yy in y.saturating_sub(1)..(y + 2).min(h) {
-        for xx in x.saturating_sub(1)..(x + 2).min(w) {
-            let a = at(yy * w + xx);
-            if a < lo {
-                lo = a;
-            }
-            if a > hi {
-                hi = a;
-            }
-        }
-    }
-    (lo, hi)
-}
-
-/// The mean of a pixel's rays (depth weighted by opacity).
+/// The mean of a pixel's rays (`silhouette::mean_of_rays`, the asset renderers' formula).
 fn average(g: &[RayResult]) -> RayResult {
-    let n = g.len() as f32;
-    let opacity = g.iter().map(|r| r.opacity).sum::<f32>();
-    let depth = g.iter().map(|r| r.depth * r.opacity).sum::<f32>();
-    RayResult {
-        rgb: [0, 1, 2].map(|c| g.iter().map(|r| r.rgb[c]).sum::<f32>() / n),
-        depth: if opacity > 1e-6 { depth / opacity } else { 0.0 },
-        opacity: opacity / n,
-        samples: g.iter().map(|r| r.samples).sum(),
-    }
+    let rays: Vec<([f32; 3], f32, f32)> = g.iter().map(|r| (r.rgb, r.opacity, r.depth)).collect();
+    let (rgb, opacity, depth) = snerf_geometry::silhouette::mean_of_rays(&rays);
+    RayResult { rgb, depth, opacity, samples: g.iter().map(|r| r.samples).sum() }
 }
 
 /// Ground truth of a view as RGB floats composited over `bg`.

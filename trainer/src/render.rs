@@ -250,12 +250,8 @@ fn shade(value: &[f32; V], t_final: f32, spec: &[f32; VOUT], bg: &[f32; 3]) -> [
     [0, 1, 2].map(|c| value[c] + acc * spec[c] + t_final * bg[c])
 }
 
-/// Fixed sub-pixel positions of `k` rays (a side x side grid of cell centres): how a
-/// renderer takes the mean over a pixel's square.
-pub fn subpixel_grid(k: usize) -> Vec<(f32, f32)> {
-    let side = (k.max(1) as f32).sqrt().round() as usize;
-    (0..side * side).map(|j| (((j % side) as f32 + 0.5) / side as f32, ((j / side) as f32 + 0.5) / side as f32)).collect()
-}
+/// Fixed sub-pixel positions of `k` rays: one home, shared with the asset's renderers.
+pub use snerf_geometry::silhouette::subpixel_grid;
 
 /// Colour of ray `ri` of the chunk (forward only, after `forward_field`).
 fn ray_colour(field: &Field, ws: &mut Workspace, ri: usize, ray: &Ray, bg: &[f32; 3]) -> [f32; 3] {

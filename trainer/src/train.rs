@@ -160,7 +160,7 @@ impl TrainConfig {
 }
 
 /// Most rays a training pixel may take (a 4x4 grid).
-pub const MAX_PIXEL_RAYS: usize = 16;
+pub use snerf_geometry::silhouette::MAX_PIXEL_RAYS;
 
 /// One bit per pixel of `views` (in order, row-major): the pixel's 3x3 neighbourhood holds
 /// both covered and uncovered alpha, i.e. it lies on a silhouette. There the colour is the

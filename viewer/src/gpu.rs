@@ -384,6 +384,9 @@ struct Target {
     height: u32,
     rgba: wgpu::Buffer,
     depth: wgpu::Buffer,
+    /// The first pass's opacity (march.wgsl `cover`), read by the silhouette pass.
+    _cover: wgpu::Buffer,
+    /// Per view: the centre pass's bind group, then the silhouette pass's (its own params).
     bind_groups: Vec<wgpu::BindGroup>,
 }
 
@@ -800,7 +803,8 @@ impl GpuRenderer {
             }
             .into());
         }
-        while self.params.len() < views {
+        // two params buffers per view: the centre pass and the silhouette pass
+        while self.params.len() < 2 * views {
             self.params
                 .push(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("march params"),
@@ -809,7 +813,7 @@ impl GpuRenderer {
                     mapped_at_creation: false,
                 }));
         }
-        let fits = matches!(&self.target, Some(t) if t.width == width && t.height == height && t.bind_groups.len() >= views);
+        let fits = matches!(&self.target, Some(t) if t.width == width && t.height == height && t.bind_groups.len() >= 2 * views);
         if fits {
             return Ok(());
         }
@@ -826,13 +830,14 @@ impl GpuRenderer {
             };
             let rgba = mk("march rgba", px * 16);
             let depth = mk("march depth", px * 4);
+            let cover = mk("march cover", px * 4);
             let views_t: Vec<wgpu::TextureView> = self
                 .tex
                 .iter()
                 .map(|t| t.create_view(&wgpu::TextureViewDescriptor::default()))
                 .collect();
             let layout = self.pipeline.get_bind_group_layout(0);
-            let bind_groups = self.params[..views]
+            let bind_groups = self.params[..2 * views]
                 .iter()
                 .map(|p| {
                     let mut entries = vec![
@@ -855,6 +860,10 @@ impl GpuRenderer {
                         wgpu::BindGroupEntry {
                             binding: 4,
                             resource: depth.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 8,
+                            resource: cover.as_entire_binding(),
                         },
                     ];
                     for (k, v) in views_t.iter().enumerate() {
@@ -881,6 +890,7 @@ impl GpuRenderer {
                 height,
                 rgba,
                 depth,
+                _cover: cover,
                 bind_groups,
             }
         })?;
@@ -919,11 +929,18 @@ impl GpuRenderer {
             }
         }
         self.ensure_target(width, height, views.len())?;
+        // Silhouette pixels as the mean of pixel_rays rays (side x side), as the field was
+        // trained; 1 draws only the centre pass.
+        let side = snerf_geometry::silhouette::subpixel_side(self.header().pixel_rays as usize) as u32;
         for (i, v) in views.iter().enumerate() {
-            let p = self.params_for(v, width);
+            let mut p = self.params_for(v, width);
             self.ctx
                 .queue
-                .write_buffer(&self.params[i], 0, bytemuck::bytes_of(&p));
+                .write_buffer(&self.params[2 * i], 0, bytemuck::bytes_of(&p));
+            p.frames[3] = side;
+            self.ctx
+                .queue
+                .write_buffer(&self.params[2 * i + 1], 0, bytemuck::bytes_of(&p));
         }
         let target = self.target.as_ref().expect("target allocated above");
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -931,9 +948,14 @@ impl GpuRenderer {
             timestamp_writes: None,
         });
         pass.set_pipeline(&self.pipeline);
-        for (i, v) in views.iter().enumerate() {
-            pass.set_bind_group(0, &target.bind_groups[i], &[]);
-            pass.dispatch_workgroups(v.cam.width.div_ceil(WG), v.cam.height.div_ceil(WG), 1);
+        // every centre pass, then (each dispatch sees the writes of the ones before it) every
+        // silhouette pass
+        let passes: &[usize] = if side > 1 { &[0, 1] } else { &[0] };
+        for &k in passes {
+            for (i, v) in views.iter().enumerate() {
+                pass.set_bind_group(0, &target.bind_groups[2 * i + k], &[]);
+                pass.dispatch_workgroups(v.cam.width.div_ceil(WG), v.cam.height.div_ceil(WG), 1);
+            }
         }
         Ok(())
     }

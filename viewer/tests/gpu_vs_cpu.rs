@@ -411,3 +411,47 @@ fn all_variants_build_and_match() {
         }
     }
 }
+
+/// An asset trained with the silhouette rule (header `pixel_rays` > 1): the shader's second
+/// pass draws the same pixels as the mean of the same rays as the CPU reference, in a single
+/// view and in both eyes of a side-by-side pair (each eye's neighbourhood stops at its edge).
+#[test]
+fn silhouette_pixels_match_cpu() {
+    if !have_gpu("silhouette_pixels_match_cpu") {
+        return;
+    }
+    for k in [4u32, 9] {
+        let mut a = object_asset();
+        a.header.pixel_rays = k;
+        let mut r = GpuRenderer::new(&a).unwrap();
+        for (i, c) in cams(&a.header, 3, W, H).iter().enumerate() {
+            check(&format!("object, {k} rays on silhouettes, cam {i}"), &a, &mut r, c, 0.0);
+        }
+        let c = cams(&a.header, 3, W, H)[1];
+        let (l, rr) = stereo_pair(c.c2w, 0.1, W, H, 50.0);
+        let f = r.render_stereo(&l, &rr, 0.0).unwrap();
+        for (x0, cam) in [(0, l), (W, rr)] {
+            let cpu = snerf_asset::render(&a, &cam, 0.0);
+            let mut worst = 0.0f32;
+            for y in 0..H {
+                for x in 0..W {
+                    let (i, j) = (((y * 2 * W + x0 + x) * 3) as usize, ((y * W + x) * 3) as usize);
+                    for c in 0..3 {
+                        worst = worst.max((f.rgb[i + c] - cpu.rgb[j + c]).abs());
+                    }
+                }
+            }
+            println!("stereo eye at x {x0}, {k} rays: max {worst:.2e}");
+            assert!(worst <= MAX_BOUND as f32, "stereo eye at x {x0}, {k} rays: max abs diff {worst}");
+        }
+    }
+    // The second pass changes the silhouette and nothing else.
+    let mut a = object_asset();
+    let c = cams(&a.header, 3, W, H)[0];
+    let one = snerf_asset::render(&a, &c, 0.0);
+    a.header.pixel_rays = 4;
+    let four = GpuRenderer::new(&a).unwrap().render(&c, 0.0).unwrap();
+    let changed = (0..(W * H) as usize).filter(|&p| (0..3).any(|k| (one.rgb[p * 3 + k] - four.rgb[p * 3 + k]).abs() > 1e-3)).count();
+    println!("4 rays changed {changed} of {} pixels", W * H);
+    assert!(changed > 20 && changed < (W * H / 2) as usize, "{changed} pixels changed");
+}

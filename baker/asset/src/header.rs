@@ -92,6 +92,21 @@ pub struct Header {
     /// occupied cells.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub floor: Option<f32>,
+    /// Rays a silhouette pixel takes (`snerf_geometry::silhouette`: a pixel whose 3x3
+    /// neighbourhood of rendered opacity is partly covered is drawn as the mean of this many
+    /// rays on a sub-pixel grid), as the field was trained: 4 for static objects, 1 (one ray
+    /// through every pixel's centre; the key is then left out) for other scenes and for
+    /// assets written before the rule.
+    #[serde(default = "one_ray", skip_serializing_if = "is_one_ray")]
+    pub pixel_rays: u32,
+}
+
+fn one_ray() -> u32 {
+    1
+}
+
+fn is_one_ray(k: &u32) -> bool {
+    *k == 1
 }
 
 impl Header {
@@ -112,6 +127,7 @@ impl Header {
             frames: None,
             view: None,
             floor: None,
+            pixel_rays: 1,
         }
     }
 
@@ -180,6 +196,11 @@ impl Header {
             MAX_BLOCK
         );
         ensure!(self.res % self.block == 0, "header res {} is not a multiple of block {}", self.res, self.block);
+        ensure!(
+            snerf_geometry::silhouette::valid_pixel_rays(self.pixel_rays as usize),
+            "header pixel_rays is {} (must be 1, 4, 9 or 16)",
+            self.pixel_rays
+        );
         let g = self.grid_dim() as u64;
         ensure!(g * g * g <= MAX_GRID_CELLS, "header grid has {}^3 cells (max {})", g, MAX_GRID_CELLS);
         let atlas_bytes = self.atlas_blocks as u64 * self.block_bytes() as u64;

@@ -20,6 +20,7 @@ use crate::sample::TimeSlot;
 pub use snerf_geometry::march::{MAX_ITERS, MAX_OPTICAL_DEPTH, UNBOUNDED_FAR, UNBOUNDED_NEAR};
 pub use snerf_geometry::ndc::NDC_MIN_DZ;
 pub use snerf_geometry::{contract, unbounded_dt};
+use snerf_geometry::silhouette::{mean_of_rays, mixed_coverage, subpixel_grid};
 use snerf_geometry::vec::norm;
 use snerf_geometry::{box_hit, MarchRay};
 
@@ -235,26 +236,46 @@ pub fn render_pixel(asset: &Asset, cam: &Camera, px: u32, py: u32, time: f32) ->
     render_ray(asset, o, d, time)
 }
 
-/// A whole image, rows in parallel.
+/// One pixel as the mean of `k` rays on its sub-pixel grid (`silhouette::subpixel_grid`).
+pub fn render_pixel_mean(asset: &Asset, cam: &Camera, px: u32, py: u32, time: f32, k: usize) -> PixelResult {
+    let rays: Vec<PixelResult> = subpixel_grid(k)
+        .into_iter()
+        .map(|(sx, sy)| {
+            let (o, d) = cam.ray_at(px, py, sx, sy);
+            render_ray(asset, o, d, time)
+        })
+        .collect();
+    let (rgb, opacity, depth) = mean_of_rays(&rays.iter().map(|r| (r.rgb, r.opacity, r.depth)).collect::<Vec<_>>());
+    PixelResult { rgb, depth, opacity, samples: rays.iter().map(|r| r.samples).sum() }
+}
+
+/// A whole image, rows in parallel: one ray through every pixel's centre, then, for an
+/// asset whose field was trained that way (`header.pixel_rays` > 1), every silhouette pixel
+/// (`silhouette::mixed_coverage` of the first pass's opacity) again as the mean over its
+/// square. The march shader does the same in two passes.
 pub fn render(asset: &Asset, cam: &Camera, time: f32) -> Frame {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let rows: Vec<Vec<PixelResult>> = (0..cam.height)
+    let mut px: Vec<PixelResult> = (0..cam.height)
         .into_par_iter()
-        .map(|y| (0..cam.width).map(|x| render_pixel(asset, cam, x, y, time)).collect())
+        .flat_map_iter(|y| (0..cam.width).map(move |x| render_pixel(asset, cam, x, y, time)))
         .collect();
-    let mut f = Frame {
+    let k = asset.header.pixel_rays as usize;
+    if k > 1 {
+        let opacity: Vec<f32> = px.iter().map(|p| p.opacity).collect();
+        let edge: Vec<usize> = (0..w * h).filter(|&p| mixed_coverage(&opacity, w, h, p % w, p / w)).collect();
+        let means: Vec<PixelResult> =
+            edge.par_iter().map(|&p| render_pixel_mean(asset, cam, (p % w) as u32, (p / w) as u32, time, k)).collect();
+        for (&p, m) in edge.iter().zip(means) {
+            px[p] = m;
+        }
+    }
+    Frame {
         width: cam.width,
         height: cam.height,
-        rgb: Vec::with_capacity(w * h * 3),
-        depth: Vec::with_capacity(w * h),
-        opacity: Vec::with_capacity(w * h),
-    };
-    for p in rows.iter().flatten() {
-        f.rgb.extend_from_slice(&p.rgb);
-        f.depth.push(p.depth);
-        f.opacity.push(p.opacity);
+        rgb: px.iter().flat_map(|p| p.rgb).collect(),
+        depth: px.iter().map(|p| p.depth).collect(),
+        opacity: px.iter().map(|p| p.opacity).collect(),
     }
-    f
 }
 
 fn to_png_bytes(img: image::RgbImage) -> Result<Vec<u8>> {

@@ -428,3 +428,31 @@ fn codebook_4d_asset_renders_continuously_between_samples() {
         }
     }
 }
+
+/// With the silhouette rule (`pixel_rays` 4), a pixel whose neighbourhood of first-pass
+/// opacity is partly covered is the mean of its 4 sub-pixel rays; every other pixel is its
+/// centre ray, bit for bit.
+#[test]
+fn silhouette_pixels_are_the_mean_of_their_rays() {
+    let mut a = sphere_asset(false);
+    let cam = orbit(&a.header, 6, 1, 40, 30, 40.0);
+    let one = render(&a, &cam, 0.0);
+    a.header.pixel_rays = 4;
+    let four = render(&a, &cam, 0.0);
+    let (w, h) = (40usize, 30usize);
+    let mut edges = 0;
+    for p in 0..w * h {
+        let (x, y) = ((p % w) as u32, (p / w) as u32);
+        let expect = if snerf_geometry::silhouette::mixed_coverage(&one.opacity, w, h, p % w, p / w) {
+            edges += 1;
+            snerf_asset::render::render_pixel_mean(&a, &cam, x, y, 0.0, 4)
+        } else {
+            render_pixel(&a, &cam, x, y, 0.0)
+        };
+        assert_eq!((&four.rgb[p * 3..p * 3 + 3], four.opacity[p], four.depth[p]), (&expect.rgb[..], expect.opacity, expect.depth), "pixel ({x}, {y})");
+    }
+    assert!(edges > 20 && edges < w * h / 2, "{edges} silhouette pixels");
+    // the mean covers the square: an edge pixel's 4 rays are not all alike
+    let differs = (0..w * h).filter(|&p| (four.opacity[p] - one.opacity[p]).abs() > 0.05).count();
+    assert!(differs > 5, "only {differs} pixels changed opacity");
+}

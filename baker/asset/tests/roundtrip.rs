@@ -104,3 +104,16 @@ fn file_roundtrip_is_atomic() {
     assert!(err.starts_with(&missing.display().to_string()), "{}", err);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_silhouette_rule_is_written_only_when_it_applies_and_checked_on_reading() {
+    let mut a = sphere_asset(false);
+    assert!(!head_json(&a.to_bytes()).contains("pixel_rays"), "one ray per pixel is the default, not written");
+    a.header.pixel_rays = 4;
+    let bytes = a.to_bytes();
+    assert!(head_json(&bytes).contains("\"pixel_rays\":4"));
+    assert_eq!(Asset::from_bytes(&bytes).unwrap().header.pixel_rays, 4);
+    a.header.pixel_rays = 3;
+    let err = format!("{:#}", Asset::from_bytes(&a.to_bytes()).unwrap_err());
+    assert!(err.contains("pixel_rays is 3"), "{err}");
+}

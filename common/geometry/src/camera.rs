@@ -62,7 +62,13 @@ impl Pinhole {
 
     /// World origin and unit world direction through the centre of pixel (px, py).
     pub fn ray(&self, px: u32, py: u32) -> (Vec3, Vec3) {
-        let dc = [(px as f32 + 0.5 - self.cx) / self.fx, -(py as f32 + 0.5 - self.cy) / self.fy, -1.0];
+        self.ray_at(px, py, 0.5, 0.5)
+    }
+
+    /// World origin and unit world direction through the point (sx, sy) of pixel (px, py)'s
+    /// square (pixel units from its corner; (0.5, 0.5) is the centre, as [`Pinhole::ray`]).
+    pub fn ray_at(&self, px: u32, py: u32, sx: f32, sy: f32) -> (Vec3, Vec3) {
+        let dc = [(px as f32 + sx - self.cx) / self.fx, -(py as f32 + sy - self.cy) / self.fy, -1.0];
         (position(&self.c2w), camera_dir_to_world(&self.c2w, dc))
     }
 }

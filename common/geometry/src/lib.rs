@@ -14,6 +14,7 @@
 //! - `march`: constants every marcher shares (and the WGSL prelude generated from them).
 //! - `camera`: pinhole rays, look-at, the one orbit and the scene's up direction.
 //! - `camera_path`: nerfstudio's `camera_path.json`, read and written.
+//! - `silhouette`: which pixels are drawn as the mean over their square, and their rays.
 //! - `time`: which keyframes bracket a time.
 //! - `view_mlp`: the view-dependent colour MLP's input encoding and layers.
 
@@ -27,6 +28,7 @@ pub mod contract;
 pub mod kind;
 pub mod march;
 pub mod ndc;
+pub mod silhouette;
 pub mod space;
 pub mod time;
 pub mod vec;

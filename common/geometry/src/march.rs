@@ -71,8 +71,16 @@ pub fn march_shader(kind: u32, dynamic: bool, block: u32, hardware_filter: bool)
 /// WGSL declarations of the shared constants, prepended to `shaders/march.wgsl`.
 pub fn wgsl_prelude() -> String {
     format!(
-        "const MAX_OPTICAL_DEPTH: f32 = {:?};\nconst UNBOUNDED_NEAR: f32 = {:?};\nconst UNBOUNDED_FAR: f32 = {:?};\nconst NDC_MIN_DZ: f32 = {:e};\nconst MAX_ITERS: u32 = {}u;\n",
-        MAX_OPTICAL_DEPTH, UNBOUNDED_NEAR, UNBOUNDED_FAR, NDC_MIN_DZ, MAX_ITERS
+        "const MAX_OPTICAL_DEPTH: f32 = {:?};\nconst UNBOUNDED_NEAR: f32 = {:?};\nconst UNBOUNDED_FAR: f32 = {:?};\nconst NDC_MIN_DZ: f32 = {:e};\nconst MAX_ITERS: u32 = {}u;\nconst COVER_EMPTY: f32 = {:?};\nconst COVER_FULL: f32 = {:?};\n",
+        MAX_OPTICAL_DEPTH,
+        UNBOUNDED_NEAR,
+        UNBOUNDED_FAR,
+        NDC_MIN_DZ,
+        MAX_ITERS,
+        // the silhouette test's bounds, computed here so the shader compares against the very
+        // f32 values `silhouette::mixed_coverage` does
+        crate::silhouette::COVER_EPS,
+        1.0 - crate::silhouette::COVER_EPS
     )
 }
 
@@ -86,6 +94,7 @@ mod tests {
         assert!(p.contains("const MAX_OPTICAL_DEPTH: f32 = 10000.0;"), "{p}");
         assert!(p.contains("const NDC_MIN_DZ: f32 = 1e-6;"), "{p}");
         assert!(p.contains("const MAX_ITERS: u32 = 1048576u;"), "{p}");
+        assert!(p.contains("const COVER_EMPTY: f32 = 0.003921569;") && p.contains("const COVER_FULL: f32 = 0.99607843;"), "{p}");
     }
 
     #[test]

@@ -202,6 +202,9 @@ class Renderer {
     this.g3 = this.g ** 3;
     this.frames = h.frames ? h.frames.length : 1;
     this.edge = h.block + 2;
+    // silhouette pixels as the mean of side x side rays (header pixel_rays; absent: 1), as
+    // the field was trained: march.wgsl's second pass, as the native viewer's gpu.rs runs it
+    this.side = Math.round(Math.sqrt(h.pixel_rays || 1));
     this.layout = planAtlas(h.atlas_blocks, this.edge, device.limits.maxTextureDimension3D);
     const t = this.texels();
     this.atlas = device.createTexture({ size: t, dimension: '3d', format: 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
@@ -253,7 +256,7 @@ class Renderer {
     this.device.queue.writeBuffer(this.gridBuf, 0, host);
     this.gridDirty = false;
   }
-  params(cam, time) {
+  params(cam, time, side) {
     const h = this.h, s = h.space;
     const [k0, k1, w] = timeSlot(h.frames || [], time);
     const n = s.ndc || { fx: 1, fy: 1, width: 1, height: 1, near: 1, xy_extent: 1 };
@@ -269,7 +272,7 @@ class Renderer {
     f.set([h.density.logit_min, h.density.logit_max, w, 0], 44);
     f.set([h.background[0], h.background[1], h.background[2], 0], 48);
     u.set([h.res, this.g, this.layout.nx, this.layout.ny], 52);
-    u.set([k0 * this.g3, k1 * this.g3, k0 === k1 ? 1 : 0, 0], 56);
+    u.set([k0 * this.g3, k1 * this.g3, k0 === k1 ? 1 : 0, side], 56);
     f.set([1 / t[0], 1 / t[1], 1 / t[2], 0], 60);
     return b;
   }
@@ -280,21 +283,24 @@ class Renderer {
     const d = this.device, px = w * hgt, U = GPUBufferUsage;
     const rgba = d.createBuffer({ size: px * 16, usage: U.STORAGE | U.COPY_SRC });
     const depth = d.createBuffer({ size: px * 4, usage: U.STORAGE });
-    const params = d.createBuffer({ size: 256, usage: U.UNIFORM | U.COPY_DST });
-    const bind = d.createBindGroup({
+    const cover = d.createBuffer({ size: px * 4, usage: U.STORAGE });
+    // one params buffer and bind group per pass: the centre pass, the silhouette pass
+    const params = [0, 1].map(() => d.createBuffer({ size: 256, usage: U.UNIFORM | U.COPY_DST }));
+    const bind = params.map((p) => d.createBindGroup({
       layout: this.pipeline.getBindGroupLayout(0),
       entries: [
-        { binding: 0, resource: { buffer: params } },
+        { binding: 0, resource: { buffer: p } },
         { binding: 1, resource: { buffer: this.gridBuf } },
         { binding: 2, resource: { buffer: this.mlpBuf } },
         { binding: 3, resource: { buffer: rgba } },
         { binding: 4, resource: { buffer: depth } },
         { binding: 5, resource: this.atlas.createView() },
+        { binding: 8, resource: { buffer: cover } },
       ],
-    });
+    }));
     const screen = d.createBuffer({ size: 16, usage: U.UNIFORM | U.COPY_DST });
-    const s = { w, h: hgt, rgba, depth, params, bind, screen, present: null, readback: null };
-    if (s0) for (const b of [s0.rgba, s0.depth, s0.params, s0.screen, s0.readback]) if (b) b.destroy();
+    const s = { w, h: hgt, rgba, depth, cover, params, bind, screen, present: null, readback: null };
+    if (s0) for (const b of [s0.rgba, s0.depth, s0.cover, ...s0.params, s0.screen, s0.readback]) if (b) b.destroy();
     return (this.slots[i] = s);
   }
   // March `views` ([{cam, x, y}]) at `time` in one submission; present each into `target`
@@ -305,13 +311,19 @@ class Renderer {
     const d = this.device;
     if (this.gridDirty) this.uploadGrid();
     const slots = views.map((v, i) => this.slot(i, v.cam.width, v.cam.height));
-    views.forEach((v, i) => d.queue.writeBuffer(slots[i].params, 0, this.params(v.cam, time)));
+    views.forEach((v, i) => {
+      d.queue.writeBuffer(slots[i].params[0], 0, this.params(v.cam, time, 0));
+      d.queue.writeBuffer(slots[i].params[1], 0, this.params(v.cam, time, this.side));
+    });
     const enc = d.createCommandEncoder();
     const pass = enc.beginComputePass();
     pass.setPipeline(this.pipeline);
-    for (const s of slots) {
-      pass.setBindGroup(0, s.bind);
-      pass.dispatchWorkgroups(Math.ceil(s.w / this.wg), Math.ceil(s.h / this.wg));
+    // every centre pass, then every silhouette pass (each dispatch sees the writes before it)
+    for (const k of this.side > 1 ? [0, 1] : [0]) {
+      for (const s of slots) {
+        pass.setBindGroup(0, s.bind[k]);
+        pass.dispatchWorkgroups(Math.ceil(s.w / this.wg), Math.ceil(s.h / this.wg));
+      }
     }
     pass.end();
     if (target) {
