@@ -128,6 +128,8 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     // them so (march.wgsl's second pass): where that rule changes the CPU reference, the page
     // is the 4-ray image, not the one-ray one.
     assert_eq!(asset.header.pixel_rays, 4, "a static object's asset carries the trainer's rule");
+    assert_eq!(asset.header.pixel_rays_for(&cam), 4, "this camera's pixels are about as coarse as the training views' ({:?})", asset.header.train_pixel);
+    assert_eq!(r["lastFrame"]["pixelSides"], serde_json::json!([2]), "the page's own choice of rays (app.js pixelSide)");
     let four = snerf_asset::render(&asset, &cam, 0.0);
     let mut centre_only = asset.clone();
     centre_only.header.pixel_rays = 1;

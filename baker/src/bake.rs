@@ -63,11 +63,14 @@ pub struct BakeOptions {
     pub time_budget: f32,
     /// The scene's world up direction, overriding the one the training cameras imply.
     pub up: Option<[f32; 3]>,
+    /// The training views' median pixel footprint, where the views given to `bake` are not
+    /// the ones the field was trained on (None: measured on them).
+    pub train_pixel: Option<f32>,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, train_pixel: None }
     }
 }
 
@@ -98,6 +101,18 @@ pub struct BakeReport {
     pub seconds_visibility: f64,
     pub seconds_evaluate: f64,
     pub seconds_total: f64,
+}
+
+/// The median pixel footprint (`silhouette::pixel_footprint`) of `views` at the scene's
+/// centre `centre` (world units): how fine the pixels were that a field learnt its edges from.
+pub fn train_pixel(views: &[View], centre: [f32; 3]) -> Option<f32> {
+    let mut f: Vec<f32> = views
+        .iter()
+        .map(|v| snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&v.c2w), centre, v.intrinsics.fx))
+        .filter(|f| f.is_finite() && *f > 0.0)
+        .collect();
+    f.sort_by(|a, b| a.total_cmp(b));
+    f.get(f.len() / 2).copied()
 }
 
 /// Bake a model. `views` are the training views (cameras for the visibility test); `bg` is
@@ -305,8 +320,13 @@ pub fn bake(
     header.density = range;
     header.march = March { step, t_terminate: snerf_trainer::render::T_TERMINATE };
     header.background = bg;
-    // The asset's renderers draw silhouette pixels as the field was trained to be drawn.
+    // The asset's renderers draw silhouette pixels as the field was trained to be drawn, for
+    // cameras whose pixels are about as coarse as the training views' (their median
+    // footprint at the scene's centre).
     header.pixel_rays = model.pixel_rays as u32;
+    if header.pixel_rays > 1 {
+        header.train_pixel = opts.train_pixel.or_else(|| train_pixel(views, header.space.center));
+    }
     if dynamic {
         let (lo, hi) = space.time_range;
         header.time_range = Some([lo, hi]);

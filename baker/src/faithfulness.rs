@@ -20,8 +20,8 @@ pub struct ViewFaithfulness {
     /// silhouette pixels) (dB).
     pub baked_vs_field: f64,
     /// Field vs ground truth (drawn as trained: silhouette pixels as the mean of several
-    /// rays), the same drawn the asset's way (equal unless the asset was written with
-    /// another rule), baked vs ground truth (dB).
+    /// rays), the same drawn the asset's way for this camera (one ray per pixel where its
+    /// pixels are much finer than the training views'), baked vs ground truth (dB).
     pub field_vs_truth: f64,
     pub field_as_asset_vs_truth: f64,
     pub baked_vs_truth: f64,
@@ -39,7 +39,7 @@ pub struct Faithfulness {
     pub drop_db: f64,
     /// field_as_asset_vs_truth - baked_vs_truth: what baking itself costs, like with like.
     /// drop_db - bake_loss_db is what the asset's renderers give up by drawing silhouettes
-    /// another way than the field was trained (0 for assets baked with the field's rule).
+    /// another way than the field's evaluation (0 where both take the field's rule).
     pub bake_loss_db: f64,
     pub seconds_field: f64,
     pub seconds_baked: f64,
@@ -63,9 +63,10 @@ pub fn measure(model: &Model, pool: &WorkspacePool, asset: &Asset, views: &[View
         let field = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
         t_field += t0.elapsed().as_secs_f64();
         // The bake's own error compares like with like: the field drawn the way the asset's
-        // renderers draw (the same rule unless the asset was written with another).
-        let centre = if model.pixel_rays != asset.header.pixel_rays as usize {
-            render_camera_with(model, pool, &v.c2w, &v.intrinsics, v.time, bg, asset.header.pixel_rays as usize).rgb
+        // renderers draw this camera (Header::pixel_rays_for).
+        let k = asset.header.pixel_rays_for(&camera_of(v)) as usize;
+        let centre = if model.pixel_rays != k {
+            render_camera_with(model, pool, &v.c2w, &v.intrinsics, v.time, bg, k).rgb
         } else {
             field.rgb.clone()
         };

@@ -929,15 +929,19 @@ impl GpuRenderer {
             }
         }
         self.ensure_target(width, height, views.len())?;
-        // Silhouette pixels as the mean of pixel_rays rays (side x side), as the field was
-        // trained; 1 draws only the centre pass.
-        let side = snerf_geometry::silhouette::subpixel_side(self.header().pixel_rays as usize) as u32;
+        // Silhouette pixels as the mean of side x side rays, as the field was trained, for
+        // views whose pixels are about as coarse as the training views' (Header::pixel_rays_for);
+        // side 1: the centre pass only.
+        let sides: Vec<u32> = views
+            .iter()
+            .map(|v| snerf_geometry::silhouette::subpixel_side(self.header().pixel_rays_for(&v.cam) as usize) as u32)
+            .collect();
         for (i, v) in views.iter().enumerate() {
             let mut p = self.params_for(v, width);
             self.ctx
                 .queue
                 .write_buffer(&self.params[2 * i], 0, bytemuck::bytes_of(&p));
-            p.frames[3] = side;
+            p.frames[3] = sides[i];
             self.ctx
                 .queue
                 .write_buffer(&self.params[2 * i + 1], 0, bytemuck::bytes_of(&p));
@@ -950,9 +954,11 @@ impl GpuRenderer {
         pass.set_pipeline(&self.pipeline);
         // every centre pass, then (each dispatch sees the writes of the ones before it) every
         // silhouette pass
-        let passes: &[usize] = if side > 1 { &[0, 1] } else { &[0] };
-        for &k in passes {
+        for k in [0, 1] {
             for (i, v) in views.iter().enumerate() {
+                if k == 1 && sides[i] < 2 {
+                    continue;
+                }
                 pass.set_bind_group(0, &target.bind_groups[2 * i + k], &[]);
                 pass.dispatch_workgroups(v.cam.width.div_ceil(WG), v.cam.height.div_ceil(WG), 1);
             }

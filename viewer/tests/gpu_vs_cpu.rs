@@ -454,4 +454,9 @@ fn silhouette_pixels_match_cpu() {
     let changed = (0..(W * H) as usize).filter(|&p| (0..3).any(|k| (one.rgb[p * 3 + k] - four.rgb[p * 3 + k]).abs() > 1e-3)).count();
     println!("4 rays changed {changed} of {} pixels", W * H);
     assert!(changed > 20 && changed < (W * H / 2) as usize, "{changed} pixels changed");
+    // Trained on pixels 4x as wide as this camera's: one ray per pixel, as the CPU draws it.
+    let footprint = snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&c.c2w), a.header.space.center, c.fx);
+    a.header.train_pixel = Some(4.0 * footprint);
+    check("object, trained on coarser pixels", &a, &mut GpuRenderer::new(&a).unwrap(), &c, 0.0);
+    assert_eq!(diff(&snerf_asset::render(&a, &c, 0.0), &one).max, 0.0);
 }

@@ -99,6 +99,11 @@ pub struct Header {
     /// assets written before the rule.
     #[serde(default = "one_ray", skip_serializing_if = "is_one_ray")]
     pub pixel_rays: u32,
+    /// The training views' median pixel footprint at the scene's centre (world units,
+    /// `silhouette::pixel_footprint`): cameras with pixels much finer than this skip the
+    /// silhouette rule (`silhouette::draws_pixel_means`). Absent: every camera applies it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub train_pixel: Option<f32>,
 }
 
 fn one_ray() -> u32 {
@@ -110,6 +115,19 @@ fn is_one_ray(k: &u32) -> bool {
 }
 
 impl Header {
+    /// Rays a silhouette pixel of this camera takes: `pixel_rays`, or 1 where the camera's
+    /// pixels are much finer than the training views' (`silhouette::draws_pixel_means`).
+    /// The CPU reference, the native viewer and the web viewer (app.js `pixelRays`) ask this.
+    pub fn pixel_rays_for(&self, cam: &snerf_geometry::Pinhole) -> u32 {
+        let eye = snerf_geometry::camera::position(&cam.c2w);
+        let footprint = snerf_geometry::silhouette::pixel_footprint(eye, self.space.center, cam.fx);
+        if self.pixel_rays > 1 && snerf_geometry::silhouette::draws_pixel_means(self.train_pixel, footprint) {
+            self.pixel_rays
+        } else {
+            1
+        }
+    }
+
     /// A static header with sensible defaults (the builder and tests start from this).
     pub fn new(kind: Kind, res: u32, block: u32) -> Header {
         Header {
@@ -128,6 +146,7 @@ impl Header {
             view: None,
             floor: None,
             pixel_rays: 1,
+            train_pixel: None,
         }
     }
 

@@ -5,6 +5,8 @@
 //! Per ray: world ray -> model ray -> march space (object: model; forward: NDC; unbounded:
 //! model with growing steps) -> grid point per sample -> trilinear voxel values ->
 //! front-to-back compositing with T = exp(-Σσδ) -> view MLP once on the composited values.
+//! Silhouette pixels of assets trained that way: a second pass, the mean of sub-pixel rays
+//! (`render`, `snerf_geometry::silhouette`).
 
 use anyhow::{anyhow, ensure, Result};
 use rayon::prelude::*;
@@ -250,16 +252,17 @@ pub fn render_pixel_mean(asset: &Asset, cam: &Camera, px: u32, py: u32, time: f3
 }
 
 /// A whole image, rows in parallel: one ray through every pixel's centre, then, for an
-/// asset whose field was trained that way (`header.pixel_rays` > 1), every silhouette pixel
-/// (`silhouette::mixed_coverage` of the first pass's opacity) again as the mean over its
-/// square. The march shader does the same in two passes.
+/// asset whose field was trained that way (`header.pixel_rays_for(cam)` > 1: the field's
+/// rule, for cameras whose pixels are about as coarse as the training views'), every
+/// silhouette pixel (`silhouette::mixed_coverage` of the first pass's opacity) again as the
+/// mean over its square. The march shader does the same in two passes.
 pub fn render(asset: &Asset, cam: &Camera, time: f32) -> Frame {
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut px: Vec<PixelResult> = (0..cam.height)
         .into_par_iter()
         .flat_map_iter(|y| (0..cam.width).map(move |x| render_pixel(asset, cam, x, y, time)))
         .collect();
-    let k = asset.header.pixel_rays as usize;
+    let k = asset.header.pixel_rays_for(cam) as usize;
     if k > 1 {
         let opacity: Vec<f32> = px.iter().map(|p| p.opacity).collect();
         let edge: Vec<usize> = (0..w * h).filter(|&p| mixed_coverage(&opacity, w, h, p % w, p / w)).collect();

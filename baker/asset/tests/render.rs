@@ -455,4 +455,12 @@ fn silhouette_pixels_are_the_mean_of_their_rays() {
     // the mean covers the square: an edge pixel's 4 rays are not all alike
     let differs = (0..w * h).filter(|&p| (four.opacity[p] - one.opacity[p]).abs() > 0.05).count();
     assert!(differs > 5, "only {differs} pixels changed opacity");
+    // Trained on pixels this camera's are as coarse as: the rule applies. Trained on pixels
+    // 4x as wide: this camera's finer pixels take one ray each.
+    let footprint = snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&cam.c2w), a.header.space.center, cam.fx);
+    a.header.train_pixel = Some(footprint);
+    assert_eq!(render(&a, &cam, 0.0), four);
+    a.header.train_pixel = Some(4.0 * footprint);
+    assert_eq!(a.header.pixel_rays_for(&cam), 1);
+    assert_eq!(render(&a, &cam, 0.0), one);
 }

@@ -74,6 +74,31 @@ pub fn mean_of_rays(rays: &[([f32; 3], f32, f32)]) -> ([f32; 3], f32, f32) {
     (rgb.map(|c| c / n), opacity / n, depth)
 }
 
+/// How coarse a display pixel must be, against a training pixel, for its silhouette pixels
+/// to be drawn as the mean of several rays (`draws_pixel_means`).
+pub const MEAN_PIXEL_RATIO: f32 = 0.5;
+
+/// A camera's pixel footprint at the scene's centre: the width in world units one pixel
+/// spans at that distance (distance / focal length in pixels).
+pub fn pixel_footprint(eye: [f32; 3], centre: [f32; 3], fx: f32) -> f32 {
+    let d = ((eye[0] - centre[0]).powi(2) + (eye[1] - centre[1]).powi(2) + (eye[2] - centre[2]).powi(2)).sqrt();
+    d / fx.abs()
+}
+
+/// Whether a camera draws silhouette pixels as the mean of several rays. The field learnt
+/// its edges from pixels of the training views' size (`train_pixel`, their median
+/// [`pixel_footprint`]), so a display pixel at least `MEAN_PIXEL_RATIO` of that size needs
+/// the mean over its square to show them as the views did (+3 dB on held-out views at the
+/// training resolution), while finer display pixels already resolve the edge the field
+/// learnt and would only pay for more rays (BENCH.md §6: no gain at 4x the resolution, a
+/// frame 1.5-1.8x slower). Without a recorded `train_pixel` every camera does.
+pub fn draws_pixel_means(train_pixel: Option<f32>, footprint: f32) -> bool {
+    match train_pixel {
+        Some(t) if t > 0.0 && t.is_finite() => !(footprint < MEAN_PIXEL_RATIO * t),
+        _ => true,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -96,5 +121,15 @@ mod tests {
         assert_eq!(o, 0.5);
         assert_eq!(d, 3.0);
         assert_eq!(mean_of_rays(&[([0.2; 3], 0.0, 5.0)]).2, 0.0);
+    }
+
+    #[test]
+    fn only_pixels_about_as_coarse_as_the_training_ones_take_means() {
+        let f = pixel_footprint([0.0, 3.0, 4.0], [0.0; 3], 100.0);
+        assert_eq!(f, 0.05);
+        assert!(draws_pixel_means(Some(0.05), f));
+        assert!(draws_pixel_means(Some(0.1), f), "half a training pixel still does");
+        assert!(!draws_pixel_means(Some(0.2), f), "a quarter does not");
+        assert!(draws_pixel_means(None, f) && draws_pixel_means(Some(0.0), f) && draws_pixel_means(Some(f32::NAN), f));
     }
 }

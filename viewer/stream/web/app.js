@@ -202,9 +202,6 @@ class Renderer {
     this.g3 = this.g ** 3;
     this.frames = h.frames ? h.frames.length : 1;
     this.edge = h.block + 2;
-    // silhouette pixels as the mean of side x side rays (header pixel_rays; absent: 1), as
-    // the field was trained: march.wgsl's second pass, as the native viewer's gpu.rs runs it
-    this.side = Math.round(Math.sqrt(h.pixel_rays || 1));
     this.layout = planAtlas(h.atlas_blocks, this.edge, device.limits.maxTextureDimension3D);
     const t = this.texels();
     this.atlas = device.createTexture({ size: t, dimension: '3d', format: 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
@@ -255,6 +252,17 @@ class Renderer {
     }
     this.device.queue.writeBuffer(this.gridBuf, 0, host);
     this.gridDirty = false;
+  }
+  // Side of the sub-pixel grid a silhouette pixel of `cam` takes (1: none): the header's
+  // pixel_rays (absent: 1), as the field was trained, for cameras whose pixels are at least
+  // half as coarse as the training views' (train_pixel; absent: every camera). Header::pixel_rays_for
+  // and snerf_geometry::silhouette::draws_pixel_means, in JavaScript.
+  pixelSide(cam) {
+    const h = this.h, c = h.space.center, e = [cam.c2w[0][3], cam.c2w[1][3], cam.c2w[2][3]];
+    const footprint = Math.fround(Math.hypot(e[0] - c[0], e[1] - c[1], e[2] - c[2]) / Math.abs(cam.fx));
+    const t = h.train_pixel;
+    const coarse = !(t > 0 && Number.isFinite(t)) || !(footprint < Math.fround(0.5 * t));
+    return (h.pixel_rays || 1) > 1 && coarse ? Math.round(Math.sqrt(h.pixel_rays)) : 1;
   }
   params(cam, time, side) {
     const h = this.h, s = h.space;
@@ -311,19 +319,22 @@ class Renderer {
     const d = this.device;
     if (this.gridDirty) this.uploadGrid();
     const slots = views.map((v, i) => this.slot(i, v.cam.width, v.cam.height));
+    const sides = views.map((v) => this.pixelSide(v.cam));
+    this.lastSides = sides;
     views.forEach((v, i) => {
       d.queue.writeBuffer(slots[i].params[0], 0, this.params(v.cam, time, 0));
-      d.queue.writeBuffer(slots[i].params[1], 0, this.params(v.cam, time, this.side));
+      d.queue.writeBuffer(slots[i].params[1], 0, this.params(v.cam, time, sides[i]));
     });
     const enc = d.createCommandEncoder();
     const pass = enc.beginComputePass();
     pass.setPipeline(this.pipeline);
-    // every centre pass, then every silhouette pass (each dispatch sees the writes before it)
-    for (const k of this.side > 1 ? [0, 1] : [0]) {
-      for (const s of slots) {
+    // every centre pass, then the silhouette passes (each dispatch sees the writes before it)
+    for (const k of [0, 1]) {
+      slots.forEach((s, i) => {
+        if (k === 1 && sides[i] < 2) return;
         pass.setBindGroup(0, s.bind[k]);
         pass.dispatchWorkgroups(Math.ceil(s.w / this.wg), Math.ceil(s.h / this.wg));
-      }
+      });
     }
     pass.end();
     if (target) {
@@ -521,7 +532,7 @@ async function stream(name, gpu) {
         report.firstFrameAt = performance.now();
         report.firstFrame = { width: cam.width, height: cam.height, blocks, complete: done };
       }
-      report.lastFrame = { width: cam.width, height: cam.height, complete: done, ms, scale: sc };
+      report.lastFrame = { width: cam.width, height: cam.height, complete: done, ms, scale: sc, pixelSides: r.lastSides };
       if (out) report.lastRender = { rgba: out[0], width: cam.width, height: cam.height, complete: done };
       if (done && !report.completeAt) report.completeAt = performance.now();
       if (sc === scale && !fixedCam) adapt(ms);
