@@ -36,7 +36,8 @@ pub fn render_camera(
 }
 
 /// [`render_camera`] with `pixel_rays` rays on silhouette pixels (1: one ray through every
-/// pixel's centre, as the baked asset's renderers draw).
+/// pixel's centre, as the baked asset's renderers draw cameras with much finer pixels than
+/// the training views').
 pub fn render_camera_with(
     model: &Model,
     pool: &WorkspacePool,
