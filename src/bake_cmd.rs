@@ -91,35 +91,15 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     let data = a.opts.load(&data_path)?;
     crate::args::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let (model, pool) = RunDir::new(&a.run).load_model()?;
-    // The silhouette rule's level of detail needs the pixels the field was trained on: with
-    // --data, the run's own dataset's (when it can still be read).
-    let train_pixel = match (&a.data, model.pixel_rays > 1) {
-        (Some(_), true) => RunDir::new(&a.run)
-            .dataset()
-            .and_then(|p| a.opts.load(&p))
-            .ok()
-            .and_then(|d| snerf_baker::bake::train_pixel(&d.train, model.space.frame.center)),
-        _ => None,
-    };
-    let src = Source { data: &data, model: &model, pool: &pool, train_pixel };
     if !a.sweep.is_empty() {
-        return sweep(a, &src);
+        return sweep(a, &data, &model, &pool);
     }
-    bake_one(a, a.resolution, &a.out, &src, wall)
-}
-
-/// What every bake of one command reads: the views, the field, and the training views'
-/// pixel footprint where `data` is not the run's own dataset.
-struct Source<'a> {
-    data: &'a snerf_trainer::data::Dataset,
-    model: &'a train::Model,
-    pool: &'a snerf_trainer::render::WorkspacePool,
-    train_pixel: Option<f32>,
+    bake_one(a, a.resolution, &a.out, &data, &model, &pool, wall)
 }
 
 /// `snerf bake --sweep`: one bake per resolution, each as a plain bake would write it, and
 /// the sweep's summary and pictures (what each resolution costs in size and in dB).
-fn sweep(a: &BakeArgs, src: &Source) -> Result<Value> {
+fn sweep(a: &BakeArgs, data: &snerf_trainer::data::Dataset, model: &train::Model, pool: &snerf_trainer::render::WorkspacePool) -> Result<Value> {
     let wall = Instant::now();
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     let mut res = a.sweep.clone();
@@ -133,7 +113,7 @@ fn sweep(a: &BakeArgs, src: &Source) -> Result<Value> {
         eprintln!("sweep: resolution {r}");
         let dir = a.out.join(format!("res-{r}"));
         std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-        let v = bake_one(a, r, &dir.join("asset.snerf"), src, Instant::now())?;
+        let v = bake_one(a, r, &dir.join("asset.snerf"), data, model, pool, Instant::now())?;
         snerf_files::write_json_atomic(&dir.join("bake.json"), &v)?;
         bakes.push(v);
         // after every resolution, so a long sweep shows its progress on disk
@@ -155,8 +135,15 @@ fn label(run: &Path) -> String {
 }
 
 /// One bake of `model` at `res` voxels per axis into `out`; the bake's JSON summary.
-fn bake_one(a: &BakeArgs, res: u32, out: &Path, src: &Source, wall: Instant) -> Result<Value> {
-    let (data, model, pool, train_pixel) = (src.data, src.model, src.pool, src.train_pixel);
+fn bake_one(
+    a: &BakeArgs,
+    res: u32,
+    out: &Path,
+    data: &snerf_trainer::data::Dataset,
+    model: &train::Model,
+    pool: &snerf_trainer::render::WorkspacePool,
+    wall: Instant,
+) -> Result<Value> {
     let bg = eval::eval_background(train::views_have_alpha(&data.train));
     let opts = BakeOptions {
         res,
@@ -167,7 +154,6 @@ fn bake_one(a: &BakeArgs, res: u32, out: &Path, src: &Source, wall: Instant) -> 
         reuse_tolerance: a.reuse_tolerance,
         time_budget: a.time_budget,
         up: a.up,
-        train_pixel,
     };
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
     let (asset, report) = bake(model, pool, &data.train, bg, &opts, &|what, done, total| {

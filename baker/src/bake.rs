@@ -63,14 +63,11 @@ pub struct BakeOptions {
     pub time_budget: f32,
     /// The scene's world up direction, overriding the one the training cameras imply.
     pub up: Option<[f32; 3]>,
-    /// The training views' median pixel footprint, where the views given to `bake` are not
-    /// the ones the field was trained on (None: measured on them).
-    pub train_pixel: Option<f32>,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, train_pixel: None }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None }
     }
 }
 
@@ -103,16 +100,9 @@ pub struct BakeReport {
     pub seconds_total: f64,
 }
 
-/// The median pixel footprint (`silhouette::pixel_footprint`) of `views` at the scene's
-/// centre `centre` (world units): how fine the pixels were that a field learnt its edges from.
-pub fn train_pixel(views: &[View], centre: [f32; 3]) -> Option<f32> {
-    let mut f: Vec<f32> = views
-        .iter()
-        .map(|v| snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&v.c2w), centre, v.intrinsics.fx))
-        .filter(|f| f.is_finite() && *f > 0.0)
-        .collect();
-    f.sort_by(|a, b| a.total_cmp(b));
-    f.get(f.len() / 2).copied()
+/// The median pixel footprint of `views` at the scene's centre `centre` (world units).
+fn train_pixel(views: &[View], centre: [f32; 3]) -> Option<f32> {
+    snerf_geometry::silhouette::median_footprint(views.iter().map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)), centre)
 }
 
 /// Bake a model. `views` are the training views (cameras for the visibility test); `bg` is
@@ -325,7 +315,9 @@ pub fn bake(
     // footprint at the scene's centre).
     header.pixel_rays = model.pixel_rays as u32;
     if header.pixel_rays > 1 {
-        header.train_pixel = opts.train_pixel.or_else(|| train_pixel(views, header.space.center));
+        // the run's own record; runs from before it: the views given here (their training
+        // views, unless the bake was pointed at another dataset)
+        header.train_pixel = model.pixel_footprint.or_else(|| train_pixel(views, header.space.center));
     }
     if dynamic {
         let (lo, hi) = space.time_range;

@@ -65,8 +65,14 @@ fn static_object_bakes_faithfully_and_without_time_data() {
     let f = faithfulness::measure(&t.model, &t.pool, &asset, &data.test, 4).unwrap();
     eprintln!("{f:#?}\n{report:#?}");
     assert!(f.mean_baked_vs_field >= 30.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);
-    // the bake's own loss, like with like (one ray per pixel on both sides)
+    // the bake's own loss, like with like (both drawn as the asset draws each camera)
     assert!(f.bake_loss_db <= 1.0, "baking loses {:.2} dB on test views", f.bake_loss_db);
+    // a static object's asset carries the trainer's silhouette rule and the footprint of the
+    // pixels it was trained on (the run's own record), under which the held-out views use it
+    assert_eq!(asset.header.pixel_rays, 4);
+    let recorded = t.model.pixel_footprint.expect("the run records its views' pixel footprint");
+    assert_eq!(asset.header.train_pixel, Some(recorded));
+    assert!(data.test.iter().all(|v| asset.header.pixel_rays_for(&faithfulness::camera_of(v)) == 4));
     let back = snerf_asset::Asset::read(&file).unwrap();
     assert_eq!(back.atlas, asset.atlas);
 }

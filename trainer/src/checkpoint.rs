@@ -154,7 +154,7 @@ pub fn load(path: &Path) -> Result<Checkpoint> {
     occ.refresh_bits();
     let (beta1, beta2, eps) = header.adam_betas;
     Ok(Checkpoint {
-        model: Model { space: header.space, field: Field { params, ..field }, occ, pixel_rays: header.cfg.pixel_rays },
+        model: Model { space: header.space, field: Field { params, ..field }, occ, pixel_rays: header.cfg.pixel_rays, pixel_footprint: header.cfg.pixel_footprint },
         adam: Adam { beta1, beta2, eps, step: header.adam_step, m, v },
         cfg: header.cfg,
         step: header.step,

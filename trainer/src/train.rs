@@ -58,6 +58,12 @@ pub struct TrainConfig {
     /// 1 (one ray through the centre) elsewhere and in checkpoints from before it existed.
     #[serde(default = "one")]
     pub pixel_rays: usize,
+    /// Where `pixel_rays` > 1: the training views' median pixel footprint at the scene's
+    /// centre (world units, `silhouette::median_footprint`), recorded so the baked asset's
+    /// renderers know which display pixels are as coarse as the ones the edges were learnt
+    /// from. Absent in runs from before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pixel_footprint: Option<f32>,
 }
 
 fn one() -> usize {
@@ -110,6 +116,7 @@ impl TrainConfig {
             field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
             // Static objects only: forward, unbounded and dynamic scenes were not re-measured.
             pixel_rays: if data.kind == SceneKind::Object && !data.dynamic { 4 } else { 1 },
+            pixel_footprint: if data.kind == SceneKind::Object && !data.dynamic { train_pixel_footprint(data) } else { None },
         }
     }
 }
@@ -186,6 +193,12 @@ pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
     bits
 }
 
+/// The training views' median pixel footprint at the scene's centre (world units).
+pub fn train_pixel_footprint(data: &Dataset) -> Option<f32> {
+    let centre = SceneSpace::from_dataset(data).ok()?.frame.center;
+    snerf_geometry::silhouette::median_footprint(data.train.iter().map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)), centre)
+}
+
 /// How many pixels the scene's box spans across in the median training view: the finest detail
 /// the views sample. None where it does not apply (forward-facing NDC spans the image; an
 /// unbounded scene's inner cube is seen from inside) or cannot be told.
@@ -219,6 +232,8 @@ pub struct Model {
     pub field: Field,
     pub occ: Occupancy,
     pub pixel_rays: usize,
+    /// `TrainConfig::pixel_footprint`.
+    pub pixel_footprint: Option<f32>,
 }
 
 /// One point of the error-against-time curve.
@@ -287,12 +302,12 @@ pub fn views_have_alpha(views: &[View]) -> bool {
 
 impl Trainer {
     pub fn new(data: &Dataset, cfg: TrainConfig) -> Result<Trainer> {
-        let pixel_rays = cfg.pixel_rays;
+        let (pixel_rays, pixel_footprint) = (cfg.pixel_rays, cfg.pixel_footprint);
         let space = SceneSpace::from_dataset(data)?;
         let field = Field::new(cfg.field.clone(), cfg.seed)?;
         let occ = Occupancy::new(cfg.occupancy_res, cfg.steps_per_diagonal);
         let adam = Adam::new(field.params.len());
-        let mut t = Trainer::from_parts(data, cfg, Model { space, field, occ, pixel_rays }, adam)?;
+        let mut t = Trainer::from_parts(data, cfg, Model { space, field, occ, pixel_rays, pixel_footprint }, adam)?;
         if t.model.space.kind == SceneKind::Object && t.has_alpha {
             t.carve();
         }

@@ -412,6 +412,24 @@ fn all_variants_build_and_match() {
     }
 }
 
+/// GPU against CPU where each side picks the silhouette pixels from its own first pass: a
+/// 3x3 window whose extreme opacity lies within float rounding of 1/255 or 1 - 1/255 may be
+/// picked on one side only (lavapipe: never; other GPUs' exp may differ in the last bit), so a
+/// few such pixels may exceed MAX_BOUND; the mean bar and the count bound the rest.
+fn check_rule(name: &str, gpu: &[f32], cpu: &[f32]) {
+    let n = cpu.len() / 3;
+    let (mut sum, mut worst, mut over) = (0.0f64, 0.0f32, 0usize);
+    for p in 0..n {
+        let d = (0..3).map(|c| (gpu[p * 3 + c] - cpu[p * 3 + c]).abs()).fold(0.0f32, f32::max);
+        sum += (0..3).map(|c| (gpu[p * 3 + c] - cpu[p * 3 + c]).abs() as f64).sum::<f64>();
+        worst = worst.max(d);
+        over += (d as f64 > MAX_BOUND) as usize;
+    }
+    let mean = sum / (3 * n) as f64;
+    println!("{name}: mean {mean:.2e} max {worst:.2e}, {over} pixels over {MAX_BOUND}");
+    assert!(mean <= 1.0 / 255.0 && over <= n / 500, "{name}: mean {mean}, {over} of {n} pixels over {MAX_BOUND}");
+}
+
 /// An asset trained with the silhouette rule (header `pixel_rays` > 1): the shader's second
 /// pass draws the same pixels as the mean of the same rays as the CPU reference, in a single
 /// view and in both eyes of a side-by-side pair (each eye's neighbourhood stops at its edge).
@@ -425,24 +443,15 @@ fn silhouette_pixels_match_cpu() {
         a.header.pixel_rays = k;
         let mut r = GpuRenderer::new(&a).unwrap();
         for (i, c) in cams(&a.header, 3, W, H).iter().enumerate() {
-            check(&format!("object, {k} rays on silhouettes, cam {i}"), &a, &mut r, c, 0.0);
+            let gpu = r.render(c, 0.0).unwrap();
+            check_rule(&format!("object, {k} rays on silhouettes, cam {i}"), &gpu.rgb, &snerf_asset::render(&a, c, 0.0).rgb);
         }
         let c = cams(&a.header, 3, W, H)[1];
         let (l, rr) = stereo_pair(c.c2w, 0.1, W, H, 50.0);
         let f = r.render_stereo(&l, &rr, 0.0).unwrap();
         for (x0, cam) in [(0, l), (W, rr)] {
-            let cpu = snerf_asset::render(&a, &cam, 0.0);
-            let mut worst = 0.0f32;
-            for y in 0..H {
-                for x in 0..W {
-                    let (i, j) = (((y * 2 * W + x0 + x) * 3) as usize, ((y * W + x) * 3) as usize);
-                    for c in 0..3 {
-                        worst = worst.max((f.rgb[i + c] - cpu.rgb[j + c]).abs());
-                    }
-                }
-            }
-            println!("stereo eye at x {x0}, {k} rays: max {worst:.2e}");
-            assert!(worst <= MAX_BOUND as f32, "stereo eye at x {x0}, {k} rays: max abs diff {worst}");
+            let eye: Vec<f32> = (0..H).flat_map(|y| f.rgb[((y * 2 * W + x0) * 3) as usize..((y * 2 * W + x0 + W) * 3) as usize].to_vec()).collect();
+            check_rule(&format!("stereo eye at x {x0}, {k} rays"), &eye, &snerf_asset::render(&a, &cam, 0.0).rgb);
         }
     }
     // The second pass changes the silhouette and nothing else.
@@ -454,6 +463,18 @@ fn silhouette_pixels_match_cpu() {
     let changed = (0..(W * H) as usize).filter(|&p| (0..3).any(|k| (one.rgb[p * 3 + k] - four.rgb[p * 3 + k]).abs() > 1e-3)).count();
     println!("4 rays changed {changed} of {} pixels", W * H);
     assert!(changed > 20 && changed < (W * H / 2) as usize, "{changed} pixels changed");
+    // where the rule changes the CPU image, the GPU's is the rule's (so a GPU that skipped
+    // the second pass fails here even on this asset's soft edges)
+    let cpu4 = snerf_asset::render(&a, &c, 0.0);
+    let (mut to_rule, mut to_one) = (0.0f64, 0.0f64);
+    for i in 0..one.rgb.len() {
+        if (cpu4.rgb[i] - one.rgb[i]).abs() > 1e-3 {
+            to_rule += (four.rgb[i] - cpu4.rgb[i]).abs() as f64;
+            to_one += (four.rgb[i] - one.rgb[i]).abs() as f64;
+        }
+    }
+    println!("GPU on the pixels the rule changes: {to_rule:.2e} from the rule's image, {to_one:.2e} from one ray's");
+    assert!(to_rule < 0.01 * to_one, "GPU {to_rule} from the rule's image, {to_one} from one ray's");
     // Trained on pixels 4x as wide as this camera's: one ray per pixel, as the CPU draws it.
     let footprint = snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&c.c2w), a.header.space.center, c.fx);
     a.header.train_pixel = Some(4.0 * footprint);

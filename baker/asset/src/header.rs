@@ -117,7 +117,7 @@ fn is_one_ray(k: &u32) -> bool {
 impl Header {
     /// Rays a silhouette pixel of this camera takes: `pixel_rays`, or 1 where the camera's
     /// pixels are much finer than the training views' (`silhouette::draws_pixel_means`).
-    /// The CPU reference, the native viewer and the web viewer (app.js `pixelRays`) ask this.
+    /// The CPU reference, the native viewer and the web viewer (app.js `pixelSide`) ask this.
     pub fn pixel_rays_for(&self, cam: &snerf_geometry::Pinhole) -> u32 {
         let eye = snerf_geometry::camera::position(&cam.c2w);
         let footprint = snerf_geometry::silhouette::pixel_footprint(eye, self.space.center, cam.fx);
@@ -220,6 +220,9 @@ impl Header {
             "header pixel_rays is {} (must be 1, 4, 9 or 16)",
             self.pixel_rays
         );
+        if let Some(t) = self.train_pixel {
+            ensure!(t.is_finite() && t > 0.0, "header train_pixel is {t} (must be finite and > 0)");
+        }
         let g = self.grid_dim() as u64;
         ensure!(g * g * g <= MAX_GRID_CELLS, "header grid has {}^3 cells (max {})", g, MAX_GRID_CELLS);
         let atlas_bytes = self.atlas_blocks as u64 * self.block_bytes() as u64;

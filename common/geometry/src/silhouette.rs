@@ -85,13 +85,21 @@ pub fn pixel_footprint(eye: [f32; 3], centre: [f32; 3], fx: f32) -> f32 {
     d / fx.abs()
 }
 
+/// The median [`pixel_footprint`] of cameras given as (eye, focal length in pixels) at the
+/// scene's centre: how fine the pixels were that a field learnt its edges from.
+pub fn median_footprint(cams: impl Iterator<Item = ([f32; 3], f32)>, centre: [f32; 3]) -> Option<f32> {
+    let mut f: Vec<f32> = cams.map(|(eye, fx)| pixel_footprint(eye, centre, fx)).filter(|f| f.is_finite() && *f > 0.0).collect();
+    f.sort_by(|a, b| a.total_cmp(b));
+    f.get(f.len() / 2).copied()
+}
+
 /// Whether a camera draws silhouette pixels as the mean of several rays. The field learnt
 /// its edges from pixels of the training views' size (`train_pixel`, their median
 /// [`pixel_footprint`]), so a display pixel at least `MEAN_PIXEL_RATIO` of that size needs
 /// the mean over its square to show them as the views did (+3 dB on held-out views at the
 /// training resolution), while finer display pixels already resolve the edge the field
-/// learnt and would only pay for more rays (BENCH.md §6: no gain at 4x the resolution, a
-/// frame 1.5-1.8x slower). Without a recorded `train_pixel` every camera does.
+/// learnt and would only pay for more rays (no gain at 2x and 4x the resolution, a
+/// frame 1.5-1.8x slower; BENCH.md §2b). Without a recorded `train_pixel` every camera does.
 pub fn draws_pixel_means(train_pixel: Option<f32>, footprint: f32) -> bool {
     match train_pixel {
         Some(t) if t > 0.0 && t.is_finite() => !(footprint < MEAN_PIXEL_RATIO * t),

@@ -421,6 +421,7 @@ pub fn run(
         field: source.model.field.clone(),
         occ: source.model.occ.clone(),
         pixel_rays: source.model.pixel_rays,
+        pixel_footprint: source.model.pixel_footprint,
     };
     let realistic_pool = WorkspacePool::new(realistic.field.params.len());
     let views = pick_views(&data.train, opts.views);

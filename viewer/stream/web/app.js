@@ -259,7 +259,9 @@ class Renderer {
   // and snerf_geometry::silhouette::draws_pixel_means, in JavaScript.
   pixelSide(cam) {
     const h = this.h, c = h.space.center, e = [cam.c2w[0][3], cam.c2w[1][3], cam.c2w[2][3]];
-    const footprint = Math.fround(Math.hypot(e[0] - c[0], e[1] - c[1], e[2] - c[2]) / Math.abs(cam.fx));
+    // at the display's own pixels (lodFx: the focal length before the adaptive render scale),
+    // so lowering the scale to hold the frame rate never turns the costlier pass on
+    const footprint = Math.fround(Math.hypot(e[0] - c[0], e[1] - c[1], e[2] - c[2]) / Math.abs(cam.lodFx || cam.fx));
     const t = h.train_pixel;
     const coarse = !(t > 0 && Number.isFinite(t)) || !(footprint < Math.fround(0.5 * t));
     return (h.pixel_rays || 1) > 1 && coarse ? Math.round(Math.sqrt(h.pixel_rays)) : 1;
@@ -457,7 +459,7 @@ async function stream(name, gpu) {
     const c2w = lookAt(add(c, scl(dir, rad)), c, o.up);
     const [w, hh] = renderSize(sc);
     const f = (0.5 * hh) / Math.tan((0.5 * 40 * Math.PI) / 180);
-    return { c2w, fx: f, fy: f, cx: w / 2, cy: hh / 2, width: w, height: hh };
+    return { c2w, fx: f, fy: f, cx: w / 2, cy: hh / 2, width: w, height: hh, lodFx: f / sc };
   }
   // The 40-byte pose datagram (PROTOCOL.md): eye, forward (world), playback time, field of
   // view in degrees. The flat page's orbit camera and the XR head both go through it.

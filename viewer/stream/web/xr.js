@@ -233,6 +233,8 @@ export async function enterXR(api, report) {
       const y = Math.max(0, H - Math.round((e.vp.y + e.vp.height) * scale));
       e.x = x; e.y = y;
       e.cam = eyeCamera(e.v.projectionMatrix, e.v.transform.matrix, e.w, e.h, place, rig);
+      // the silhouette pass is chosen at the eye's own pixels, not the adaptive scale's
+      e.cam.lodFx = e.cam.fx * e.vp.width / e.w;
       return { cam: e.cam, x, y };
     });
     const time = api.time();
