@@ -79,10 +79,10 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
         .unwrap());
     // The CPU reference image of the orbit's first camera.
     let frames = d.join("frames");
-    ok(snerf().args(["--json", "render"]).arg(&file).args(["--path", "orbit", "--frames", "1", "--size", "48x32", "--out"]).arg(&frames).output().unwrap());
+    ok(snerf().args(["--json", "render"]).arg(&file).args(["--path", "orbit", "--frames", "1", "--size", "24x16", "--out"]).arg(&frames).output().unwrap());
     let png = image::open(frames.join("frame_000.png")).unwrap().to_rgb8();
     let asset = snerf_asset::Asset::read(&file).unwrap();
-    let cam = snerf_asset::orbit(&asset.header, 1, 0, 48, 32, 40.0);
+    let cam = snerf_asset::orbit(&asset.header, 1, 0, 24, 16, 40.0);
     // The server, its web viewer on a free port.
     let mut child = snerf()
         .args(["--json", "serve"])
@@ -112,7 +112,7 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     assert_eq!(r["sha256"].as_str().unwrap().len(), 64);
     assert_eq!(r["sha256"], r["asset"]["sha256"]);
     let rgba = r["lastRender"]["rgba"].as_array().unwrap();
-    assert_eq!(rgba.len(), 48 * 32 * 4);
+    assert_eq!(rgba.len(), 24 * 16 * 4);
     // Per channel, in 8-bit steps as both images are shown.
     let mut diff = [0f64; 3];
     for (i, p) in png.pixels().enumerate() {
@@ -121,7 +121,7 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
             diff[c] += (web - p[c] as f64).abs();
         }
     }
-    let diff = diff.map(|x| x / (48.0 * 32.0));
+    let diff = diff.map(|x| x / (24.0 * 16.0));
     eprintln!("snerf serve web page vs snerf render: mean |diff| per channel {diff:?} (of 255)");
     assert!(diff.iter().all(|&x| x <= 2.0), "mean |diff| {diff:?} > 2/255");
     // The object was trained with silhouette pixels as the mean of 4 rays, and the page draws
@@ -135,7 +135,7 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     centre_only.header.pixel_rays = 1;
     let one = snerf_asset::render(&centre_only, &cam, 0.0);
     let (mut to_four, mut to_one, mut changed) = (0.0f64, 0.0f64, 0);
-    for p in 0..48 * 32 {
+    for p in 0..24 * 16 {
         if (0..3).all(|c| (four.rgb[p * 3 + c] - one.rgb[p * 3 + c]).abs() < 2.0 / 255.0) {
             continue;
         }

@@ -75,8 +75,10 @@ pub fn mean_of_rays(rays: &[([f32; 3], f32, f32)]) -> ([f32; 3], f32, f32) {
 }
 
 /// How coarse a display pixel must be, against a training pixel, for its silhouette pixels
-/// to be drawn as the mean of several rays (`draws_pixel_means`).
-pub const MEAN_PIXEL_RATIO: f32 = 0.5;
+/// to be drawn as the mean of several rays (`draws_pixel_means`): 1/√2, halfway (in scale)
+/// between the training resolution, where the mean gains 1.3-4.3 dB, and twice it, where it
+/// gains nothing on average (BENCH.md §2b, six models).
+pub const MEAN_PIXEL_RATIO: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
 /// A camera's pixel footprint at the scene's centre: the width in world units one pixel
 /// spans at that distance (distance / focal length in pixels).
@@ -136,7 +138,8 @@ mod tests {
         let f = pixel_footprint([0.0, 3.0, 4.0], [0.0; 3], 100.0);
         assert_eq!(f, 0.05);
         assert!(draws_pixel_means(Some(0.05), f));
-        assert!(draws_pixel_means(Some(0.1), f), "half a training pixel still does");
+        assert!(draws_pixel_means(Some(0.07), f), "0.71 of a training pixel still does");
+        assert!(!draws_pixel_means(Some(0.1), f), "half does not");
         assert!(!draws_pixel_means(Some(0.2), f), "a quarter does not");
         assert!(draws_pixel_means(None, f) && draws_pixel_means(Some(0.0), f) && draws_pixel_means(Some(f32::NAN), f));
     }

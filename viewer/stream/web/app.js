@@ -255,7 +255,7 @@ class Renderer {
   }
   // Side of the sub-pixel grid a silhouette pixel of `cam` takes (1: none): the header's
   // pixel_rays (absent: 1), as the field was trained, for cameras whose pixels are at least
-  // half as coarse as the training views' (train_pixel; absent: every camera). Header::pixel_rays_for
+  // 1/√2 as coarse as the training views' (train_pixel; absent: every camera). Header::pixel_rays_for
   // and snerf_geometry::silhouette::draws_pixel_means, in JavaScript.
   pixelSide(cam) {
     const h = this.h, c = h.space.center, e = [cam.c2w[0][3], cam.c2w[1][3], cam.c2w[2][3]];
@@ -263,7 +263,7 @@ class Renderer {
     // so lowering the scale to hold the frame rate never turns the costlier pass on
     const footprint = Math.fround(Math.hypot(e[0] - c[0], e[1] - c[1], e[2] - c[2]) / Math.abs(cam.lodFx || cam.fx));
     const t = h.train_pixel;
-    const coarse = !(t > 0 && Number.isFinite(t)) || !(footprint < Math.fround(0.5 * t));
+    const coarse = !(t > 0 && Number.isFinite(t)) || !(footprint < Math.fround(Math.fround(Math.SQRT1_2) * t));
     return (h.pixel_rays || 1) > 1 && coarse ? Math.round(Math.sqrt(h.pixel_rays)) : 1;
   }
   params(cam, time, side) {
