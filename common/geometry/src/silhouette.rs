@@ -98,9 +98,9 @@ pub fn median_footprint(cams: impl Iterator<Item = ([f32; 3], f32)>, centre: [f3
 /// Whether a camera draws silhouette pixels as the mean of several rays. The field learnt
 /// its edges from pixels of the training views' size (`train_pixel`, their median
 /// [`pixel_footprint`]), so a display pixel at least `MEAN_PIXEL_RATIO` of that size needs
-/// the mean over its square to show them as the views did (+3 dB on held-out views at the
+/// the mean over its square to show them as the views did (+1.3 to +4.3 dB on held-out views at the
 /// training resolution), while finer display pixels already resolve the edge the field
-/// learnt and would only pay for more rays (no gain at 2x and 4x the resolution, a
+/// learnt and would only pay for more rays (no gain on average at 2x and 4x the resolution, a
 /// frame 1.5-1.8x slower; BENCH.md §2b). Without a recorded `train_pixel` every camera does.
 pub fn draws_pixel_means(train_pixel: Option<f32>, footprint: f32) -> bool {
     match train_pixel {
