@@ -100,11 +100,6 @@ pub struct BakeReport {
     pub seconds_total: f64,
 }
 
-/// The median pixel footprint of `views` at the scene's centre `centre` (world units).
-fn train_pixel(views: &[View], centre: [f32; 3]) -> Option<f32> {
-    snerf_geometry::silhouette::median_footprint(views.iter().map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)), centre)
-}
-
 /// Bake a model. `views` are the training views (cameras for the visibility test); `bg` is
 /// the background colour the asset is shown over.
 pub fn bake(
@@ -317,7 +312,7 @@ pub fn bake(
     if header.pixel_rays > 1 {
         // the run's own record; runs from before it: the views given here (their training
         // views, unless the bake was pointed at another dataset)
-        header.train_pixel = model.pixel_footprint.or_else(|| train_pixel(views, header.space.center));
+        header.train_pixel = model.pixel_footprint.or_else(|| snerf_trainer::train::views_pixel_footprint(views, header.space.center));
     }
     if dynamic {
         let (lo, hi) = space.time_range;

@@ -195,8 +195,12 @@ pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
 
 /// The training views' median pixel footprint at the scene's centre (world units).
 pub fn train_pixel_footprint(data: &Dataset) -> Option<f32> {
-    let centre = SceneSpace::from_dataset(data).ok()?.frame.center;
-    snerf_geometry::silhouette::median_footprint(data.train.iter().map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)), centre)
+    views_pixel_footprint(&data.train, SceneSpace::from_dataset(data).ok()?.frame.center)
+}
+
+/// The median pixel footprint of `views` at the scene's centre `centre` (world units).
+pub fn views_pixel_footprint(views: &[View], centre: [f32; 3]) -> Option<f32> {
+    snerf_geometry::silhouette::median_footprint(views.iter().map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)), centre)
 }
 
 /// How many pixels the scene's box spans across in the median training view: the finest detail
