@@ -2,13 +2,16 @@
 # Fetch real paintings to use as styles in tests, benchmarks and `--style painting:KEY`, from
 # Debian's gcompris-qt-data (GPL-3.0-or-later packaging of public-domain works from the
 # WebMuseum): its `paintings` puzzle ships each painting as jigsaw pieces inside a Qt resource
-# file (/usr/share/gcompris-qt/rcc/paintings.rcc). Every piece of the three paintings below is
+# file (/usr/share/gcompris-qt/rcc/paintings.rcc). Every piece of the six paintings below is
 # taken out, verified by SHA-256 and put in the style directory the Rust side reads, which
 # puts each painting back together (trainer/stylize/src/paintings.rs) as KEY.png:
 #   $SNERF_STYLES, else ${XDG_CACHE_HOME:-$HOME/.cache}/snerf/styles
 #   vangogh     gogh_auvert_{1..6}.webp                  Vincent van Gogh, Village Street in Auvers (1890)
 #   renoir      renoir-moulin_de_la_galette-{1..6}.webp  Pierre-Auguste Renoir, Bal du moulin de la Galette (1876)
 #   kandinsky   kandinky_{1..8}.webp                     Wassily Kandinsky, Composition VIII (1923)
+#   greatwave   GreatWave_{a..d}{1..3}.webp              Katsushika Hokusai, The Great Wave off Kanagawa (1823-1829)
+#   cassatt     cassat_summertime_{1..6}.webp            Mary Cassatt, Summertime (1894)
+#   bazille     bazille_rampart_{1..6}.webp              Frederic Bazille, The Ramparts at Aigues-Mortes (1867)
 # Idempotent: does nothing when the files are already there with the right hashes. Uses the
 # installed package when present, else `apt-get download` (no root needed) into a temporary
 # directory. Exits non-zero only when the paintings cannot be obtained.
@@ -39,6 +42,30 @@ declare -A SHA256=(
   [kandinky_6.webp]=4d96b7997185047abc6ca0c77d9c742c9b9aea6514e14e5cb7865d4b723aff54
   [kandinky_7.webp]=b7567aacb05ec786f11d4a0da407b95d4a1b38675b2462646cd515e865cce500
   [kandinky_8.webp]=0c7b9d5d01972843c9a4049007bb8b22c8ab352f656782d5fd7dd4dfb9cea297
+  [GreatWave_a1.webp]=0e83968ebf461cba0bc90021e78ac3934ed41181a1c2f3d587350c41f5bdc7e1
+  [GreatWave_a2.webp]=35110e1c3ed5ea6aef169dacf16001972dea04300484bb503785a61b71e41bf9
+  [GreatWave_a3.webp]=897aeb56b0e2c527b02c40d5eeda7c101eebeb3e432770bf89861d9aa0e6414d
+  [GreatWave_b1.webp]=28b72a3a9eb6e798eecfda187705e1e56955a5e19b18006a0b33aed8ca48aff3
+  [GreatWave_b2.webp]=342fea36ea63073282803f7e36fe770b5d8e2f1906c512e19c24af9e68426915
+  [GreatWave_b3.webp]=6b6837959b9ab7e89a689be1ebdcea8b53edb52e5b4f974953b5b7dc50b13b2e
+  [GreatWave_c1.webp]=67422ca616ef0395aac3b3fa5acba56d4aa6a0e0e1efee40f33a75177966b723
+  [GreatWave_c2.webp]=6679166308a66aa4ab4c0d3633838074a0e322ae40486b2a16e5cfa347922eff
+  [GreatWave_c3.webp]=af0f79b1302665cd5e6c0a83de694409c26a6d132a09bee57b4e91f7b3ac34b6
+  [GreatWave_d1.webp]=8ce5241159d5e659e14f223caefa369ce625696cc0e35a66bc0052f124cd0fcb
+  [GreatWave_d2.webp]=5d457790ea88e216813ec4405086ebf8883c657c7061148edfe565458a04b1c4
+  [GreatWave_d3.webp]=2491c11e9208b6b2161acd95cb9eb646f88184f48ae6bae88119221406141a82
+  [cassat_summertime_1.webp]=12250ef3b55af74fc45b2c3597d9bf4d02675650abdbc8bf0885635704065e16
+  [cassat_summertime_2.webp]=d17de55174fa12b04db04b0bfed25d9176ce912e643b1fe1dce31532eec7eb7f
+  [cassat_summertime_3.webp]=13f4baa81dc32bec7494b524d551736acbaa99e7f6d9ab233ba6f90dc71814f6
+  [cassat_summertime_4.webp]=48ada16b2b17e20e74875cb429374c2af58d0c43c0b881d9f941c91e15e96478
+  [cassat_summertime_5.webp]=3d3cc54575c97fc4fc451ea5e65aa40ecb7c762ed2b0632fd4d44dc42ad9f62f
+  [cassat_summertime_6.webp]=a9eb351191253246cd20c5c619e9f699747a547f881bf17f3341dca4cacb8d76
+  [bazille_rampart_1.webp]=6a16546cd624d715e7c9f29133f0667bb4e07a035ebaafb5c392f6811c30cd52
+  [bazille_rampart_2.webp]=365fd7e758887e5aa6390c067e57773e0e5aaff6038436dcb86c1d40c08e25bb
+  [bazille_rampart_3.webp]=1c0393db1da6c10eabac5b1935068e64836a6d9724b010daa51cbdbde02b32b2
+  [bazille_rampart_4.webp]=3508ea1d28bcbc3e34ef11013e73c587c81608e74649b5efd4b2f3d20da1dc0e
+  [bazille_rampart_5.webp]=80bf7e3bd9552d8f1df5b66e5f2936856a9bc9d8f96d0d530f7b4e2dc2869577
+  [bazille_rampart_6.webp]=7f0d19fc2fa3260ed976ee209bd5a1a5d3fe373e936e5d2451d864682a9d5f4a
 )
 
 log() { echo "setup-styles: $*" >&2; }

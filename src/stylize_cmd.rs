@@ -75,7 +75,7 @@ pub struct StylizeImageArgs {
     /// The content image (PNG, JPEG or WebP).
     pub content: PathBuf,
     /// The style image (PNG, JPEG or WebP), or `painting:KEY` for a painting installed by
-    /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky).
+    /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky, greatwave, cassatt, bazille).
     #[arg(long)]
     pub style: Option<PathBuf>,
     #[arg(long)]
@@ -146,7 +146,7 @@ pub struct StylizeArgs {
     /// A trained (realistic) run directory.
     pub run: PathBuf,
     /// The style image (PNG, JPEG or WebP), or `painting:KEY` for a painting installed by
-    /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky).
+    /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky, greatwave, cassatt, bazille).
     #[arg(long)]
     pub style: Option<PathBuf>,
     /// The stylized run directory (resumes when it holds a run with the same options).
