@@ -10,6 +10,7 @@ use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
 mod quality;
+mod snerf_grid;
 mod web;
 
 #[derive(Subcommand, Debug)]
@@ -26,6 +27,10 @@ pub enum BenchCmd {
     /// Held-out quality over many real glTF models (train for each budget, score, compare
     /// with a baseline build): table, quality.json and curves.svg.
     Quality(quality::BenchQualityArgs),
+    /// The SNeRF loop over many real models × paintings (realistic field, `snerf stylize`,
+    /// `snerf consistency` for each pair) scored against the stylization bars, with the
+    /// spread: table, snerf.json and snerf.md.
+    Snerf(snerf_grid::BenchSnerfArgs),
     /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
     /// reference renderer at the same size, in the same run.
     View(BenchViewArgs),
@@ -90,6 +95,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::View(a) => bench_view(a),
         BenchCmd::Stream(a) => bench_stream(&a.asset, a.rounds),
         BenchCmd::Quality(a) => quality::run(a),
+        BenchCmd::Snerf(a) => snerf_grid::run(a),
         BenchCmd::Web(a) => web::run(a),
         BenchCmd::Report(a) => report(a),
     }

@@ -232,3 +232,49 @@ fn bad_input_gets_a_clear_error_naming_the_file() {
     fails(snerf().args(["scene", "object", "--size", "12by12", "--out"]).arg(d.join("c")).output().unwrap(), &["12by12"]);
     fails(snerf().arg("data").arg(&data).args(["--kind", "planet"]).output().unwrap(), &["planet"]);
 }
+
+/// `snerf bench snerf` on one real model and one painting at tiny settings: every pair gets
+/// its scores and the bars, and a second invocation reuses the finished steps instead of
+/// training or stylizing again.
+#[test]
+fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
+    let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
+    if !models.is_dir() {
+        eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());
+        return;
+    }
+    let d = tmp("bench-snerf");
+    // a style file, so the test does not depend on the paintings being installed
+    let style = d.join("stripes.png");
+    image::RgbImage::from_fn(64, 48, |x, y| if (x + y / 2) % 8 < 4 { image::Rgb([200, 40, 30]) } else { image::Rgb([240, 220, 120]) }).save(&style).unwrap();
+    let out = d.join("grid");
+    let args = |cmd: &mut Command| {
+        cmd.args(["--json", "bench", "snerf"]).arg(models).arg("--out").arg(&out).arg("--styles").arg(&style);
+        cmd.args(["--size", "32", "--views", "8", "--seconds", "3", "--frames", "8"]);
+        cmd.args(["--stylize-flags", "--views 4 --rounds 2 --steps-per-round 5 --consistency-frames 8 --stylizer color"]);
+    };
+    let mut c = snerf();
+    args(&mut c);
+    let s = ok(c.output().unwrap());
+    let pairs = s["pairs"].as_array().unwrap();
+    assert_eq!(pairs.len(), 1, "{s}");
+    assert_eq!(pairs[0]["model"], "BoxTextured");
+    assert_eq!(pairs[0]["style"], "stripes");
+    let sc = &pairs[0]["scores"];
+    for k in ["short_range", "long_range", "style"] {
+        assert!(sc["snerf_over_per_frame"][k].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{k}: {s}");
+        assert!(sc["last_over_first_round"][k].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{k}: {s}");
+    }
+    assert_eq!(s["bars"]["pairs"], 1);
+    assert!(out.join("snerf.md").exists() && out.join("snerf.json").exists());
+    // again: nothing is trained or stylized twice, and the same numbers come back
+    let ck = out.join("runs/BoxTextured/checkpoint.snerfck");
+    let st = out.join("stylized/BoxTextured--stripes/stylize.json");
+    let stamp = |p: &Path| std::fs::metadata(p).unwrap().modified().unwrap();
+    let (ck0, st0) = (stamp(&ck), stamp(&st));
+    let mut c = snerf();
+    args(&mut c);
+    let again = ok(c.output().unwrap());
+    assert_eq!((stamp(&ck), stamp(&st)), (ck0, st0), "a finished step ran again");
+    assert_eq!(again["pairs"][0]["scores"], pairs[0]["scores"]);
+}

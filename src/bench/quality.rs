@@ -99,7 +99,7 @@ pub fn find_models(dirs: &[PathBuf]) -> Result<Vec<(String, PathBuf)>> {
     Ok(by_name.into_iter().collect())
 }
 
-fn snerf_json(args: &[String]) -> Result<Value> {
+pub(super) fn snerf_json(args: &[String]) -> Result<Value> {
     let exe = std::env::current_exe().context("cannot find the snerf executable")?;
     let out = Command::new(exe).arg("--json").args(args).output().context("cannot run snerf")?;
     let v: Value = serde_json::from_slice(&out.stdout).unwrap_or(Value::Null);
@@ -110,7 +110,7 @@ fn snerf_json(args: &[String]) -> Result<Value> {
     Ok(v)
 }
 
-fn s(p: &Path) -> String {
+pub(super) fn s(p: &Path) -> String {
     p.to_string_lossy().to_string()
 }
 

@@ -1,0 +1,329 @@
+//! `snerf bench snerf`: the SNeRF loop over many real models × paintings, scored against the
+//! stylization bars, with the spread. For every model (glTF/GLB under the given directories,
+//! one variant per name, as `bench quality`) a 128² set is rendered and a realistic field
+//! trained with the defaults; for every painting the run is stylized (`snerf stylize`) and
+//! measured (`snerf consistency`). Per pair: SNeRF ÷ per-frame stylization (short- and
+//! long-range warp error, weight-free style distance), last round ÷ round 1 of the per-round
+//! record (convergence), and how much farther the realistic field is from the painting than
+//! per-frame stylization (separation). Each step is a child `snerf` process; finished steps are
+//! reused when the command is repeated. Writes `snerf.json` and `snerf.md`.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use serde_json::{json, Value};
+
+use super::quality::{find_models, s, snerf_json};
+use crate::args::pj;
+use snerf_trainer::run_dir::RunDir;
+
+#[derive(Args, Debug)]
+pub struct BenchSnerfArgs {
+    /// Directories searched (recursively) for .gltf and .glb models.
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// Output directory (data/, runs/, stylized/, snerf.json, snerf.md).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Styles, comma-separated: `painting:KEY` or image files.
+    #[arg(long, value_delimiter = ',', default_value = "painting:vangogh,painting:renoir,painting:kandinsky")]
+    pub styles: Vec<String>,
+    /// Only models whose name contains one of these (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// At most this many models (0: all), taken in name order.
+    #[arg(long, default_value_t = 0)]
+    pub limit: usize,
+    /// Image side of the generated views.
+    #[arg(long, default_value_t = 128, value_parser = crate::args::int_in::<u32>(16, 1024, ""))]
+    pub size: u32,
+    /// Training views per model.
+    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
+    pub views: usize,
+    /// Seconds of realistic training per model.
+    #[arg(long, default_value_t = 90.0, value_parser = crate::args::positive)]
+    pub seconds: f64,
+    /// Flags passed to every `snerf stylize` (the short settings BENCH.md §5 uses by default).
+    #[arg(long, allow_hyphen_values = true, default_value = "--views 16 --rounds 5 --steps-per-round 100 --consistency-frames 12")]
+    pub stylize_flags: String,
+    /// Frames of the novel path `snerf consistency` scores.
+    #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
+    pub frames: usize,
+}
+
+/// The bars (BENCH.md §5): SNeRF ÷ per-frame on the mean and on every pair, convergence and
+/// separation on every pair.
+pub const MEAN_SHORT: f64 = 0.35;
+pub const MEAN_LONG: f64 = 0.5;
+pub const MEAN_STYLE: f64 = 1.0;
+pub const PAIR_SHORT: f64 = 0.5;
+pub const PAIR_LONG: f64 = 0.7;
+pub const SEPARATION: f64 = 1.5;
+
+/// A style argument's short name: `painting:KEY` -> KEY, a file -> its stem.
+fn style_name(style: &str) -> String {
+    match style.strip_prefix(snerf_stylize::paintings::STYLE_PREFIX) {
+        Some(k) => k.to_string(),
+        None => std::path::Path::new(style).file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| style.to_string()),
+    }
+}
+
+/// The numbers of one pair, read from `snerf consistency`'s JSON.
+pub fn pair_scores(c: &Value) -> Result<Value> {
+    let methods = c["methods"].as_array().context("no methods")?;
+    let (real, per_frame, snerf) = match methods.as_slice() {
+        [r, p, .., s] => (r, p, s),
+        _ => bail!("fewer than three methods"),
+    };
+    let f = |v: &Value, k: &str| -> Result<f64> {
+        match k {
+            "style" => v["style_swd"]["total"].as_f64(),
+            _ => v[k].as_f64(),
+        }
+        .with_context(|| format!("missing {k}"))
+    };
+    let ratio = |a: &Value, b: &Value, k: &str| -> Result<f64> { Ok(f(a, k)? / f(b, k)?) };
+    let rounds = c["rounds"].as_array().context("no per-round record")?;
+    let (first, last) = (rounds.first().context("no rounds")?, rounds.last().context("no rounds")?);
+    Ok(json!({
+        "snerf_over_per_frame": {
+            "short_range": ratio(snerf, per_frame, "short_range")?,
+            "long_range": ratio(snerf, per_frame, "long_range")?,
+            "style": ratio(snerf, per_frame, "style")?,
+        },
+        "last_over_first_round": {
+            "rounds": rounds.len(),
+            "short_range": ratio(last, first, "short_range")?,
+            "long_range": ratio(last, first, "long_range")?,
+            "style": ratio(last, first, "style")?,
+        },
+        "separation": ratio(real, per_frame, "style")?,
+    }))
+}
+
+/// Mean, min and max of `xs`.
+fn spread(xs: &[f64]) -> (f64, f64, f64) {
+    let mean = xs.iter().sum::<f64>() / xs.len().max(1) as f64;
+    let lo = xs.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = xs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    (mean, lo, hi)
+}
+
+/// Every bar over the scored pairs: value, whether it is met, and how many pairs meet it.
+pub fn bars(pairs: &[Value]) -> Value {
+    let col = |group: &str, k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"][group][k].as_f64()).collect() };
+    let n = pairs.iter().filter(|p| p["scores"].is_object()).count();
+    let (short, long, style) = (col("snerf_over_per_frame", "short_range"), col("snerf_over_per_frame", "long_range"), col("snerf_over_per_frame", "style"));
+    let sep: Vec<f64> = pairs.iter().filter_map(|p| p["scores"]["separation"].as_f64()).collect();
+    let conv: Vec<f64> = pairs
+        .iter()
+        .filter_map(|p| {
+            let r = &p["scores"]["last_over_first_round"];
+            Some(r["short_range"].as_f64()?.max(r["long_range"].as_f64()?).max(r["style"].as_f64()?))
+        })
+        .collect();
+    let (ms, ml, mst) = (spread(&short).0, spread(&long).0, spread(&style).0);
+    let pair_ok = pairs.iter().filter(|p| p["scores"]["snerf_over_per_frame"]["short_range"].as_f64().is_some_and(|x| x <= PAIR_SHORT) && p["scores"]["snerf_over_per_frame"]["long_range"].as_f64().is_some_and(|x| x <= PAIR_LONG)).count();
+    json!({
+        "pairs": n,
+        "ratios": { "mean_short_range": ms, "mean_long_range": ml, "mean_style": mst, "pairs_within": pair_ok,
+                    "met": n > 0 && ms <= MEAN_SHORT && ml <= MEAN_LONG && mst <= MEAN_STYLE && pair_ok == n },
+        "convergence": { "pairs_met": conv.iter().filter(|&&x| x <= 1.0).count(), "worst": spread(&conv).2, "met": n > 0 && conv.iter().all(|&x| x <= 1.0) },
+        "separation": { "pairs_met": sep.iter().filter(|&&x| x >= SEPARATION).count(), "min": spread(&sep).1, "met": n > 0 && sep.iter().all(|&x| x >= SEPARATION) },
+    })
+}
+
+/// The Markdown table and the bar lines.
+pub fn table(pairs: &[Value], bars: &Value) -> String {
+    let mut md = String::from("| model × style | SNeRF ÷ per-frame: short / long / style | last ÷ first round: short / long / style | separation | loop s |\n|---|---|---|---|---|\n");
+    for p in pairs {
+        let name = format!("{} × {}", p["model"].as_str().unwrap_or("?"), p["style"].as_str().unwrap_or("?"));
+        if let Some(e) = p["error"].as_str() {
+            let short: String = e.chars().take(100).collect();
+            md.push_str(&format!("| {name} | failed: {short} | | | |\n"));
+            continue;
+        }
+        let sc = &p["scores"];
+        let g = |group: &str, k: &str| sc[group][k].as_f64().unwrap_or(f64::NAN);
+        md.push_str(&format!(
+            "| {name} | {:.3} / {:.3} / {:.2} | {:.3} / {:.3} / {:.4} | {:.2} | {:.0} |\n",
+            g("snerf_over_per_frame", "short_range"),
+            g("snerf_over_per_frame", "long_range"),
+            g("snerf_over_per_frame", "style"),
+            g("last_over_first_round", "short_range"),
+            g("last_over_first_round", "long_range"),
+            g("last_over_first_round", "style"),
+            sc["separation"].as_f64().unwrap_or(f64::NAN),
+            p["loop_seconds"].as_f64().unwrap_or(f64::NAN),
+        ));
+    }
+    let col = |group: &str, k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"][group][k].as_f64()).collect() };
+    let fmt = |xs: Vec<f64>| {
+        if xs.is_empty() {
+            return "—".to_string();
+        }
+        let (m, lo, hi) = spread(&xs);
+        format!("{m:.3} ({lo:.3}…{hi:.3})")
+    };
+    let n = bars["pairs"].as_u64().unwrap_or(0);
+    let yes = |b: &Value| if b["met"].as_bool() == Some(true) { "met" } else { "NOT met" };
+    md.push_str(&format!(
+        "\nOver {n} pairs, mean (min…max): SNeRF ÷ per-frame short {}, long {}, style {}; separation {}.\n",
+        fmt(col("snerf_over_per_frame", "short_range")),
+        fmt(col("snerf_over_per_frame", "long_range")),
+        fmt(col("snerf_over_per_frame", "style")),
+        fmt(pairs.iter().filter_map(|p| p["scores"]["separation"].as_f64()).collect()),
+    ));
+    md.push_str(&format!(
+        "- Ratios (mean ≤ {MEAN_SHORT} / {MEAN_LONG} / {MEAN_STYLE}, every pair ≤ {PAIR_SHORT} / {PAIR_LONG}): {} ({} of {n} pairs within)\n",
+        yes(&bars["ratios"]),
+        bars["ratios"]["pairs_within"]
+    ));
+    md.push_str(&format!(
+        "- Convergence (last round at least as good as round 1 on all three, every pair): {} ({} of {n}; worst axis {:.4})\n",
+        yes(&bars["convergence"]),
+        bars["convergence"]["pairs_met"],
+        bars["convergence"]["worst"].as_f64().unwrap_or(f64::NAN)
+    ));
+    md.push_str(&format!(
+        "- Separation (realistic ≥ {SEPARATION}× farther than per-frame, every pair): {} ({} of {n}; lowest {:.2})\n",
+        yes(&bars["separation"]),
+        bars["separation"]["pairs_met"],
+        bars["separation"]["min"].as_f64().unwrap_or(f64::NAN)
+    ));
+    md
+}
+
+/// Renders and trains one model's realistic run (reused when already there).
+fn realistic(a: &BenchSnerfArgs, name: &str, file: &std::path::Path) -> Result<PathBuf> {
+    let data = a.out.join("data").join(name);
+    if !data.join("transforms_train.json").exists() {
+        let size = format!("{}x{}", a.size, a.size);
+        snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), a.views.to_string()])?;
+    }
+    let run = a.out.join("runs").join(name);
+    let done = std::fs::read(RunDir::new(&run).metrics())
+        .ok()
+        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
+        .is_some_and(|m| m["train_seconds"].as_f64().is_some_and(|t| t >= a.seconds - 1.0));
+    if !done {
+        let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run), "--minutes".into(), format!("{}", a.seconds / 60.0)];
+        if RunDir::new(&run).checkpoint().exists() {
+            args.push("--resume".into());
+        }
+        snerf_json(&args)?;
+    }
+    Ok(run)
+}
+
+/// Stylizes `run` with `style` and scores it (each step reused when already there).
+fn one_pair(a: &BenchSnerfArgs, run: &std::path::Path, model: &str, style: &str) -> Result<Value> {
+    let srun = a.out.join("stylized").join(format!("{model}--{}", style_name(style)));
+    let cons = srun.join("consistency.json");
+    let scored = std::fs::read(&cons).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|c| c["frames"].as_u64() == Some(a.frames as u64));
+    if !scored {
+        // `snerf stylize` resumes a run with the same options and does nothing once it is done
+        let mut args = vec!["stylize".to_string(), s(run), "--style".into(), style.to_string(), "--out".into(), s(&srun)];
+        args.extend(a.stylize_flags.split_whitespace().map(str::to_string));
+        snerf_json(&args)?;
+        snerf_json(&["consistency".into(), s(&srun), "--frames".into(), a.frames.to_string()])?;
+    }
+    let c: Value = serde_json::from_slice(&std::fs::read(&cons).with_context(|| format!("{}: cannot read", cons.display()))?).with_context(|| format!("{}: not JSON", cons.display()))?;
+    let st: Value = serde_json::from_slice(&std::fs::read(srun.join("stylize.json")).with_context(|| format!("{}: cannot read stylize.json", srun.display()))?)?;
+    let loop_seconds = st["records"].as_array().and_then(|r| r.last()).and_then(|r| r["wall_seconds"].as_f64());
+    Ok(json!({ "srun": pj(&srun), "scores": pair_scores(&c).with_context(|| format!("{}", cons.display()))?, "loop_seconds": loop_seconds }))
+}
+
+pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
+    let mut models = find_models(&a.dirs)?;
+    if !a.only.is_empty() {
+        models.retain(|(n, _)| a.only.iter().any(|o| n.contains(o.as_str())));
+    }
+    if a.limit > 0 {
+        models.truncate(a.limit);
+    }
+    if models.is_empty() {
+        bail!("no .gltf or .glb models under {}", a.dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", "));
+    }
+    if a.styles.is_empty() {
+        bail!("--styles is empty");
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
+    eprintln!("{} models × {} styles", models.len(), a.styles.len());
+    let mut pairs = Vec::new();
+    for (i, (name, file)) in models.iter().enumerate() {
+        eprintln!("[{}/{}] {name}: realistic field", i + 1, models.len());
+        let run = realistic(a, name, file);
+        for style in &a.styles {
+            let mut p = json!({ "model": name, "style": style_name(style) });
+            match run.as_ref().map_err(|e| anyhow::anyhow!("{e:#}")).and_then(|r| {
+                eprintln!("      × {}", style_name(style));
+                one_pair(a, r, name, style)
+            }) {
+                Ok(v) => p.as_object_mut().unwrap().extend(v.as_object().unwrap().clone()),
+                Err(e) => {
+                    eprintln!("      failed: {e:#}");
+                    p["error"] = json!(format!("{e:#}"));
+                }
+            }
+            pairs.push(p);
+            // written after every pair, so a long benchmark shows its progress on disk
+            let doc = json!({ "command": "bench snerf", "stylize_flags": a.stylize_flags, "pairs": pairs, "bars": bars(&pairs) });
+            snerf_files::write_json_atomic(&a.out.join("snerf.json"), &doc)?;
+        }
+    }
+    let b = bars(&pairs);
+    let md = table(&pairs, &b);
+    snerf_files::write_atomic(&a.out.join("snerf.md"), md.as_bytes())?;
+    eprintln!("{md}");
+    Ok(json!({ "command": "bench snerf", "out": pj(&a.out), "pairs": pairs, "bars": b, "table": md }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn consistency(real: f64, pf: (f64, f64, f64), sn: (f64, f64, f64), r1: (f64, f64, f64), r5: (f64, f64, f64)) -> Value {
+        let m = |s: f64, l: f64, st: f64| json!({ "short_range": s, "long_range": l, "style_swd": { "total": st } });
+        json!({
+            "methods": [m(0.001, 0.002, real), m(pf.0, pf.1, pf.2), m(sn.0, sn.1, sn.2)],
+            "rounds": [m(r1.0, r1.1, r1.2), m(0.0, 0.0, 0.0), m(r5.0, r5.1, r5.2)],
+        })
+    }
+
+    #[test]
+    fn scores_and_bars_follow_the_definitions() {
+        let c = consistency(0.6, (0.01, 0.02, 0.3), (0.002, 0.005, 0.27), (0.004, 0.01, 0.28), (0.003, 0.008, 0.27));
+        let s = pair_scores(&c).unwrap();
+        assert!((s["snerf_over_per_frame"]["short_range"].as_f64().unwrap() - 0.2).abs() < 1e-12);
+        assert!((s["snerf_over_per_frame"]["long_range"].as_f64().unwrap() - 0.25).abs() < 1e-12);
+        assert!((s["snerf_over_per_frame"]["style"].as_f64().unwrap() - 0.9).abs() < 1e-12);
+        assert!((s["last_over_first_round"]["long_range"].as_f64().unwrap() - 0.8).abs() < 1e-12);
+        assert!((s["separation"].as_f64().unwrap() - 2.0).abs() < 1e-12);
+        let good = json!({ "model": "a", "style": "x", "scores": s });
+        let b = bars(std::slice::from_ref(&good));
+        assert_eq!((b["ratios"]["met"].as_bool(), b["convergence"]["met"].as_bool(), b["separation"]["met"].as_bool()), (Some(true), Some(true), Some(true)));
+        // round 5 a hair worse on style, and the realistic field only 1.2× as far: both bars fail
+        let c2 = consistency(0.36, (0.01, 0.02, 0.3), (0.002, 0.005, 0.27), (0.004, 0.01, 0.27), (0.003, 0.008, 0.2701));
+        let bad = json!({ "model": "b", "style": "x", "scores": pair_scores(&c2).unwrap() });
+        let failed = json!({ "model": "c", "style": "x", "error": "boom" });
+        let pairs = [good, bad, failed];
+        let b = bars(&pairs);
+        assert_eq!(b["pairs"], 2);
+        assert_eq!(b["convergence"]["met"], false);
+        assert_eq!(b["convergence"]["pairs_met"], 1);
+        assert_eq!(b["separation"]["pairs_met"], 1);
+        assert_eq!(b["ratios"]["met"], true);
+        let md = table(&pairs, &b);
+        assert!(md.contains("| a × x | 0.200 / 0.250 / 0.90 |"), "{md}");
+        assert!(md.contains("c × x | failed: boom"), "{md}");
+        assert!(md.contains("Separation") && md.contains("NOT met (1 of 2; lowest 1.20)"), "{md}");
+    }
+
+    #[test]
+    fn style_names() {
+        assert_eq!(style_name("painting:greatwave"), "greatwave");
+        assert_eq!(style_name("/x/y/starry.png"), "starry");
+    }
+}
