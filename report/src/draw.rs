@@ -98,6 +98,9 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
 }
 
 /// Draw `plot` on `root` (any backend, any size).
+/// Reference lines named in a plot's legend at most (two runs' worth).
+pub const MAX_LABELLED_REFERENCES: usize = 4;
+
 pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> Result<()> {
     font::register();
     root.fill(&WHITE).map_err(err)?;
@@ -180,15 +183,17 @@ where
         }
     }
     let xr = chart.x_range();
+    // Each stylized run brings two reference lines; past two runs their legend entries would
+    // outnumber the curves' and cover them, so they are drawn unlabelled (the table lists them).
+    let label_references = plot.hlines.len() <= MAX_LABELLED_REFERENCES;
     for hl in &plot.hlines {
         let (r, g, b) = REFERENCE[hl.role.min(1)];
         let style = RGBColor(r, g, b).stroke_width(lw);
         let d = (5.0 * scale) as i32;
-        chart
-            .draw_series(DashedLineSeries::new(vec![(xr.start, hl.y), (xr.end, hl.y)], d, d, style))
-            .map_err(err)?
-            .label(hl.label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 6, y)], style));
+        let drawn = chart.draw_series(DashedLineSeries::new(vec![(xr.start, hl.y), (xr.end, hl.y)], d, d, style)).map_err(err)?;
+        if label_references {
+            drawn.label(hl.label.clone()).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 6, y)], style));
+        }
     }
     let pos = match plot.id.as_str() {
         "psnr" | "bake_faithfulness" | "stylize_fit" | "ssim" => SeriesLabelPosition::LowerRight,

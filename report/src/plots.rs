@@ -145,6 +145,25 @@ fn training_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
 }
 
 /// The per-frame baseline and the realistic field's floor, from `consistency.json`.
+/// The style distances a record may carry, the one the stylization bars use first: the
+/// weight-free distance (colour and texture statistics, which no stylizer aims at), then the
+/// Gram distance (which only `gatys` optimizes), then the Magenta embedding's (older records).
+const STYLE_KEYS: [&str; 3] = ["style_swd", "style_gram", "style_distance"];
+
+/// A record's value of `key`; for `style_swd`, its total (colour + texture).
+fn value_of(v: &Value, key: &str) -> Option<f64> {
+    if key == "style_swd" {
+        num(&v[key]["total"])
+    } else {
+        num(&v[key])
+    }
+}
+
+/// The first of `STYLE_KEYS` that any of `records` carries.
+fn style_key(records: &Value) -> &'static str {
+    STYLE_KEYS.into_iter().find(|k| records.as_array().into_iter().flatten().any(|r| value_of(r, k).is_some())).unwrap_or("style_distance")
+}
+
 fn references(s: &Source, field: &str, what: &str) -> Vec<HLine> {
     let mut out = Vec::new();
     for m in s.data["consistency"]["methods"].as_array().into_iter().flatten() {
@@ -156,7 +175,7 @@ fn references(s: &Source, field: &str, what: &str) -> Vec<HLine> {
         } else {
             continue;
         };
-        if let Some(y) = num(&m[field]) {
+        if let Some(y) = value_of(m, field) {
             let who = if role == 0 { "per-frame stylization" } else { "realistic field" };
             out.push(HLine { run: s.label.clone(), label: format!("{}: {who}{what}", s.label), y, role });
         }
@@ -166,7 +185,7 @@ fn references(s: &Source, field: &str, what: &str) -> Vec<HLine> {
 
 fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
     let mut fit = Plot::new("stylize_fit", "Fit to the stylized views per round", "wall seconds", "fit PSNR (dB)", false);
-    let mut style = Plot::new("stylize_style", "Style distance per round (lower: more stylized)", "wall seconds", "style distance", false);
+    let mut style = Plot::new("stylize_style", "Style distance to the painting per round (lower: nearer)", "wall seconds", "style distance", false);
     let mut cons = Plot::new("stylize_consistency", "Consistency error per round (short range solid, long range dashed)", "wall seconds", "warped-frame MSE", false);
     fit.table.header = ["run", "round", "wall s", "fit PSNR"].map(String::from).to_vec();
     style.table.header = ["run", "round", "wall s", "style distance"].map(String::from).to_vec();
@@ -175,18 +194,18 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         let col = colors.of(&s.label);
         let recs = &s.data["state"]["records"];
         let run = &s.label;
-        // The Gram style distance where the records have it (independent of the stylizers but
-        // `gatys`); older records only have the Magenta embedding distance.
-        let key = if recs.as_array().into_iter().flatten().any(|r| num(&r["style_gram"]).is_some()) { "style_gram" } else { "style_distance" };
+        // The distance the convergence bar is judged on, where the records have it.
+        let key = style_key(recs);
+        let style_points = recs.as_array().into_iter().flatten().filter_map(|r| Some([num(&r["wall_seconds"])?, value_of(r, key)?])).collect();
         fit.series.push(series(run, "fit_psnr", run.clone(), col, false, true, pairs(recs, "wall_seconds", "fit_psnr")));
-        style.series.push(series(run, key, run.clone(), col, false, true, pairs(recs, "wall_seconds", key)));
+        style.series.push(series(run, key, run.clone(), col, false, true, style_points));
         cons.series.push(series(run, "short_range", run.clone(), col, false, true, pairs(recs, "wall_seconds", "short_range")));
         cons.series.push(series(run, "long_range", format!("{run} long range"), col, true, true, pairs(recs, "wall_seconds", "long_range")));
         for r in recs.as_array().into_iter().flatten() {
             let head = vec![run.clone(), fmt(num(&r["round"]), 0), fmt(num(&r["wall_seconds"]), 1)];
             fit.table.rows.push([head.clone(), vec![fmt(num(&r["fit_psnr"]), 2)]].concat());
-            if num(&r[key]).is_some() {
-                style.table.rows.push([head.clone(), vec![fmt(num(&r[key]), 4)]].concat());
+            if value_of(r, key).is_some() {
+                style.table.rows.push([head.clone(), vec![fmt(value_of(r, key), 4)]].concat());
             }
             if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
                 cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
@@ -240,4 +259,43 @@ fn bake_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
     // one table serves both plots
     drop.table = Table::default();
     vec![faith, drop]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+    use std::path::Path;
+
+    fn record(round: u32, wall: f64, swd: Option<f64>, gram: f64) -> Value {
+        let mut r = json!({ "round": round, "wall_seconds": wall, "fit_psnr": 30.0, "short_range": 0.003, "long_range": 0.008, "style_gram": gram, "style_distance": 8.0 });
+        if let Some(t) = swd {
+            r["style_swd"] = json!({ "total": t, "color": t / 4.0, "texture": 3.0 * t / 4.0 });
+        }
+        r
+    }
+
+    fn method(name: &str, swd: f64, gram: f64) -> Value {
+        json!({ "method": name, "short_range": 0.01, "long_range": 0.02, "style_swd": { "total": swd }, "style_gram": gram, "style_distance": 8.0 })
+    }
+
+    /// The style plot shows the weight-free distance the convergence bar is judged on (Gram
+    /// and the embedding only for records without it), reference lines included.
+    #[test]
+    fn style_plot_shows_the_weight_free_distance_where_recorded() {
+        let state = json!({ "records": [record(1, 10.0, Some(0.30), 0.50), record(2, 20.0, Some(0.29), 0.48)] });
+        let cons = json!({ "methods": [method("Realistic field (no stylization)", 0.6, 0.9), method("Per-frame image stylization", 0.35, 0.7), method("SNeRF, 2 rounds", 0.29, 0.48)] });
+        let old = json!({ "records": [record(1, 12.0, None, 0.44)] });
+        let sources = [Source::stylize("new", Path::new("new"), state, Some(cons)), Source::stylize("old", Path::new("old"), old, None)];
+        let plots = build(&sources);
+        let style = plots.iter().find(|p| p.id == "stylize_style").unwrap();
+        let new = style.series.iter().find(|s| s.run == "new").unwrap();
+        assert_eq!(new.metric, "style_swd");
+        assert_eq!(new.points, vec![[10.0, 0.30], [20.0, 0.29]]);
+        let old = style.series.iter().find(|s| s.run == "old").unwrap();
+        assert_eq!((old.metric.as_str(), old.points.clone()), ("style_gram", vec![[12.0, 0.44]]));
+        let refs: Vec<(usize, f64)> = style.hlines.iter().map(|h| (h.role, h.y)).collect();
+        assert_eq!(refs, vec![(1, 0.6), (0, 0.35)]);
+        assert!(style.table.rows.iter().any(|r| r[0] == "new" && r[3] == "0.2900"), "{:?}", style.table.rows);
+    }
 }
