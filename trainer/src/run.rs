@@ -165,12 +165,19 @@ pub fn save(t: &Trainer, data: &Dataset, opts: &RunOptions) -> Result<()> {
     let dir = RunDir::new(&opts.dir);
     checkpoint::save(t, &dir.checkpoint())?;
     checkpoint::write_json_atomic(&dir.metrics(), &metrics_json(t))?;
+    let mut dataset = snerf_data::summary(data);
+    // Later commands (`snerf stylize RUN`, `bake`, `eval`) find the dataset through this
+    // record from wherever they run, so a path given relative to the training's working
+    // directory is recorded absolute.
+    if let Ok(root) = std::path::absolute(&data.root) {
+        dataset["root"] = json!(root.display().to_string());
+    }
     checkpoint::write_json_atomic(
         &dir.config(),
         &json!({
             "train": t.cfg,
             "space": t.model.space,
-            "dataset": snerf_data::summary(data),
+            "dataset": dataset,
             "parameters": t.model.field.params.len(),
         }),
     )

@@ -75,7 +75,17 @@ impl RunDir {
             if let Ok(bytes) = std::fs::read(&file) {
                 let v: Value = serde_json::from_slice(&bytes).with_context(|| format!("{}: not JSON", file.display()))?;
                 if let Some(root) = v.pointer(pointer).and_then(|r| r.as_str()) {
-                    return Ok(PathBuf::from(root));
+                    let root = PathBuf::from(root);
+                    // Runs trained before roots were recorded absolute hold the path as it
+                    // was typed, relative to a working directory this command may not share.
+                    if root.is_relative() && !root.exists() {
+                        bail!(
+                            "{}: the run records its dataset as the relative path {}, which is not found from here (run from the directory it was trained in, or pass --data)",
+                            self.path.display(),
+                            root.display()
+                        );
+                    }
+                    return Ok(root);
                 }
             }
         }
@@ -176,6 +186,22 @@ mod tests {
         let (model, _pool) = dir.load_model().unwrap();
         assert_eq!(model.field.params, t.model.field.params);
         assert_eq!(model.space.kind, data.kind);
+
+        // A dataset given by a relative path is recorded absolute, so the run finds it from
+        // any working directory.
+        let mut rel = data.clone();
+        rel.root = PathBuf::from("datasets/some-scene");
+        run::save(&t, &rel, &opts).unwrap();
+        let config: Value = serde_json::from_slice(&std::fs::read(dir.config()).unwrap()).unwrap();
+        let recorded = PathBuf::from(config["dataset"]["root"].as_str().unwrap());
+        assert!(recorded.is_absolute() && recorded.ends_with("datasets/some-scene"), "{}", recorded.display());
+        assert_eq!(dir.dataset().unwrap(), recorded);
+        // A run recorded before that (a relative path that is not there) gets a clear error.
+        let mut old = config.clone();
+        old["dataset"]["root"] = "datasets/some-scene".into();
+        std::fs::write(dir.config(), serde_json::to_vec(&old).unwrap()).unwrap();
+        let e = format!("{:#}", dir.dataset().unwrap_err());
+        assert!(e.contains("relative path datasets/some-scene") && e.contains("--data"), "{e}");
         std::fs::remove_dir_all(&d).ok();
     }
 }
