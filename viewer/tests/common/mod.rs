@@ -352,6 +352,16 @@ pub struct Xvfb(Option<Child>);
 impl Drop for Xvfb {
     fn drop(&mut self) {
         if let Some(c) = self.0.as_mut() {
+            // SIGTERM first: Xvfb then removes its lock file and socket. Killed outright it
+            // leaves both behind, and every later run has one display number fewer to use.
+            let _ = Command::new("kill").args(["-TERM", &c.id().to_string()]).status();
+            let t0 = Instant::now();
+            while t0.elapsed() < Duration::from_secs(3) {
+                if let Ok(Some(_)) = c.try_wait() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
             let _ = c.kill();
             let _ = c.wait();
         }
@@ -389,16 +399,26 @@ pub fn display() -> Option<Xvfb> {
             .stderr(Stdio::null())
             .spawn()
             .ok()?;
-        let x = Xvfb(Some(child));
+        let mut x = Xvfb(Some(child));
         let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(10) {
-            if Path::new(&sock).exists() {
+        // Ready when its socket takes a connection (the file alone can be a stale one, and
+        // on a loaded machine the server may still be starting); an Xvfb that exits (the
+        // display taken after all) means the next number.
+        let mut exited = false;
+        while t0.elapsed() < Duration::from_secs(30) {
+            if x.0.as_mut().is_some_and(|c| matches!(c.try_wait(), Ok(Some(_)))) {
+                exited = true;
+                break;
+            }
+            if std::os::unix::net::UnixStream::connect(&sock).is_ok() {
                 std::env::set_var("DISPLAY", format!(":{}", n));
                 return Some(x);
             }
             std::thread::sleep(Duration::from_millis(50));
         }
-        return None;
+        if !exited {
+            return None;
+        }
     }
     None
 }
