@@ -322,17 +322,24 @@ fn curves_svg(models: &[Value]) -> String {
     svg
 }
 
-pub fn run(a: &BenchQualityArgs) -> Result<Value> {
-    let mut models = find_models(&a.dirs)?;
-    if !a.only.is_empty() {
-        models.retain(|(n, _)| a.only.iter().any(|o| n.contains(o.as_str())));
+/// The models under `dirs` whose name contains one of `only` (all when empty), at most
+/// `limit` of them (0: all); an error when none is left.
+pub(super) fn select_models(dirs: &[PathBuf], only: &[String], limit: usize) -> Result<Vec<(String, PathBuf)>> {
+    let mut models = find_models(dirs)?;
+    if !only.is_empty() {
+        models.retain(|(n, _)| only.iter().any(|o| n.contains(o.as_str())));
     }
-    if a.limit > 0 {
-        models.truncate(a.limit);
+    if limit > 0 {
+        models.truncate(limit);
     }
     if models.is_empty() {
-        bail!("no .gltf or .glb models under {}", a.dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", "));
+        bail!("no .gltf or .glb models under {}", dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", "));
     }
+    Ok(models)
+}
+
+pub fn run(a: &BenchQualityArgs) -> Result<Value> {
+    let models = select_models(&a.dirs, &a.only, a.limit)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     let baseline: Option<Value> = match &a.baseline {
         Some(p) => Some(serde_json::from_slice(&std::fs::read(p).with_context(|| format!("{}: cannot read", p.display()))?).with_context(|| format!("{}: not JSON", p.display()))?),

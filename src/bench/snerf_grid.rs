@@ -14,7 +14,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde_json::{json, Value};
 
-use super::quality::{find_models, s, snerf_json};
+use super::quality::{s, select_models, snerf_json};
 use crate::args::pj;
 use snerf_trainer::run_dir::RunDir;
 
@@ -236,16 +236,7 @@ fn one_pair(a: &BenchSnerfArgs, run: &std::path::Path, model: &str, style: &str)
 }
 
 pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
-    let mut models = find_models(&a.dirs)?;
-    if !a.only.is_empty() {
-        models.retain(|(n, _)| a.only.iter().any(|o| n.contains(o.as_str())));
-    }
-    if a.limit > 0 {
-        models.truncate(a.limit);
-    }
-    if models.is_empty() {
-        bail!("no .gltf or .glb models under {}", a.dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", "));
-    }
+    let models = select_models(&a.dirs, &a.only, a.limit)?;
     if a.styles.is_empty() {
         bail!("--styles is empty");
     }
