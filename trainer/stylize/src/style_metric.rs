@@ -248,12 +248,19 @@ fn sliced_w2<V: AsRef<[f32]>>(a: &[V], b: &[V], dirs: &[Vec<f32>]) -> f64 {
     (sum / dirs.len() as f64).sqrt()
 }
 
-/// The distance between two sample sets. Scales with no patch on one side (a view whose
-/// scene is too small at 1/4 resolution) are left out of the texture mean.
+/// The distance between two sample sets. The texture mean takes the scales at which both
+/// sides have at least `QUANTILES` patches: below that, the quantiles compared are
+/// interpolated between fewer samples than there are quantiles, and a scale resting on a
+/// handful of patches (a thin object at 1/4 resolution) would weigh as much as one resting
+/// on thousands. (On a thin controller's 48-frame path, the one patch found at 1/4
+/// resolution tripled the texture distance of every method; BENCH.md §5k.) When no scale has that many,
+/// the scales with any patch at all are taken, so a tiny scene still gets a (rough) figure.
 pub fn distance(a: &StyleSamples, b: &StyleSamples) -> StyleScore {
     let color = sliced_w2(&a.color, &b.color, &directions(3, COLOR_DIRS, 11));
     let pdirs = directions(PATCH * PATCH * 3, PATCH_DIRS, 12);
-    let tex: Vec<f64> = (0..SCALES).map(|s| sliced_w2(&a.patches[s], &b.patches[s], &pdirs)).filter(|d| d.is_finite()).collect();
+    let enough = |s: &usize| a.patches[*s].len().min(b.patches[*s].len()) >= QUANTILES;
+    let scales: Vec<usize> = if (0..SCALES).any(|s| enough(&s)) { (0..SCALES).filter(enough).collect() } else { (0..SCALES).collect() };
+    let tex: Vec<f64> = scales.into_iter().map(|s| sliced_w2(&a.patches[s], &b.patches[s], &pdirs)).filter(|d| d.is_finite()).collect();
     let texture = if tex.is_empty() { f64::NAN } else { tex.iter().sum::<f64>() / tex.len() as f64 };
     StyleScore { total: color + texture, color, texture }
 }
@@ -352,5 +359,29 @@ mod tests {
         // another texture (a smooth gradient) is far; the same strokes shifted in colour are not
         let other = distance(&StyleSamples::of_image(&a), &StyleSamples::of_image(&gradient(64, 64, [1.0, 0.9, 0.8])));
         assert!(d.texture < 0.3 * other.texture, "shifted {d:?}, other texture {other:?}");
+    }
+
+    /// A scale resting on fewer patches than quantiles does not enter the texture mean: two
+    /// sets with the same texture at full and half resolution, and one disagreeing patch each
+    /// at quarter resolution, are at texture distance 0. Where no scale has enough patches,
+    /// the scales with any are taken, so a tiny scene is still measured.
+    #[test]
+    fn a_scale_with_a_handful_of_patches_does_not_weigh_like_a_full_one() {
+        let a = StyleSamples::of_image(&strokes(64, 64));
+        let (_, counts) = a.counts();
+        assert!(counts[0] >= QUANTILES && counts[1] >= QUANTILES, "{counts:?}");
+        let patch = |v: f32| vec![vec![v; PATCH * PATCH * 3]];
+        let (mut x, mut y) = (a.clone(), a.clone());
+        x.patches[2] = patch(1.0);
+        y.patches[2] = patch(-1.0);
+        let d = distance(&x, &y);
+        assert!(d.texture.abs() < 1e-9, "{d:?}");
+        // nothing but the handful: measured from it
+        for s in 0..2 {
+            x.patches[s] = patch(0.5);
+            y.patches[s] = patch(0.5);
+        }
+        let d = distance(&x, &y);
+        assert!(d.texture > 0.3, "{d:?}");
     }
 }
