@@ -524,6 +524,24 @@ impl WorkspacePool {
         WorkspacePool { slots }
     }
 
+    /// Workspace `i` (of [`WorkspacePool::len`]): for work whose sums must not depend on
+    /// which thread ran what (training's gradients). Callers give each parallel task its own
+    /// index, so these locks are not contended either.
+    pub fn with_slot<R>(&self, i: usize, f: impl FnOnce(&mut Workspace) -> R) -> R {
+        let mut ws = self.slots[i].lock().unwrap_or_else(|e| e.into_inner());
+        f(&mut ws)
+    }
+
+    /// Number of workspaces (the rayon threads when the pool was made).
+    pub fn len(&self) -> usize {
+        self.slots.len()
+    }
+
+    /// Whether the pool has no workspace (never: `new` makes at least one).
+    pub fn is_empty(&self) -> bool {
+        self.slots.is_empty()
+    }
+
     /// The calling thread's workspace.
     pub fn with<R>(&self, f: impl FnOnce(&mut Workspace) -> R) -> R {
         let i = rayon::current_thread_index().unwrap_or(0).min(self.slots.len() - 1);

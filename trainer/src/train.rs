@@ -493,14 +493,25 @@ impl Trainer {
                 (start, g0) = (t, g + 1);
             }
         }
-        let stats = chunks
+        // Chunk k adds its gradients into workspace k mod n, in chunk order, and the
+        // workspaces are added in slot order (by Adam) and their statistics here: float
+        // addition is not associative, so letting the thread that happened to run a chunk
+        // choose its buffer made two runs of the same command differ in the last bits, which
+        // Adam's normalized steps grew into visibly different fields (BENCH.md §5k). A
+        // round-robin split of ~64 similar chunks keeps the threads about equally busy.
+        let n = pool.len();
+        let stats = (0..n)
             .into_par_iter()
-            .map(|(tr, gr)| {
-                pool.with(|ws| {
-                    train_chunk(&model.field, &model.space, &model.occ, &tasks[tr], ws, loss_scale, distortion, &groups[gr])
+            .map(|slot| {
+                pool.with_slot(slot, |ws| {
+                    chunks.iter().skip(slot).step_by(n).fold(ChunkStats::default(), |acc, (tr, gr)| {
+                        acc.merge(train_chunk(&model.field, &model.space, &model.occ, &tasks[tr.clone()], ws, loss_scale, distortion, &groups[gr.clone()]))
+                    })
                 })
             })
-            .reduce(ChunkStats::default, ChunkStats::merge);
+            .collect::<Vec<_>>()
+            .into_iter()
+            .fold(ChunkStats::default(), ChunkStats::merge);
         let t_chunks = t0.elapsed().as_secs_f64();
         let s = self.lr_scale(progress);
         let (mut grads, mut flags) = self.pool.grads();

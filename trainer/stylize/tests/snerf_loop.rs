@@ -295,3 +295,22 @@ fn step_and_learning_rate_schedules() {
     assert!(all.windows(2).all(|w| w[1] > w[0]));
     assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
 }
+
+/// The same training twice gives the same field, bit for bit, however the threads share the
+/// work: each ray chunk adds its gradients into a fixed workspace and the workspaces are
+/// added in a fixed order. Before, the thread that ran a chunk chose the buffer, and two runs
+/// of one `snerf stylize` command ended rounds apart on the convergence bar (BENCH.md §5k).
+#[test]
+fn training_is_bit_reproducible_whatever_the_threads_do() {
+    let threads = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
+    let dir = tmp("repro");
+    let field = |name: &str| {
+        threads.install(|| {
+            let (_, run) = trained_run(&dir.join(name));
+            checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap().model.field.params
+        })
+    };
+    let (a, b) = (field("a"), field("b"));
+    let differ = a.iter().zip(&b).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} of {} parameters differ between two identical trainings", a.len());
+}
