@@ -278,3 +278,32 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
     assert_eq!((stamp(&ck), stamp(&st)), (ck0, st0), "a finished step ran again");
     assert_eq!(again["pairs"][0]["scores"], pairs[0]["scores"]);
 }
+
+/// With a step budget (`--steps`) the grid repeats: two grids in two directories, each
+/// rendering, training, stylizing and scoring from scratch, give the same scores to the
+/// last digit (training adds its gradients in a fixed order; BENCH.md §5k).
+#[test]
+fn bench_snerf_with_a_step_budget_repeats_exactly() {
+    let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
+    if !models.is_dir() {
+        eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());
+        return;
+    }
+    let d = tmp("bench-snerf-steps");
+    let style = d.join("stripes.png");
+    image::RgbImage::from_fn(64, 48, |x, y| if (x + y / 2) % 8 < 4 { image::Rgb([200, 40, 30]) } else { image::Rgb([240, 220, 120]) }).save(&style).unwrap();
+    let grid = |name: &str| {
+        let mut c = snerf();
+        c.args(["--json", "bench", "snerf"]).arg(models).arg("--out").arg(d.join(name)).arg("--styles").arg(&style);
+        c.args(["--size", "32", "--views", "8", "--steps", "60", "--frames", "8"]);
+        c.args(["--stylize-flags", "--views 4 --rounds 2 --steps-per-round 5 --consistency-frames 8 --stylizer color"]);
+        ok(c.output().unwrap())
+    };
+    let (a, b) = (grid("a"), grid("b"));
+    let steps = |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(d.join(name).join("runs/BoxTextured/metrics.json")).unwrap()).unwrap() };
+    assert_eq!(steps("a")["step"], 60, "the realistic field trains the steps asked");
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("a/snerf.json")).unwrap()).unwrap();
+    assert_eq!(doc["realistic_training"]["steps"], 60, "{doc}");
+    assert!(a["pairs"][0]["scores"].is_object(), "{a}");
+    assert_eq!(a["pairs"][0]["scores"], b["pairs"][0]["scores"]);
+}

@@ -44,6 +44,11 @@ pub struct BenchSnerfArgs {
     /// Seconds of realistic training per model.
     #[arg(long, default_value_t = 90.0, value_parser = crate::args::positive)]
     pub seconds: f64,
+    /// Train each model's realistic field for this many steps instead of --seconds: training
+    /// repeats bit for bit, so the whole grid then gives the same figures on another run on
+    /// this machine (a wall-clock budget stops at a different step under another load).
+    #[arg(long, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
+    pub steps: Option<u64>,
     /// Flags passed to every `snerf stylize` (the short settings BENCH.md §5 uses by default).
     #[arg(long, allow_hyphen_values = true, default_value = "--views 16 --rounds 5 --steps-per-round 100 --consistency-frames 12")]
     pub stylize_flags: String,
@@ -203,12 +208,17 @@ fn realistic(a: &BenchSnerfArgs, name: &str, file: &std::path::Path) -> Result<P
         snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), a.views.to_string()])?;
     }
     let run = a.out.join("runs").join(name);
-    let done = std::fs::read(RunDir::new(&run).metrics())
-        .ok()
-        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
-        .is_some_and(|m| m["train_seconds"].as_f64().is_some_and(|t| t >= a.seconds - 1.0));
+    let done = std::fs::read(RunDir::new(&run).metrics()).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|m| match a.steps {
+        Some(n) => m["step"].as_u64().is_some_and(|k| k >= n),
+        None => m["train_seconds"].as_f64().is_some_and(|t| t >= a.seconds - 1.0),
+    });
     if !done {
-        let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run), "--minutes".into(), format!("{}", a.seconds / 60.0)];
+        let budget = match a.steps {
+            Some(n) => ["--steps".to_string(), n.to_string()],
+            None => ["--minutes".to_string(), format!("{}", a.seconds / 60.0)],
+        };
+        let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run)];
+        args.extend(budget);
         if RunDir::new(&run).checkpoint().exists() {
             args.push("--resume".into());
         }
@@ -260,7 +270,11 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
             }
             pairs.push(p);
             // written after every pair, so a long benchmark shows its progress on disk
-            let doc = json!({ "command": "bench snerf", "stylize_flags": a.stylize_flags, "pairs": pairs, "bars": bars(&pairs) });
+            let budget = match a.steps {
+                Some(n) => json!({ "steps": n }),
+                None => json!({ "seconds": a.seconds }),
+            };
+            let doc = json!({ "command": "bench snerf", "realistic_training": budget, "stylize_flags": a.stylize_flags, "pairs": pairs, "bars": bars(&pairs) });
             snerf_files::write_json_atomic(&a.out.join("snerf.json"), &doc)?;
         }
     }
