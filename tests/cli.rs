@@ -233,20 +233,27 @@ fn bad_input_gets_a_clear_error_naming_the_file() {
     fails(snerf().arg("data").arg(&data).args(["--kind", "planet"]).output().unwrap(), &["planet"]);
 }
 
+/// The inputs of the `bench snerf` tests: a real model's folder (None, with a note, when
+/// assimp-testmodels is not installed), a fresh directory, and a style file in it, so the
+/// tests do not depend on the paintings being installed.
+fn bench_snerf_inputs(name: &str) -> Option<(&'static Path, PathBuf, PathBuf)> {
+    let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
+    if !models.is_dir() {
+        eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());
+        return None;
+    }
+    let d = tmp(name);
+    let style = d.join("stripes.png");
+    image::RgbImage::from_fn(64, 48, |x, y| if (x + y / 2) % 8 < 4 { image::Rgb([200, 40, 30]) } else { image::Rgb([240, 220, 120]) }).save(&style).unwrap();
+    Some((models, d, style))
+}
+
 /// `snerf bench snerf` on one real model and one painting at tiny settings: every pair gets
 /// its scores and the bars, and a second invocation reuses the finished steps instead of
 /// training or stylizing again.
 #[test]
 fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
-    let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
-    if !models.is_dir() {
-        eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());
-        return;
-    }
-    let d = tmp("bench-snerf");
-    // a style file, so the test does not depend on the paintings being installed
-    let style = d.join("stripes.png");
-    image::RgbImage::from_fn(64, 48, |x, y| if (x + y / 2) % 8 < 4 { image::Rgb([200, 40, 30]) } else { image::Rgb([240, 220, 120]) }).save(&style).unwrap();
+    let Some((models, d, style)) = bench_snerf_inputs("bench-snerf") else { return };
     let out = d.join("grid");
     let args = |cmd: &mut Command| {
         cmd.args(["--json", "bench", "snerf"]).arg(models).arg("--out").arg(&out).arg("--styles").arg(&style);
@@ -284,14 +291,7 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
 /// last digit (training adds its gradients in a fixed order; BENCH.md §5k).
 #[test]
 fn bench_snerf_with_a_step_budget_repeats_exactly() {
-    let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
-    if !models.is_dir() {
-        eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());
-        return;
-    }
-    let d = tmp("bench-snerf-steps");
-    let style = d.join("stripes.png");
-    image::RgbImage::from_fn(64, 48, |x, y| if (x + y / 2) % 8 < 4 { image::Rgb([200, 40, 30]) } else { image::Rgb([240, 220, 120]) }).save(&style).unwrap();
+    let Some((models, d, style)) = bench_snerf_inputs("bench-snerf-steps") else { return };
     let grid = |name: &str| {
         let mut c = snerf();
         c.args(["--json", "bench", "snerf"]).arg(models).arg("--out").arg(d.join(name)).arg("--styles").arg(&style);

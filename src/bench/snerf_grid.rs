@@ -57,6 +57,44 @@ pub struct BenchSnerfArgs {
     pub frames: usize,
 }
 
+/// How long each realistic field trains: `--steps` when given, else `--seconds`.
+#[derive(Clone, Copy, Debug)]
+enum Budget {
+    Steps(u64),
+    Seconds(f64),
+}
+
+impl BenchSnerfArgs {
+    fn budget(&self) -> Budget {
+        self.steps.map(Budget::Steps).unwrap_or(Budget::Seconds(self.seconds))
+    }
+}
+
+impl Budget {
+    /// Whether a run's `metrics.json` shows the budget trained.
+    fn spent(self, metrics: &Value) -> bool {
+        match self {
+            Budget::Steps(n) => metrics["step"].as_u64().is_some_and(|k| k >= n),
+            Budget::Seconds(t) => metrics["train_seconds"].as_f64().is_some_and(|done| done >= t - 1.0),
+        }
+    }
+
+    /// The `snerf train` flags that ask for it.
+    fn train_args(self) -> [String; 2] {
+        match self {
+            Budget::Steps(n) => ["--steps".into(), n.to_string()],
+            Budget::Seconds(t) => ["--minutes".into(), format!("{}", t / 60.0)],
+        }
+    }
+
+    fn to_json(self) -> Value {
+        match self {
+            Budget::Steps(n) => json!({ "steps": n }),
+            Budget::Seconds(t) => json!({ "seconds": t }),
+        }
+    }
+}
+
 /// The bars (BENCH.md §5): SNeRF ÷ per-frame on the mean and on every pair, convergence and
 /// separation on every pair.
 pub const MEAN_SHORT: f64 = 0.35;
@@ -208,17 +246,11 @@ fn realistic(a: &BenchSnerfArgs, name: &str, file: &std::path::Path) -> Result<P
         snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), a.views.to_string()])?;
     }
     let run = a.out.join("runs").join(name);
-    let done = std::fs::read(RunDir::new(&run).metrics()).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|m| match a.steps {
-        Some(n) => m["step"].as_u64().is_some_and(|k| k >= n),
-        None => m["train_seconds"].as_f64().is_some_and(|t| t >= a.seconds - 1.0),
-    });
+    let budget = a.budget();
+    let done = std::fs::read(RunDir::new(&run).metrics()).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|m| budget.spent(&m));
     if !done {
-        let budget = match a.steps {
-            Some(n) => ["--steps".to_string(), n.to_string()],
-            None => ["--minutes".to_string(), format!("{}", a.seconds / 60.0)],
-        };
         let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run)];
-        args.extend(budget);
+        args.extend(budget.train_args());
         if RunDir::new(&run).checkpoint().exists() {
             args.push("--resume".into());
         }
@@ -270,11 +302,7 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
             }
             pairs.push(p);
             // written after every pair, so a long benchmark shows its progress on disk
-            let budget = match a.steps {
-                Some(n) => json!({ "steps": n }),
-                None => json!({ "seconds": a.seconds }),
-            };
-            let doc = json!({ "command": "bench snerf", "realistic_training": budget, "stylize_flags": a.stylize_flags, "pairs": pairs, "bars": bars(&pairs) });
+            let doc = json!({ "command": "bench snerf", "realistic_training": a.budget().to_json(), "stylize_flags": a.stylize_flags, "pairs": pairs, "bars": bars(&pairs) });
             snerf_files::write_json_atomic(&a.out.join("snerf.json"), &doc)?;
         }
     }
