@@ -170,7 +170,9 @@ pub struct StylizeArgs {
     /// Freeze density and the shared layers; stylize colour only (the paper's ablation).
     #[arg(long)]
     pub appearance_only: bool,
-    /// Frames of the novel path for the per-round consistency measurement (0: skip).
+    /// Frames of the novel path for the per-round warp errors (0: skip the per-round
+    /// measurement); the per-round style distances are scored on 8 more frames, 45° apart
+    /// around the whole orbit.
     #[arg(long, default_value_t = 16, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
     pub consistency_frames: usize,
     /// Fuse each stylized target with this many nearest training views, reprojected through
@@ -387,14 +389,16 @@ pub struct ConsistencyArgs {
     /// A one-round stylized run to compare against (`snerf stylize --rounds 1`).
     #[arg(long)]
     pub one_round: Option<PathBuf>,
-    /// Frames of the novel path.
+    /// Frames of the novel path (5° apart) the warp errors are measured on. The style
+    /// distances are scored on 8 more frames, 45° apart around the whole orbit.
     #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
     pub frames: usize,
     /// Where to write consistency.json, consistency.md and consistency.png (default: SRUN).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Also write every frame of the path as PNGs in OUT/frames/: realistic_NN, per_frame_NN,
-    /// snerf_NN, and mask_NN (the scene pixels the style distances pool).
+    /// Also write every frame as PNGs in OUT/frames/: realistic_NN, per_frame_NN, snerf_NN,
+    /// and mask_NN (the scene pixels); NN below --frames is the path, the 8 after it the
+    /// style ring the style distances pool.
     #[arg(long)]
     pub save_frames: bool,
     #[command(flatten)]
@@ -522,7 +526,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`, painting {} (the per-frame baseline too); {}; warped-frame MSE (RGB in [0,1]) over covered, \
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
-         Style distance: sliced Wasserstein between the scene pixels of 8 path frames and the style picture, \
+         Style distance: sliced Wasserstein between the scene pixels of the 8 ring frames and the style picture, \
          colour (Oklab) + texture (contrast-normalized 5×5 patches at 3 scales); it separates the realistic field from per-frame \
          stylization by {:.2}× ({}).\n\n{gram_line}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,

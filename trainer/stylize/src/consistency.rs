@@ -32,13 +32,26 @@ use crate::stylizer::{Image, StyleEmbedder, StylizerOptions};
 /// motion and (i, i+7) a large one, as in the paper's test trajectories.
 pub const PATH_STEPS_PER_TURN: usize = 72;
 
-/// The novel path and the realistic field's geometry along it.
+/// Frames of the style ring: the style distances pool frames evenly spaced around the whole
+/// orbit (45° apart, half a step off the path's cameras), not frames of the path. A path of
+/// 12–24 frames spans only 55–115° of the orbit, so its frames show one side of an object,
+/// and on a thin one the style of that side moves with every round by more than the rounds
+/// change the whole (hp-mixed-reality × Kandinsky: round 5 ÷ round 1 = 1.046 pooled over a
+/// 16-frame path, 0.999 over a 48-frame one; BENCH.md §5l).
+pub const STYLE_RING: usize = 8;
+
+/// The novel path and the realistic field's geometry along it, followed by the style ring.
+/// Every per-frame list (`realistic`, `render`'s output, the frames callers pass back in)
+/// holds the path's frames first, then the ring's `STYLE_RING`: warp errors use the path,
+/// style distances the ring.
 pub struct PathGeometry {
+    /// Frames of the path (the rest of `cams` is the style ring).
+    pub path_frames: usize,
     pub cams: Vec<[[f32; 4]; 3]>,
     pub intr: Intrinsics,
     pub time: Option<f32>,
     pub bg: Vec3,
-    /// Realistic renders of the path (the per-frame baseline stylizes these).
+    /// Realistic renders of the path and the ring (the per-frame baseline stylizes these).
     pub realistic: Vec<Image>,
     /// World point seen at each pixel (None where the scene does not cover the pixel).
     points: Vec<Vec<Option<Vec3>>>,
@@ -52,16 +65,17 @@ impl PathGeometry {
     pub fn new(realistic: &Model, pool: &WorkspacePool, data: &Dataset, frames: usize) -> Result<PathGeometry> {
         anyhow::ensure!(frames >= 2, "a consistency path needs at least 2 frames");
         let turn = PATH_STEPS_PER_TURN.max(frames);
-        let cams: Vec<_> = orbit(&realistic.space, &data.train, turn).into_iter().take(frames).collect();
+        let mut cams: Vec<_> = orbit(&realistic.space, &data.train, turn).into_iter().take(frames).collect();
+        cams.extend(orbit(&realistic.space, &data.train, 2 * STYLE_RING).into_iter().skip(1).step_by(2));
         let mut intr = data.test.first().unwrap_or(&data.train[0]).intrinsics;
         intr.distortion = [0.0; 4];
         // Dynamic scenes: the path holds time still (mid-sequence), so reprojection is exact.
         let time = data.dynamic.then_some(0.5);
         let silhouette = views_have_alpha(&data.train);
         let bg = eval_background(silhouette);
-        let mut images = Vec::with_capacity(frames);
-        let mut points = Vec::with_capacity(frames);
-        let mut opacity = Vec::with_capacity(frames);
+        let mut images = Vec::with_capacity(cams.len());
+        let mut points = Vec::with_capacity(cams.len());
+        let mut opacity = Vec::with_capacity(cams.len());
         for c2w in &cams {
             let r = render_camera(realistic, pool, c2w, &intr, time, bg);
             let (w, h) = (r.width, r.height);
@@ -82,7 +96,7 @@ impl PathGeometry {
             points.push(pts);
             opacity.push(r.opacity);
         }
-        Ok(PathGeometry { cams, intr, time, bg, realistic: images, points, opacity, silhouette })
+        Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, opacity, silhouette })
     }
 
     /// Whether the scene is a bounded object with a silhouette in its training views.
@@ -90,7 +104,7 @@ impl PathGeometry {
         self.silhouette
     }
 
-    /// Render the path from another (e.g. stylized) model.
+    /// Render the path and the ring from another (e.g. stylized) model.
     pub fn render(&self, model: &Model, pool: &WorkspacePool) -> Vec<Image> {
         self.cams
             .iter()
@@ -109,12 +123,12 @@ impl PathGeometry {
     }
 
 
-    /// Mean squared error between frame j = i + gap and frame i warped into it, over all
-    /// pairs and all covered, non-occluded pixels. NaN if no pixel qualifies.
+    /// Mean squared error between path frame j = i + gap and path frame i warped into it,
+    /// over all pairs and all covered, non-occluded pixels. NaN if no pixel qualifies.
     pub fn warp_error(&self, frames: &[Image], gap: usize) -> f64 {
         let (w, h) = (self.intr.width as usize, self.intr.height as usize);
         let (mut sum, mut count) = (0.0f64, 0u64);
-        for i in 0..frames.len().saturating_sub(gap) {
+        for i in 0..frames.len().min(self.path_frames).saturating_sub(gap) {
             let j = i + gap;
             let seen = Seen { origin: [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]], width: w, height: h, points: &self.points[i] };
             for (p, pt) in self.points[j].iter().enumerate() {
@@ -158,14 +172,24 @@ impl PathGeometry {
         self.opacity.iter().map(|op| op.iter().map(|&a| a > COVERED).collect()).collect()
     }
 
-    /// Up to 8 evenly spaced frames with their scene masks: what the style distances pool.
+    /// The ring's frames (those after the path's) with their scene masks: what the style
+    /// distances pool.
     fn style_frames<'a>(&self, frames: &'a [Image], masks: &'a [Vec<bool>]) -> Vec<(&'a Image, Option<&'a [bool]>)> {
-        let n = frames.len().min(8);
-        (0..n).map(|k| k * frames.len() / n.max(1)).map(|i| (&frames[i], Some(masks[i].as_slice()))).collect()
+        (self.path_frames..frames.len()).map(|i| (&frames[i], Some(masks[i].as_slice()))).collect()
     }
 
-    /// The weight-free style distance of `frames` (their scene pixels, up to 8 evenly spaced
-    /// frames pooled) to the style picture's samples (`style_metric::reference`).
+    /// The path's frames of a per-frame list (without the ring).
+    pub fn path_part<'a>(&self, frames: &'a [Image]) -> &'a [Image] {
+        &frames[..self.path_frames.min(frames.len())]
+    }
+
+    /// The ring's frames of a per-frame list.
+    pub fn ring_part<'a>(&self, frames: &'a [Image]) -> &'a [Image] {
+        &frames[self.path_frames.min(frames.len())..]
+    }
+
+    /// The weight-free style distance of `frames` (the ring's scene pixels, pooled) to the
+    /// style picture's samples (`style_metric::reference`).
     pub fn style_score(&self, frames: &[Image], style: &StyleSamples) -> StyleScore {
         let masks = self.masks();
         style_metric::distance(&StyleSamples::of(&self.style_frames(frames, &masks)), style)
@@ -184,10 +208,11 @@ impl PathGeometry {
         style_metric::reference(style, self.intr.width as usize, self.intr.height as usize)
     }
 
-    /// Fraction of pixels of frame j that had a valid correspondence (for the report).
+    /// Fraction of the path's pixels that show the scene (for the report).
     pub fn coverage(&self) -> f64 {
-        let covered: usize = self.points.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
-        covered as f64 / self.points.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
+        let path = &self.points[..self.path_frames];
+        let covered: usize = path.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
+        covered as f64 / path.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
     }
 }
 
@@ -251,7 +276,7 @@ impl StyleMeters {
                 .embedder
                 .as_ref()
                 .zip(targets.embedding.as_deref())
-                .map(|(e, s)| style_distance_frames(e, &path.masked(frames), s))
+                .map(|(e, s)| style_distance_frames(e, path.ring_part(&path.masked(frames)), s))
                 .transpose()?,
             swd: path.style_score(frames, &targets.samples),
             gram: self.gram.as_ref().zip(targets.grams.as_ref()).map(|(g, s)| path.style_gram(frames, g, s)).transpose()?,
@@ -339,7 +364,7 @@ pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
 /// Paths that suit a scene kind need nothing special today; kept as a hook for the report.
 pub fn path_description(kind: SceneKind, frames: usize) -> String {
     match kind {
-        SceneKind::Forward => format!("{frames} frames on a circle in front of the mean camera, 5° steps"),
-        _ => format!("{frames} frames on an orbit around the scene, 5° apart"),
+        SceneKind::Forward => format!("{frames} frames on a circle in front of the mean camera, 5° steps; style scored on {STYLE_RING} frames 45° apart on that circle"),
+        _ => format!("{frames} frames on an orbit around the scene, 5° apart; style scored on {STYLE_RING} frames 45° apart around the whole orbit"),
     }
 }

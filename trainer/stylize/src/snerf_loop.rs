@@ -307,8 +307,8 @@ pub struct RoundRecord {
     /// Warped-frame MSE along the novel path, frames (i, i+1) and (i, i+7).
     pub short_range: Option<f64>,
     pub long_range: Option<f64>,
-    /// The weight-free style distance (`style_metric`) of the path's scene pixels to the
-    /// style picture; None without a consistency path.
+    /// The weight-free style distance (`style_metric`) of the scene pixels of the style ring
+    /// (`consistency::STYLE_RING`) to the style picture; None without a consistency path.
     #[serde(default)]
     pub style_swd: Option<crate::style_metric::StyleScore>,
     /// The Gram style distance (`style_gram`) of the same frames; None without a path or

@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use snerf_data::{load, LoadOptions};
-use snerf_stylize::consistency::{PathGeometry, StyleMeters};
+use snerf_stylize::consistency::{PathGeometry, StyleMeters, STYLE_RING};
 use snerf_stylize::snerf_loop::{self, Quiet, StylizeOptions};
 use snerf_stylize::stylizer::{self, Image, StylizerOptions};
 use snerf_trainer::checkpoint;
@@ -164,6 +164,29 @@ fn stylized_field_is_more_consistent_than_per_frame_stylization() {
     // comparison with `arbitrary` and presets is `snerf consistency`, in BENCH.md.)
     assert!(sn.is_finite() && sn < 3.0 * realistic_err.max(1e-4) && sn < flicker_err, "SNeRF {sn}");
     assert!(sn_long.is_finite());
+
+    // The style distances pool the ring around the whole orbit, not the path's arc: the
+    // ring's camera centres surround the orbit's centre (the 12-frame path spans 55° and
+    // lies to one side of it), and the style score reads the ring's frames alone.
+    assert_eq!(path.cams.len(), 12 + STYLE_RING);
+    let centre = |cams: &[[[f32; 4]; 3]]| [0, 1, 2].map(|c| cams.iter().map(|m| m[c][3]).sum::<f32>() / cams.len() as f32);
+    let orbit_centre = centre(&snerf_trainer::camera_path::orbit(&source.model.space, &data.train, 72));
+    let radius = { let m = path.cams[0]; ((0..3).map(|c| (m[c][3] - orbit_centre[c]).powi(2)).sum::<f32>()).sqrt() };
+    let off = |cams: &[[[f32; 4]; 3]]| { let m = centre(cams); ((0..3).map(|c| (m[c] - orbit_centre[c]).powi(2)).sum::<f32>()).sqrt() / radius };
+    assert!(off(&path.cams[12..]) < 0.05, "ring centroid {:.3} radii off the orbit's centre", off(&path.cams[12..]));
+    assert!(off(&path.cams[..12]) > 0.5, "path centroid {:.3} radii off", off(&path.cams[..12]));
+    let reference = path.style_reference(&style_img);
+    let base = path.style_score(&snerf, &reference);
+    let mut other_path = snerf.clone();
+    for f in &mut other_path[..12] {
+        f.data.iter_mut().for_each(|v| *v = 1.0 - *v);
+    }
+    assert_eq!(path.style_score(&other_path, &reference), base, "the path's frames changed the style score");
+    let mut other_ring = snerf.clone();
+    for f in &mut other_ring[12..] {
+        f.data.iter_mut().for_each(|v| *v = 1.0 - *v);
+    }
+    assert_ne!(path.style_score(&other_ring, &reference), base, "the ring's frames did not count");
 }
 
 /// Counts the images it is given and returns them brighter by a fixed amount (a stand-in for
