@@ -178,11 +178,6 @@ impl PathGeometry {
         (self.path_frames..frames.len()).map(|i| (&frames[i], Some(masks[i].as_slice()))).collect()
     }
 
-    /// The path's frames of a per-frame list (without the ring).
-    pub fn path_part<'a>(&self, frames: &'a [Image]) -> &'a [Image] {
-        &frames[..self.path_frames.min(frames.len())]
-    }
-
     /// The ring's frames of a per-frame list.
     pub fn ring_part<'a>(&self, frames: &'a [Image]) -> &'a [Image] {
         &frames[self.path_frames.min(frames.len())..]
