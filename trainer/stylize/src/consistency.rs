@@ -152,9 +152,14 @@ impl PathGeometry {
     /// scene looks like, without whatever a per-frame stylizer painted into empty space, so
     /// style distances compare the scene's stylization alone.
     pub fn masked(&self, frames: &[Image]) -> Vec<Image> {
+        self.composite(frames, &self.opacity)
+    }
+
+    /// `frames` composited over the background with `opacity` (one per frame).
+    fn composite(&self, frames: &[Image], opacity: &[Vec<f32>]) -> Vec<Image> {
         frames
             .iter()
-            .zip(&self.opacity)
+            .zip(opacity)
             .map(|(f, op)| {
                 let mut data = f.data.clone();
                 for (p, &a) in op.iter().enumerate() {
@@ -169,33 +174,42 @@ impl PathGeometry {
 
     /// Scene pixels of each frame: the realistic field's opacity above `COVERED`.
     pub fn masks(&self) -> Vec<Vec<bool>> {
-        self.opacity.iter().map(|op| op.iter().map(|&a| a > COVERED).collect()).collect()
+        scene_masks(&self.opacity)
     }
 
-    /// The ring's frames (those after the path's) with their scene masks: what the style
-    /// distances pool.
-    fn style_frames<'a>(&self, frames: &'a [Image], masks: &'a [Vec<bool>]) -> Vec<(&'a Image, Option<&'a [bool]>)> {
-        (self.path_frames..frames.len()).map(|i| (&frames[i], Some(masks[i].as_slice()))).collect()
-    }
-
-    /// The ring's frames of a per-frame list.
+    /// The ring's frames of a per-frame list (those after the path's).
     pub fn ring_part<'a>(&self, frames: &'a [Image]) -> &'a [Image] {
         &frames[self.path_frames.min(frames.len())..]
+    }
+
+    /// The ring's realistic opacity, one per ring frame.
+    fn ring_opacity(&self) -> &[Vec<f32>] {
+        &self.opacity[self.path_frames..]
+    }
+
+    /// The ring's scene masks: which of its pixels every style distance pools.
+    fn ring_masks(&self) -> Vec<Vec<bool>> {
+        scene_masks(self.ring_opacity())
+    }
+
+    /// The ring's frames of `frames` composited on their own opacity (as `masked`).
+    fn ring_masked(&self, frames: &[Image]) -> Vec<Image> {
+        self.composite(self.ring_part(frames), self.ring_opacity())
     }
 
     /// The weight-free style distance of `frames` (the ring's scene pixels, pooled) to the
     /// style picture's samples (`style_metric::reference`).
     pub fn style_score(&self, frames: &[Image], style: &StyleSamples) -> StyleScore {
-        let masks = self.masks();
-        style_metric::distance(&StyleSamples::of(&self.style_frames(frames, &masks)), style)
+        let masks = self.ring_masks();
+        style_metric::distance(&StyleSamples::of(&with_masks(self.ring_part(frames), &masks)), style)
     }
 
     /// The Gram style distance of the same frames and masks (`style_gram`), the frames
     /// composited on the scene's own opacity first: a feature's receptive field reaches past
     /// the mask, and paint a per-frame stylizer puts into empty space must not count.
     pub fn style_gram(&self, frames: &[Image], metric: &GramMetric, style: &Grams) -> Result<f64> {
-        let (masks, composited) = (self.masks(), self.masked(frames));
-        Ok(style_gram::distance(&metric.grams(&self.style_frames(&composited, &masks))?, style))
+        let (ring, masks) = (self.ring_masked(frames), self.ring_masks());
+        Ok(style_gram::distance(&metric.grams(&with_masks(&ring, &masks))?, style))
     }
 
     /// The style picture's samples at this path's pixel footprint.
@@ -209,6 +223,16 @@ impl PathGeometry {
         let covered: usize = path.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
         covered as f64 / path.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
     }
+}
+
+/// Scene pixels per frame: opacity above `COVERED`.
+fn scene_masks(opacity: &[Vec<f32>]) -> Vec<Vec<bool>> {
+    opacity.iter().map(|op| op.iter().map(|&a| a > COVERED).collect()).collect()
+}
+
+/// Frames paired with their masks, as the style distances take them.
+fn with_masks<'a>(frames: &'a [Image], masks: &'a [Vec<bool>]) -> Vec<(&'a Image, Option<&'a [bool]>)> {
+    frames.iter().zip(masks).map(|(f, m)| (f, Some(m.as_slice()))).collect()
 }
 
 pub fn embedding_distance(a: &[f32], b: &[f32]) -> f64 {
@@ -271,7 +295,7 @@ impl StyleMeters {
                 .embedder
                 .as_ref()
                 .zip(targets.embedding.as_deref())
-                .map(|(e, s)| style_distance_frames(e, path.ring_part(&path.masked(frames)), s))
+                .map(|(e, s)| style_distance_frames(e, &path.ring_masked(frames), s))
                 .transpose()?,
             swd: path.style_score(frames, &targets.samples),
             gram: self.gram.as_ref().zip(targets.grams.as_ref()).map(|(g, s)| path.style_gram(frames, g, s)).transpose()?,
