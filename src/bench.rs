@@ -11,6 +11,7 @@ use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
 mod quality;
 mod snerf_grid;
+mod style_metric;
 mod web;
 
 #[derive(Subcommand, Debug)]
@@ -31,6 +32,10 @@ pub enum BenchCmd {
     /// `snerf consistency` for each pair) scored against the stylization bars, with the
     /// spread: table, snerf.json and snerf.md.
     Snerf(snerf_grid::BenchSnerfArgs),
+    /// Whether the weight-free style distance separates unpainted from painted on many real
+    /// models × paintings: each model's style ring, realistic and stylized frame by frame,
+    /// scored against each painting (no SNeRF loop): table, style-metric.json and .md.
+    StyleMetric(style_metric::BenchStyleMetricArgs),
     /// Viewer frame time through wgpu (lavapipe when there is no GPU) against the CPU
     /// reference renderer at the same size, in the same run.
     View(BenchViewArgs),
@@ -96,6 +101,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::Stream(a) => bench_stream(&a.asset, a.rounds),
         BenchCmd::Quality(a) => quality::run(a),
         BenchCmd::Snerf(a) => snerf_grid::run(a),
+        BenchCmd::StyleMetric(a) => style_metric::run(a),
         BenchCmd::Web(a) => web::run(a),
         BenchCmd::Report(a) => report(a),
     }

@@ -526,8 +526,9 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`, painting {} (the per-frame baseline too); {}; warped-frame MSE (RGB in [0,1]) over covered, \
          non-occluded pixels with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
-         Style distance: sliced Wasserstein between the scene pixels of the 8 ring frames and the style picture, \
-         colour (Oklab) + texture (contrast-normalized 5×5 patches at 3 scales); it separates the realistic field from per-frame \
+         Style distance, between the scene pixels of the 8 ring frames and the style picture: colour (how far, in Oklab, \
+         each of the painting's colours is from the nearest in each frame) + texture (sliced Wasserstein over contrast-normalized 5×5 patches \
+         at 3 scales), each in units of the same distance between the painting's two halves; it separates the realistic field from per-frame \
          stylization by {:.2}× ({}).\n\n{gram_line}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },

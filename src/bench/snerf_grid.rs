@@ -59,7 +59,7 @@ pub struct BenchSnerfArgs {
 
 /// How long each realistic field trains: `--steps` when given, else `--seconds`.
 #[derive(Clone, Copy, Debug)]
-enum Budget {
+pub(super) enum Budget {
     Steps(u64),
     Seconds(f64),
 }
@@ -87,7 +87,7 @@ impl Budget {
         }
     }
 
-    fn to_json(self) -> Value {
+    pub(super) fn to_json(self) -> Value {
         match self {
             Budget::Steps(n) => json!({ "steps": n }),
             Budget::Seconds(t) => json!({ "seconds": t }),
@@ -105,7 +105,7 @@ pub const PAIR_LONG: f64 = 0.7;
 pub const SEPARATION: f64 = 1.5;
 
 /// A style argument's short name: `painting:KEY` -> KEY, a file -> its stem.
-fn style_name(style: &str) -> String {
+pub(super) fn style_name(style: &str) -> String {
     match style.strip_prefix(snerf_stylize::paintings::STYLE_PREFIX) {
         Some(k) => k.to_string(),
         None => std::path::Path::new(style).file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| style.to_string()),
@@ -238,15 +238,16 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
     md
 }
 
-/// Renders and trains one model's realistic run (reused when already there).
-fn realistic(a: &BenchSnerfArgs, name: &str, file: &std::path::Path) -> Result<PathBuf> {
-    let data = a.out.join("data").join(name);
+/// Renders one model's views (`size`² pixels, `views` of them) into `out/data/NAME` and trains
+/// its realistic field into `out/runs/NAME` for `budget`; both are reused when already there.
+/// Returns (dataset, run).
+pub(super) fn realistic(out: &std::path::Path, size: u32, views: usize, budget: Budget, name: &str, file: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
+    let data = out.join("data").join(name);
     if !data.join("transforms_train.json").exists() {
-        let size = format!("{}x{}", a.size, a.size);
-        snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), a.views.to_string()])?;
+        let size = format!("{size}x{size}");
+        snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), views.to_string()])?;
     }
-    let run = a.out.join("runs").join(name);
-    let budget = a.budget();
+    let run = out.join("runs").join(name);
     let done = std::fs::read(RunDir::new(&run).metrics()).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|m| budget.spent(&m));
     if !done {
         let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run)];
@@ -256,7 +257,7 @@ fn realistic(a: &BenchSnerfArgs, name: &str, file: &std::path::Path) -> Result<P
         }
         snerf_json(&args)?;
     }
-    Ok(run)
+    Ok((data, run))
 }
 
 /// Stylizes `run` with `style` and scores it (each step reused when already there).
@@ -287,7 +288,7 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
     let mut pairs = Vec::new();
     for (i, (name, file)) in models.iter().enumerate() {
         eprintln!("[{}/{}] {name}: realistic field", i + 1, models.len());
-        let run = realistic(a, name, file);
+        let run = realistic(&a.out, a.size, a.views, a.budget(), name, file).map(|(_, run)| run);
         for style in &a.styles {
             let mut p = json!({ "model": name, "style": style_name(style) });
             match run.as_ref().map_err(|e| anyhow::anyhow!("{e:#}")).and_then(|r| {

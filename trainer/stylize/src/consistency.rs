@@ -8,8 +8,9 @@
 //! method, so the numbers compare stylizations, not depth estimates.
 //!
 //! Consistency alone can be bought by washing the style out, so style distances come with
-//! it (`StyleMeters`): the weight-free `style_metric` (colour and texture distributions of the
-//! scene's pixels against the style picture; no stylizer aims at it), and, when the model is
+//! it (`StyleMeters`): the weight-free `style_metric` (the painting's palette covered by the
+//! scene's pixels, and their texture statistics against the painting's; no stylizer aims at
+//! it), and, when the model is
 //! installed, `style_gram` (Gram matrices of ImageNet features, independent of every stylizer
 //! but `gatys`) and the distance between Magenta style embeddings of the frames and of the
 //! style image (the space `arbitrary` aims at).
@@ -25,7 +26,7 @@ use snerf_trainer::train::{views_have_alpha, Model};
 
 use crate::reproject::{Seen, COVERED};
 use crate::style_gram::{self, GramMetric, Grams};
-use crate::style_metric::{self, StyleSamples, StyleScore};
+use crate::style_metric::{self, StyleReference, StyleSamples, StyleScore};
 use crate::stylizer::{Image, StyleEmbedder, StylizerOptions};
 
 /// Cameras per full circle of the novel path: 5° apart on an orbit, so (i, i+1) is a small
@@ -199,7 +200,7 @@ impl PathGeometry {
 
     /// The weight-free style distance of `frames` (the ring's scene pixels, pooled) to the
     /// style picture's samples (`style_metric::reference`).
-    pub fn style_score(&self, frames: &[Image], style: &StyleSamples) -> StyleScore {
+    pub fn style_score(&self, frames: &[Image], style: &StyleReference) -> StyleScore {
         let masks = self.ring_masks();
         style_metric::distance(&StyleSamples::of(&with_masks(self.ring_part(frames), &masks)), style)
     }
@@ -212,8 +213,8 @@ impl PathGeometry {
         Ok(style_gram::distance(&metric.grams(&with_masks(&ring, &masks))?, style))
     }
 
-    /// The style picture's samples at this path's pixel footprint.
-    pub fn style_reference(&self, style: &Image) -> StyleSamples {
+    /// The style picture's samples and units at this path's pixel footprint.
+    pub fn style_reference(&self, style: &Image) -> StyleReference {
         style_metric::reference(style, self.intr.width as usize, self.intr.height as usize)
     }
 
@@ -261,7 +262,7 @@ pub struct StyleMeters {
 /// The style picture, prepared once for every style distance at a path's footprint.
 pub struct StyleTargets {
     embedding: Option<Vec<f32>>,
-    samples: StyleSamples,
+    samples: StyleReference,
     grams: Option<Grams>,
 }
 

@@ -6,8 +6,9 @@
 //!   each, train the field on random rays across them, repeat; every round checkpointed.
 //! - `consistency`: the paper's cross-view consistency (warped-frame error, short and long
 //!   range) and style distances, for SNeRF and the per-frame baseline.
-//! - `style_metric`: a weight-free style distance (sliced Wasserstein over Oklab colours and
-//!   texture patches) that no stylizer aims at.
+//! - `style_metric`: a weight-free style distance (how much of the painting's palette the scene
+//!   covers, in Oklab, and sliced Wasserstein over texture patches, each in units of the
+//!   painting's own variation) that no stylizer aims at.
 //! - `style_gram`: a style distance on Gram matrices of ImageNet features (independent of
 //!   every stylizer but `gatys`, which minimizes it).
 //! - `fusion`: multi-view fusion of the stylized targets through the field's depth (a median

@@ -1,10 +1,22 @@
-//! A style distance that owes nothing to any stylizer: it compares the *distributions* of
-//! colours and of small texture patches in two images, so it can tell a stylized scene from
+//! A style distance that owes nothing to any stylizer: it compares the colours and the small
+//! texture patches of a scene with those of a painting, so it can tell a stylized scene from
 //! an unstylized one whatever network made it (the Magenta embedding cannot: it is the very
 //! space the `arbitrary` stylizer aims at).
 //!
-//! - Colour: sliced Wasserstein-2 distance between the Oklab pixels of the two images
-//!   (Oklab: a perceptual space where Euclidean distance follows perceived difference).
+//! A painting's style is its palette and its strokes; how much of each colour it holds belongs
+//! to its subject (a seascape is mostly blue), and a painted chair need not be mostly blue.
+//! So the two terms ask:
+//!
+//! - Colour (palette coverage): for each colour of the painting, how far (Oklab, a perceptual
+//!   space where Euclidean distance follows perceived difference) is the nearest colour of the
+//!   scene, averaged over the painting's pixels: a directed Chamfer distance, painting ->
+//!   scene, taken in each view of the scene and averaged over the views (`coverage`: views
+//!   painted independently must not cover the palette between them). The other direction is left out on purpose: a stylizer keeps some of the content's
+//!   colours by design, and an unpainted scene's few colours mostly lie inside a rich
+//!   painting's gamut, so "are the scene's colours in the painting" does not tell painted from
+//!   unpainted. Comparing proportions (a Wasserstein distance between the colour
+//!   distributions) did not either: on 24 model × painting pairs it ranked the unpainted scene
+//!   nearer than the painted one on most pairs (BENCH.md §5m).
 //! - Texture: at 3 scales (full, 1/2, 1/4 resolution), sliced Wasserstein-2 distance between
 //!   5×5 Oklab patches with each patch's own mean taken out and its contrast normalized
 //!   (divided by its RMS + `CONTRAST_EPS`), so texture is scored apart from colour and from
@@ -12,15 +24,23 @@
 //!   areas occur (a flat patch stays near 0). Without the normalization a stylizer that
 //!   paints with more contrast than the painting scores *farther* than the unstylized scene.
 //!
+//! Units: each term is divided by the same term measured between the painting's two halves
+//! (`StyleReference`), so both are in "times the painting's own variation" and add without a
+//! hand-picked weight; a scene as far from the painting as one half of it is from the other
+//! scores 1 + 1 = 2.
+//!
 //! Sliced Wasserstein: project both sample sets on fixed random unit directions, sort, and
 //! compare the two 1-D distributions quantile by quantile; the distance is the root mean
-//! square difference over directions and quantiles. It is 0 for identical
-//! inputs and symmetric, and everything random (directions, the subsample of patches) comes
-//! from fixed seeds, so it is deterministic.
+//! square difference over directions and quantiles. Everything random (directions, the
+//! subsamples) comes from fixed seeds, so the distance is deterministic, and the sample counts
+//! are capped at fixed sizes: the scenes compared against one painting (the realistic field,
+//! per-frame stylization and SNeRF on one ring and one mask) are measured at the same count.
 //!
 //! Masks restrict the samples to the scene's pixels (e.g. the realistic field's opacity), so
 //! a background does not count as style. Images are compared at the same pixel footprint:
 //! callers resize the style picture to the views' size (`reference`).
+
+use rayon::prelude::*;
 
 use crate::stylizer::Image;
 
@@ -28,18 +48,18 @@ use crate::stylizer::Image;
 pub const PATCH: usize = 5;
 /// Texture scales: full, 1/2 and 1/4 resolution.
 pub const SCALES: usize = 3;
-const COLOR_DIRS: usize = 32;
 const PATCH_DIRS: usize = 64;
 /// Quantiles compared per direction.
 const QUANTILES: usize = 128;
 /// Patches flatter than about this (Oklab RMS) count as flat.
 pub const CONTRAST_EPS: f32 = 0.02;
-/// At most this many samples per set (fixed-seed subsample beyond).
-const MAX_COLOR: usize = 20000;
+/// At most this many colour samples per set (fixed-seed subsample beyond): a brute-force
+/// nearest-neighbour search over 4096 × 4096 Oklab triples takes milliseconds.
+const MAX_COLOR: usize = 4096;
 const MAX_PATCHES: usize = 4096;
 
-/// `color` in Oklab units, `texture` in contrast-normalized units; `total` = colour + mean
-/// texture over the scales.
+/// Both terms in units of the painting's own half-to-half distance; `total` = colour + texture
+/// (the mean over the scales).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StyleScore {
     pub total: f64,
@@ -50,7 +70,8 @@ pub struct StyleScore {
 /// The samples of one image (or a set of frames pooled together).
 #[derive(Clone, Debug)]
 pub struct StyleSamples {
-    color: Vec<[f32; 3]>,
+    /// Per image: its scene pixels' colours (subsampled) and how many scene pixels it has.
+    colors: Vec<(Vec<[f32; 3]>, usize)>,
     patches: Vec<Vec<Vec<f32>>>,
 }
 
@@ -190,11 +211,13 @@ impl Lab {
 impl StyleSamples {
     /// Samples pooled over `images`, each with an optional mask (true = scene pixel).
     pub fn of(images: &[(&Image, Option<&[bool]>)]) -> StyleSamples {
-        let mut color = Vec::new();
+        let mut colors = Vec::new();
         let mut patches = vec![Vec::new(); SCALES];
         for (img, mask) in images {
             let mut lab = Lab::new(img, *mask);
-            color.extend(lab.px.iter().zip(&lab.mask).filter(|(_, m)| **m).map(|(p, _)| *p));
+            let c: Vec<[f32; 3]> = lab.px.iter().zip(&lab.mask).filter(|(_, m)| **m).map(|(p, _)| *p).collect();
+            let n = c.len();
+            colors.push((subsample(c, MAX_COLOR, 1), n));
             for (s, set) in patches.iter_mut().enumerate() {
                 if s > 0 {
                     lab = lab.half();
@@ -203,7 +226,7 @@ impl StyleSamples {
             }
         }
         StyleSamples {
-            color: subsample(color, MAX_COLOR, 1),
+            colors,
             patches: patches.into_iter().enumerate().map(|(s, p)| subsample(p, MAX_PATCHES, 2 + s as u64)).collect(),
         }
     }
@@ -215,7 +238,12 @@ impl StyleSamples {
 
     /// Number of colour samples and of patches per scale (for reports and checks).
     pub fn counts(&self) -> (usize, Vec<usize>) {
-        (self.color.len(), self.patches.iter().map(|p| p.len()).collect())
+        (self.colors.iter().map(|c| c.0.len()).sum(), self.patches.iter().map(|p| p.len()).collect())
+    }
+
+    /// All colour samples, pooled.
+    fn pooled(&self) -> Vec<[f32; 3]> {
+        self.colors.iter().flat_map(|c| c.0.iter().copied()).collect()
     }
 }
 
@@ -248,30 +276,123 @@ fn sliced_w2<V: AsRef<[f32]>>(a: &[V], b: &[V], dirs: &[Vec<f32>]) -> f64 {
     (sum / dirs.len() as f64).sqrt()
 }
 
-/// The distance between two sample sets. The texture mean takes the scales at which both
-/// sides have at least `QUANTILES` patches: below that, the quantiles compared are
+/// Mean over `from` of the Euclidean distance to the nearest point of `to` (a directed
+/// Chamfer distance); NaN when either set is empty.
+fn chamfer(from: &[[f32; 3]], to: &[[f32; 3]]) -> f64 {
+    if from.is_empty() || to.is_empty() {
+        return f64::NAN;
+    }
+    let d2 = |a: &[f32; 3], b: &[f32; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
+    // collected in order and summed in order: the same figure whatever the thread count
+    let nearest: Vec<f32> = from.par_iter().map(|a| to.iter().map(|b| d2(a, b)).fold(f32::INFINITY, f32::min).sqrt()).collect();
+    nearest.iter().map(|&d| d as f64).sum::<f64>() / from.len() as f64
+}
+
+/// Palette coverage of a scene seen in several frames: each frame's own, weighted by its
+/// scene pixels. A viewer sees one view at a time, so each view has to carry the palette:
+/// pooled over the frames, eight views painted independently would cover more of it between
+/// them than any one of them does, and a stylization whose views disagree would score better
+/// than a consistent one for that alone. NaN when no frame has a scene pixel.
+fn coverage(palette: &[[f32; 3]], scene: &StyleSamples) -> f64 {
+    let (mut sum, mut weight) = (0.0, 0.0);
+    for (c, n) in scene.colors.iter().filter(|c| !c.0.is_empty()) {
+        sum += chamfer(palette, c) * *n as f64;
+        weight += *n as f64;
+    }
+    if weight > 0.0 {
+        sum / weight
+    } else {
+        f64::NAN
+    }
+}
+
+/// The texture distance between two sample sets: the mean over the scales at which both
+/// sides have at least `QUANTILES` patches. Below that, the quantiles compared are
 /// interpolated between fewer samples than there are quantiles, and a scale resting on a
 /// handful of patches (a thin object at 1/4 resolution) would weigh as much as one resting
 /// on thousands. (On a thin controller's 48-frame path, the one patch found at 1/4
-/// resolution tripled the texture distance of every method; BENCH.md §5k.) When no scale has that many,
-/// the scales with any patch at all are taken, so a tiny scene still gets a (rough) figure.
-pub fn distance(a: &StyleSamples, b: &StyleSamples) -> StyleScore {
-    let color = sliced_w2(&a.color, &b.color, &directions(3, COLOR_DIRS, 11));
+/// resolution tripled the texture distance of every method; BENCH.md §5k.) When no scale has
+/// that many, the scales with any patch at all are taken, so a tiny scene still gets a
+/// (rough) figure.
+fn texture(a: &StyleSamples, b: &StyleSamples) -> f64 {
     let pdirs = directions(PATCH * PATCH * 3, PATCH_DIRS, 12);
     let enough = |s: &usize| a.patches[*s].len().min(b.patches[*s].len()) >= QUANTILES;
     let scales: Vec<usize> = if (0..SCALES).any(|s| enough(&s)) { (0..SCALES).filter(enough).collect() } else { (0..SCALES).collect() };
     let tex: Vec<f64> = scales.into_iter().map(|s| sliced_w2(&a.patches[s], &b.patches[s], &pdirs)).filter(|d| d.is_finite()).collect();
-    let texture = if tex.is_empty() { f64::NAN } else { tex.iter().sum::<f64>() / tex.len() as f64 };
+    if tex.is_empty() {
+        f64::NAN
+    } else {
+        tex.iter().sum::<f64>() / tex.len() as f64
+    }
+}
+
+/// Smallest units: a painting that is one flat colour, or one repeated texture, has no
+/// half-to-half distance to divide by. (Oklab lightness runs 0..1; a contrast-normalized
+/// patch has RMS about 1.)
+const MIN_COLOR_UNIT: f64 = 0.002;
+const MIN_TEXTURE_UNIT: f64 = 0.01;
+
+/// A painting prepared for `distance`: its samples at the views' footprint and the units its
+/// own variation sets.
+#[derive(Clone, Debug)]
+pub struct StyleReference {
+    pub samples: StyleSamples,
+    /// Palette coverage between the painting's two halves (mean of both directions).
+    pub color_unit: f64,
+    /// Texture distance between the painting's two halves.
+    pub texture_unit: f64,
+}
+
+impl StyleReference {
+    /// `img` (already at the views' footprint) and its units, from its two halves split
+    /// across the longer side.
+    pub fn new(img: &Image) -> StyleReference {
+        let (a, b) = halves(img);
+        let (a, b) = (StyleSamples::of_image(&a), StyleSamples::of_image(&b));
+        let (ca, cb) = (a.pooled(), b.pooled());
+        let color = 0.5 * (chamfer(&ca, &cb) + chamfer(&cb, &ca));
+        StyleReference {
+            samples: StyleSamples::of_image(img),
+            color_unit: if color.is_finite() { color.max(MIN_COLOR_UNIT) } else { MIN_COLOR_UNIT },
+            texture_unit: texture(&a, &b).max(MIN_TEXTURE_UNIT),
+        }
+    }
+}
+
+/// The two halves of `img`, split across its longer side.
+fn halves(img: &Image) -> (Image, Image) {
+    let crop = |x0: usize, y0: usize, w: usize, h: usize| {
+        let mut data = Vec::with_capacity(w * h * 3);
+        for y in y0..y0 + h {
+            data.extend_from_slice(&img.data[(y * img.width + x0) * 3..(y * img.width + x0 + w) * 3]);
+        }
+        Image { width: w, height: h, data }
+    };
+    if img.width >= img.height {
+        let w = img.width / 2;
+        (crop(0, 0, w, img.height), crop(w, 0, w, img.height))
+    } else {
+        let h = img.height / 2;
+        (crop(0, 0, img.width, h), crop(0, h, img.width, h))
+    }
+}
+
+/// The distance of a scene's samples to a painting: palette coverage (painting -> scene) and
+/// texture, each in the painting's own units. Not symmetric: the painting sets the palette to
+/// cover and the units.
+pub fn distance(scene: &StyleSamples, painting: &StyleReference) -> StyleScore {
+    let color = coverage(&painting.samples.pooled(), scene) / painting.color_unit;
+    let texture = texture(scene, &painting.samples) / painting.texture_unit;
     StyleScore { total: color + texture, color, texture }
 }
 
 /// The style picture at the views' pixel footprint: resized so its longer side equals the
 /// views' longer side.
-pub fn reference(style: &Image, view_width: usize, view_height: usize) -> StyleSamples {
+pub fn reference(style: &Image, view_width: usize, view_height: usize) -> StyleReference {
     let long = view_width.max(view_height);
     let s = long as f32 / style.width.max(style.height) as f32;
     let (w, h) = (((style.width as f32 * s).round() as usize).max(PATCH * 4), ((style.height as f32 * s).round() as usize).max(PATCH * 4));
-    StyleSamples::of_image(&crate::snerf_loop::resize(style, w, h))
+    StyleReference::new(&crate::snerf_loop::resize(style, w, h))
 }
 
 #[cfg(test)]
@@ -310,21 +431,54 @@ mod tests {
     }
 
     #[test]
-    fn zero_for_identical_symmetric_and_deterministic() {
-        let a = StyleSamples::of_image(&gradient(64, 48, [1.0, 0.9, 0.8]));
-        let b = StyleSamples::of_image(&strokes(64, 48));
-        let same = distance(&a, &StyleSamples::of_image(&gradient(64, 48, [1.0, 0.9, 0.8])));
-        assert_eq!(same, StyleScore { total: 0.0, color: 0.0, texture: 0.0 });
-        let ab = distance(&a, &b);
-        let ba = distance(&b, &a);
-        assert!(ab.total > 0.05, "{ab:?}");
-        assert!((ab.total - ba.total).abs() < 1e-9 && (ab.color - ba.color).abs() < 1e-9, "{ab:?} vs {ba:?}");
-        assert_eq!(ab, distance(&StyleSamples::of_image(&gradient(64, 48, [1.0, 0.9, 0.8])), &StyleSamples::of_image(&strokes(64, 48))));
+    fn zero_for_the_painting_itself_and_deterministic() {
+        let painting = gradient(64, 48, [1.0, 0.9, 0.8]);
+        let r = StyleReference::new(&painting);
+        assert!(r.color_unit > MIN_COLOR_UNIT && r.texture_unit > MIN_TEXTURE_UNIT, "{r:?}");
+        assert_eq!(distance(&StyleSamples::of_image(&painting), &r), StyleScore { total: 0.0, color: 0.0, texture: 0.0 });
+        let d = distance(&StyleSamples::of_image(&strokes(64, 48)), &r);
+        assert!(d.color > 0.5 && d.texture > 0.5, "{d:?}");
+        assert_eq!(d, distance(&StyleSamples::of_image(&strokes(64, 48)), &StyleReference::new(&gradient(64, 48, [1.0, 0.9, 0.8]))));
+    }
+
+    /// Palette coverage is directed: a scene holding every colour of the painting and more
+    /// covers it (colour 0); a scene holding half of its colours does not.
+    #[test]
+    fn colour_asks_whether_the_scene_covers_the_palette() {
+        let (w, h) = (48, 40); // fewer pixels than MAX_COLOR: no subsample, exact
+        let painting = strokes(w, h);
+        let r = StyleReference::new(&painting);
+        let mut more = Image::filled(w, 2 * h, [1.0, 0.0, 0.0]);
+        more.data[..w * h * 3].copy_from_slice(&painting.data);
+        assert_eq!(distance(&StyleSamples::of_image(&more), &r).color, 0.0);
+        // the painting's darker half only
+        let mut dark = painting.clone();
+        for v in dark.data.chunks_exact_mut(3) {
+            let l = oklab([v[0], v[1], v[2]])[0];
+            if l > 0.55 {
+                v.copy_from_slice(&[0.1, 0.1, 0.1]);
+            }
+        }
+        let d = distance(&StyleSamples::of_image(&dark), &r);
+        assert!(d.color > 0.5, "{d:?}");
+        // two views, each with one half of the palette, do not cover it between them
+        let mut light = painting.clone();
+        for (v, o) in light.data.chunks_exact_mut(3).zip(painting.data.chunks_exact(3)) {
+            if oklab([o[0], o[1], o[2]])[0] <= 0.55 {
+                v.copy_from_slice(&[1.0, 1.0, 1.0]);
+            }
+        }
+        let two = distance(&StyleSamples::of(&[(&dark, None), (&light, None)]), &r);
+        assert!(two.color > 0.5, "{two:?}");
+        // a flat painting has no own variation: the units fall back to their floors
+        let flat = StyleReference::new(&Image::filled(32, 32, [0.4, 0.5, 0.6]));
+        assert_eq!((flat.color_unit, flat.texture_unit), (MIN_COLOR_UNIT, MIN_TEXTURE_UNIT));
+        assert!(distance(&StyleSamples::of_image(&painting), &flat).total.is_finite());
     }
 
     #[test]
     fn masks_drop_the_background() {
-        // The same picture on two different backgrounds, masked to the picture: distance 0.
+        // The same picture on two different backgrounds, masked to the picture: one distance.
         let (w, h) = (48, 40);
         let fg = strokes(w, h);
         let mut on_white = Image::filled(w, h, [1.0, 1.0, 1.0]);
@@ -340,11 +494,13 @@ mod tests {
                 }
             }
         }
+        // a painting with white in its palette: the white background would cover it
+        let r = StyleReference::new(&on_white);
         let a = StyleSamples::of(&[(&on_white, Some(&mask))]);
         let b = StyleSamples::of(&[(&on_black, Some(&mask))]);
-        assert_eq!(distance(&a, &b).total, 0.0);
-        let unmasked = distance(&StyleSamples::of_image(&on_white), &StyleSamples::of_image(&on_black));
-        assert!(unmasked.color > 0.1, "{unmasked:?}");
+        assert_eq!(distance(&a, &r), distance(&b, &r));
+        let (uw, ub) = (distance(&StyleSamples::of_image(&on_white), &r), distance(&StyleSamples::of_image(&on_black), &r));
+        assert!(uw.color == 0.0 && ub.color > 0.1, "{uw:?} vs {ub:?}");
     }
 
     #[test]
@@ -354,10 +510,11 @@ mod tests {
         for v in b.data.chunks_exact_mut(3) {
             v[0] = (v[0] + 0.2).min(1.0);
         }
-        let d = distance(&StyleSamples::of_image(&a), &StyleSamples::of_image(&b));
-        assert!(d.color > 0.03, "{d:?}");
+        let r = StyleReference::new(&a);
+        let d = distance(&StyleSamples::of_image(&b), &r);
+        assert!(d.color > 1.0, "{d:?}");
         // another texture (a smooth gradient) is far; the same strokes shifted in colour are not
-        let other = distance(&StyleSamples::of_image(&a), &StyleSamples::of_image(&gradient(64, 64, [1.0, 0.9, 0.8])));
+        let other = distance(&StyleSamples::of_image(&gradient(64, 64, [1.0, 0.9, 0.8])), &r);
         assert!(d.texture < 0.3 * other.texture, "shifted {d:?}, other texture {other:?}");
     }
 
@@ -374,14 +531,12 @@ mod tests {
         let (mut x, mut y) = (a.clone(), a.clone());
         x.patches[2] = patch(1.0);
         y.patches[2] = patch(-1.0);
-        let d = distance(&x, &y);
-        assert!(d.texture.abs() < 1e-9, "{d:?}");
+        assert!(texture(&x, &y).abs() < 1e-9);
         // nothing but the handful: measured from it
         for s in 0..2 {
             x.patches[s] = patch(0.5);
             y.patches[s] = patch(0.5);
         }
-        let d = distance(&x, &y);
-        assert!(d.texture > 0.3, "{d:?}");
+        assert!(texture(&x, &y) > 0.3);
     }
 }

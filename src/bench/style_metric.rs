@@ -1,0 +1,192 @@
+//! `snerf bench style-metric`: is the weight-free style distance worth reading on these models
+//! and paintings? A style distance can steer the loop and judge it only if it ranks an
+//! unpainted scene well farther from the painting than a painted one. For every model (as
+//! `bench snerf`: a 128² set and a realistic field, reused when there) the style ring of
+//! `snerf consistency` is rendered once; for every painting the ring is stylized frame by frame
+//! as `snerf consistency`'s per-frame baseline paints it (`arbitrary`, the object's box), and
+//! both are scored against the painting. Separation = realistic ÷ per-frame (bar ≥ 1.5 on every
+//! pair). No SNeRF loop runs, so a grid of many paintings costs seconds a pair. Writes
+//! `style-metric.json` and `style-metric.md`; `--save-frames` also writes the ring's frames.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use serde_json::{json, Value};
+use snerf_stylize::consistency::PathGeometry;
+use snerf_stylize::style_metric::StyleScore;
+use snerf_stylize::stylizer::{self, Image, StylizerOptions};
+use snerf_stylize::{paintings, snerf_loop};
+use snerf_trainer::run_dir::RunDir;
+
+use super::quality::select_models;
+use super::snerf_grid::{realistic, style_name, Budget, SEPARATION};
+use crate::args::{pj, DataOpts};
+
+/// The six paintings `bash scripts/setup-styles.sh` installs.
+const ALL_PAINTINGS: &str = "painting:vangogh,painting:renoir,painting:kandinsky,painting:greatwave,painting:cassatt,painting:bazille";
+
+#[derive(Args, Debug)]
+pub struct BenchStyleMetricArgs {
+    /// Directories searched (recursively) for .gltf and .glb models.
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// Output directory (data/, runs/, style-metric.json, style-metric.md; frames/ with
+    /// --save-frames).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Styles, comma-separated: `painting:KEY` or image files.
+    #[arg(long, value_delimiter = ',', default_value = ALL_PAINTINGS)]
+    pub styles: Vec<String>,
+    /// Only models whose name contains one of these (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// At most this many models (0: all), taken in name order.
+    #[arg(long, default_value_t = 0)]
+    pub limit: usize,
+    /// Image side of the generated views.
+    #[arg(long, default_value_t = 128, value_parser = crate::args::int_in::<u32>(16, 1024, ""))]
+    pub size: u32,
+    /// Training views per model.
+    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
+    pub views: usize,
+    /// Training steps of each realistic field (by steps, so the grid repeats; shared with
+    /// `bench snerf --steps` when OUT is the same directory).
+    #[arg(long, default_value_t = 2000, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
+    pub steps: u64,
+    /// Also write the ring's frames as PNGs: frames/MODEL/realistic_K.png, mask_K.png and
+    /// frames/MODEL/STYLE/per_frame_K.png.
+    #[arg(long)]
+    pub save_frames: bool,
+}
+
+/// One model's ring scored against every style.
+fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> Result<Vec<Value>> {
+    let data = DataOpts::default().load(data)?;
+    let (model, pool) = RunDir::new(run).load_model()?;
+    // 2 path frames (the least a path holds); only the ring is scored
+    let path = PathGeometry::new(&model, &pool, &data, 2)?;
+    let masks = path.masks();
+    let by_box = path.has_silhouette();
+    let frames_dir = a.out.join("frames").join(name);
+    if a.save_frames {
+        std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;
+        let ring = path.realistic.iter().zip(&masks).skip(path.path_frames);
+        for (k, (frame, m)) in ring.enumerate() {
+            stylizer::save_png(&frames_dir.join(format!("realistic_{k}.png")), frame)?;
+            let data = m.iter().flat_map(|&v| [if v { 1.0 } else { 0.0 }; 3]).collect();
+            stylizer::save_png(&frames_dir.join(format!("mask_{k}.png")), &Image { width: frame.width, height: frame.height, data })?;
+        }
+    }
+    let mut rows = Vec::new();
+    for style in &a.styles {
+        let sname = style_name(style);
+        eprintln!("      × {sname}");
+        let row = (|| -> Result<Value> {
+            let file = paintings::resolve_style(Path::new(style))?;
+            let st = stylizer::from_spec("arbitrary", Some(&file), &StylizerOptions::default())?;
+            let reference = path.style_reference(&stylizer::load_style_image(&file)?);
+            // the path's frames stay realistic: only the ring is scored
+            let mut per_frame = path.realistic.clone();
+            for k in path.path_frames..per_frame.len() {
+                let mask = by_box.then_some(masks[k].as_slice());
+                per_frame[k] = snerf_loop::stylize_region(st.as_ref(), &path.realistic[k], mask, 0)?;
+                if a.save_frames {
+                    let dir = frames_dir.join(&sname);
+                    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+                    stylizer::save_png(&dir.join(format!("per_frame_{}.png", k - path.path_frames)), &per_frame[k])?;
+                }
+            }
+            let real = path.style_score(&path.realistic, &reference);
+            let pf = path.style_score(&per_frame, &reference);
+            Ok(json!({ "realistic": real, "per_frame": pf, "separation": real.total / pf.total }))
+        })();
+        let mut v = json!({ "model": name, "style": sname });
+        match row {
+            Ok(r) => v.as_object_mut().unwrap().extend(r.as_object().unwrap().clone()),
+            Err(e) => v["error"] = json!(format!("{e:#}")),
+        }
+        rows.push(v);
+    }
+    Ok(rows)
+}
+
+/// The table, and a line with the spread and how many pairs meet the bar.
+pub fn table(pairs: &[Value]) -> String {
+    let mut md = String::from("| model × style | realistic: colour + texture | per-frame: colour + texture | separation |\n|---|---|---|---|\n");
+    let score = |v: &Value| serde_json::from_value::<StyleScore>(v.clone()).ok();
+    let mut seps = Vec::new();
+    for p in pairs {
+        let name = format!("{} × {}", p["model"].as_str().unwrap_or("?"), p["style"].as_str().unwrap_or("?"));
+        match (score(&p["realistic"]), score(&p["per_frame"]), p["separation"].as_f64()) {
+            (Some(r), Some(f), Some(s)) => {
+                seps.push(s);
+                let mark = if s >= SEPARATION { "" } else { "**" };
+                md.push_str(&format!("| {name} | {:.4} + {:.4} | {:.4} + {:.4} | {mark}{s:.2}{mark} |\n", r.color, r.texture, f.color, f.texture));
+            }
+            _ => {
+                let e: String = p["error"].as_str().unwrap_or("?").chars().take(100).collect();
+                md.push_str(&format!("| {name} | failed: {e} | | |\n"));
+            }
+        }
+    }
+    if !seps.is_empty() {
+        let mean = seps.iter().sum::<f64>() / seps.len() as f64;
+        let lo = seps.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = seps.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let met = seps.iter().filter(|&&s| s >= SEPARATION).count();
+        md.push_str(&format!(
+            "\nSeparation over {} pairs: mean {mean:.2} (min {lo:.2}, max {hi:.2}); at least {SEPARATION}× on {met} of {}.\n",
+            seps.len(),
+            seps.len()
+        ));
+    }
+    md
+}
+
+pub fn run(a: &BenchStyleMetricArgs) -> Result<Value> {
+    let models = select_models(&a.dirs, &a.only, a.limit)?;
+    if a.styles.is_empty() {
+        bail!("--styles is empty");
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
+    eprintln!("{} models × {} styles", models.len(), a.styles.len());
+    let budget = Budget::Steps(a.steps);
+    let mut pairs = Vec::new();
+    for (i, (name, file)) in models.iter().enumerate() {
+        eprintln!("[{}/{}] {name}: realistic field", i + 1, models.len());
+        match realistic(&a.out, a.size, a.views, budget, name, file).and_then(|(data, run)| one_model(a, name, &data, &run)) {
+            Ok(rows) => pairs.extend(rows),
+            Err(e) => {
+                eprintln!("      failed: {e:#}");
+                pairs.extend(a.styles.iter().map(|st| json!({ "model": name, "style": style_name(st), "error": format!("{e:#}") })));
+            }
+        }
+        let doc = json!({ "command": "bench style-metric", "realistic_training": budget.to_json(), "pairs": pairs });
+        snerf_files::write_json_atomic(&a.out.join("style-metric.json"), &doc)?;
+    }
+    let md = table(&pairs);
+    snerf_files::write_atomic(&a.out.join("style-metric.md"), md.as_bytes())?;
+    eprintln!("{md}");
+    Ok(json!({ "command": "bench style-metric", "out": pj(&a.out), "pairs": pairs, "table": md }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_marks_the_pairs_below_the_bar_and_counts_them() {
+        let s = |c: f64, t: f64| json!({ "total": c + t, "color": c, "texture": t });
+        let pairs = [
+            json!({ "model": "m", "style": "a", "realistic": s(4.0, 2.0), "per_frame": s(1.0, 1.0), "separation": 3.0 }),
+            json!({ "model": "m", "style": "b", "realistic": s(1.5, 1.0), "per_frame": s(1.0, 1.0), "separation": 1.2 }),
+            json!({ "model": "n", "style": "a", "error": "no such file" }),
+        ];
+        let md = table(&pairs);
+        assert!(md.contains("| m × a | 4.0000 + 2.0000 | 1.0000 + 1.0000 | 3.00 |"), "{md}");
+        assert!(md.contains("| m × b | 1.5000 + 1.0000 | 1.0000 + 1.0000 | **1.20** |"), "{md}");
+        assert!(md.contains("| n × a | failed: no such file |"), "{md}");
+        assert!(md.contains("Separation over 2 pairs: mean 2.10 (min 1.20, max 3.00); at least 1.5× on 1 of 2."), "{md}");
+    }
+}
