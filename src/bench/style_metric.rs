@@ -138,6 +138,29 @@ pub fn table(pairs: &[Value]) -> String {
             seps.len(),
             seps.len()
         ));
+        md.push_str(&spread(pairs, "model"));
+        md.push_str(&spread(pairs, "style"));
+    }
+    md
+}
+
+/// Min, median and max separation per value of `key` ("model" or "style"), in first-seen
+/// order: which models or paintings the distance finds hard, not only the grid's extremes.
+fn spread(pairs: &[Value], key: &str) -> String {
+    let mut groups: Vec<(String, Vec<f64>)> = Vec::new();
+    for p in pairs {
+        let (Some(name), Some(s)) = (p[key].as_str(), p["separation"].as_f64()) else { continue };
+        match groups.iter_mut().find(|(n, _)| n == name) {
+            Some((_, v)) => v.push(s),
+            None => groups.push((name.to_string(), vec![s])),
+        }
+    }
+    let mut md = format!("\n| {key} | pairs | min | median | max |\n|---|---|---|---|---|\n");
+    for (name, mut v) in groups {
+        v.sort_by(|a, b| a.total_cmp(b));
+        let n = v.len();
+        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        md.push_str(&format!("| {name} | {n} | {:.2} | {median:.2} | {:.2} |\n", v[0], v[n - 1]));
     }
     md
 }
@@ -188,5 +211,9 @@ mod tests {
         assert!(md.contains("| m × b | 1.5000 + 1.0000 | 1.0000 + 1.0000 | **1.20** |"), "{md}");
         assert!(md.contains("| n × a | failed: no such file |"), "{md}");
         assert!(md.contains("Separation over 2 pairs: mean 2.10 (min 1.20, max 3.00); at least 1.5× on 1 of 2."), "{md}");
+        // the spread per model and per style (a failed pair has no separation)
+        assert!(md.contains("| m | 2 | 1.20 | 2.10 | 3.00 |"), "{md}");
+        assert!(md.contains("| a | 1 | 3.00 | 3.00 | 3.00 |") && md.contains("| b | 1 | 1.20 | 1.20 | 1.20 |"), "{md}");
+        assert!(!md.contains("| n |"), "{md}");
     }
 }
