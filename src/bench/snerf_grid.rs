@@ -29,18 +29,8 @@ pub struct BenchSnerfArgs {
     /// Styles, comma-separated: `painting:KEY` or image files.
     #[arg(long, value_delimiter = ',', default_value = "painting:vangogh,painting:renoir,painting:kandinsky")]
     pub styles: Vec<String>,
-    /// Only models whose name contains one of these (comma-separated).
-    #[arg(long, value_delimiter = ',')]
-    pub only: Vec<String>,
-    /// At most this many models (0: all), taken in name order.
-    #[arg(long, default_value_t = 0)]
-    pub limit: usize,
-    /// Image side of the generated views.
-    #[arg(long, default_value_t = 128, value_parser = crate::args::int_in::<u32>(16, 1024, ""))]
-    pub size: u32,
-    /// Training views per model.
-    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
-    pub views: usize,
+    #[command(flatten)]
+    pub grid: ModelGrid,
     /// Seconds of realistic training per model.
     #[arg(long, default_value_t = 90.0, value_parser = crate::args::positive)]
     pub seconds: f64,
@@ -55,6 +45,24 @@ pub struct BenchSnerfArgs {
     /// Frames of the novel path `snerf consistency` scores.
     #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
     pub frames: usize,
+}
+
+/// Which models a grid takes and the data rendered from each (shared by `bench snerf` and
+/// `bench style-metric`, so the two reuse each other's data and realistic fields).
+#[derive(Args, Clone, Debug)]
+pub struct ModelGrid {
+    /// Only models whose name contains one of these (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    /// At most this many models (0: all), taken in name order.
+    #[arg(long, default_value_t = 0)]
+    pub limit: usize,
+    /// Image side of the generated views.
+    #[arg(long, default_value_t = 128, value_parser = crate::args::int_in::<u32>(16, 1024, ""))]
+    pub size: u32,
+    /// Training views per model.
+    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
+    pub views: usize,
 }
 
 /// How long each realistic field trains: `--steps` when given, else `--seconds`.
@@ -241,11 +249,11 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
 /// Renders one model's views (`size`² pixels, `views` of them) into `out/data/NAME` and trains
 /// its realistic field into `out/runs/NAME` for `budget`; both are reused when already there.
 /// Returns (dataset, run).
-pub(super) fn realistic(out: &std::path::Path, size: u32, views: usize, budget: Budget, name: &str, file: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
+pub(super) fn realistic(out: &std::path::Path, grid: &ModelGrid, budget: Budget, name: &str, file: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
     let data = out.join("data").join(name);
     if !data.join("transforms_train.json").exists() {
-        let size = format!("{size}x{size}");
-        snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), views.to_string()])?;
+        let size = format!("{0}x{0}", grid.size);
+        snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), grid.views.to_string()])?;
     }
     let run = out.join("runs").join(name);
     let done = std::fs::read(RunDir::new(&run).metrics()).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|m| budget.spent(&m));
@@ -279,7 +287,7 @@ fn one_pair(a: &BenchSnerfArgs, run: &std::path::Path, model: &str, style: &str)
 }
 
 pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
-    let models = select_models(&a.dirs, &a.only, a.limit)?;
+    let models = select_models(&a.dirs, &a.grid.only, a.grid.limit)?;
     if a.styles.is_empty() {
         bail!("--styles is empty");
     }
@@ -288,7 +296,7 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
     let mut pairs = Vec::new();
     for (i, (name, file)) in models.iter().enumerate() {
         eprintln!("[{}/{}] {name}: realistic field", i + 1, models.len());
-        let run = realistic(&a.out, a.size, a.views, a.budget(), name, file).map(|(_, run)| run);
+        let run = realistic(&a.out, &a.grid, a.budget(), name, file).map(|(_, run)| run);
         for style in &a.styles {
             let mut p = json!({ "model": name, "style": style_name(style) });
             match run.as_ref().map_err(|e| anyhow::anyhow!("{e:#}")).and_then(|r| {

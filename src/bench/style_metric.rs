@@ -20,7 +20,7 @@ use snerf_stylize::{paintings, snerf_loop};
 use snerf_trainer::run_dir::RunDir;
 
 use super::quality::select_models;
-use super::snerf_grid::{realistic, style_name, Budget, SEPARATION};
+use super::snerf_grid::{realistic, style_name, Budget, ModelGrid, SEPARATION};
 use crate::args::{pj, DataOpts};
 
 #[derive(Args, Clone, Debug)]
@@ -36,18 +36,8 @@ pub struct BenchStyleMetricArgs {
     /// `bash scripts/setup-styles.sh` installs, the six and the fifteen held out).
     #[arg(long, value_delimiter = ',')]
     pub styles: Vec<String>,
-    /// Only models whose name contains one of these (comma-separated).
-    #[arg(long, value_delimiter = ',')]
-    pub only: Vec<String>,
-    /// At most this many models (0: all), taken in name order.
-    #[arg(long, default_value_t = 0)]
-    pub limit: usize,
-    /// Image side of the generated views.
-    #[arg(long, default_value_t = 128, value_parser = crate::args::int_in::<u32>(16, 1024, ""))]
-    pub size: u32,
-    /// Training views per model.
-    #[arg(long, default_value_t = 100, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
-    pub views: usize,
+    #[command(flatten)]
+    pub grid: ModelGrid,
     /// Training steps of each realistic field (by steps, so the grid repeats; shared with
     /// `bench snerf --steps` when OUT is the same directory).
     #[arg(long, default_value_t = 2000, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
@@ -166,7 +156,7 @@ fn spread(pairs: &[Value], key: &str) -> String {
 }
 
 pub fn run(a: &BenchStyleMetricArgs) -> Result<Value> {
-    let models = select_models(&a.dirs, &a.only, a.limit)?;
+    let models = select_models(&a.dirs, &a.grid.only, a.grid.limit)?;
     let mut a = a.clone();
     if a.styles.is_empty() {
         a.styles = paintings::all().map(|p| format!("{}{}", paintings::STYLE_PREFIX, p.key)).collect();
@@ -178,7 +168,7 @@ pub fn run(a: &BenchStyleMetricArgs) -> Result<Value> {
     let mut pairs = Vec::new();
     for (i, (name, file)) in models.iter().enumerate() {
         eprintln!("[{}/{}] {name}: realistic field", i + 1, models.len());
-        match realistic(&a.out, a.size, a.views, budget, name, file).and_then(|(data, run)| one_model(a, name, &data, &run)) {
+        match realistic(&a.out, &a.grid, budget, name, file).and_then(|(data, run)| one_model(a, name, &data, &run)) {
             Ok(rows) => pairs.extend(rows),
             Err(e) => {
                 eprintln!("      failed: {e:#}");
