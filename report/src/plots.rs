@@ -150,9 +150,12 @@ fn training_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
 /// Gram distance (which only `gatys` optimizes), then the Magenta embedding's (older records).
 const STYLE_KEYS: [&str; 3] = ["style_swd", "style_gram", "style_distance"];
 
-/// A record's value of `key`; for `style_swd`, its total (colour + texture).
+/// A record's value of `key`; for `style_swd`, its total (colour + texture), and for
+/// `style_swd.color` or `style_swd.texture` that part.
 fn value_of(v: &Value, key: &str) -> Option<f64> {
-    if key == "style_swd" {
+    if let Some(part) = key.strip_prefix("style_swd.") {
+        num(&v["style_swd"][part])
+    } else if key == "style_swd" {
         num(&v[key]["total"])
     } else {
         num(&v[key])
@@ -187,6 +190,16 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
     let mut fit = Plot::new("stylize_fit", "Fit to the stylized views per round", "wall seconds", "fit PSNR (dB)", false);
     let mut style = Plot::new("stylize_style", "Style distance to the painting per round (lower: nearer)", "wall seconds", "style distance", false);
     let mut cons = Plot::new("stylize_consistency", "Consistency error per round (short range solid, long range dashed)", "wall seconds", "warped-frame MSE", false);
+    // The weight-free distance's two parts, apart: a round can paint the strokes nearer the
+    // painting while losing some of its palette, and the total alone hides that trade.
+    let mut terms = Plot::new(
+        "stylize_style_terms",
+        "Style distance in two parts per round: palette coverage solid, texture dashed (lower: nearer)",
+        "wall seconds",
+        "× the painting's own variation",
+        false,
+    );
+    terms.table.header = ["run", "round", "wall s", "palette coverage", "texture"].map(String::from).to_vec();
     fit.table.header = ["run", "round", "wall s", "fit PSNR"].map(String::from).to_vec();
     style.table.header = ["run", "round", "wall s", "style distance"].map(String::from).to_vec();
     cons.table.header = ["run", "round", "wall s", "short range", "long range"].map(String::from).to_vec();
@@ -199,6 +212,12 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         let style_points = recs.as_array().into_iter().flatten().filter_map(|r| Some([num(&r["wall_seconds"])?, value_of(r, key)?])).collect();
         fit.series.push(series(run, "fit_psnr", run.clone(), col, false, true, pairs(recs, "wall_seconds", "fit_psnr")));
         style.series.push(series(run, key, run.clone(), col, false, true, style_points));
+        let part = |name: &str| recs.as_array().into_iter().flatten().filter_map(|r| Some([num(&r["wall_seconds"])?, num(&r["style_swd"][name])?])).collect::<Vec<_>>();
+        let (colour, texture) = (part("color"), part("texture"));
+        if !colour.is_empty() || !texture.is_empty() {
+            terms.series.push(series(run, "style_swd.color", format!("{run} palette"), col, false, true, colour));
+            terms.series.push(series(run, "style_swd.texture", format!("{run} texture"), col, true, true, texture));
+        }
         cons.series.push(series(run, "short_range", run.clone(), col, false, true, pairs(recs, "wall_seconds", "short_range")));
         cons.series.push(series(run, "long_range", format!("{run} long range"), col, true, true, pairs(recs, "wall_seconds", "long_range")));
         for r in recs.as_array().into_iter().flatten() {
@@ -207,11 +226,24 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
             if value_of(r, key).is_some() {
                 style.table.rows.push([head.clone(), vec![fmt(value_of(r, key), 4)]].concat());
             }
+            if r["style_swd"].is_object() {
+                terms.table.rows.push([head.clone(), vec![fmt(num(&r["style_swd"]["color"]), 4), fmt(num(&r["style_swd"]["texture"]), 4)]].concat());
+            }
             if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
                 cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
             }
         }
         style.hlines.extend(references(s, key, ""));
+        // per-frame stylization's parts only: the unstylized field's palette term is several
+        // times larger and would flatten the rounds' curves into the axis
+        for (part, what) in [("style_swd.color", ", palette"), ("style_swd.texture", ", texture")] {
+            for h in references(s, part, what).into_iter().filter(|h| h.role == 0) {
+                let y = fmt(Some(h.y), 4);
+                let (c, t) = if part.ends_with("color") { (y, String::new()) } else { (String::new(), y) };
+                terms.table.rows.push(vec![h.label.clone(), "—".into(), "—".into(), c, t]);
+                terms.hlines.push(h);
+            }
+        }
         cons.hlines.extend(references(s, "short_range", ", short range"));
         cons.hlines.extend(references(s, "long_range", ", long range"));
     }
@@ -225,7 +257,7 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
             }
         }
     }
-    vec![fit, style, cons]
+    vec![fit, style, terms, cons]
 }
 
 fn bake_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
@@ -276,7 +308,7 @@ mod tests {
     }
 
     fn method(name: &str, swd: f64, gram: f64) -> Value {
-        json!({ "method": name, "short_range": 0.01, "long_range": 0.02, "style_swd": { "total": swd }, "style_gram": gram, "style_distance": 8.0 })
+        json!({ "method": name, "short_range": 0.01, "long_range": 0.02, "style_swd": { "total": swd, "color": swd / 2.0, "texture": swd / 2.0 }, "style_gram": gram, "style_distance": 8.0 })
     }
 
     /// The style plot shows the weight-free distance the convergence bar is judged on (Gram
@@ -297,5 +329,15 @@ mod tests {
         let refs: Vec<(usize, f64)> = style.hlines.iter().map(|h| (h.role, h.y)).collect();
         assert_eq!(refs, vec![(1, 0.6), (0, 0.35)]);
         assert!(style.table.rows.iter().any(|r| r[0] == "new" && r[3] == "0.2900"), "{:?}", style.table.rows);
+        // its two parts, apart, for the runs that record them (the old run has none)
+        let terms = plots.iter().find(|p| p.id == "stylize_style_terms").unwrap();
+        let part = |metric: &str| terms.series.iter().find(|s| s.run == "new" && s.metric == metric).unwrap().points.clone();
+        assert_eq!(part("style_swd.color"), vec![[10.0, 0.30 / 4.0], [20.0, 0.29 / 4.0]]);
+        assert_eq!(part("style_swd.texture"), vec![[10.0, 3.0 * 0.30 / 4.0], [20.0, 3.0 * 0.29 / 4.0]]);
+        assert!(terms.series.iter().all(|s| s.run != "old"));
+        assert_eq!(terms.table.rows[1], vec!["new", "2", "20.0", "0.0725", "0.2175"]);
+        // per-frame stylization's parts as reference lines; the realistic field's are left out
+        let refs: Vec<(usize, f64)> = terms.hlines.iter().map(|h| (h.role, h.y)).collect();
+        assert_eq!(refs, vec![(0, 0.175), (0, 0.175)]);
     }
 }
