@@ -438,15 +438,10 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let targets = meters.targets(&path, &style_img)?;
     pb.inc(1);
     pb.set_message("per-frame baseline");
-    let mut per_frame = Vec::with_capacity(path.realistic.len());
     // painted as the run painted its training views: with `--region object`, the object's
     // box (the realistic field's silhouette in each frame)
     let by_box = o.region == snerf_loop::Region::Object && path.has_silhouette();
-    let masks = path.masks();
-    for (f, m) in path.realistic.iter().zip(&masks) {
-        let mask = by_box.then_some(m.as_slice());
-        per_frame.push(snerf_loop::stylize_region(stylizer.as_ref(), f, mask, o.style_res)?);
-    }
+    let per_frame = path.stylize_frames(stylizer.as_ref(), by_box, o.style_res, 0)?;
     pb.inc(1);
     pb.set_message("SNeRF");
     let snerf_frames = path.render(&stylized, &spool);

@@ -209,11 +209,11 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         let run = &s.label;
         // The distance the convergence bar is judged on, where the records have it.
         let key = style_key(recs);
-        let style_points = recs.as_array().into_iter().flatten().filter_map(|r| Some([num(&r["wall_seconds"])?, value_of(r, key)?])).collect();
+        let points = |key: &str| recs.as_array().into_iter().flatten().filter_map(|r| Some([num(&r["wall_seconds"])?, value_of(r, key)?])).collect::<Vec<_>>();
+        let style_points = points(key);
         fit.series.push(series(run, "fit_psnr", run.clone(), col, false, true, pairs(recs, "wall_seconds", "fit_psnr")));
         style.series.push(series(run, key, run.clone(), col, false, true, style_points));
-        let part = |name: &str| recs.as_array().into_iter().flatten().filter_map(|r| Some([num(&r["wall_seconds"])?, num(&r["style_swd"][name])?])).collect::<Vec<_>>();
-        let (colour, texture) = (part("color"), part("texture"));
+        let (colour, texture) = (points("style_swd.color"), points("style_swd.texture"));
         if !colour.is_empty() || !texture.is_empty() {
             terms.series.push(series(run, "style_swd.color", format!("{run} palette"), col, false, true, colour));
             terms.series.push(series(run, "style_swd.texture", format!("{run} texture"), col, true, true, texture));

@@ -16,7 +16,7 @@ use serde_json::{json, Value};
 use snerf_stylize::consistency::PathGeometry;
 use snerf_stylize::style_metric::StyleScore;
 use snerf_stylize::stylizer::{self, Image, StylizerOptions};
-use snerf_stylize::{paintings, snerf_loop};
+use snerf_stylize::paintings;
 use snerf_trainer::run_dir::RunDir;
 
 use super::quality::select_models;
@@ -75,14 +75,12 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
             let st = stylizer::from_spec("arbitrary", Some(&file), &StylizerOptions::default())?;
             let reference = path.style_reference(&stylizer::load_style_image(&file)?);
             // the path's frames stay realistic: only the ring is scored
-            let mut per_frame = path.realistic.clone();
-            for k in path.path_frames..per_frame.len() {
-                let mask = by_box.then_some(masks[k].as_slice());
-                per_frame[k] = snerf_loop::stylize_region(st.as_ref(), &path.realistic[k], mask, 0)?;
-                if a.save_frames {
-                    let dir = frames_dir.join(&sname);
-                    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-                    stylizer::save_png(&dir.join(format!("per_frame_{}.png", k - path.path_frames)), &per_frame[k])?;
+            let per_frame = path.stylize_frames(st.as_ref(), by_box, 0, path.path_frames)?;
+            if a.save_frames {
+                let dir = frames_dir.join(&sname);
+                std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+                for (k, frame) in path.ring_part(&per_frame).iter().enumerate() {
+                    stylizer::save_png(&dir.join(format!("per_frame_{k}.png")), frame)?;
                 }
             }
             let real = path.style_score(&path.realistic, &reference);

@@ -27,7 +27,7 @@ use snerf_trainer::train::{views_have_alpha, Model};
 use crate::reproject::{Seen, COVERED};
 use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleReference, StyleSamples, StyleScore};
-use crate::stylizer::{Image, StyleEmbedder, StylizerOptions};
+use crate::stylizer::{Image, StyleEmbedder, Stylizer, StylizerOptions};
 
 /// Cameras per full circle of the novel path: 5° apart on an orbit, so (i, i+1) is a small
 /// motion and (i, i+7) a large one, as in the paper's test trajectories.
@@ -176,6 +176,19 @@ impl PathGeometry {
     /// Scene pixels of each frame: the realistic field's opacity above `COVERED`.
     pub fn masks(&self) -> Vec<Vec<bool>> {
         scene_masks(&self.opacity)
+    }
+
+    /// The per-frame baseline: the realistic frames from `first` on, each stylized on its own
+    /// (in the object's box, the realistic silhouette's, when `by_box`), at `res` as the loop
+    /// paints its views; the frames before `first` stay realistic.
+    pub fn stylize_frames(&self, stylizer: &dyn Stylizer, by_box: bool, res: usize, first: usize) -> Result<Vec<Image>> {
+        let masks = self.masks();
+        let mut out = self.realistic.clone();
+        for (k, frame) in out.iter_mut().enumerate().skip(first) {
+            let mask = by_box.then_some(masks[k].as_slice());
+            *frame = crate::snerf_loop::stylize_region(stylizer, &self.realistic[k], mask, res)?;
+        }
+        Ok(out)
     }
 
     /// The ring's frames of a per-frame list (those after the path's).
