@@ -43,7 +43,7 @@ pub enum Cmd {
     /// Stylize one image with a stylizer (arbitrary, preset:N, onnx:FILE, gatys, color).
     StylizeImage(crate::stylize_cmd::StylizeImageArgs),
     /// SNeRF: alternate render -> stylize -> train on a trained run, for a given number of rounds.
-    Stylize(crate::stylize_cmd::StylizeArgs),
+    Stylize(Box<crate::stylize_cmd::StylizeArgs>),
     /// The paper's cross-view consistency of a stylized run against per-frame stylization.
     Consistency(crate::stylize_cmd::ConsistencyArgs),
     /// Bake a run into a sparse-grid asset file (.snerf) for real-time viewing and streaming.

@@ -122,7 +122,10 @@ pub const DEFAULT_TARGET_STEP: f32 = 1.0;
 pub const DEFAULT_CONTENT: &str = "realistic";
 pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
 pub const DEFAULT_LR_SCHEDULE: &str = "run";
-pub const DEFAULT_ROUND_STEPS: &str = "equal";
+/// Training steps follow the target's step, 1/t (BENCH.md §5n): with the targets stepped from
+/// the previous targets they barely move after round 1, so the budget goes where they are
+/// first taken.
+pub const DEFAULT_ROUND_STEPS: &str = "harmonic";
 /// Each round fuses the previous round's fused targets (BENCH.md §5c: the only setting
 /// measured whose round 5 is more consistent than its round 1).
 pub const DEFAULT_TARGETS: &str = "consensus";
@@ -135,6 +138,9 @@ pub const DEFAULT_FUSION: &str = "owner";
 pub const DEFAULT_FUSION_READ: &str = "nearest";
 /// Default `--region`.
 pub const DEFAULT_REGION: &str = "object";
+/// Each round steps from the previous round's targets, so the field's own blur is never fed
+/// back into a target (BENCH.md §5n: the palette no longer narrows over the rounds).
+pub const DEFAULT_STEP_FROM: &str = "targets";
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
@@ -222,6 +228,13 @@ pub struct StylizeArgs {
     /// whole view, as runs made before this option).
     #[arg(long, default_value = DEFAULT_REGION, value_parser = ["object", "view"])]
     pub region: String,
+    /// Where each round's damped step toward the fused stylization starts: render (the
+    /// current field's render; runs made before this option) or targets (the previous
+    /// round's training targets: with the harmonic schedule, the running mean of the rounds'
+    /// fused stylizations, so the field's own blur is never fed back into a target). Round 1
+    /// steps from the render either way.
+    #[arg(long, default_value = DEFAULT_STEP_FROM, value_parser = ["render", "targets"])]
+    pub step_from: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -335,6 +348,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         fusion: option_enum("--fusion", &a.fusion)?,
         fusion_read: option_enum("--fusion-read", &a.fusion_read)?,
         region: option_enum("--region", &a.region)?,
+        step_from: option_enum("--step-from", &a.step_from)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

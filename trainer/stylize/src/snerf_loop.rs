@@ -39,8 +39,8 @@
 //! With those three alone (BENCH.md §5b) the warp error of round 5 is still 6–42% above
 //! round 1's (against 3–5× with the published loop): the targets are fixed, and the field,
 //! under-fitted after round 1, keeps fitting more of the disagreement they still hold.
-//! `RoundSteps::Harmonic` (most of the steps in round 1) flattens the curve only by making
-//! round 1 worse, so it is not the default.
+//! `RoundSteps::Harmonic` (most of the steps in round 1) flattened that curve only by making
+//! round 1 worse; it became the default with `StepFrom::Targets` (below).
 //!
 //! - `Targets::Consensus` (the default) removes that last source: each round fuses the
 //!   previous round's *fused* targets again, through the current (better) depth, instead of
@@ -63,6 +63,21 @@
 //!   round 5's style distance ended above round 1's on 3 of 9 pairs. Copying, round 5 is no
 //!   worse than round 1 on every pair, for a warp error about twice as large (still a fifth
 //!   of per-frame stylization's; BENCH.md §5i).
+//!
+//! - `StepFrom::Targets` (the default) takes the harmonic step from the previous round's
+//!   *target* instead of the field's render, so round t's target is the running mean of the
+//!   first t fused targets, as the harmonic step intends, made of the stylizer's pixels alone.
+//!   Stepped from the render, every target was part field: the field's reconstruction (a
+//!   little blurred, and short of the painting's rarest colours, which are few pixels) went
+//!   back into the targets and compounded, so round 5's targets covered less of the painting's
+//!   palette than round 1's, and the field fitted to them less again (BENCH.md §5n). That
+//!   blur was also part of why the warp error fell over the rounds: targets that no longer
+//!   fade leave round 1, which fits them least, the least detail and the lowest warp error.
+//! - `RoundSteps::Harmonic` (the default) therefore spends the training steps as the targets
+//!   move: in proportion to the step 1/t, most of them in round 1, where the style is taken;
+//!   later rounds, whose targets change by O(1/t), refine. Round 1 is then as sharp as the
+//!   targets allow and the rounds after it only reconcile, so round 5 ends below round 1
+//!   on the warp errors again (BENCH.md §5n).
 //!
 //! Runs recorded before these options resume as they were.
 //!
@@ -153,6 +168,25 @@ pub struct StylizeOptions {
     /// this option: the whole view, as those runs were made).
     #[serde(default)]
     pub region: Region,
+    /// Where a round's damped step toward the fused stylization starts (before this option:
+    /// `Render`).
+    #[serde(default)]
+    pub step_from: StepFrom,
+}
+
+/// Where round t's target step `β_t × (fused − start)` starts from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StepFrom {
+    /// The current field's render of the view (round 1 always: there is no earlier target).
+    #[default]
+    Render,
+    /// The previous round's training target: with harmonic steps, round t's target is the
+    /// running mean of the first t fused targets, made of the stylizer's pixels alone. Started
+    /// from the render, the field's reconstruction (a little blurred, and short of the
+    /// painting's rarest colours) is mixed back into every target and compounds round after
+    /// round (BENCH.md §5n).
+    Targets,
 }
 
 /// What each round's fusion starts from (with `Content::Realistic` and fusion on).
@@ -444,6 +478,8 @@ pub fn run(
     let mut fixed: Option<(Vec<Image>, bool)> = None;
     let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
+    // `StepFrom::Targets`: the last round's training targets
+    let mut previous: Option<Vec<Image>> = None;
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
         let resumed = partial::load(out, round + 1, data, opts)?;
@@ -483,7 +519,7 @@ pub fn run(
                     Content::Realistic => {
                         if fixed.is_none() && consensus_on && round > 0 {
                             // A resumed run continues the consensus of the last round begun.
-                            fixed = consensus::load(out, round, views.len())?.map(|c| (c, true));
+                            fixed = consensus::load(out, consensus::Kept::Consensus, round, views.len())?.map(|c| (c, true));
                         }
                         if fixed.is_none() {
                             let content: Vec<Image> = views
@@ -509,7 +545,7 @@ pub fn run(
                     if consensus_on {
                         // The next round fuses these again (through its own depth).
                         f = consensus::quantize(f);
-                        consensus::save(out, round + 1, &f)?;
+                        consensus::save(out, consensus::Kept::Consensus, round + 1, &f)?;
                         fixed = Some((f.clone(), true));
                     }
                     (f, Some(frac))
@@ -517,7 +553,13 @@ pub fn run(
                     (stylized.clone(), None)
                 };
                 let step = opts.step_of_round(round + 1);
-                let targets: Vec<Image> = if step < 1.0 {
+                if opts.step_from == StepFrom::Targets && previous.is_none() && round > 0 {
+                    // a resumed run steps from the targets its last finished round saved
+                    previous = consensus::load(out, consensus::Kept::Targets, round, views.len())?;
+                }
+                let targets: Vec<Image> = if let Some(prev) = previous.as_ref().filter(|_| opts.step_from == StepFrom::Targets) {
+                    consensus::quantize(prev.iter().zip(&fused).map(|(p, f)| fusion::step_toward(p, f, step)).collect())
+                } else if step < 1.0 {
                     // A target is the colour of the surface alone (training lays a random
                     // background under it by the view's alpha), so the step starts from the
                     // field's own colour, not from its render over the eval background:
@@ -569,6 +611,10 @@ pub fn run(
             }
         }
         let train_seconds = trained_before + t0.elapsed().as_secs_f64();
+        if opts.step_from == StepFrom::Targets {
+            // the next round steps from these (saved below with the round)
+            previous = Some(consensus::quantize(stylized.clone()));
+        }
         // measure (not counted as round time)
         wall += t_round.elapsed().as_secs_f64();
         progress.phase(round + 1, opts.rounds, "measure", 1);
@@ -606,6 +652,9 @@ pub fn run(
         // behind a newer field, and the resumed run repeats that round from it (harmless);
         // the other order could claim a round whose field was never saved.
         checkpoint::save(&trainer, &ck_path)?;
+        if let Some(p) = previous.as_ref().filter(|_| opts.step_from == StepFrom::Targets) {
+            consensus::save(out, consensus::Kept::Targets, round + 1, p)?;
+        }
         checkpoint::write_json_atomic(&state_path(out), &state)?;
         partial::clear(out);
     }

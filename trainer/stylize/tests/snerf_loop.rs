@@ -78,6 +78,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         fusion_read: Default::default(),
         // the object's box (these views have a silhouette)
         region: snerf_stylize::snerf_loop::Region::Object,
+        step_from: snerf_stylize::snerf_loop::StepFrom::Render,
     }
 }
 
@@ -285,6 +286,48 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     let st = Counting { calls: Default::default(), means: Default::default() };
     snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12);
+}
+
+/// `StepFrom::Targets`: a round's target is a step from the previous round's target, never
+/// from the field's render. With the same stylizations every round (realistic content, no
+/// fusion) and harmonic steps, every round's target is the stylization itself, whatever the
+/// field rendered, also across a resume (the last round's targets are read back).
+#[test]
+fn targets_step_from_the_previous_targets_across_resumes() {
+    let dir = tmp("step_from");
+    let (data, run) = trained_run(&dir);
+    let style = style_png(&dir);
+    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
+    let style_img = stylizer::load_style_image(&style).unwrap();
+    let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
+    let out = dir.join("srun");
+    let mut o = options(&run, &data.root, &style, 2, false);
+    o.steps_per_round = 10;
+    o.consistency_frames = 0;
+    o.fuse_views = 0;
+    o.content = snerf_loop::Content::Realistic;
+    o.step_schedule = snerf_loop::StepSchedule::Harmonic;
+    o.target_step = 1.0;
+    o.step_from = snerf_loop::StepFrom::Targets;
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    let read = |round: usize| -> Vec<Vec<f32>> {
+        (0..12).map(|i| stylizer::image_from_png(&out.join(format!("targets/round_{round}/view_{i:03}.png"))).unwrap().data).collect()
+    };
+    let (t1, t2) = (read(1), read(2));
+    assert_eq!(t1, t2, "round 2's target moved away from the (unchanged) stylization");
+    // resumed in a new process for a third round: steps from round 2's saved targets
+    o.rounds = 3;
+    let s = snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(s.rounds_done, 3);
+    assert_eq!(read(3), t2);
+    assert!(!out.join("targets/round_1").exists(), "rounds kept: the last two");
+    // stepping from the render instead, round 2's target is half the field's render
+    let other = dir.join("from_render");
+    let mut r = o.clone();
+    r.rounds = 2;
+    r.step_from = snerf_loop::StepFrom::Render;
+    snerf_loop::run(&r, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &other, &mut Quiet).unwrap();
+    assert!(!other.join("targets").exists(), "only StepFrom::Targets keeps targets");
 }
 
 #[test]
