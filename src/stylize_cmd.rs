@@ -164,7 +164,8 @@ pub struct StylizeArgs {
     /// Rounds of render -> stylize -> train (the paper uses 5; 1 is the one-shot baseline).
     #[arg(long, default_value_t = 5, value_parser = crate::args::int_in::<usize>(1, 100, ""))]
     pub rounds: usize,
-    /// Training steps per round.
+    /// Training steps per round, on average: the run trains ROUNDS × this many steps, spread
+    /// over the rounds by --round-steps.
     #[arg(long, default_value_t = 300, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
     pub steps_per_round: u64,
     /// Longer side of the images handed to the stylizer (0: the training resolution).
