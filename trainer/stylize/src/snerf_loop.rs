@@ -478,7 +478,7 @@ pub fn run(
     let mut fixed: Option<(Vec<Image>, bool)> = None;
     let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
-    // `StepFrom::Targets`: the last round's training targets
+    // the last round's training targets (with `StepFrom::Targets` only, so Some means it)
     let mut previous: Option<Vec<Image>> = None;
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
@@ -557,7 +557,7 @@ pub fn run(
                     // a resumed run steps from the targets its last finished round saved
                     previous = consensus::load(out, consensus::Kept::Targets, round, views.len())?;
                 }
-                let targets: Vec<Image> = if let Some(prev) = previous.as_ref().filter(|_| opts.step_from == StepFrom::Targets) {
+                let targets: Vec<Image> = if let Some(prev) = &previous {
                     consensus::quantize(prev.iter().zip(&fused).map(|(p, f)| fusion::step_toward(p, f, step)).collect())
                 } else if step < 1.0 {
                     // A target is the colour of the surface alone (training lays a random
@@ -652,7 +652,7 @@ pub fn run(
         // behind a newer field, and the resumed run repeats that round from it (harmless);
         // the other order could claim a round whose field was never saved.
         checkpoint::save(&trainer, &ck_path)?;
-        if let Some(p) = previous.as_ref().filter(|_| opts.step_from == StepFrom::Targets) {
+        if let Some(p) = &previous {
             consensus::save(out, consensus::Kept::Targets, round + 1, p)?;
         }
         checkpoint::write_json_atomic(&state_path(out), &state)?;

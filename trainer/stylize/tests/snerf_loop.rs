@@ -54,6 +54,26 @@ fn style_png(dir: &Path) -> PathBuf {
     p
 }
 
+/// What every loop test starts from: a fresh directory, a trained run on a small object
+/// dataset, a style picture and its loaded forms.
+struct Fixture {
+    dir: PathBuf,
+    data: snerf_data::Dataset,
+    run: PathBuf,
+    style: PathBuf,
+    source: checkpoint::Checkpoint,
+    style_img: Image,
+}
+
+fn fixture(name: &str) -> Fixture {
+    let dir = tmp(name);
+    let (data, run) = trained_run(&dir);
+    let style = style_png(&dir);
+    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
+    let style_img = stylizer::load_style_image(&style).unwrap();
+    Fixture { dir, data, run, style, source, style_img }
+}
+
 fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only: bool) -> StylizeOptions {
     StylizeOptions {
         source_run: run.to_path_buf(),
@@ -84,12 +104,8 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
 
 #[test]
 fn rounds_resume_and_appearance_only_freezes_geometry() {
-    let dir = tmp("loop");
-    let (data, run) = trained_run(&dir);
-    let style = style_png(&dir);
-    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
+    let Fixture { dir, data, run, style, source, style_img } = fixture("loop");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
-    let style_img = stylizer::load_style_image(&style).unwrap();
 
     // one round, then ask for two: the second run resumes after round 1 (more rounds extend
     // a run; other changed options are refused)
@@ -130,12 +146,8 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
 
 #[test]
 fn stylized_field_is_more_consistent_than_per_frame_stylization() {
-    let dir = tmp("consistency");
-    let (data, run) = trained_run(&dir);
-    let style = style_png(&dir);
-    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
+    let Fixture { dir, data, run, style, source, style_img } = fixture("consistency");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
-    let style_img = stylizer::load_style_image(&style).unwrap();
     let out = dir.join("srun");
     let o = options(&run, &data.root, &style, 2, false);
     snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
@@ -214,11 +226,7 @@ impl stylizer::Stylizer for Counting {
 /// `Content::Render` stylizes each round's render, so it sees the field drift.
 #[test]
 fn realistic_content_is_stylized_once_and_render_content_every_round() {
-    let dir = tmp("content");
-    let (data, run) = trained_run(&dir);
-    let style = style_png(&dir);
-    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
-    let style_img = stylizer::load_style_image(&style).unwrap();
+    let Fixture { dir, data, run, style, source, style_img } = fixture("content");
     let mut runs = Vec::new();
     for content in [snerf_loop::Content::Realistic, snerf_loop::Content::Render] {
         let st = Counting { calls: Default::default(), means: Default::default() };
@@ -250,11 +258,7 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
 /// round, so a resumed run continues the iteration without stylizing again.
 #[test]
 fn consensus_targets_carry_over_rounds_and_resumes() {
-    let dir = tmp("consensus");
-    let (data, run) = trained_run(&dir);
-    let style = style_png(&dir);
-    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
-    let style_img = stylizer::load_style_image(&style).unwrap();
+    let Fixture { dir, data, run, style, source, style_img } = fixture("consensus");
     let out = dir.join("srun");
     let mut o = options(&run, &data.root, &style, 1, false);
     o.steps_per_round = 20;
@@ -294,11 +298,7 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
 /// field rendered, also across a resume (the last round's targets are read back).
 #[test]
 fn targets_step_from_the_previous_targets_across_resumes() {
-    let dir = tmp("step_from");
-    let (data, run) = trained_run(&dir);
-    let style = style_png(&dir);
-    let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
-    let style_img = stylizer::load_style_image(&style).unwrap();
+    let Fixture { dir, data, run, style, source, style_img } = fixture("step_from");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
     let out = dir.join("srun");
     let mut o = options(&run, &data.root, &style, 2, false);
