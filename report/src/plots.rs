@@ -227,7 +227,7 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
                 style.table.rows.push([head.clone(), vec![fmt(value_of(r, key), 4)]].concat());
             }
             if r["style_swd"].is_object() {
-                terms.table.rows.push([head.clone(), vec![fmt(num(&r["style_swd"]["color"]), 4), fmt(num(&r["style_swd"]["texture"]), 4)]].concat());
+                terms.table.rows.push([head.clone(), vec![fmt(value_of(r, "style_swd.color"), 4), fmt(value_of(r, "style_swd.texture"), 4)]].concat());
             }
             if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
                 cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
