@@ -159,6 +159,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         fusion_read: crate::stylize_cmd::DEFAULT_FUSION_READ.into(),
         region: crate::stylize_cmd::DEFAULT_REGION.into(),
         step_from: crate::stylize_cmd::DEFAULT_STEP_FROM.into(),
+        tv: crate::stylize_cmd::PlaneTv::default(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

@@ -141,6 +141,25 @@ pub const DEFAULT_REGION: &str = "object";
 /// Each round steps from the previous round's targets, so the field's own blur is never fed
 /// back into a target (BENCH.md §5n: the palette no longer narrows over the rounds).
 pub const DEFAULT_STEP_FROM: &str = "targets";
+/// No total-variation smoothing of the stylized field's planes (BENCH.md §5o).
+pub const DEFAULT_PLANE_TV: &str = "0";
+
+/// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlaneTv(pub Option<f32>);
+
+impl Default for PlaneTv {
+    fn default() -> PlaneTv {
+        parse_plane_tv(DEFAULT_PLANE_TV).expect("the default weight parses")
+    }
+}
+
+fn parse_plane_tv(s: &str) -> Result<PlaneTv, String> {
+    if s == "source" {
+        return Ok(PlaneTv(None));
+    }
+    crate::args::non_negative_f32(s).map(|w| PlaneTv(Some(w))).map_err(|e| format!("{e}, or `source`"))
+}
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
@@ -236,6 +255,13 @@ pub struct StylizeArgs {
     /// steps from the render either way.
     #[arg(long, default_value = DEFAULT_STEP_FROM, value_parser = ["render", "targets"])]
     pub step_from: String,
+    /// Weight of the total-variation loss on the field's planes while stylizing. The
+    /// realistic field's weight smooths the planes against over-fitting its views; a stylized
+    /// field has to hold the painting's pixel-scale strokes, and smoothing takes the darks
+    /// out from between them (BENCH.md §5o). Consistency comes from the fused targets.
+    /// `source`: the realistic run's own weight (runs made before this option).
+    #[arg(long, default_value = DEFAULT_PLANE_TV, value_parser = parse_plane_tv)]
+    pub tv: PlaneTv,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -350,6 +376,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         fusion_read: option_enum("--fusion-read", &a.fusion_read)?,
         region: option_enum("--region", &a.region)?,
         step_from: option_enum("--step-from", &a.step_from)?,
+        plane_tv: a.tv.0,
     };
     let wall = Instant::now();
     let mut bars = Bars {

@@ -150,6 +150,8 @@ pub fn pair_scores(c: &Value) -> Result<Value> {
             "style": ratio(last, first, "style")?,
         },
         "separation": ratio(real, per_frame, "style")?,
+        // share of the painting's colours a view has nothing within a JND of (a readout)
+        "palette_missed": { "per_frame": per_frame["style_swd"]["missed"].as_f64(), "snerf": snerf["style_swd"]["missed"].as_f64() },
     }))
 }
 
@@ -226,6 +228,15 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
         fmt(col("snerf_over_per_frame", "style")),
         fmt(pairs.iter().filter_map(|p| p["scores"]["separation"].as_f64()).collect()),
     ));
+    let missed = |k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"]["palette_missed"][k].as_f64()).map(|x| 100.0 * x).collect() };
+    let (pf_missed, sn_missed) = (missed("per_frame"), missed("snerf"));
+    if !sn_missed.is_empty() {
+        md.push_str(&format!(
+            "Painting colours a view misses by more than a just-noticeable difference, % (mean (min…max)): per-frame {}, SNeRF {}.\n",
+            fmt(pf_missed),
+            fmt(sn_missed)
+        ));
+    }
     md.push_str(&format!(
         "- Ratios (mean ≤ {MEAN_SHORT} / {MEAN_LONG} / {MEAN_STYLE}, every pair ≤ {PAIR_SHORT} / {PAIR_LONG}): {} ({} of {n} pairs within)\n",
         yes(&bars["ratios"]),

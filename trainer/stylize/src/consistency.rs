@@ -348,17 +348,18 @@ impl MethodScores {
 /// Markdown table in the layout of the paper's Tables 1 and 2.
 pub fn markdown_table(methods: &[MethodScores]) -> String {
     let mut s = String::from(
-        "| Method | Short-range error ↓ | Long-range error ↓ | Style distance (colour + texture) ↓ | Gram style distance ↓ | Embedding style distance ↓ |\n|---|---:|---:|---:|---:|---:|\n",
+        "| Method | Short-range error ↓ | Long-range error ↓ | Style distance (colour + texture) ↓ | Painting colours missed ↓ | Gram style distance ↓ | Embedding style distance ↓ |\n|---|---:|---:|---:|---:|---:|---:|\n",
     );
     for m in methods {
         s += &format!(
-            "| {} | {:.5} | {:.5} | {:.4} ({:.4} + {:.4}) | {} | {} |\n",
+            "| {} | {:.5} | {:.5} | {:.4} ({:.4} + {:.4}) | {:.1}% | {} | {} |\n",
             m.method,
             m.short_range,
             m.long_range,
             m.style_swd.total,
             m.style_swd.color,
             m.style_swd.texture,
+            100.0 * m.style_swd.missed,
             m.style_gram.map(|d| format!("{d:.4}")).unwrap_or_else(|| "n/a".into()),
             m.style_distance.map(|d| format!("{d:.3}")).unwrap_or_else(|| "n/a".into())
         );

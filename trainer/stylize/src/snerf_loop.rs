@@ -78,6 +78,11 @@
 //!   later rounds, whose targets change by O(1/t), refine. Round 1 is then as sharp as the
 //!   targets allow and the rounds after it only reconcile, so round 5 ends below round 1
 //!   on the warp errors again (BENCH.md §5n).
+//! - `plane_tv` (the CLI's `--tv`, 0 by default): the stylizing trainer does not inherit the
+//!   realistic field's total-variation smoothing of its planes. That weight was chosen for
+//!   held-out PSNR on unseen views; a stylized field has to hold the stylizer's pixel-scale
+//!   strokes, and the smoothing filled in the dark gaps between them (the darks are most of
+//!   the palette SNeRF's views miss; BENCH.md §5o). Consistency comes from the targets.
 //!
 //! Runs recorded before these options resume as they were.
 //!
@@ -172,6 +177,10 @@ pub struct StylizeOptions {
     /// `Render`).
     #[serde(default)]
     pub step_from: StepFrom,
+    /// Weight of the total-variation loss on the field's planes while stylizing (absent in a
+    /// `stylize.json` written before this option: None, the realistic run's own weight).
+    #[serde(default)]
+    pub plane_tv: Option<f32>,
 }
 
 /// Where round t's target step `β_t × (fused − start)` starts from.
@@ -739,6 +748,9 @@ fn trainer_from(ck: snerf_trainer::checkpoint::Checkpoint, data: &Dataset, opts:
     let mut cfg = ck.cfg.clone();
     cfg.freeze_geometry = opts.appearance_only;
     cfg.freeze_view = true;
+    if let Some(tv) = opts.plane_tv {
+        cfg.tv = tv;
+    }
     let adam = snerf_trainer::adam::Adam::new(ck.model.field.params.len());
     let mut t = Trainer::from_parts(data, cfg, ck.model, adam)?;
     t.step = ck.step;

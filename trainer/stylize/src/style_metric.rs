@@ -65,7 +65,18 @@ pub struct StyleScore {
     pub total: f64,
     pub color: f64,
     pub texture: f64,
+    /// A readout beside the distance, not part of it: the share of the painting's colours
+    /// that a view of the scene has nothing within a just-noticeable difference of
+    /// ([`JND`]), per view, weighted by its scene pixels. The colour term averages how far
+    /// each painting colour is from the view's nearest; this says how many of them a viewer
+    /// could see missing. Absent (0) in records written before it.
+    #[serde(default)]
+    pub missed: f64,
 }
+
+/// A just-noticeable colour difference in Oklab (ΔE_OK = 0.02, the JND CSS Color 4 uses in
+/// its gamut mapping).
+pub const JND: f32 = 0.02;
 
 /// The samples of one image (or a set of frames pooled together).
 #[derive(Clone, Debug)]
@@ -279,13 +290,23 @@ fn sliced_w2<V: AsRef<[f32]>>(a: &[V], b: &[V], dirs: &[Vec<f32>]) -> f64 {
 /// Mean over `from` of the Euclidean distance to the nearest point of `to` (a directed
 /// Chamfer distance); NaN when either set is empty.
 fn chamfer(from: &[[f32; 3]], to: &[[f32; 3]]) -> f64 {
-    if from.is_empty() || to.is_empty() {
+    let nearest = nearest(from, to);
+    if nearest.is_empty() {
         return f64::NAN;
     }
-    let d2 = |a: &[f32; 3], b: &[f32; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
-    // collected in order and summed in order: the same figure whatever the thread count
-    let nearest: Vec<f32> = from.par_iter().map(|a| to.iter().map(|b| d2(a, b)).fold(f32::INFINITY, f32::min).sqrt()).collect();
     nearest.iter().map(|&d| d as f64).sum::<f64>() / from.len() as f64
+}
+
+/// For each colour of `from`, the distance to the nearest colour of `to` (empty when either
+/// set is).
+fn nearest(from: &[[f32; 3]], to: &[[f32; 3]]) -> Vec<f32> {
+    if from.is_empty() || to.is_empty() {
+        return Vec::new();
+    }
+    let d2 = |a: &[f32; 3], b: &[f32; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
+    // collected in order (and summed in order by the callers): the same figure whatever the
+    // thread count
+    from.par_iter().map(|a| to.iter().map(|b| d2(a, b)).fold(f32::INFINITY, f32::min).sqrt()).collect()
 }
 
 /// Palette coverage of a scene seen in several frames: each frame's own, weighted by its
@@ -293,16 +314,22 @@ fn chamfer(from: &[[f32; 3]], to: &[[f32; 3]]) -> f64 {
 /// pooled over the frames, eight views painted independently would cover more of it between
 /// them than any one of them does, and a stylization whose views disagree would score better
 /// than a consistent one for that alone. NaN when no frame has a scene pixel.
-fn coverage(palette: &[[f32; 3]], scene: &StyleSamples) -> f64 {
-    let (mut sum, mut weight) = (0.0, 0.0);
+fn coverage(palette: &[[f32; 3]], scene: &StyleSamples) -> (f64, f64) {
+    let (mut sum, mut missed, mut weight) = (0.0, 0.0, 0.0);
     for (c, n) in scene.colors.iter().filter(|c| !c.0.is_empty()) {
-        sum += chamfer(palette, c) * *n as f64;
+        let d = nearest(palette, c);
+        if d.is_empty() {
+            continue;
+        }
+        // (the colour figure in the same order of operations as `chamfer`'s mean)
+        sum += d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64 * *n as f64;
+        missed += d.iter().filter(|&&x| x > JND).count() as f64 / d.len() as f64 * *n as f64;
         weight += *n as f64;
     }
     if weight > 0.0 {
-        sum / weight
+        (sum / weight, missed / weight)
     } else {
-        f64::NAN
+        (f64::NAN, f64::NAN)
     }
 }
 
@@ -381,9 +408,10 @@ fn halves(img: &Image) -> (Image, Image) {
 /// texture, each in the painting's own units. Not symmetric: the painting sets the palette to
 /// cover and the units.
 pub fn distance(scene: &StyleSamples, painting: &StyleReference) -> StyleScore {
-    let color = coverage(&painting.samples.pooled(), scene) / painting.color_unit;
+    let (coverage, missed) = coverage(&painting.samples.pooled(), scene);
+    let color = coverage / painting.color_unit;
     let texture = texture(scene, &painting.samples) / painting.texture_unit;
-    StyleScore { total: color + texture, color, texture }
+    StyleScore { total: color + texture, color, texture, missed }
 }
 
 /// The style picture at the views' pixel footprint: resized so its longer side equals the
@@ -435,7 +463,7 @@ mod tests {
         let painting = gradient(64, 48, [1.0, 0.9, 0.8]);
         let r = StyleReference::new(&painting);
         assert!(r.color_unit > MIN_COLOR_UNIT && r.texture_unit > MIN_TEXTURE_UNIT, "{r:?}");
-        assert_eq!(distance(&StyleSamples::of_image(&painting), &r), StyleScore { total: 0.0, color: 0.0, texture: 0.0 });
+        assert_eq!(distance(&StyleSamples::of_image(&painting), &r), StyleScore { total: 0.0, color: 0.0, texture: 0.0, missed: 0.0 });
         let d = distance(&StyleSamples::of_image(&strokes(64, 48)), &r);
         assert!(d.color > 0.5 && d.texture > 0.5, "{d:?}");
         assert_eq!(d, distance(&StyleSamples::of_image(&strokes(64, 48)), &StyleReference::new(&gradient(64, 48, [1.0, 0.9, 0.8]))));
@@ -461,6 +489,15 @@ mod tests {
         }
         let d = distance(&StyleSamples::of_image(&dark), &r);
         assert!(d.color > 0.5, "{d:?}");
+        // the colours it misses are about the light ones it lost (those within a JND of a
+        // kept dark one excepted)
+        let light_share = painting.data.chunks_exact(3).filter(|v| oklab([v[0], v[1], v[2]])[0] > 0.55).count() as f64 / (w * h) as f64;
+        assert!(light_share > 0.2 && d.missed > 0.5 * light_share && d.missed <= light_share + 1e-9, "{d:?}, light {light_share}");
+        // one 8-bit level lighter is no colour missed; a fifth of the range lighter, most of them
+        let shifted = |by: f32| Image { data: painting.data.iter().map(|v| (v + by).min(1.0)).collect(), ..painting.clone() };
+        assert_eq!(distance(&StyleSamples::of_image(&shifted(1.0 / 255.0)), &r).missed, 0.0);
+        let far = distance(&StyleSamples::of_image(&shifted(0.2)), &r);
+        assert!(far.missed > 0.8, "{far:?}");
         // two views, each with one half of the palette, do not cover it between them
         let mut light = painting.clone();
         for (v, o) in light.data.chunks_exact_mut(3).zip(painting.data.chunks_exact(3)) {

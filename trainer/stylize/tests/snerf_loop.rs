@@ -99,6 +99,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         // the object's box (these views have a silhouette)
         region: snerf_stylize::snerf_loop::Region::Object,
         step_from: snerf_stylize::snerf_loop::StepFrom::Render,
+        plane_tv: None,
     }
 }
 
@@ -131,12 +132,16 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     let plane_end = source.model.field.layout.plane_end;
     let moved = source.model.field.params[..plane_end].iter().zip(&geo.model.field.params[..plane_end]).filter(|(a, b)| a != b).count();
     assert!(moved > 0, "stylizing geometry (the default) must move the density planes");
+    // without a plane TV weight of its own the run keeps the realistic run's (an object's: on)
+    assert!(source.cfg.tv > 0.0);
+    assert_eq!(geo.cfg.tv, source.cfg.tv);
 
     // appearance only: planes, shared layer and the density output stay bit-identical
     let out = dir.join("appearance");
-    let oa = options(&run, &data.root, &style, 1, true);
+    let oa = StylizeOptions { plane_tv: Some(0.0), ..options(&run, &data.root, &style, 1, true) };
     snerf_loop::run(&oa, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let app = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
+    assert_eq!(app.cfg.tv, 0.0, "the run's own plane TV weight is the one it trains and saves with");
     let l = &source.model.field.layout;
     let (a, b) = (&source.model.field.params, &app.model.field.params);
     assert!(a[..l.w2 + l.hidden] == b[..l.w2 + l.hidden], "appearance-only moved the geometry");
