@@ -103,6 +103,17 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
     }
 }
 
+/// `o` with the stylizer painting the realistic renders once and harmonic steps from a whole
+/// first one (the command line's loop), `steps` a round, no per-round measurement.
+fn fixed_content(mut o: StylizeOptions, steps: u64) -> StylizeOptions {
+    o.steps_per_round = steps;
+    o.consistency_frames = 0;
+    o.content = snerf_loop::Content::Realistic;
+    o.step_schedule = snerf_loop::StepSchedule::Harmonic;
+    o.target_step = 1.0;
+    o
+}
+
 #[test]
 fn rounds_resume_and_appearance_only_freezes_geometry() {
     let Fixture { dir, data, run, style, source, style_img } = fixture("loop");
@@ -265,12 +276,7 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
 fn consensus_targets_carry_over_rounds_and_resumes() {
     let Fixture { dir, data, run, style, source, style_img } = fixture("consensus");
     let out = dir.join("srun");
-    let mut o = options(&run, &data.root, &style, 1, false);
-    o.steps_per_round = 20;
-    o.consistency_frames = 0;
-    o.content = snerf_loop::Content::Realistic;
-    o.step_schedule = snerf_loop::StepSchedule::Harmonic;
-    o.target_step = 1.0;
+    let mut o = fixed_content(options(&run, &data.root, &style, 1, false), 20);
     o.lr_schedule = snerf_loop::LrSchedule::Run;
     o.targets = snerf_loop::Targets::Consensus;
     // as the command line: round 1 gives each point its nearest painter, later rounds the
@@ -306,13 +312,8 @@ fn targets_step_from_the_previous_targets_across_resumes() {
     let Fixture { dir, data, run, style, source, style_img } = fixture("step_from");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
     let out = dir.join("srun");
-    let mut o = options(&run, &data.root, &style, 2, false);
-    o.steps_per_round = 10;
-    o.consistency_frames = 0;
+    let mut o = fixed_content(options(&run, &data.root, &style, 2, false), 10);
     o.fuse_views = 0;
-    o.content = snerf_loop::Content::Realistic;
-    o.step_schedule = snerf_loop::StepSchedule::Harmonic;
-    o.target_step = 1.0;
     o.step_from = snerf_loop::StepFrom::Targets;
     snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let read = |round: usize| -> Vec<Vec<f32>> {
