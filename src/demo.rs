@@ -160,6 +160,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         region: crate::stylize_cmd::DEFAULT_REGION.into(),
         step_from: crate::stylize_cmd::DEFAULT_STEP_FROM.into(),
         tv: crate::stylize_cmd::PlaneTv::default(),
+        view_colour: crate::stylize_cmd::DEFAULT_VIEW_COLOUR.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

@@ -144,6 +144,10 @@ pub const DEFAULT_STEP_FROM: &str = "targets";
 /// No total-variation smoothing of the stylized field's planes (BENCH.md §5o).
 pub const DEFAULT_PLANE_TV: &str = "0";
 
+/// The stylized field is diffuse (BENCH.md §5p: the realistic field's frozen specular
+/// residual lifted the painting's darks).
+pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
+
 /// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlaneTv(pub Option<f32>);
@@ -262,6 +266,13 @@ pub struct StylizeArgs {
     /// `source`: the realistic run's own weight (runs made before this option).
     #[arg(long, default_value = DEFAULT_PLANE_TV, value_parser = parse_plane_tv)]
     pub tv: PlaneTv,
+    /// Whether the stylized field's colour may change with the viewing direction: diffuse
+    /// (no: a painting has no highlights that move with the viewer, and the realistic
+    /// field's specular residual, frozen and fed the painted colours, lifted the painting's
+    /// darks; BENCH.md §5p) or source (the realistic field's view MLP, frozen, as runs made
+    /// before this option).
+    #[arg(long, default_value = DEFAULT_VIEW_COLOUR, value_parser = ["diffuse", "source"])]
+    pub view_colour: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -377,6 +388,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         region: option_enum("--region", &a.region)?,
         step_from: option_enum("--step-from", &a.step_from)?,
         plane_tv: a.tv.0,
+        view_colour: option_enum("--view-colour", &a.view_colour)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

@@ -52,7 +52,13 @@ impl ViewLayout {
         for x in &mut params[self.w2..self.b2] {
             *x = s2 * (2.0 * rng.uniform() - 1.0);
         }
-        // The last layer starts at zero: a new field is purely diffuse.
+        // A new field starts purely diffuse.
+        self.make_diffuse(params);
+    }
+
+    /// Zero the last layer, so the MLP adds nothing whatever its input: the field's colour
+    /// no longer depends on the viewing direction (while the layer stays frozen).
+    pub fn make_diffuse(&self, params: &mut [f32]) {
         params[self.w3..self.end].fill(0.0);
     }
 

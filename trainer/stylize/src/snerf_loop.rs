@@ -83,6 +83,13 @@
 //!   held-out PSNR on unseen views; a stylized field has to hold the stylizer's pixel-scale
 //!   strokes, and the smoothing filled in the dark gaps between them (the darks are most of
 //!   the palette SNeRF's views miss; BENCH.md §5o). Consistency comes from the targets.
+//! - `ViewColour::Diffuse` (the CLI's `--view-colour`, the default): the stylized field's
+//!   colour does not depend on the viewing direction. The view MLP is frozen while stylizing
+//!   (a free one learns the views' disagreement as view-dependent colour), but frozen it
+//!   still adds the realistic material's specular residual, now computed from painted
+//!   colours; that residual is mostly positive and lifted the painting's darks (BENCH.md
+//!   §5p). A painting has no highlights that move with the viewer, so its output layer is
+//!   zeroed.
 //!
 //! Runs recorded before these options resume as they were.
 //!
@@ -181,6 +188,25 @@ pub struct StylizeOptions {
     /// `stylize.json` written before this option: None, the realistic run's own weight).
     #[serde(default)]
     pub plane_tv: Option<f32>,
+    /// Whether the stylized field's colour may depend on the viewing direction (before this
+    /// option: `Source`).
+    #[serde(default)]
+    pub view_colour: ViewColour,
+}
+
+/// What the stylized field keeps of the realistic field's view-dependent colour (the view
+/// MLP's specular residual; the MLP is frozen while stylizing either way).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ViewColour {
+    /// The realistic field's view MLP, frozen: it goes on adding the realistic material's
+    /// highlights, now computed from the painted colours.
+    #[default]
+    Source,
+    /// None: the view MLP's output layer is zeroed, so the stylized field is diffuse. A
+    /// painting has no highlights that move with the viewer, and the kept residual, mostly
+    /// positive, lifted the painting's darks (BENCH.md §5p).
+    Diffuse,
 }
 
 /// Where round t's target step `β_t × (fused − start)` starts from.
@@ -751,8 +777,13 @@ fn trainer_from(ck: snerf_trainer::checkpoint::Checkpoint, data: &Dataset, opts:
     if let Some(tv) = opts.plane_tv {
         cfg.tv = tv;
     }
-    let adam = snerf_trainer::adam::Adam::new(ck.model.field.params.len());
-    let mut t = Trainer::from_parts(data, cfg, ck.model, adam)?;
+    let mut model = ck.model;
+    if opts.view_colour == ViewColour::Diffuse {
+        let view = model.field.layout.view;
+        view.make_diffuse(&mut model.field.params);
+    }
+    let adam = snerf_trainer::adam::Adam::new(model.field.params.len());
+    let mut t = Trainer::from_parts(data, cfg, model, adam)?;
     t.step = ck.step;
     t.train_seconds = ck.train_seconds;
     t.samples_seen = ck.samples_seen;

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use snerf_data::{load, LoadOptions};
 use snerf_stylize::consistency::{PathGeometry, StyleMeters, STYLE_RING};
-use snerf_stylize::snerf_loop::{self, Quiet, StylizeOptions};
+use snerf_stylize::snerf_loop::{self, Quiet, StylizeOptions, ViewColour};
 use snerf_stylize::stylizer::{self, Image, StylizerOptions};
 use snerf_trainer::checkpoint;
 use snerf_trainer::train::{TrainConfig, Trainer};
@@ -100,6 +100,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         region: snerf_stylize::snerf_loop::Region::Object,
         step_from: snerf_stylize::snerf_loop::StepFrom::Render,
         plane_tv: None,
+        view_colour: Default::default(),
     }
 }
 
@@ -146,13 +147,19 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     // without a plane TV weight of its own the run keeps the realistic run's (an object's: on)
     assert!(source.cfg.tv > 0.0);
     assert_eq!(geo.cfg.tv, source.cfg.tv);
+    // and the realistic field's view MLP, frozen as it was
+    let v = source.model.field.layout.view;
+    assert!(source.model.field.params[v.w3..v.end].iter().any(|&w| w != 0.0), "the realistic field learnt no view-dependent colour");
+    assert!(geo.model.field.params[v.w1..v.end] == source.model.field.params[v.w1..v.end], "the source view MLP moved");
 
     // appearance only: planes, shared layer and the density output stay bit-identical
     let out = dir.join("appearance");
-    let oa = StylizeOptions { plane_tv: Some(0.0), ..options(&run, &data.root, &style, 1, true) };
+    let oa = StylizeOptions { plane_tv: Some(0.0), view_colour: ViewColour::Diffuse, ..options(&run, &data.root, &style, 1, true) };
     snerf_loop::run(&oa, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let app = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
     assert_eq!(app.cfg.tv, 0.0, "the run's own plane TV weight is the one it trains and saves with");
+    // a diffuse stylized field: the view MLP's output layer is zero and stayed zero
+    assert!(app.model.field.params[v.w3..v.end].iter().all(|&w| w == 0.0), "a diffuse stylized field kept a view-dependent residual");
     let l = &source.model.field.layout;
     let (a, b) = (&source.model.field.params, &app.model.field.params);
     assert!(a[..l.w2 + l.hidden] == b[..l.w2 + l.hidden], "appearance-only moved the geometry");
