@@ -427,18 +427,38 @@ pub fn pick_views(views: &[View], n: usize) -> Vec<View> {
     (0..n).map(|i| views[i * views.len() / n].clone()).collect()
 }
 
-/// "name: recorded → asked" for each option in which `asked` differs from `recorded` (the
-/// rounds aside: more or fewer rounds extend or end the same run).
+/// "--option: recorded recorded, asked asked" for each option in which `asked` differs from
+/// `recorded` (the rounds aside: more or fewer rounds extend or end the same run), in the
+/// command line's terms, so the user can repeat the run's options.
 fn differing_options(recorded: &StylizeOptions, asked: &StylizeOptions) -> Vec<String> {
     let (Ok(serde_json::Value::Object(a)), Ok(serde_json::Value::Object(b))) =
         (serde_json::to_value(recorded), serde_json::to_value(asked))
     else {
         return vec!["options".into()];
     };
+    let null = serde_json::Value::Null;
     a.iter()
         .filter(|(k, v)| k.as_str() != "rounds" && b.get(*k) != Some(*v))
-        .map(|(k, v)| format!("{k}: {v} recorded, {} asked", b.get(k).cloned().unwrap_or_default()))
+        .map(|(k, v)| format!("{}: {} recorded, {} asked", cli_name(k), cli_value(k, v), cli_value(k, b.get(k).unwrap_or(&null))))
         .collect()
+}
+
+/// The command-line spelling of a `StylizeOptions` field.
+fn cli_name(field: &str) -> String {
+    match field {
+        "source_run" => "the source run".into(),
+        "plane_tv" => "--tv".into(),
+        _ => format!("--{}", field.replace('_', "-")),
+    }
+}
+
+/// The command-line spelling of a recorded option value.
+fn cli_value(field: &str, v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Null if field == "plane_tv" => "source".into(),
+        serde_json::Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
 }
 
 /// Start or resume a stylization run in `out`. `source` is the realistic model.
@@ -471,7 +491,7 @@ pub fn run(
                     "{}: holds a stylization run with other options ({}); choose another --out or \
                      repeat the same options to resume",
                     out.display(),
-                    differing_options(&state.options, opts).join(", ")
+                    differing_options(&state.options, opts).join("; ")
                 );
             }
             let ck = if state.rounds_done > 0 { checkpoint::load(&ck_path)? } else { source.clone() };
@@ -897,5 +917,23 @@ mod tests {
         // a plain step from the composited render would have whitened the rim
         let target = fusion::step_toward(&Image { width: 4, height: 1, data: rgb.clone() }, &Image::filled(4, 1, surface), 0.5);
         assert!(target.data[4] > surface[1] + 0.05);
+    }
+
+    /// A refused resume names the options as the command line spells them.
+    #[test]
+    fn differing_options_speak_the_command_line() {
+        let recorded: StylizeOptions = serde_json::from_value(serde_json::json!({
+            "source_run": "run", "data": "data", "style": "s.png", "stylizer": "arbitrary", "strength": 1.0,
+            "rounds": 5, "steps_per_round": 300, "style_res": 0, "views": 0, "appearance_only": false,
+            "consistency_frames": 16,
+        }))
+        .unwrap();
+        // the record predates --tv and --view-colour: it ran with the source's weight and MLP
+        assert_eq!((recorded.plane_tv, recorded.view_colour), (None, ViewColour::Source));
+        let asked = StylizeOptions { rounds: 7, plane_tv: Some(0.0), view_colour: ViewColour::Diffuse, steps_per_round: 100, ..recorded.clone() };
+        let mut d = differing_options(&recorded, &asked);
+        d.sort();
+        assert_eq!(d, ["--steps-per-round: 300 recorded, 100 asked", "--tv: source recorded, 0.0 asked", "--view-colour: source recorded, diffuse asked"]);
+        assert!(differing_options(&recorded, &StylizeOptions { rounds: 9, ..recorded.clone() }).is_empty(), "more rounds extend the same run");
     }
 }
