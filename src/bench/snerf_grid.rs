@@ -261,6 +261,9 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
 /// its realistic field into `out/runs/NAME` for `budget`; both are reused when already there.
 /// Returns (dataset, run).
 pub(super) fn realistic(out: &std::path::Path, grid: &ModelGrid, budget: Budget, name: &str, file: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
+    for shared in ["data", "runs"] {
+        no_dangling_link(&out.join(shared))?;
+    }
     let data = out.join("data").join(name);
     if !data.join("transforms_train.json").exists() {
         let size = format!("{0}x{0}", grid.size);
@@ -277,6 +280,17 @@ pub(super) fn realistic(out: &std::path::Path, grid: &ModelGrid, budget: Budget,
         snerf_json(&args)?;
     }
     Ok((data, run))
+}
+
+/// `out/data` and `out/runs` may be links to another benchmark's (to reuse its fields); one
+/// whose target is gone would otherwise surface as "File exists" from a command deep inside.
+fn no_dangling_link(p: &std::path::Path) -> Result<()> {
+    let is_link = p.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink());
+    if is_link && !p.exists() {
+        let target = std::fs::read_link(p).map(|t| t.display().to_string()).unwrap_or_default();
+        bail!("{}: a symbolic link to {target}, which does not exist", p.display());
+    }
+    Ok(())
 }
 
 /// Stylizes `run` with `style` and scores it (each step reused when already there).
@@ -336,6 +350,20 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_link_to_nothing_is_named() {
+        let dir = std::env::temp_dir().join(format!("snerf-grid-link-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("real")).unwrap();
+        no_dangling_link(&dir.join("absent")).unwrap();
+        std::os::unix::fs::symlink(dir.join("real"), dir.join("good")).unwrap();
+        no_dangling_link(&dir.join("good")).unwrap();
+        std::os::unix::fs::symlink(dir.join("gone"), dir.join("data")).unwrap();
+        let e = no_dangling_link(&dir.join("data")).unwrap_err().to_string();
+        assert!(e.contains("data: a symbolic link to") && e.contains("gone, which does not exist"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     fn consistency(real: f64, pf: (f64, f64, f64), sn: (f64, f64, f64), r1: (f64, f64, f64), r5: (f64, f64, f64)) -> Value {
         let m = |s: f64, l: f64, st: f64| json!({ "short_range": s, "long_range": l, "style_swd": { "total": st } });
