@@ -144,8 +144,8 @@ pub const DEFAULT_STEP_FROM: &str = "targets";
 /// No total-variation smoothing of the stylized field's planes (BENCH.md §5o).
 pub const DEFAULT_PLANE_TV: &str = "0";
 
-/// The stylized field is diffuse (BENCH.md §5p: the realistic field's frozen specular
-/// residual lifted the painting's darks).
+/// The stylized field is diffuse (BENCH.md §5p: the realistic field's frozen residual is
+/// close to a constant offset, which cut off the painting's darkest or brightest colours).
 pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
 
 /// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
@@ -268,9 +268,9 @@ pub struct StylizeArgs {
     pub tv: PlaneTv,
     /// Whether the stylized field's colour may change with the viewing direction: diffuse
     /// (no: a painting has no highlights that move with the viewer, and the realistic
-    /// field's specular residual, frozen and fed the painted colours, lifted the painting's
-    /// darks; BENCH.md §5p) or source (the realistic field's view MLP, frozen, as runs made
-    /// before this option).
+    /// field's residual, frozen and fed the painted colours, is close to a constant offset
+    /// that cuts off the painting's darkest or brightest colours; BENCH.md §5p) or source
+    /// (the realistic field's view MLP, frozen, as runs made before this option).
     #[arg(long, default_value = DEFAULT_VIEW_COLOUR, value_parser = ["diffuse", "source"])]
     pub view_colour: String,
     #[command(flatten)]
