@@ -294,7 +294,12 @@ fn chamfer(from: &[[f32; 3]], to: &[[f32; 3]]) -> f64 {
     if nearest.is_empty() {
         return f64::NAN;
     }
-    nearest.iter().map(|&d| d as f64).sum::<f64>() / from.len() as f64
+    mean(&nearest)
+}
+
+/// The mean of distances, summed in order (the same figure whatever the thread count).
+fn mean(d: &[f32]) -> f64 {
+    d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64
 }
 
 /// For each colour of `from`, the distance to the nearest colour of `to` (empty when either
@@ -304,8 +309,7 @@ fn nearest(from: &[[f32; 3]], to: &[[f32; 3]]) -> Vec<f32> {
         return Vec::new();
     }
     let d2 = |a: &[f32; 3], b: &[f32; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
-    // collected in order (and summed in order by the callers): the same figure whatever the
-    // thread count
+    // collected in order, so `mean` sums in order
     from.par_iter().map(|a| to.iter().map(|b| d2(a, b)).fold(f32::INFINITY, f32::min).sqrt()).collect()
 }
 
@@ -321,8 +325,7 @@ fn coverage(palette: &[[f32; 3]], scene: &StyleSamples) -> (f64, f64) {
         if d.is_empty() {
             continue;
         }
-        // (the colour figure in the same order of operations as `chamfer`'s mean)
-        sum += d.iter().map(|&x| x as f64).sum::<f64>() / d.len() as f64 * *n as f64;
+        sum += mean(&d) * *n as f64;
         missed += d.iter().filter(|&&x| x > JND).count() as f64 / d.len() as f64 * *n as f64;
         weight += *n as f64;
     }
