@@ -161,6 +161,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         step_from: crate::stylize_cmd::DEFAULT_STEP_FROM.into(),
         tv: crate::stylize_cmd::PlaneTv::default(),
         view_colour: crate::stylize_cmd::DEFAULT_VIEW_COLOUR.into(),
+        palette: crate::stylize_cmd::DEFAULT_PALETTE.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

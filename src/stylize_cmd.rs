@@ -147,6 +147,9 @@ pub const DEFAULT_PLANE_TV: &str = "0";
 /// The stylized field is diffuse (BENCH.md §5p: the realistic field's frozen residual is
 /// close to a constant offset, which cut off the painting's darkest or brightest colours).
 pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
+/// The consensus rounds keep the first fusion's colours (BENCH.md §5q: the iterated median
+/// narrowed the palette, so round 5's style distance ended above round 1's).
+pub const DEFAULT_PALETTE: &str = "keep";
 
 /// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -273,6 +276,13 @@ pub struct StylizeArgs {
     /// (the realistic field's view MLP, frozen, as runs made before this option).
     #[arg(long, default_value = DEFAULT_VIEW_COLOUR, value_parser = ["diffuse", "source"])]
     pub view_colour: String,
+    /// What the consensus rounds do to the targets' colours: keep (before each consensus
+    /// round the previous targets are mapped, per Oklab channel, onto the colour distribution
+    /// of the first fused stylizations, then the median reconciles the views; the iterated
+    /// median alone narrows the painting's palette round by round, BENCH.md §5q) or free (the
+    /// median alone, as runs made before this option).
+    #[arg(long, default_value = DEFAULT_PALETTE, value_parser = ["keep", "free"])]
+    pub palette: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -389,6 +399,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         step_from: option_enum("--step-from", &a.step_from)?,
         plane_tv: a.tv.0,
         view_colour: option_enum("--view-colour", &a.view_colour)?,
+        palette: option_enum("--palette", &a.palette)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

@@ -16,6 +16,8 @@
 //! - `reproject`: one view's colour at a world point (occlusion test; bilinear over the
 //!   pixels that show that surface, or the nearest of them); fusion and the consistency
 //!   measurement share it.
+//! - `palette`: keeps the consensus rounds from narrowing the painting's colours (a
+//!   per-channel Oklab quantile map onto the first fused stylizations).
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then
@@ -28,6 +30,7 @@
 pub mod consistency;
 pub mod fusion;
 pub mod paintings;
+pub mod palette;
 pub mod reproject;
 pub mod snerf_loop;
 pub mod style_gram;

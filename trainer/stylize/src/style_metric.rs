@@ -109,6 +109,29 @@ pub fn oklab(rgb: [f32; 3]) -> [f32; 3] {
     ]
 }
 
+/// Oklab -> sRGB in [0,1] (the inverse of `oklab`, same source; colours outside the sRGB
+/// gamut are clamped to it).
+#[allow(clippy::excessive_precision)]
+pub fn srgb_from_oklab(c: [f32; 3]) -> [f32; 3] {
+    let l = c[0] + 0.3963377774 * c[1] + 0.2158037573 * c[2];
+    let m = c[0] - 0.1055613458 * c[1] - 0.0638541728 * c[2];
+    let s = c[0] - 0.0894841775 * c[1] - 1.2914855480 * c[2];
+    let (l, m, s) = (l * l * l, m * m * m, s * s * s);
+    let lin = [
+        4.0767416621 * l - 3.3077115913 * m + 0.2309699292 * s,
+        -1.2684380046 * l + 2.6097574011 * m - 0.3413193965 * s,
+        -0.0041960863 * l - 0.7034186147 * m + 1.7076147010 * s,
+    ];
+    lin.map(|v| {
+        let v = v.clamp(0.0, 1.0);
+        if v <= 0.0031308 {
+            12.92 * v
+        } else {
+            1.055 * v.powf(1.0 / 2.4) - 0.055
+        }
+    })
+}
+
 /// SplitMix64: small, fixed-seed, good enough for directions and subsampling.
 struct Rng(u64);
 impl Rng {
@@ -451,6 +474,16 @@ mod tests {
             }
         }
         Image { width: w, height: h, data }
+    }
+
+    #[test]
+    fn oklab_round_trips() {
+        for rgb in [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.9, 0.1, 0.2], [0.05, 0.6, 0.3], [0.3, 0.3, 0.95], [0.02, 0.01, 0.0]] {
+            let back = srgb_from_oklab(oklab(rgb));
+            for c in 0..3 {
+                assert!((back[c] - rgb[c]).abs() < 1e-4, "{rgb:?} -> {back:?}");
+            }
+        }
     }
 
     #[test]

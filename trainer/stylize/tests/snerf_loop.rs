@@ -101,6 +101,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         step_from: snerf_stylize::snerf_loop::StepFrom::Render,
         plane_tv: None,
         view_colour: Default::default(),
+        palette: Default::default(),
     }
 }
 
@@ -290,18 +291,33 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     // median, reading the pixel each point falls in
     o.fusion = snerf_loop::Fusion::Owner;
     o.fusion_read = snerf_stylize::fusion::Read::Nearest;
+    // and keeping the first fusion's palette, saved with it
+    o.palette = snerf_loop::Palette::Keep;
     let st = Counting { calls: Default::default(), means: Default::default() };
     snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12, "round 1 stylizes every view once");
     let views_in = |round: usize| std::fs::read_dir(out.join(format!("consensus/round_{round}"))).map(|d| d.count()).unwrap_or(0);
     assert_eq!(views_in(1), 12);
-    // Resume for three rounds in a new process: the consensus of round 1 is read back.
+    assert!(out.join("consensus/palette.json").exists(), "the palette the rounds keep is saved with round 1");
+    // Resume for three rounds in a new process: the consensus of round 1 is read back, and
+    // its palette (not made again: without the file the run stops and names it).
     o.rounds = 3;
+    let pal = out.join("consensus/palette.json");
+    let saved = std::fs::read(&pal).unwrap();
+    std::fs::remove_file(&pal).unwrap();
+    let e = snerf_loop::run(&o, &data, &source, &Counting { calls: Default::default(), means: Default::default() }, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap_err();
+    assert!(format!("{e:#}").contains("palette.json: cannot read"), "{e:#}");
+    std::fs::write(&pal, &saved).unwrap();
     let st = Counting { calls: Default::default(), means: Default::default() };
     let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s.rounds_done, 3);
     assert_eq!(st.calls.into_inner(), 0, "a resumed consensus run must not stylize again");
     assert_eq!((views_in(1), views_in(2), views_in(3)), (0, 12, 12), "rounds kept: the last two");
+    // An uninterrupted run keeps the same palette (round 1's fusion does not depend on how
+    // many rounds follow).
+    let whole = dir.join("whole");
+    snerf_loop::run(&o, &data, &source, &Counting { calls: Default::default(), means: Default::default() }, &StyleMeters::default(), &style_img, &whole, &mut Quiet).unwrap();
+    assert!(std::fs::read(whole.join("consensus/palette.json")).unwrap() == saved, "round 1's palette differs between runs");
     // Without saved consensus (deleted) the resumed run falls back to stylizing once.
     std::fs::remove_dir_all(out.join("consensus")).unwrap();
     o.rounds = 4;
