@@ -6,7 +6,8 @@
 //! long-range warp error, weight-free style distance), last round ÷ round 1 of the per-round
 //! record (convergence), and how much farther the realistic field is from the painting than
 //! per-frame stylization (separation). Each step is a child `snerf` process; finished steps are
-//! reused when the command is repeated. Writes `snerf.json` and `snerf.md`.
+//! reused when the command is repeated. Writes `snerf.json` and `snerf.md`; exits non-zero when
+//! a pair failed (after scoring the others).
 
 use std::path::PathBuf;
 
@@ -344,7 +345,26 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
     let md = table(&pairs, &b);
     snerf_files::write_atomic(&a.out.join("snerf.md"), md.as_bytes())?;
     eprintln!("{md}");
+    // A grid with a pair missing is not a measurement of the grid: say so with the exit status
+    // (every pair, failed ones with their error, is in snerf.json either way).
+    if let Some(msg) = failed_pairs(&pairs) {
+        bail!("{msg}; every pair's result is in {}", a.out.join("snerf.json").display());
+    }
     Ok(json!({ "command": "bench snerf", "out": pj(&a.out), "pairs": pairs, "bars": b, "table": md }))
+}
+
+/// "N of M pairs failed (first: MODEL × STYLE: ERROR)", or None when none did.
+fn failed_pairs(pairs: &[Value]) -> Option<String> {
+    let failed: Vec<&Value> = pairs.iter().filter(|p| p.get("error").is_some()).collect();
+    let first = failed.first()?;
+    Some(format!(
+        "{} of {} pairs failed (first: {} × {}: {})",
+        failed.len(),
+        pairs.len(),
+        first["model"].as_str().unwrap_or("?"),
+        first["style"].as_str().unwrap_or("?"),
+        first["error"].as_str().unwrap_or("?")
+    ))
 }
 
 #[cfg(test)]
@@ -398,6 +418,8 @@ mod tests {
         assert_eq!(b["ratios"]["met"], true);
         let md = table(&pairs, &b);
         assert!(md.contains("| a × x | 0.200 / 0.250 / 0.90 |"), "{md}");
+        assert_eq!(failed_pairs(&pairs).as_deref(), Some("1 of 3 pairs failed (first: c × x: boom)"));
+        assert_eq!(failed_pairs(&pairs[..2]), None);
         assert!(md.contains("c × x | failed: boom"), "{md}");
         assert!(md.contains("Separation") && md.contains("NOT met (1 of 2; lowest 1.20)"), "{md}");
     }

@@ -27,7 +27,8 @@ use crate::stylizer::Image;
 const LEVELS: usize = 1024;
 
 /// A colour distribution: per Oklab channel (L, a, b), its values at `LEVELS + 1` evenly
-/// spaced quantiles, from the minimum to the maximum.
+/// spaced quantiles, from the minimum to the maximum; no values at all when the first fusion
+/// showed no surface (then there is no palette to keep and the map leaves colours alone).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Quantiles {
     pub channels: [Vec<f32>; 3],
@@ -52,15 +53,19 @@ fn sorted_channels(imgs: &[Image], geoms: &[ViewGeometry]) -> [Vec<f32>; 3] {
 }
 
 impl Quantiles {
-    /// The distribution of the scene pixels of `imgs`; None when no pixel shows a surface.
-    pub fn of(imgs: &[Image], geoms: &[ViewGeometry]) -> Option<Quantiles> {
+    /// The distribution of the scene pixels of `imgs` (empty when no pixel shows a surface).
+    pub fn of(imgs: &[Image], geoms: &[ViewGeometry]) -> Quantiles {
         let ch = sorted_channels(imgs, geoms);
-        if ch[0].is_empty() {
-            return None;
-        }
         let n = ch[0].len();
+        if n == 0 {
+            return Quantiles { channels: Default::default() };
+        }
         let channels = ch.map(|v| (0..=LEVELS).map(|k| v[((k as f64 / LEVELS as f64) * (n - 1) as f64).round() as usize]).collect());
-        Some(Quantiles { channels })
+        Quantiles { channels }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.channels[0].is_empty()
     }
 
     /// Channel `k`'s value at quantile `q` in [0, 1] (linear between levels).
@@ -89,6 +94,9 @@ fn quantile(sorted: &[f32], v: f32) -> f64 {
 /// `reference` at the quantile the colour has among the scene pixels of `imgs` (see the
 /// module doc). Pixels that show no surface are unchanged.
 pub fn map_onto(imgs: &[Image], geoms: &[ViewGeometry], reference: &Quantiles) -> Vec<Image> {
+    if reference.is_empty() {
+        return imgs.to_vec();
+    }
     let src = sorted_channels(imgs, geoms);
     if src[0].is_empty() {
         return imgs.to_vec();
@@ -125,7 +133,8 @@ pub fn load(out: &Path) -> Result<Quantiles> {
     let p = path(out);
     let bytes = std::fs::read(&p).with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
     let q: Quantiles = serde_json::from_slice(&bytes).with_context(|| format!("{}: not a palette file", p.display()))?;
-    anyhow::ensure!(q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())), "{}: not a palette file ({} levels expected)", p.display(), LEVELS + 1);
+    let levels_ok = q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())) || q.is_empty() && q.channels.iter().all(Vec::is_empty);
+    anyhow::ensure!(levels_ok, "{}: not a palette file ({} levels expected)", p.display(), LEVELS + 1);
     Ok(q)
 }
 
@@ -157,7 +166,7 @@ mod tests {
     #[test]
     fn a_narrowed_palette_is_stretched_back_and_equal_colours_stay_equal() {
         let (ref_img, ref_geom) = view(ramp(201, 1.0));
-        let reference = Quantiles::of(std::slice::from_ref(&ref_img), std::slice::from_ref(&ref_geom)).unwrap();
+        let reference = Quantiles::of(std::slice::from_ref(&ref_img), std::slice::from_ref(&ref_geom));
         let mut squeezed = ramp(201, 0.6);
         // two pixels of the same colour
         let same: Vec<f32> = squeezed[30..33].to_vec();
@@ -193,9 +202,17 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("snerf-palette-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let (img, geom) = view(ramp(50, 1.0));
-        let q = Quantiles::of(&[img], &[geom]).unwrap();
+        let q = Quantiles::of(std::slice::from_ref(&img), std::slice::from_ref(&geom));
         save(&dir, &q).unwrap();
         assert_eq!(load(&dir).unwrap(), q);
+        // a first fusion that showed no surface: an empty palette, saved, read back, and a map
+        // that leaves every colour alone (a later round may see surface the first did not)
+        let nothing = ViewGeometry { c2w: geom.c2w, intr: geom.intr, points: vec![None; geom.points.len()] };
+        let empty = Quantiles::of(std::slice::from_ref(&img), &[nothing]);
+        save(&dir, &empty).unwrap();
+        let back = load(&dir).unwrap();
+        assert_eq!(back, empty);
+        assert_eq!(map_onto(std::slice::from_ref(&img), std::slice::from_ref(&geom), &back)[0].data, img.data);
         std::fs::write(path(&dir), b"{\"channels\": [[1.0], [2.0], [3.0]]}").unwrap();
         let e = format!("{:#}", load(&dir).unwrap_err());
         assert!(e.contains("palette.json: not a palette file"), "{e}");

@@ -639,10 +639,9 @@ pub fn run(
                         f = consensus::quantize(f);
                         if opts.palette == Palette::Keep && !stylized_is_consensus {
                             // the first fusion of fresh stylizations: the palette the rounds keep
-                            if let Some(q) = palette::Quantiles::of(&f, &geoms) {
-                                palette::save(out, &q)?;
-                                reference = Some(q);
-                            }
+                            let q = palette::Quantiles::of(&f, &geoms);
+                            palette::save(out, &q)?;
+                            reference = Some(q);
                         }
                         consensus::save(out, consensus::Kept::Consensus, round + 1, &f)?;
                         fixed = Some((f.clone(), true));
