@@ -133,7 +133,7 @@ pub fn load(out: &Path) -> Result<Quantiles> {
     let p = path(out);
     let bytes = std::fs::read(&p).with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
     let q: Quantiles = serde_json::from_slice(&bytes).with_context(|| format!("{}: not a palette file", p.display()))?;
-    let levels_ok = q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())) || q.is_empty() && q.channels.iter().all(Vec::is_empty);
+    let levels_ok = q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())) || q.channels.iter().all(Vec::is_empty);
     anyhow::ensure!(levels_ok, "{}: not a palette file ({} levels expected)", p.display(), LEVELS + 1);
     Ok(q)
 }
