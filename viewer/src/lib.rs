@@ -30,6 +30,8 @@ pub use gpu::{
     GpuRenderer, LimitError, NoAdapterError, View,
 };
 pub use headless::{render_frames, render_frames_or_cpu, render_frames_with, RenderedBy};
-pub use wgpu;
 pub use stream_source::StreamSource;
-pub use window::{keys_help, run_window, Applied, AssetSource, AssetUpdate, FileSource, ViewOptions};
+pub use wgpu;
+pub use window::{
+    keys_help, run_window, Applied, AssetSource, AssetUpdate, FileSource, ViewOptions,
+};
