@@ -17,9 +17,7 @@ use snerf_trainer::data::{self, Dataset, LoadOptions, SceneKind};
 use snerf_trainer::run_dir::RunDir;
 
 fn number<T: std::str::FromStr>(s: &str) -> Result<T, String> {
-    s.trim()
-        .parse::<T>()
-        .map_err(|_| format!("'{s}' is not a number"))
+    s.trim().parse::<T>().map_err(|_| format!("'{s}' is not a number"))
 }
 
 /// A finite f64 in `range`.
@@ -66,33 +64,20 @@ pub fn unit_f32(s: &str) -> Result<f32, String> {
 pub fn fov_degrees(s: &str) -> Result<f32, String> {
     let v = f64_in(s, 0.0..=179.0, "an angle in degrees between 0 and 179")?;
     if v < 1.0 {
-        return Err(format!(
-            "'{s}': must be an angle in degrees between 1 and 179"
-        ));
+        return Err(format!("'{s}': must be an angle in degrees between 1 and 179"));
     }
     Ok(v as f32)
 }
 
 /// An integer in `lo..=hi`, with the reason for the bound in the error.
-pub fn int_in<T>(
-    lo: u64,
-    hi: u64,
-    why: &'static str,
-) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+pub fn int_in<T>(lo: u64, hi: u64, why: &'static str) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
 where
     T: TryFrom<u64>,
 {
     move |s: &str| {
         let v: u64 = number(s)?;
         if v < lo || v > hi {
-            return Err(format!(
-                "'{s}': must be in {lo}..={hi}{}",
-                if why.is_empty() {
-                    String::new()
-                } else {
-                    format!(" ({why})")
-                }
-            ));
+            return Err(format!("'{s}': must be in {lo}..={hi}{}", if why.is_empty() { String::new() } else { format!(" ({why})") }));
         }
         T::try_from(v).map_err(|_| format!("'{s}': out of range"))
     }
@@ -122,9 +107,7 @@ pub fn direction(s: &str) -> Result<[f32; 3], String> {
         return Ok(v);
     }
     let parts: Vec<&str> = t.split(',').collect();
-    let bad = || {
-        format!("'{s}': must be an axis (+x, -y, z, ...) or three finite numbers x,y,z, not all 0")
-    };
+    let bad = || format!("'{s}': must be an axis (+x, -y, z, ...) or three finite numbers x,y,z, not all 0");
     if parts.len() != 3 {
         return Err(bad());
     }
@@ -140,32 +123,20 @@ pub fn direction(s: &str) -> Result<[f32; 3], String> {
 }
 
 pub fn threads(s: &str) -> Result<usize, String> {
-    let cores = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1);
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
     let max = 4 * cores;
     let v: usize = number(s)?;
     if v == 0 || v > max {
-        return Err(format!(
-            "'{s}': must be in 1..={max} (4 x the {cores} cores of this machine)"
-        ));
+        return Err(format!("'{s}': must be in 1..={max} (4 x the {cores} cores of this machine)"));
     }
     Ok(v)
 }
 
 /// Image sizes `WxH`.
 pub fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size '{s}': expected WxH, e.g. 128x128"))?;
-    let w: u32 = w
-        .trim()
-        .parse()
-        .with_context(|| format!("--size '{s}': bad width"))?;
-    let h: u32 = h
-        .trim()
-        .parse()
-        .with_context(|| format!("--size '{s}': bad height"))?;
+    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size '{s}': expected WxH, e.g. 128x128"))?;
+    let w: u32 = w.trim().parse().with_context(|| format!("--size '{s}': bad width"))?;
+    let h: u32 = h.trim().parse().with_context(|| format!("--size '{s}': bad height"))?;
     if !(8..=8192).contains(&w) || !(8..=8192).contains(&h) {
         bail!("--size '{s}': width and height must be in 8..=8192");
     }
@@ -234,10 +205,7 @@ impl TokenArgs {
         let token = if let Some(t) = &self.token {
             t.clone()
         } else if let Some(f) = &self.token_file {
-            std::fs::read_to_string(f)
-                .with_context(|| format!("--token-file {}: cannot read", f.display()))?
-                .trim()
-                .to_string()
+            std::fs::read_to_string(f).with_context(|| format!("--token-file {}: cannot read", f.display()))?.trim().to_string()
         } else if let Ok(t) = std::env::var(TOKEN_ENV) {
             t.trim().to_string()
         } else {
@@ -257,21 +225,12 @@ pub fn pj(p: impl AsRef<Path>) -> Value {
 /// A progress bar drawn on stderr.
 pub fn bar(len: u64, template: &str) -> ProgressBar {
     let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template(template)
-            .unwrap()
-            .progress_chars("=> "),
-    );
+    pb.set_style(ProgressStyle::with_template(template).unwrap().progress_chars("=> "));
     pb
 }
 
 /// `check_output` with a run's files and a dataset tree as the inputs.
-pub fn guard_run_output(
-    flag: &str,
-    out: &Path,
-    run: &Path,
-    data_root: Option<&Path>,
-) -> Result<()> {
+pub fn guard_run_output(flag: &str, out: &Path, run: &Path, data_root: Option<&Path>) -> Result<()> {
     let files = RunDir::new(run).files();
     let mut inputs: Vec<Input> = files.iter().map(|f| Input::File(f)).collect();
     if let Some(d) = data_root {

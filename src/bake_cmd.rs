@@ -13,8 +13,8 @@ use snerf_baker::bake::{bake, BakeOptions};
 use snerf_trainer::{eval, train};
 
 use crate::args::{bar, parse_size, peak_rss_mb, pj, DataOpts};
-use snerf_files::guard::{check_output, Input};
 use snerf_trainer::run_dir::RunDir;
+use snerf_files::guard::{check_output, Input};
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
@@ -77,12 +77,7 @@ impl BakeArgs {
             #[command(flatten)]
             bake: BakeArgs,
         }
-        let cmd: Cmd = clap::Parser::parse_from([
-            std::ffi::OsStr::new("bake"),
-            run.as_os_str(),
-            "--out".as_ref(),
-            out.as_os_str(),
-        ]);
+        let cmd: Cmd = clap::Parser::parse_from([std::ffi::OsStr::new("bake"), run.as_os_str(), "--out".as_ref(), out.as_os_str()]);
         cmd.bake
     }
 }
@@ -104,34 +99,21 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
 
 /// `snerf bake --sweep`: one bake per resolution, each as a plain bake would write it, and
 /// the sweep's summary and pictures (what each resolution costs in size and in dB).
-fn sweep(
-    a: &BakeArgs,
-    data: &snerf_trainer::data::Dataset,
-    model: &train::Model,
-    pool: &snerf_trainer::render::WorkspacePool,
-) -> Result<Value> {
+fn sweep(a: &BakeArgs, data: &snerf_trainer::data::Dataset, model: &train::Model, pool: &snerf_trainer::render::WorkspacePool) -> Result<Value> {
     let wall = Instant::now();
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     let mut res = a.sweep.clone();
     res.sort_unstable();
     res.dedup();
     let mut bakes = Vec::new();
-    let doc = |bakes: &[Value]| json!({ "command": "bake sweep", "run": pj(&a.run), "out": pj(&a.out), "resolutions": res, "bakes": bakes, "seconds": wall.elapsed().as_secs_f64() });
+    let doc = |bakes: &[Value]| {
+        json!({ "command": "bake sweep", "run": pj(&a.run), "out": pj(&a.out), "resolutions": res, "bakes": bakes, "seconds": wall.elapsed().as_secs_f64() })
+    };
     for &r in &res {
         eprintln!("sweep: resolution {r}");
         let dir = a.out.join(format!("res-{r}"));
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-        let v = bake_one(
-            a,
-            r,
-            &dir.join("asset.snerf"),
-            data,
-            model,
-            pool,
-            Instant::now(),
-        )?;
+        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        let v = bake_one(a, r, &dir.join("asset.snerf"), data, model, pool, Instant::now())?;
         snerf_files::write_json_atomic(&dir.join("bake.json"), &v)?;
         bakes.push(v);
         // after every resolution, so a long sweep shows its progress on disk
@@ -141,30 +123,15 @@ fn sweep(
     let source = snerf_report::Source::bakes(&label(&a.run), &a.out, bakes);
     let title = format!("{}: bake sweep {:?}", label(&a.run), res);
     let report = a.out.join("report");
-    snerf_report::write_report(
-        &[source],
-        &report,
-        &snerf_report::Options {
-            title,
-            compare: None,
-            svg: true,
-        },
-    )?;
+    snerf_report::write_report(&[source], &report, &snerf_report::Options { title, compare: None, svg: true })?;
     v["report"] = pj(&report);
-    eprintln!(
-        "sweep of {} resolutions in {:.1} s; pictures in {}",
-        res.len(),
-        wall.elapsed().as_secs_f64(),
-        report.display()
-    );
+    eprintln!("sweep of {} resolutions in {:.1} s; pictures in {}", res.len(), wall.elapsed().as_secs_f64(), report.display());
     Ok(v)
 }
 
 fn label(run: &Path) -> String {
     let p = std::fs::canonicalize(run).unwrap_or_else(|_| run.to_path_buf());
-    p.file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "run".into())
+    p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into())
 }
 
 /// One bake of `model` at `res` voxels per axis into `out`; the bake's JSON summary.
@@ -200,18 +167,8 @@ fn bake_one(
     let file_bytes = std::fs::metadata(out).map(|m| m.len()).unwrap_or(0);
     let summary = asset.summary(file_bytes);
     let faith = if a.eval_views > 0 {
-        let views = if data.test.is_empty() {
-            &data.train
-        } else {
-            &data.test
-        };
-        Some(snerf_baker::faithfulness::measure(
-            model,
-            pool,
-            &asset,
-            views,
-            a.eval_views,
-        )?)
+        let views = if data.test.is_empty() { &data.train } else { &data.test };
+        Some(snerf_baker::faithfulness::measure(model, pool, &asset, views, a.eval_views)?)
     } else {
         None
     };
@@ -246,17 +203,9 @@ fn bake_one(
         );
     }
     if let Some(f) = &faith {
-        let times: Vec<String> = f
-            .views
-            .iter()
-            .filter_map(|v| v.time)
-            .map(|t| format!("{t:.3}"))
-            .collect();
+        let times: Vec<String> = f.views.iter().filter_map(|v| v.time).map(|t| format!("{t:.3}")).collect();
         if !times.is_empty() {
-            eprintln!(
-                "faithfulness at the held-out views' own times: {}",
-                times.join(", ")
-            );
+            eprintln!("faithfulness at the held-out views' own times: {}", times.join(", "));
         }
         eprintln!(
             "faithfulness on {} views: baked vs field {:.2} dB; test PSNR field {:.2} dB, baked {:.2} dB (drop {:.2} dB; baking itself {:.2} dB, drawing silhouettes unlike the field {:.2} dB)",
@@ -337,17 +286,8 @@ pub struct RenderArgs {
 }
 
 /// The cameras (and times) of `--path`.
-pub fn render_path(
-    asset: &Asset,
-    path: &str,
-    frames: usize,
-    size: (u32, u32),
-) -> Result<Vec<(Camera, f32)>> {
-    let (t0, t1) = asset
-        .header
-        .time_range
-        .map(|r| (r[0], r[1]))
-        .unwrap_or((0.0, 0.0));
+pub fn render_path(asset: &Asset, path: &str, frames: usize, size: (u32, u32)) -> Result<Vec<(Camera, f32)>> {
+    let (t0, t1) = asset.header.time_range.map(|r| (r[0], r[1])).unwrap_or((0.0, 0.0));
     if path == "orbit" {
         let n = frames.max(1);
         return Ok((0..n)
@@ -357,11 +297,8 @@ pub fn render_path(
             })
             .collect());
     }
-    let text = std::fs::read_to_string(path).with_context(|| {
-        format!("--path {path}: cannot read (use `orbit` or a camera_path.json)")
-    })?;
-    let cams = snerf_geometry::camera_path::parse(&text, size, 40.0)
-        .map_err(|e| anyhow::anyhow!("{path}: {e}"))?;
+    let text = std::fs::read_to_string(path).with_context(|| format!("--path {path}: cannot read (use `orbit` or a camera_path.json)"))?;
+    let cams = snerf_geometry::camera_path::parse(&text, size, 40.0).map_err(|e| anyhow::anyhow!("{path}: {e}"))?;
     Ok(cams.iter().map(|c| (c.cam, c.time.unwrap_or(t0))).collect())
 }
 
@@ -369,10 +306,7 @@ pub fn render_path(
 fn camera_path_json(cams: &[(Camera, f32)], dynamic: bool) -> String {
     let path: Vec<snerf_geometry::camera_path::PathCamera> = cams
         .iter()
-        .map(|(c, t)| snerf_geometry::camera_path::PathCamera {
-            cam: *c,
-            time: dynamic.then_some(*t),
-        })
+        .map(|(c, t)| snerf_geometry::camera_path::PathCamera { cam: *c, time: dynamic.then_some(*t) })
         .collect();
     snerf_geometry::camera_path::to_json(&path, 24.0)
 }
@@ -384,10 +318,7 @@ const MAX_RENDER_PIXELS: u64 = 1 << 28;
 pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
     let asset = Asset::read(&a.file)?;
     let cams = render_path(&asset, &a.path, a.frames, parse_size(&a.size)?)?;
-    let pixels: u64 = cams
-        .iter()
-        .map(|(c, _)| c.width as u64 * c.height as u64)
-        .sum();
+    let pixels: u64 = cams.iter().map(|(c, _)| c.width as u64 * c.height as u64).sum();
     if pixels > MAX_RENDER_PIXELS {
         bail!(
             "{} frames of {} pixels in all is more than one render may produce ({} Mpixel); render fewer or smaller frames",
@@ -397,8 +328,7 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
         );
     }
     check_output("--out", &a.out, &[Input::File(&a.file)])?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     let t0 = Instant::now();
     let (frames, renderer) = if a.gpu {
         let (frames, by) = snerf_viewer::render_frames_or_cpu(&asset, &cams)?;
@@ -411,10 +341,7 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
         }
     } else {
         // Each frame is written as soon as it is rendered; only the preview's are kept.
-        let pb = bar(
-            cams.len() as u64,
-            "{spinner} rendering {bar:30} {pos}/{len} [{elapsed}]",
-        );
+        let pb = bar(cams.len() as u64, "{spinner} rendering {bar:30} {pos}/{len} [{elapsed}]");
         let mut kept = Vec::new();
         for (i, (cam, time)) in cams.iter().enumerate() {
             let f = asset_render::render(&asset, cam, *time);
@@ -437,17 +364,8 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
     let preview = a.out.join("preview.png");
     asset_render::contact_strip(&frames[..frames.len().min(8)], &preview)?;
     let path_file = a.out.join("camera_path.json");
-    snerf_files::atomic::write_atomic(
-        &path_file,
-        camera_path_json(&cams, asset.header.is_dynamic()).as_bytes(),
-    )?;
-    eprintln!(
-        "rendered {} frames in {:.1} s ({:.0} ms/frame, {renderer}) -> {}",
-        cams.len(),
-        secs,
-        secs * 1e3 / cams.len() as f64,
-        a.out.display()
-    );
+    snerf_files::atomic::write_atomic(&path_file, camera_path_json(&cams, asset.header.is_dynamic()).as_bytes())?;
+    eprintln!("rendered {} frames in {:.1} s ({:.0} ms/frame, {renderer}) -> {}", cams.len(), secs, secs * 1e3 / cams.len() as f64, a.out.display());
     Ok(json!({
         "command": "render",
         "file": pj(&a.file),
@@ -492,11 +410,7 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
         bail!("--iso {}: must be an opacity in (0,1)", a.iso);
     }
     let mut inputs = vec![Input::File(&a.file)];
-    let check_files = a
-        .check
-        .as_deref()
-        .map(|r| RunDir::new(r).files())
-        .unwrap_or_default();
+    let check_files = a.check.as_deref().map(|r| RunDir::new(r).files()).unwrap_or_default();
     inputs.extend(check_files.iter().map(|f| Input::File(f)));
     check_output("--out", &a.out, &inputs)?;
     let t0 = Instant::now();
@@ -514,20 +428,10 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
         secs
     );
     let agreement = match &a.check {
-        Some(run) => Some(surface_agreement(
-            &asset,
-            &meshes[0],
-            run,
-            a.data.as_deref(),
-            &a.opts,
-        )?),
+        Some(run) => Some(surface_agreement(&asset, &meshes[0], run, a.data.as_deref(), &a.opts)?),
         None => None,
     };
-    let validation = if a.validate {
-        Some(validate_glb(&a.out)?)
-    } else {
-        None
-    };
+    let validation = if a.validate { Some(validate_glb(&a.out)?) } else { None };
     Ok(json!({
         "command": "export-gltf",
         "file": pj(&a.file),
@@ -541,26 +445,15 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
 
 /// The field's surface against the exported mesh (`snerf_baker::checks`), on the run's
 /// held-out views.
-fn surface_agreement(
-    asset: &Asset,
-    mesh: &snerf_baker::marching_cubes::Mesh,
-    run: &Path,
-    data: Option<&Path>,
-    opts: &DataOpts,
-) -> Result<Value> {
+fn surface_agreement(asset: &Asset, mesh: &snerf_baker::marching_cubes::Mesh, run: &Path, data: Option<&Path>, opts: &DataOpts) -> Result<Value> {
     let data_path = match data {
         Some(d) => d.to_path_buf(),
         None => RunDir::new(run).dataset()?,
     };
     let data = opts.load(&data_path)?;
     let (model, pool) = RunDir::new(run).load_model()?;
-    let views = if data.test.is_empty() {
-        &data.train
-    } else {
-        &data.test
-    };
-    let s = snerf_baker::checks::surface_agreement(asset, mesh, &model, &pool, views)
-        .with_context(|| format!("{}", run.display()))?;
+    let views = if data.test.is_empty() { &data.train } else { &data.test };
+    let s = snerf_baker::checks::surface_agreement(asset, mesh, &model, &pool, views).with_context(|| format!("{}", run.display()))?;
     eprintln!(
         "mesh vs field depth over {} surface points: median {:.2} voxels, 90th percentile {:.2} voxels",
         s.points, s.median_voxels, s.p90_voxels
@@ -573,14 +466,8 @@ pub fn validate_glb(path: &Path) -> Result<Value> {
     let report = snerf_baker::checks::validate_glb(path)?;
     eprintln!(
         "glTF validator: {} errors, {} warnings",
-        report
-            .pointer("/numErrors")
-            .or(report.pointer("/issues/numErrors"))
-            .unwrap_or(&json!("?")),
-        report
-            .pointer("/numWarnings")
-            .or(report.pointer("/issues/numWarnings"))
-            .unwrap_or(&json!("?"))
+        report.pointer("/numErrors").or(report.pointer("/issues/numErrors")).unwrap_or(&json!("?")),
+        report.pointer("/numWarnings").or(report.pointer("/issues/numWarnings")).unwrap_or(&json!("?"))
     );
     Ok(report)
 }

@@ -122,18 +122,12 @@ fn report(a: &BenchReportArgs) -> Result<Value> {
         for _ in 0..a.reps {
             let t0 = Instant::now();
             sources = snerf_report::load_all(&a.paths)?;
-            let opts = snerf_report::Options {
-                title: "bench".into(),
-                compare: None,
-                svg: true,
-            };
+            let opts = snerf_report::Options { title: "bench".into(), compare: None, svg: true };
             snerf_report::write_report(&sources, &scratch.join("all"), &opts)?;
             whole.push(t0.elapsed().as_secs_f64());
         }
         // one redraw of a training run's own report, as at each new curve point
-        let train = sources
-            .iter()
-            .find(|s| s.kind == snerf_report::SourceKind::Train);
+        let train = sources.iter().find(|s| s.kind == snerf_report::SourceKind::Train);
         let mut live = snerf_report::live::LiveReport::new();
         let mut per_write = None;
         if let Some(s) = train {
@@ -145,11 +139,7 @@ fn report(a: &BenchReportArgs) -> Result<Value> {
             per_write = Some(live.seconds / live.writes.max(1) as f64);
         }
         // a 5-minute run gains a curve point at each of EVAL_AT up to 300 s, at 300 s, and at the end
-        let writes_5min = snerf_trainer::run::EVAL_AT
-            .iter()
-            .filter(|&&t| t < 300.0)
-            .count()
-            + 2;
+        let writes_5min = snerf_trainer::run::EVAL_AT.iter().filter(|&&t| t < 300.0).count() + 2;
         let overhead = per_write.map(|w| w * writes_5min as f64 / 300.0);
         let v = json!({
             "command": "bench report",
@@ -180,16 +170,8 @@ fn stylize(a: &BenchStylizeArgs) -> Result<Value> {
     use snerf_stylize::stylizer;
     let opts = stylizer::StylizerOptions::default();
     let tract = stylizer::bench_arbitrary(&opts, a.size, a.reps)?;
-    let ort = stylizer::bench_onnxruntime(
-        &stylizer::models_dir(&opts),
-        tract.transform_shape.0.max(tract.transform_shape.1),
-        a.reps,
-        tract.threads,
-    );
-    let ort_transform = ort
-        .as_ref()
-        .and_then(|v| v.pointer("/transform_median_s"))
-        .and_then(|v| v.as_f64());
+    let ort = stylizer::bench_onnxruntime(&stylizer::models_dir(&opts), tract.transform_shape.0.max(tract.transform_shape.1), a.reps, tract.threads);
+    let ort_transform = ort.as_ref().and_then(|v| v.pointer("/transform_median_s")).and_then(|v| v.as_f64());
     eprintln!(
         "arbitrary {}x{}: tract whole stylization {:.3} s, transform network {:.3} s; onnxruntime transform {}; ratio {}",
         a.size,
@@ -250,11 +232,7 @@ fn train(a: &BenchTrainArgs) -> Result<Value> {
         100.0 * (sum.seconds - sum.chunk_seconds - sum.adam_seconds) / sum.seconds
     );
     for p in &phases {
-        eprintln!(
-            "  {:<16} {:5.1}% of thread time",
-            p["phase"].as_str().unwrap(),
-            100.0 * p["share"].as_f64().unwrap()
-        );
+        eprintln!("  {:<16} {:5.1}% of thread time", p["phase"].as_str().unwrap(), 100.0 * p["share"].as_f64().unwrap());
     }
     eprintln!(
         "field: {:.0} FLOP/sample forward+backward, {:.1} GFLOP/s while in field phases = {:.1}% of {:.0} GFLOP/s peak",
@@ -301,21 +279,11 @@ pub struct BenchViewArgs {
 fn bench_view(a: &BenchViewArgs) -> Result<Value> {
     let asset = snerf_asset::Asset::read(&a.asset)?;
     let (w, h) = crate::args::parse_size(&a.size)?;
-    let opts = snerf_viewer::BenchOptions {
-        width: w,
-        height: h,
-        frames: a.frames.max(1),
-        stereo: a.stereo,
-        ..Default::default()
-    };
+    let opts = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames.max(1), stereo: a.stereo, ..Default::default() };
     let r = snerf_viewer::bench_view_with(&asset, &opts)?;
     eprintln!("{r}");
     let twin = if a.static_twin {
-        anyhow::ensure!(
-            asset.is_dynamic(),
-            "{}: --static-twin needs a 4D asset",
-            a.asset.display()
-        );
+        anyhow::ensure!(asset.is_dynamic(), "{}: --static-twin needs a 4D asset", a.asset.display());
         let s = asset.frame_as_static(0)?;
         let t = snerf_viewer::bench_view_with(&s, &opts)?;
         eprintln!(
@@ -326,21 +294,11 @@ fn bench_view(a: &BenchViewArgs) -> Result<Value> {
     } else {
         None
     };
-    Ok(
-        json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r, "static_twin": twin }),
-    )
+    Ok(json!({ "command": "bench view", "asset": crate::args::pj(&a.asset), "report": r, "static_twin": twin }))
 }
 
 fn bench_stream(asset: &std::path::Path, rounds: usize) -> Result<Value> {
-    let r = snerf_stream::bench::run(
-        asset,
-        &snerf_stream::bench::BenchOptions {
-            rounds: rounds.max(1),
-            ..Default::default()
-        },
-    )?;
+    let r = snerf_stream::bench::run(asset, &snerf_stream::bench::BenchOptions { rounds: rounds.max(1), ..Default::default() })?;
     eprintln!("{r}");
-    Ok(
-        json!({ "command": "bench stream", "asset": crate::args::pj(asset), "report": r.to_string() }),
-    )
+    Ok(json!({ "command": "bench stream", "asset": crate::args::pj(asset), "report": r.to_string() }))
 }

@@ -90,10 +90,7 @@ pub fn command_name(cmd: &Cmd) -> String {
 
 pub fn dispatch(cli: Cli) -> Result<()> {
     if let Some(n) = cli.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .ok();
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let summary = match cli.cmd {
         Cmd::Scene(a) => crate::scene_cmd::scene(&a)?,

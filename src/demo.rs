@@ -57,21 +57,15 @@ const CONSISTENCY_FRAMES: usize = 16;
 
 fn prepare_dir(out: &Path) -> Result<()> {
     if out.exists() {
-        let empty = std::fs::read_dir(out)
-            .map(|mut d| d.next().is_none())
-            .unwrap_or(false);
+        let empty = std::fs::read_dir(out).map(|mut d| d.next().is_none()).unwrap_or(false);
         if !empty && !out.join(MARKER).exists() {
-            bail!(
-                "{}: exists and is not a snerf demo directory; choose another --out",
-                out.display()
-            );
+            bail!("{}: exists and is not a snerf demo directory; choose another --out", out.display());
         }
         // A previous demo: start its run afresh (its data is regenerated below too).
         for sub in ["run", "data", "turntable", "stylized", "baked_turntable"] {
             let p = out.join(sub);
             if p.exists() {
-                std::fs::remove_dir_all(&p)
-                    .with_context(|| format!("{}: cannot clear", p.display()))?;
+                std::fs::remove_dir_all(&p).with_context(|| format!("{}: cannot clear", p.display()))?;
             }
         }
     }
@@ -81,10 +75,7 @@ fn prepare_dir(out: &Path) -> Result<()> {
 
 pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let t0 = Instant::now();
-    anyhow::ensure!(
-        a.minutes.is_finite() && a.minutes > 0.0,
-        "--minutes must be positive"
-    );
+    anyhow::ensure!(a.minutes.is_finite() && a.minutes > 0.0, "--minutes must be positive");
     prepare_dir(&a.out)?;
     let data_dir = a.out.join("data");
     let run_dir = a.out.join("run");
@@ -116,18 +107,14 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let eval_dir = RunDir::new(&run_dir).eval_dir();
     std::fs::create_dir_all(&eval_dir)?;
     let report = eval::evaluate(&model, &pool, &data.test, has_alpha, Some(&eval_dir))?;
-    eprintln!(
-        "      test PSNR {:.2} dB, SSIM {:.4}",
-        report.mean_psnr, report.mean_ssim
-    );
+    eprintln!("      test PSNR {:.2} dB, SSIM {:.4}", report.mean_psnr, report.mean_ssim);
     // as `snerf eval` records it, so the report finds the SSIM
     checkpoint::write_json_atomic(
         &RunDir::new(&run_dir).eval_record(),
         &json!({ "command": "eval", "run": pj(&run_dir), "split": "test", "report": report, "images": pj(&eval_dir) }),
     )?;
     eprintln!("[4/8] rendering a {}-frame turntable", a.frames);
-    let frames =
-        crate::train_cmd::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;
+    let frames = crate::train_cmd::turntable(&model, &pool, &data, a.frames, &a.out.join("turntable"))?;
 
     // SNeRF: stylize the field (the stylizer falls back to colour transfer when the
     // pretrained models are not installed, and says so)
@@ -135,10 +122,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let mut stylizer = a.stylizer.clone();
     let mut style = a.style.clone();
     let needs_models = stylizer == "arbitrary" || stylizer.starts_with("preset:");
-    if needs_models
-        && snerf_stylize::stylizer::from_spec(&stylizer, style.as_deref(), &Default::default())
-            .is_err()
-    {
+    if needs_models && snerf_stylize::stylizer::from_spec(&stylizer, style.as_deref(), &Default::default()).is_err() {
         eprintln!(
             "      note: the pretrained stylizer models are not installed ({}); using the colour-transfer stylizer",
             snerf_stylize::stylizer::SETUP_COMMAND
@@ -150,10 +134,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         checkpoint::write_png_atomic(&p, &demo_style_image())?;
         style = Some(p);
     }
-    eprintln!(
-        "[5/8] SNeRF: {} rounds of render -> stylize ({stylizer}) -> train",
-        a.rounds
-    );
+    eprintln!("[5/8] SNeRF: {} rounds of render -> stylize ({stylizer}) -> train", a.rounds);
     let s_args = |rounds: usize, out: PathBuf| crate::stylize_cmd::StylizeArgs {
         run: run_dir.clone(),
         style: style.clone(),
@@ -209,8 +190,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         eprintln!("{t}");
     }
     let (smodel, spool) = RunDir::new(&srun).load_model()?;
-    let sframes =
-        crate::train_cmd::turntable(&smodel, &spool, &data, a.frames, &srun.join("turntable"))?;
+    let sframes = crate::train_cmd::turntable(&smodel, &spool, &data, a.frames, &srun.join("turntable"))?;
 
     eprintln!("[7/8] baking the stylized field and rendering the baked asset");
     let asset_path = a.out.join("stylized.snerf");
@@ -231,13 +211,8 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let glb = a.out.join("stylized.glb");
     // A short or weak training run may have no voxel as opaque as the usual level: then
     // take half the densest voxel's opacity, and say so.
-    let max_alpha =
-        snerf_baker::mesh_export::max_voxel_alpha(&snerf_asset::Asset::read(&asset_path)?);
-    let iso = if max_alpha > 0.5 {
-        0.5
-    } else {
-        (max_alpha * 0.5).max(1e-4)
-    };
+    let max_alpha = snerf_baker::mesh_export::max_voxel_alpha(&snerf_asset::Asset::read(&asset_path)?);
+    let iso = if max_alpha > 0.5 { 0.5 } else { (max_alpha * 0.5).max(1e-4) };
     if iso < 0.5 {
         eprintln!("      the densest voxel is only {max_alpha:.3} opaque: the mesh uses iso level {iso:.4}");
     }
@@ -256,26 +231,10 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let sources = snerf_report::load_all(&[run_dir.clone(), srun.clone(), bake_json])?;
     let plots = snerf_report::plots::build(&sources);
     let title = format!("snerf demo: the '{}' scene", a.scene);
-    snerf_report::write_plots(
-        &sources,
-        &plots,
-        &a.out,
-        &snerf_report::Options {
-            title,
-            compare: None,
-            svg: true,
-        },
-    )?;
+    snerf_report::write_plots(&sources, &plots, &a.out, &snerf_report::Options { title, compare: None, svg: true })?;
     let sheet = a.out.join("contact_sheet.png");
     let consistency_png = srun.join("consistency.png");
-    contact_sheet(
-        &eval_dir,
-        &report,
-        &[&frames, &sframes],
-        &consistency_png,
-        &plots,
-        &sheet,
-    )?;
+    contact_sheet(&eval_dir, &report, &[&frames, &sframes], &consistency_png, &plots, &sheet)?;
     let summary = json!({
         "command": "demo",
         "scene": scene,
@@ -305,8 +264,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         a.out.join(snerf_report::pages::HTML).display(),
         asset_path.display()
     );
-    let display =
-        std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
+    let display = std::env::var_os("DISPLAY").is_some() || std::env::var_os("WAYLAND_DISPLAY").is_some();
     if !a.no_view && !quiet && display && std::io::IsTerminal::is_terminal(&std::io::stdin()) {
         eprintln!("opening the viewer (Esc closes it; H lists the keys)");
         let view = crate::view_cmd::ViewArgs {
@@ -324,10 +282,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             loop_seconds: 4.0,
         };
         if let Err(e) = crate::view_cmd::view_cmd(&view) {
-            eprintln!(
-                "the viewer could not open ({e:#}); run: snerf view {}",
-                asset_path.display()
-            );
+            eprintln!("the viewer could not open ({e:#}); run: snerf view {}", asset_path.display());
         }
     }
     Ok(summary)
@@ -338,9 +293,7 @@ fn demo_style_image() -> image::RgbImage {
     image::RgbImage::from_fn(256, 256, |x, y| {
         let (fx, fy) = (x as f32 / 256.0, y as f32 / 256.0);
         let w = ((fx * 9.0 + (fy * 7.0).sin() * 1.5).sin() * 0.5 + 0.5) * 0.8 + 0.2 * fy;
-        let c = |a: [f32; 3], b: [f32; 3]| {
-            [0, 1, 2].map(|i| ((a[i] * (1.0 - w) + b[i] * w) * 255.0) as u8)
-        };
+        let c = |a: [f32; 3], b: [f32; 3]| [0, 1, 2].map(|i| ((a[i] * (1.0 - w) + b[i] * w) * 255.0) as u8);
         image::Rgb(c([0.95, 0.75, 0.2], [0.15, 0.25, 0.6]))
     })
 }
@@ -363,48 +316,24 @@ fn contact_sheet(
     let n = report.views.len();
     for i in [0, n / 2, n.saturating_sub(1)].into_iter().take(n.min(3)) {
         let p = eval_dir.join(format!("{}.png", report.views[i].name));
-        triptychs.push(
-            image::open(&p)
-                .with_context(|| format!("{}: cannot read", p.display()))?
-                .to_rgb8(),
-        );
+        triptychs.push(image::open(&p).with_context(|| format!("{}: cannot read", p.display()))?.to_rgb8());
     }
     // small views are scaled up so the first band is as tall as a readable plot
     let sum_h: u32 = triptychs.iter().map(|t| t.height()).sum();
     if sum_h > 0 && sum_h < 320 {
         for t in triptychs.iter_mut() {
             let (w, h) = (t.width() * 320 / sum_h, t.height() * 320 / sum_h);
-            *t = image::imageops::resize(
-                t,
-                w.max(1),
-                h.max(1),
-                image::imageops::FilterType::Triangle,
-            );
+            *t = image::imageops::resize(t, w.max(1), h.max(1), image::imageops::FilterType::Triangle);
         }
     }
     let consistency_img = image::open(consistency).ok().map(|c| c.to_rgb8());
     let tiles: Vec<Vec<image::RgbImage>> = turntables
         .iter()
-        .map(|frames| {
-            frames
-                .iter()
-                .map(|f| image::open(f).map(|i| i.to_rgb8()))
-                .collect::<Result<Vec<_>, _>>()
-        })
+        .map(|frames| frames.iter().map(|f| image::open(f).map(|i| i.to_rgb8())).collect::<Result<Vec<_>, _>>())
         .collect::<Result<_, _>>()?;
-    let (tw, th) = tiles
-        .iter()
-        .flatten()
-        .next()
-        .map(|t| (t.width(), t.height()))
-        .unwrap_or((128, 128));
+    let (tw, th) = tiles.iter().flatten().next().map(|t| (t.width(), t.height())).unwrap_or((128, 128));
     let trip_w = triptychs.iter().map(|t| t.width()).max().unwrap_or(0);
-    let width = consistency_img
-        .as_ref()
-        .map(|c| c.width())
-        .unwrap_or(8 * tw)
-        .max(trip_w + 320)
-        .max(tw);
+    let width = consistency_img.as_ref().map(|c| c.width()).unwrap_or(8 * tw).max(trip_w + 320).max(tw);
     let mut bands: Vec<image::RgbImage> = Vec::new();
     // 1: triptychs | training curve
     let trip_h: u32 = triptychs.iter().map(|t| t.height()).sum::<u32>().max(320);
@@ -415,12 +344,7 @@ fn contact_sheet(
         y += t.height();
     }
     if let Some(p) = plot("psnr") {
-        image::imageops::overlay(
-            &mut band,
-            &snerf_report::draw::rgb(p, width - trip_w, trip_h)?,
-            trip_w as i64,
-            0,
-        );
+        image::imageops::overlay(&mut band, &snerf_report::draw::rgb(p, width - trip_w, trip_h)?, trip_w as i64, 0);
     }
     bands.push(band);
     // 2: turntables in whole rows: as few rows as the frames need at their size, the
@@ -429,61 +353,32 @@ fn contact_sheet(
         let n = frames.len().max(1) as u32;
         let rows = (n * tw).div_ceil(width).max(1);
         let per_row = n.div_ceil(rows) as usize;
-        let (tw, th) = (
-            width / per_row as u32,
-            (th * width / per_row as u32 / tw.max(1)).max(1),
-        );
+        let (tw, th) = (width / per_row as u32, (th * width / per_row as u32 / tw.max(1)).max(1));
         let scaled: Vec<image::RgbImage> = frames
             .iter()
-            .map(|t| {
-                if t.dimensions() == (tw, th) {
-                    t.clone()
-                } else {
-                    image::imageops::resize(t, tw, th, image::imageops::FilterType::Triangle)
-                }
-            })
+            .map(|t| if t.dimensions() == (tw, th) { t.clone() } else { image::imageops::resize(t, tw, th, image::imageops::FilterType::Triangle) })
             .collect();
         let frames = &scaled;
         let nrows = frames.len().div_ceil(per_row) as u32;
-        let mut block =
-            image::RgbImage::from_pixel(width, (nrows * th).max(1), image::Rgb([24, 24, 24]));
+        let mut block = image::RgbImage::from_pixel(width, (nrows * th).max(1), image::Rgb([24, 24, 24]));
         for (i, t) in frames.iter().enumerate() {
             let row = i / per_row;
             let in_row = (frames.len() - row * per_row).min(per_row) as u32;
             let x0 = (width - in_row * tw) / 2;
-            image::imageops::overlay(
-                &mut block,
-                t,
-                (x0 + (i % per_row) as u32 * tw) as i64,
-                (row as u32 * th) as i64,
-            );
+            image::imageops::overlay(&mut block, t, (x0 + (i % per_row) as u32 * tw) as i64, (row as u32 * th) as i64);
         }
         bands.push(block);
     }
     // 3: the stylization rounds, side by side
     let round_plots: Vec<&snerf_report::Plot> =
-        ["stylize_consistency", "stylize_style", "stylize_fit"]
-            .iter()
-            .filter_map(|id| plot(id))
-            .filter(|p| !p.is_empty())
-            .take(2)
-            .collect();
+        ["stylize_consistency", "stylize_style", "stylize_fit"].iter().filter_map(|id| plot(id)).filter(|p| !p.is_empty()).take(2).collect();
     if !round_plots.is_empty() {
         let h = 320;
         let mut band = image::RgbImage::from_pixel(width, h, bg);
         let w = width / round_plots.len() as u32;
         for (i, p) in round_plots.iter().enumerate() {
-            let wi = if i + 1 == round_plots.len() {
-                width - w * i as u32
-            } else {
-                w
-            };
-            image::imageops::overlay(
-                &mut band,
-                &snerf_report::draw::rgb(p, wi, h)?,
-                (w * i as u32) as i64,
-                0,
-            );
+            let wi = if i + 1 == round_plots.len() { width - w * i as u32 } else { w };
+            image::imageops::overlay(&mut band, &snerf_report::draw::rgb(p, wi, h)?, (w * i as u32) as i64, 0);
         }
         bands.push(band);
     }

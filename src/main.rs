@@ -22,10 +22,7 @@ fn main() -> ExitCode {
         Err(e) => {
             // A refused command line under --json is a JSON error on stdout too (help and
             // --version are not errors).
-            let help = matches!(
-                e.kind(),
-                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion
-            );
+            let help = matches!(e.kind(), clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion);
             if !help && std::env::args().any(|a| a == "--json") {
                 let v = serde_json::json!({ "command": null, "error": e.render().to_string().trim(), "interrupted": false });
                 println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());

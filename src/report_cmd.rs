@@ -53,10 +53,7 @@ pub struct CompareArgs {
 
 /// Every file the sources were read from, and each run's own files: never an output.
 fn guard(out: &Path, sources: &[Source]) -> Result<()> {
-    let mut inputs: Vec<PathBuf> = sources
-        .iter()
-        .flat_map(|s| s.files.iter().cloned())
-        .collect();
+    let mut inputs: Vec<PathBuf> = sources.iter().flat_map(|s| s.files.iter().cloned()).collect();
     for s in sources.iter().filter(|s| s.path.is_dir()) {
         inputs.extend(snerf_trainer::run_dir::RunDir::new(&s.path).files());
     }
@@ -64,14 +61,7 @@ fn guard(out: &Path, sources: &[Source]) -> Result<()> {
     check_output("--out", out, &inputs)?;
     // the files a report writes, one by one (an input could be named like one)
     let plots = snerf_report::plots::build(sources);
-    let names = [pages::JSON, pages::MD, pages::HTML]
-        .map(String::from)
-        .into_iter()
-        .chain(
-            plots
-                .iter()
-                .flat_map(|p| [format!("{}.png", p.id), format!("{}.svg", p.id)]),
-        );
+    let names = [pages::JSON, pages::MD, pages::HTML].map(String::from).into_iter().chain(plots.iter().flat_map(|p| [format!("{}.png", p.id), format!("{}.svg", p.id)]));
     for n in names {
         check_output("--out", &out.join(n), &inputs)?;
     }
@@ -95,69 +85,27 @@ pub fn report_cmd(a: &ReportArgs, quiet: bool) -> Result<Value> {
     let sources = snerf_report::load_all(&a.paths)?;
     let compare = if a.compare {
         if sources.len() != 2 {
-            bail!(
-                "--compare takes two runs; {} given ({})",
-                sources.len(),
-                sources
-                    .iter()
-                    .map(|s| s.label.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
+            bail!("--compare takes two runs; {} given ({})", sources.len(), sources.iter().map(|s| s.label.as_str()).collect::<Vec<_>>().join(", "));
         }
         if sources[0].kind != sources[1].kind {
-            bail!(
-                "--compare takes two runs of one kind; {} is {:?}, {} is {:?}",
-                sources[0].label,
-                sources[0].kind,
-                sources[1].label,
-                sources[1].kind
-            );
+            bail!("--compare takes two runs of one kind; {} is {:?}, {} is {:?}", sources[0].label, sources[0].kind, sources[1].label, sources[1].kind);
         }
         Some((sources[0].label.clone(), sources[1].label.clone()))
     } else {
         None
     };
     guard(&a.out, &sources)?;
-    let title = a.title.clone().unwrap_or_else(|| {
-        if compare.is_some() {
-            format!("{} against {}", sources[1].label, sources[0].label)
-        } else {
-            "snerf report".into()
-        }
-    });
-    let w = snerf_report::write_report(
-        &sources,
-        &a.out,
-        &pages::Options {
-            title,
-            compare,
-            svg: true,
-        },
-    )?;
+    let title = a.title.clone().unwrap_or_else(|| if compare.is_some() { format!("{} against {}", sources[1].label, sources[0].label) } else { "snerf report".into() });
+    let w = snerf_report::write_report(&sources, &a.out, &pages::Options { title, compare, svg: true })?;
     let seconds = t0.elapsed().as_secs_f64();
     if !quiet {
-        eprintln!(
-            "report of {} source(s) in {} ({:.2} s): open {}",
-            sources.len(),
-            a.out.display(),
-            seconds,
-            a.out.join(pages::HTML).display()
-        );
+        eprintln!("report of {} source(s) in {} ({:.2} s): open {}", sources.len(), a.out.display(), seconds, a.out.join(pages::HTML).display());
     }
     Ok(summary(&a.out, &sources, &w, seconds))
 }
 
 pub fn compare_cmd(a: &CompareArgs, quiet: bool) -> Result<Value> {
-    let mut v = report_cmd(
-        &ReportArgs {
-            paths: vec![a.a.clone(), a.b.clone()],
-            out: a.out.clone(),
-            compare: true,
-            title: None,
-        },
-        quiet,
-    )?;
+    let mut v = report_cmd(&ReportArgs { paths: vec![a.a.clone(), a.b.clone()], out: a.out.clone(), compare: true, title: None }, quiet)?;
     v["command"] = json!("compare");
     Ok(v)
 }

@@ -59,20 +59,12 @@ pub fn scene(a: &SceneArgs) -> Result<Value> {
         "orbit" => snerf_scene::CameraPath::Orbit,
         p => bail!("--path '{p}': use sphere or orbit"),
     };
-    let pb = bar(
-        (spec.train_views + spec.test_views) as u64,
-        "{spinner} rendering views {bar:30} {pos}/{len} [{elapsed}]",
-    );
+    let pb = bar((spec.train_views + spec.test_views) as u64, "{spinner} rendering views {bar:30} {pos}/{len} [{elapsed}]");
     let out = snerf_scene::write_dataset(&spec, &a.out, &|done, total| {
         pb.set_length(total as u64);
         pb.set_position(done as u64);
     })?;
     pb.finish_and_clear();
-    eprintln!(
-        "wrote {} ({} train + {} test views)",
-        a.out.display(),
-        spec.train_views,
-        spec.test_views
-    );
+    eprintln!("wrote {} ({} train + {} test views)", a.out.display(), spec.train_views, spec.test_views);
     Ok(out)
 }

@@ -148,10 +148,7 @@ pub struct FetchArgs {
 
 pub fn fetch_cmd(a: &FetchArgs) -> Result<Value> {
     let token = a.token.resolve()?;
-    let stats = snerf_stream::fetch_blocking(&a.url, &a.pin, &token, &a.out)
-        .with_context(|| format!("fetching {}", a.url))?;
+    let stats = snerf_stream::fetch_blocking(&a.url, &a.pin, &token, &a.out).with_context(|| format!("fetching {}", a.url))?;
     eprintln!("fetched {} -> {} ({:?})", a.url, a.out.display(), stats);
-    Ok(
-        json!({ "command": "fetch", "url": a.url, "out": crate::args::pj(&a.out), "stats": format!("{stats:?}") }),
-    )
+    Ok(json!({ "command": "fetch", "url": a.url, "out": crate::args::pj(&a.out), "stats": format!("{stats:?}") }))
 }

@@ -15,8 +15,8 @@ use snerf_stylize::stylizer::{self, Image, Stylizer, StylizerOptions};
 use snerf_trainer::checkpoint;
 
 use crate::args::{bar, DataOpts};
-use snerf_files::guard::{check_output, Input};
 use snerf_trainer::run_dir::RunDir;
+use snerf_files::guard::{check_output, Input};
 
 const STYLIZER_HELP: &str = "Stylizer: arbitrary (default; Magenta arbitrary stylization, any picture is a style), \
 preset:N (one of 26 built-in styles, N in 0..26; no style image needed), onnx:FILE (any image-to-image ONNX \
@@ -57,8 +57,7 @@ impl StylizerArgs {
 
     /// The stylizer, with its style image (None for presets).
     pub fn build(&self, style: Option<&Path>) -> Result<Box<dyn Stylizer>> {
-        let needs_style =
-            !self.stylizer.starts_with("preset:") && !self.stylizer.starts_with("onnx:");
+        let needs_style = !self.stylizer.starts_with("preset:") && !self.stylizer.starts_with("onnx:");
         if needs_style && style.is_none() {
             bail!("--stylizer {} needs --style IMAGE", self.stylizer);
         }
@@ -86,31 +85,17 @@ pub struct StylizeImageArgs {
 }
 
 pub fn read_image(path: &Path) -> Result<Image> {
-    let img = image::open(path)
-        .with_context(|| format!("{}: cannot read image", path.display()))?
-        .to_rgb32f();
-    Ok(Image {
-        width: img.width() as usize,
-        height: img.height() as usize,
-        data: img.into_raw(),
-    })
+    let img = image::open(path).with_context(|| format!("{}: cannot read image", path.display()))?.to_rgb32f();
+    Ok(Image { width: img.width() as usize, height: img.height() as usize, data: img.into_raw() })
 }
 
 pub fn to_rgb8(img: &Image) -> image::RgbImage {
-    let bytes = img
-        .data
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
+    let bytes = img.data.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
     image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes).expect("image size")
 }
 
 pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
-    let style = a
-        .style
-        .as_deref()
-        .map(paintings::resolve_style)
-        .transpose()?;
+    let style = a.style.as_deref().map(paintings::resolve_style).transpose()?;
     let mut inputs = vec![Input::File(&a.content)];
     if let Some(s) = &style {
         inputs.push(Input::File(s));
@@ -124,17 +109,8 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
     let out = snerf_loop::stylize_at(s.as_ref(), &content, 0)?;
     let secs = t1.elapsed().as_secs_f64();
     checkpoint::write_png_atomic(&a.out, &to_rgb8(&out))?;
-    eprintln!(
-        "{} -> {} with {} ({:.2} s; model load {:.2} s)",
-        a.content.display(),
-        a.out.display(),
-        s.name(),
-        secs,
-        load
-    );
-    Ok(
-        json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::args::pj(&a.out), "seconds": secs, "load_seconds": load }),
-    )
+    eprintln!("{} -> {} with {} ({:.2} s; model load {:.2} s)", a.content.display(), a.out.display(), s.name(), secs, load);
+    Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::args::pj(&a.out), "seconds": secs, "load_seconds": load }))
 }
 
 /// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
@@ -189,15 +165,12 @@ fn parse_plane_tv(s: &str) -> Result<PlaneTv, String> {
     if s == "source" {
         return Ok(PlaneTv(None));
     }
-    crate::args::non_negative_f32(s)
-        .map(|w| PlaneTv(Some(w)))
-        .map_err(|e| format!("{e}, or `source`"))
+    crate::args::non_negative_f32(s).map(|w| PlaneTv(Some(w))).map_err(|e| format!("{e}, or `source`"))
 }
 
 /// A lowercase option value as the serde enum of the same name.
 fn option_enum<T: serde::de::DeserializeOwned>(what: &str, v: &str) -> Result<T> {
-    serde_json::from_value(Value::String(v.to_string()))
-        .map_err(|e| anyhow::anyhow!("{what} {v}: {e}"))
+    serde_json::from_value(Value::String(v.to_string())).map_err(|e| anyhow::anyhow!("{what} {v}: {e}"))
 }
 
 #[derive(Args, Debug)]
@@ -333,8 +306,7 @@ impl Progress for Bars {
     fn phase(&mut self, round: usize, rounds: usize, phase: &str, total: u64) {
         self.pb.set_length(total);
         self.pb.set_position(0);
-        self.pb
-            .set_prefix(format!("round {round}/{rounds} {phase:<8}"));
+        self.pb.set_prefix(format!("round {round}/{rounds} {phase:<8}"));
     }
     fn tick(&mut self, done: u64, message: &str) {
         self.pb.set_position(done);
@@ -373,8 +345,7 @@ impl Progress for Bars {
 }
 
 fn fmt_opt(v: Option<f64>, digits: usize) -> String {
-    v.map(|x| format!("{x:.digits$}"))
-        .unwrap_or_else(|| "n/a".into())
+    v.map(|x| format!("{x:.digits$}")).unwrap_or_else(|| "n/a".into())
 }
 
 pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
@@ -383,18 +354,9 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         None => RunDir::new(&a.run).dataset()?,
     };
     let data = a.opts.load(&data_path)?;
-    let style = a
-        .style
-        .as_deref()
-        .map(paintings::resolve_style)
-        .transpose()?;
+    let style = a.style.as_deref().map(paintings::resolve_style).transpose()?;
     // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.
-    for (what, p) in [
-        ("RUN", Some(&a.run)),
-        ("--out", Some(&a.out)),
-        ("--style", style.as_ref()),
-        ("--data", Some(&data_path)),
-    ] {
+    for (what, p) in [("RUN", Some(&a.run)), ("--out", Some(&a.out)), ("--style", style.as_ref()), ("--data", Some(&data_path))] {
         if let Some(p) = p.filter(|p| p.to_str().is_none()) {
             bail!("{what} {}: the stylized run records this path, and its JSON holds UTF-8 names only; rename it", p.display());
         }
@@ -408,10 +370,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     check_output("--out", &a.out, &inputs)?;
     let ck_path = RunDir::new(&a.run).checkpoint();
     if !ck_path.exists() {
-        bail!(
-            "{}: no checkpoint here; run `snerf train` first",
-            a.run.display()
-        );
+        bail!("{}: no checkpoint here; run `snerf train` first", a.run.display());
     }
     let source = checkpoint::load(&ck_path)?;
     let stylizer = a.s.build(style.as_deref())?;
@@ -450,34 +409,16 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     };
     let wall = Instant::now();
     let mut bars = Bars {
-        pb: bar(
-            1,
-            "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}",
-        ),
+        pb: bar(1, "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}"),
         quiet,
         out: a.out.clone(),
         live: snerf_report::live::LiveReport::new(),
     };
-    let state = snerf_loop::run(
-        &opts,
-        &data,
-        &source,
-        stylizer.as_ref(),
-        &meters,
-        &style_img,
-        &a.out,
-        &mut bars,
-    )?;
+    let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), &meters, &style_img, &a.out, &mut bars)?;
     bars.pb.finish_and_clear();
     bars.live.stylize(&a.out, serde_json::to_value(&state)?);
     if !quiet {
-        eprintln!(
-            "stylized run in {} ({} rounds, {:.0} s); per-round images in {}",
-            a.out.display(),
-            state.rounds_done,
-            wall.elapsed().as_secs_f64(),
-            a.out.join("rounds").display()
-        );
+        eprintln!("stylized run in {} ({} rounds, {:.0} s); per-round images in {}", a.out.display(), state.rounds_done, wall.elapsed().as_secs_f64(), a.out.join("rounds").display());
     }
     Ok(json!({
         "command": "stylize",
@@ -499,22 +440,11 @@ pub fn style_reference(stylizer: &dyn Stylizer) -> Result<Image> {
             let (fx, fy) = (x as f32 / n as f32, y as f32 / n as f32);
             for c in 0..3 {
                 let ph = c as f32 * 2.1;
-                data.push(
-                    0.5 + 0.25 * ((fx * 11.0 + ph).sin() * (fy * 7.0 - ph).cos())
-                        + 0.1 * ((fx + fy) * 37.0 + ph).sin(),
-                );
+                data.push(0.5 + 0.25 * ((fx * 11.0 + ph).sin() * (fy * 7.0 - ph).cos()) + 0.1 * ((fx + fy) * 37.0 + ph).sin());
             }
         }
     }
-    snerf_loop::stylize_at(
-        stylizer,
-        &Image {
-            width: n,
-            height: n,
-            data,
-        },
-        0,
-    )
+    snerf_loop::stylize_at(stylizer, &Image { width: n, height: n, data }, 0)
 }
 
 fn absolute(p: &Path) -> PathBuf {
@@ -549,15 +479,10 @@ pub struct ConsistencyArgs {
 pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let t0 = Instant::now();
     let st_path = snerf_loop::state_path(&a.srun);
-    let state: snerf_loop::StylizeState =
-        serde_json::from_slice(&std::fs::read(&st_path).with_context(|| {
-            format!(
-                "{}: not a stylized run (no {})",
-                a.srun.display(),
-                snerf_loop::STATE_FILE
-            )
-        })?)
-        .with_context(|| format!("{}: unreadable", st_path.display()))?;
+    let state: snerf_loop::StylizeState = serde_json::from_slice(
+        &std::fs::read(&st_path).with_context(|| format!("{}: not a stylized run (no {})", a.srun.display(), snerf_loop::STATE_FILE))?,
+    )
+    .with_context(|| format!("{}: unreadable", st_path.display()))?;
     let o = &state.options;
     let data = a.opts.load(a.data.as_ref().unwrap_or(&o.data))?;
     let (realistic, pool) = RunDir::new(&o.source_run).load_model()?;
@@ -578,10 +503,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         None => style_reference(stylizer.as_ref())?,
     };
 
-    let pb = bar(
-        4,
-        "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}",
-    );
+    let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
     pb.set_message("realistic geometry");
     let path = PathGeometry::new(&realistic, &pool, &data, a.frames)?;
     let targets = meters.targets(&path, &style_img)?;
@@ -598,41 +520,17 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     // The unstylized field is the floor of the warp error (resampling, aliasing) and shows
     // how far from the style the scene starts.
     let mut methods = vec![
-        MethodScores::of(
-            "Realistic field (no stylization)",
-            &path,
-            &path.realistic,
-            &meters,
-            &targets,
-        )?,
-        MethodScores::of(
-            "Per-frame image stylization",
-            &path,
-            &per_frame,
-            &meters,
-            &targets,
-        )?,
+        MethodScores::of("Realistic field (no stylization)", &path, &path.realistic, &meters, &targets)?,
+        MethodScores::of("Per-frame image stylization", &path, &per_frame, &meters, &targets)?,
     ];
     let mut one_round_frames = None;
     if let Some(r1) = &a.one_round {
         let (m1, p1) = RunDir::new(r1).load_model()?;
         let frames = path.render(&m1, &p1);
-        methods.push(MethodScores::of(
-            "SNeRF, 1 round",
-            &path,
-            &frames,
-            &meters,
-            &targets,
-        )?);
+        methods.push(MethodScores::of("SNeRF, 1 round", &path, &frames, &meters, &targets)?);
         one_round_frames = Some(frames);
     }
-    methods.push(MethodScores::of(
-        &format!("SNeRF, {} rounds", state.rounds_done),
-        &path,
-        &snerf_frames,
-        &meters,
-        &targets,
-    )?);
+    methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, &meters, &targets)?);
     pb.inc(1);
     pb.finish_and_clear();
 
@@ -652,8 +550,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     // The style metric is only worth reading when it separates the unstylized scene from a
     // stylized one: the realistic field must be well farther from the style than per-frame.
     let realistic_over_per_frame = methods[0].style_swd.total / pf.style_swd.total;
-    let gram_realistic_over_per_frame =
-        methods[0].style_gram.zip(pf.style_gram).map(|(a, b)| a / b);
+    let gram_realistic_over_per_frame = methods[0].style_gram.zip(pf.style_gram).map(|(a, b)| a / b);
     // contact sheet: style | realistic | per-frame | (1 round) | SNeRF, for two frames far apart
     let far = (a.frames - 1).min(7.max(a.frames / 2));
     let style_tile = &style_img;
@@ -666,45 +563,21 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         row.push(&snerf_frames[i]);
         rows.push(row);
     }
-    checkpoint::write_png_atomic(
-        &out.join("consistency.png"),
-        &consistency::grid_image(&rows),
-    )?;
+    checkpoint::write_png_atomic(&out.join("consistency.png"), &consistency::grid_image(&rows))?;
     if a.save_frames {
         let dir = out.join("frames");
-        std::fs::create_dir_all(&dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-        for (name, frames) in [
-            ("realistic", &path.realistic),
-            ("per_frame", &per_frame),
-            ("snerf", &snerf_frames),
-        ] {
+        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        for (name, frames) in [("realistic", &path.realistic), ("per_frame", &per_frame), ("snerf", &snerf_frames)] {
             for (i, f) in frames.iter().enumerate() {
                 stylizer::save_png(&dir.join(format!("{name}_{i:02}.png")), f)?;
             }
         }
         for (i, m) in path.masks().iter().enumerate() {
-            let data = m
-                .iter()
-                .flat_map(|&v| [if v { 1.0 } else { 0.0 }; 3])
-                .collect();
-            stylizer::save_png(
-                &dir.join(format!("mask_{i:02}.png")),
-                &Image {
-                    width: path.intr.width as usize,
-                    height: path.intr.height as usize,
-                    data,
-                },
-            )?;
+            let data = m.iter().flat_map(|&v| [if v { 1.0 } else { 0.0 }; 3]).collect();
+            stylizer::save_png(&dir.join(format!("mask_{i:02}.png")), &Image { width: path.intr.width as usize, height: path.intr.height as usize, data })?;
         }
     }
-    let separation = |r: f64| {
-        if r >= 1.5 {
-            "valid: at least 1.5×"
-        } else {
-            "below 1.5×: this distance does not tell much on this pair"
-        }
-    };
+    let separation = |r: f64| if r >= 1.5 { "valid: at least 1.5×" } else { "below 1.5×: this distance does not tell much on this pair" };
     let gram_line = match (sn.style_gram.zip(pf.style_gram), gram_realistic_over_per_frame) {
         (Some((g_sn, g_pf)), Some(r)) => format!(
             "Gram style distance (Gram matrices of ImageNet MobileNetV2 features at 1/2..1/16 resolution, same frames; \
@@ -736,8 +609,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         separation(realistic_over_per_frame),
         if one_round_frames.is_some() { " | 1 round" } else { "" },
     );
-    std::fs::write(out.join("consistency.md"), &md)
-        .with_context(|| format!("{}: cannot write", out.display()))?;
+    std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
     let v = json!({
         "command": "consistency",
         "srun": crate::args::pj(&a.srun),

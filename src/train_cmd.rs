@@ -122,11 +122,7 @@ pub fn data_cmd(a: &DataArgs, quiet: bool) -> Result<Value> {
 
 pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     let data = a.opts.load(&a.data)?;
-    check_output(
-        "--out",
-        &a.out,
-        &[Input::Tree(&data.root), Input::Tree(&a.data)],
-    )?;
+    check_output("--out", &a.out, &[Input::Tree(&data.root), Input::Tree(&a.data)])?;
     let mut cfg = train::TrainConfig::for_dataset(&data);
     cfg.seed = a.seed;
     if let Some(b) = a.batch {
@@ -152,10 +148,7 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         cfg.tv = t;
     }
     if let Some(r) = a.resolution {
-        cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r]
-            .into_iter()
-            .map(|x| x.max(2))
-            .collect();
+        cfg.field.resolutions = vec![r / 8, r / 4, r / 2, r].into_iter().map(|x| x.max(2)).collect();
     }
     if let Some(k) = a.pixel_rays {
         cfg.pixel_rays = k;
@@ -180,11 +173,7 @@ impl TrainArgs {
     /// lives in the config's JSON form), so a resumed run can refuse ones that differ.
     fn given_settings(&self) -> Vec<(&'static str, &'static str)> {
         [
-            (
-                "--resolution",
-                "/field/resolutions",
-                self.resolution.is_some(),
-            ),
+            ("--resolution", "/field/resolutions", self.resolution.is_some()),
             ("--lr-planes", "/lr_planes", self.lr_planes.is_some()),
             ("--lr-mlp", "/lr_mlp", self.lr_mlp.is_some()),
             ("--lr-final", "/lr_final", self.lr_final.is_some()),
@@ -192,11 +181,7 @@ impl TrainArgs {
             ("--tv", "/tv", self.tv.is_some()),
             ("--pixel-rays", "/pixel_rays", self.pixel_rays.is_some()),
             ("--batch", "/batch_rays", self.batch.is_some()),
-            (
-                "--batch-samples",
-                "/batch_samples",
-                self.batch_samples.is_some(),
-            ),
+            ("--batch-samples", "/batch_samples", self.batch_samples.is_some()),
             ("--seed", "/seed", self.seed != 0),
         ]
         .into_iter()
@@ -238,13 +223,7 @@ pub fn train_run_checked(
 }
 
 /// Train (or resume) with a progress bar; returns the run summary.
-pub fn train_run(
-    data: &Dataset,
-    cfg: train::TrainConfig,
-    opts: &run::RunOptions,
-    resume: bool,
-    quiet: bool,
-) -> Result<Value> {
+pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions, resume: bool, quiet: bool) -> Result<Value> {
     let wall = Instant::now();
     let out = &opts.dir;
     let _lock = snerf_files::DirLock::acquire(out)?;
@@ -260,10 +239,7 @@ pub fn train_run(
             100.0 * trainer.model.occ.occupied_fraction()
         );
     }
-    let pb = bar(
-        1000,
-        "{spinner} {bar:30} {percent:>3}% [{elapsed}<{eta}] {msg}",
-    );
+    let pb = bar(1000, "{spinner} {bar:30} {percent:>3}% [{elapsed}<{eta}] {msg}");
     let mut ema: Option<(f64, f64)> = None;
     // RUN/report/ is redrawn whenever the curve gains a point (2, 5, 10, ... s, then every
     // minute), so a user looking at a running job sees its curve.
@@ -275,9 +251,7 @@ pub fn train_run(
             live.train(out, run::metrics_json(t));
         }
         let sps = s.samples as f64 / s.seconds.max(1e-9);
-        let e = ema
-            .map(|(l, r)| (0.9 * l + 0.1 * s.loss, 0.9 * r + 0.1 * sps))
-            .unwrap_or((s.loss, sps));
+        let e = ema.map(|(l, r)| (0.9 * l + 0.1 * s.loss, 0.9 * r + 0.1 * sps)).unwrap_or((s.loss, sps));
         ema = Some(e);
         pb.set_position((p * 1000.0) as u64);
         if t.step % 5 == 0 {
@@ -300,9 +274,7 @@ pub fn train_run(
             trainer.step,
             trainer.train_seconds,
             trainer.samples_seen as f64 / trainer.train_seconds.max(1e-9) / 1e6,
-            last.and_then(|c| c.test_psnr)
-                .map(|p| format!("{p:.2} dB"))
-                .unwrap_or("n/a".into()),
+            last.and_then(|c| c.test_psnr).map(|p| format!("{p:.2} dB")).unwrap_or("n/a".into()),
             out.display()
         );
     }
@@ -328,21 +300,13 @@ pub fn eval_cmd(a: &EvalArgs) -> Result<Value> {
     if views.is_empty() {
         bail!("{}: the {} split is empty", a.data.display(), a.split);
     }
-    let out = a
-        .out
-        .clone()
-        .unwrap_or_else(|| RunDir::new(&a.run).eval_dir());
+    let out = a.out.clone().unwrap_or_else(|| RunDir::new(&a.run).eval_dir());
     guard_run_output("--out", &out, &a.run, Some(&data.root))?;
     std::fs::create_dir_all(&out).with_context(|| format!("{}: cannot create", out.display()))?;
     let has_alpha = train::views_have_alpha(&data.train);
     let report = eval::evaluate(&model, &pool, views, has_alpha, Some(&out))?;
     if !(report.mean_psnr.is_finite() && report.mean_ssim.is_finite()) {
-        bail!(
-            "{}: the field renders non-finite colours (PSNR {}, SSIM {}); the run diverged",
-            a.run.display(),
-            report.mean_psnr,
-            report.mean_ssim
-        );
+        bail!("{}: the field renders non-finite colours (PSNR {}, SSIM {}); the run diverged", a.run.display(), report.mean_psnr, report.mean_ssim);
     }
     eprintln!(
         "{} {} views: PSNR {:.2} dB, SSIM {:.4} ({:.1} s); images in {}",
@@ -363,27 +327,13 @@ pub fn turntable_cmd(a: &TurntableArgs) -> Result<Value> {
     guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let (model, pool) = RunDir::new(&a.run).load_model()?;
     let frames = turntable(&model, &pool, &data, a.frames, &a.out)?;
-    Ok(
-        json!({ "command": "turntable", "frames": frames.iter().map(pj).collect::<Vec<_>>(), "out": pj(&a.out) }),
-    )
+    Ok(json!({ "command": "turntable", "frames": frames.iter().map(pj).collect::<Vec<_>>(), "out": pj(&a.out) }))
 }
 
 /// `snerf_trainer::camera_path::render_turntable` with a progress bar.
-pub fn turntable(
-    model: &train::Model,
-    pool: &snerf_trainer::render::WorkspacePool,
-    data: &Dataset,
-    n: usize,
-    out: &Path,
-) -> Result<Vec<PathBuf>> {
-    let pb = bar(
-        n.max(1) as u64,
-        "{spinner} turntable {bar:30} {pos}/{len} [{elapsed}]",
-    );
-    let files =
-        snerf_trainer::camera_path::render_turntable(model, pool, data, n, out, &mut |done, _| {
-            pb.set_position(done as u64)
-        })?;
+pub fn turntable(model: &train::Model, pool: &snerf_trainer::render::WorkspacePool, data: &Dataset, n: usize, out: &Path) -> Result<Vec<PathBuf>> {
+    let pb = bar(n.max(1) as u64, "{spinner} turntable {bar:30} {pos}/{len} [{elapsed}]");
+    let files = snerf_trainer::camera_path::render_turntable(model, pool, data, n, out, &mut |done, _| pb.set_position(done as u64))?;
     pb.finish_and_clear();
     Ok(files)
 }

@@ -53,11 +53,7 @@ pub fn view_cmd(a: &ViewArgs) -> Result<Value> {
     let (w, h) = crate::args::parse_size(&a.size)?;
     if let Some(shot) = &a.screenshot {
         if !a.asset.starts_with("quic://") {
-            snerf_files::check_output(
-                "--screenshot",
-                shot,
-                &[snerf_files::Input::File(std::path::Path::new(&a.asset))],
-            )?;
+            snerf_files::check_output("--screenshot", shot, &[snerf_files::Input::File(std::path::Path::new(&a.asset))])?;
         }
     }
     let source: Box<dyn AssetSource> = if a.asset.starts_with("quic://") {

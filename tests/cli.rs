@@ -20,20 +20,12 @@ fn tmp(name: &str) -> PathBuf {
 fn ok(out: Output) -> serde_json::Value {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "stdout is not JSON ({e}): {}",
-            String::from_utf8_lossy(&out.stdout)
-        )
-    })
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 fn fails(out: Output, needles: &[&str]) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(
-        !out.status.success(),
-        "expected failure, got success: {stderr}"
-    );
+    assert!(!out.status.success(), "expected failure, got success: {stderr}");
     assert!(!stderr.contains("panicked"), "must not panic: {stderr}");
     for n in needles {
         assert!(stderr.contains(n), "error should mention {n:?}: {stderr}");
@@ -45,16 +37,7 @@ fn scene(name: &str, dir: &Path, views: usize, size: &str) -> serde_json::Value 
     ok(snerf()
         .args(["--json", "scene", name, "--out"])
         .arg(dir)
-        .args([
-            "--views",
-            &views.to_string(),
-            "--test-views",
-            "4",
-            "--size",
-            size,
-            "--supersample",
-            "2",
-        ])
+        .args(["--views", &views.to_string(), "--test-views", "4", "--size", size, "--supersample", "2"])
         .output()
         .unwrap())
 }
@@ -69,81 +52,37 @@ fn scene_train_eval_resume_on_the_object_scene() {
     let data = d.join("data");
     let s = scene("object", &data, 30, "48x48");
     assert_eq!(s["kind"], "object");
-    let info = ok(snerf()
-        .args(["--json", "data"])
-        .arg(&data)
-        .output()
-        .unwrap());
+    let info = ok(snerf().args(["--json", "data"]).arg(&data).output().unwrap());
     assert_eq!(info["kind"], "object");
     assert_eq!(info["counts"]["train"], 30);
 
     let run = d.join("run");
-    let t = ok(snerf()
-        .args(["--json", "train"])
-        .arg(&data)
-        .arg("--out")
-        .arg(&run)
-        .args(["--steps", "60"])
-        .output()
-        .unwrap());
+    let t = ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "60"]).output().unwrap());
     assert_eq!(t["metrics"]["step"], 60);
     let m = metrics(&run);
     let curve = m["curve"].as_array().unwrap();
     let last = curve.last().unwrap()["test_psnr"].as_f64().unwrap();
-    assert!(
-        last > 16.0,
-        "60 steps should reach a recognisable image, got {last:.2} dB"
-    );
+    assert!(last > 16.0, "60 steps should reach a recognisable image, got {last:.2} dB");
 
     // an existing run is never silently overwritten
     fails(
-        snerf()
-            .arg("train")
-            .arg(&data)
-            .arg("--out")
-            .arg(&run)
-            .args(["--steps", "5"])
-            .output()
-            .unwrap(),
+        snerf().arg("train").arg(&data).arg("--out").arg(&run).args(["--steps", "5"]).output().unwrap(),
         &["already exists", "--resume"],
     );
     // resume continues the same run to a larger step budget and keeps improving
-    let t2 = ok(snerf()
-        .args(["--json", "train"])
-        .arg(&data)
-        .arg("--out")
-        .arg(&run)
-        .args(["--steps", "120", "--resume"])
-        .output()
-        .unwrap());
+    let t2 =
+        ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "120", "--resume"]).output().unwrap());
     assert_eq!(t2["metrics"]["step"], 120);
-    let later = metrics(&run)["curve"].as_array().unwrap().last().unwrap()["test_psnr"]
-        .as_f64()
-        .unwrap();
-    assert!(
-        later > last,
-        "resumed training improves: {last:.2} -> {later:.2}"
-    );
+    let later = metrics(&run)["curve"].as_array().unwrap().last().unwrap()["test_psnr"].as_f64().unwrap();
+    assert!(later > last, "resumed training improves: {last:.2} -> {later:.2}");
 
-    let e = ok(snerf()
-        .args(["--json", "eval"])
-        .arg(&run)
-        .arg(&data)
-        .output()
-        .unwrap());
+    let e = ok(snerf().args(["--json", "eval"]).arg(&run).arg(&data).output().unwrap());
     let psnr = e["report"]["mean_psnr"].as_f64().unwrap();
     let ssim = e["report"]["mean_ssim"].as_f64().unwrap();
-    assert!(
-        psnr > 18.0 && ssim > 0.5 && ssim <= 1.0,
-        "psnr {psnr} ssim {ssim}"
-    );
+    assert!(psnr > 18.0 && ssim > 0.5 && ssim <= 1.0, "psnr {psnr} ssim {ssim}");
     assert_eq!(e["report"]["views"].as_array().unwrap().len(), 4);
     let img = image::open(run.join("eval/r_000.png")).unwrap();
-    assert_eq!(
-        (img.width(), img.height()),
-        (48 * 3, 48),
-        "prediction | truth | depth"
-    );
+    assert_eq!((img.width(), img.height()), (48 * 3, 48), "prediction | truth | depth");
 }
 
 #[test]
@@ -175,10 +114,7 @@ fn killed_training_resumes_from_its_last_checkpoint() {
     // no temp files are left looking like results
     for e in std::fs::read_dir(&run).unwrap() {
         let name = e.unwrap().file_name().to_string_lossy().to_string();
-        assert!(
-            !name.ends_with(".snerfck") || name == "checkpoint.snerfck",
-            "{name}"
-        );
+        assert!(!name.ends_with(".snerfck") || name == "checkpoint.snerfck", "{name}");
     }
     let target = step_at_kill + 20;
     let t = ok(snerf()
@@ -194,48 +130,22 @@ fn killed_training_resumes_from_its_last_checkpoint() {
 
 #[test]
 fn every_scene_kind_is_detected_and_trains() {
-    for (name, kind, dynamic) in [
-        ("room", "forward", false),
-        ("outdoor", "unbounded", false),
-        ("avatar", "object", true),
-    ] {
+    for (name, kind, dynamic) in [("room", "forward", false), ("outdoor", "unbounded", false), ("avatar", "object", true)] {
         let d = tmp(name);
         let data = d.join("data");
         scene(name, &data, 16, "40x32");
-        let info = ok(snerf()
-            .args(["--json", "data"])
-            .arg(&data)
-            .output()
-            .unwrap());
+        let info = ok(snerf().args(["--json", "data"]).arg(&data).output().unwrap());
         assert_eq!(info["kind"], kind, "{name}");
         assert_eq!(info["dynamic"], dynamic, "{name}");
         let run = d.join("run");
-        let t = ok(snerf()
-            .args(["--json", "train"])
-            .arg(&data)
-            .arg("--out")
-            .arg(&run)
-            .args(["--steps", "30"])
-            .output()
-            .unwrap());
+        let t = ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "30"]).output().unwrap());
         let curve = t["metrics"]["curve"].as_array().unwrap();
         let first = curve.first().unwrap()["test_psnr"].as_f64().unwrap();
         let last = curve.last().unwrap()["test_psnr"].as_f64().unwrap();
-        assert!(
-            last.is_finite() && last > first,
-            "{name}: {first:.2} -> {last:.2} dB"
-        );
-        let config: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap())
-                .unwrap();
-        let has_time_planes = !config["train"]["field"]["time_resolutions"]
-            .as_array()
-            .unwrap()
-            .is_empty();
-        assert_eq!(
-            has_time_planes, dynamic,
-            "{name}: time inputs only for dynamic scenes"
-        );
+        assert!(last.is_finite() && last > first, "{name}: {first:.2} -> {last:.2} dB");
+        let config: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap()).unwrap();
+        let has_time_planes = !config["train"]["field"]["time_resolutions"].as_array().unwrap().is_empty();
+        assert_eq!(has_time_planes, dynamic, "{name}: time inputs only for dynamic scenes");
     }
 }
 
@@ -246,16 +156,7 @@ fn demo_writes_pictures_and_a_summary() {
     let s = ok(snerf()
         .args(["--json", "demo", "--out"])
         .arg(&out)
-        .args([
-            "--minutes",
-            "0.15",
-            "--views",
-            "20",
-            "--size",
-            "32x32",
-            "--frames",
-            "4",
-        ])
+        .args(["--minutes", "0.15", "--views", "20", "--size", "32x32", "--frames", "4"])
         .args(["--rounds", "1", "--steps-per-round", "20"])
         .output()
         .unwrap());
@@ -265,63 +166,28 @@ fn demo_writes_pictures_and_a_summary() {
     assert!(out.join("baked_turntable/preview.png").exists());
     assert!(out.join("stylized.glb").exists());
     let asset = out.join("stylized.snerf");
-    let info = ok(snerf()
-        .args(["--json", "inspect"])
-        .arg(&asset)
-        .output()
-        .unwrap());
+    let info = ok(snerf().args(["--json", "inspect"]).arg(&asset).output().unwrap());
     assert_eq!(info["summary"]["frames"].as_u64(), Some(1), "{info}");
     // a file that is not an asset: a clear error naming it
-    fails(
-        snerf()
-            .args(["inspect"])
-            .arg(out.join("summary.json"))
-            .output()
-            .unwrap(),
-        &["summary.json"],
-    );
+    fails(snerf().args(["inspect"]).arg(out.join("summary.json")).output().unwrap(), &["summary.json"]);
     // the sheet has the training curve beside the held-out views (no empty band), and the
     // report of the whole path is beside it
-    let sheet = image::open(out.join("contact_sheet.png"))
-        .unwrap()
-        .to_rgb8();
-    let blue = (sheet.width() / 2..sheet.width())
-        .flat_map(|x| (0..96).map(move |y| (x, y)))
-        .filter(|&(x, y)| sheet.get_pixel(x, y).0 == [31, 119, 180])
-        .count();
-    assert!(
-        blue > 100,
-        "the training curve is drawn right of the held-out views ({blue} pixels of its colour)"
-    );
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    let ids: Vec<&str> = report["plots"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|p| p["id"].as_str().unwrap())
-        .collect();
+    let sheet = image::open(out.join("contact_sheet.png")).unwrap().to_rgb8();
+    let blue = (sheet.width() / 2..sheet.width()).flat_map(|x| (0..96).map(move |y| (x, y))).filter(|&(x, y)| sheet.get_pixel(x, y).0 == [31, 119, 180]).count();
+    assert!(blue > 100, "the training curve is drawn right of the held-out views ({blue} pixels of its colour)");
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let ids: Vec<&str> = report["plots"].as_array().unwrap().iter().map(|p| p["id"].as_str().unwrap()).collect();
     for id in ["psnr", "ssim", "stylize_fit", "bake_faithfulness"] {
         assert!(ids.contains(&id), "{id} in {ids:?}");
     }
-    assert!(std::fs::read_to_string(out.join("report.html"))
-        .unwrap()
-        .contains("data:image/png;base64,"));
+    assert!(std::fs::read_to_string(out.join("report.html")).unwrap().contains("data:image/png;base64,"));
     assert!(out.join("turntable/frame_003.png").exists());
     assert!(out.join("summary.json").exists());
     // running it again over its own output works; over someone else's directory it refuses
     let other = d.join("not-a-demo");
     std::fs::create_dir_all(&other).unwrap();
     std::fs::write(other.join("precious.txt"), "keep me").unwrap();
-    fails(
-        snerf()
-            .args(["demo", "--out"])
-            .arg(&other)
-            .args(["--minutes", "0.05"])
-            .output()
-            .unwrap(),
-        &["not-a-demo"],
-    );
+    fails(snerf().args(["demo", "--out"]).arg(&other).args(["--minutes", "0.05"]).output().unwrap(), &["not-a-demo"]);
     assert!(other.join("precious.txt").exists());
 }
 
@@ -329,34 +195,13 @@ fn demo_writes_pictures_and_a_summary() {
 fn bad_input_gets_a_clear_error_naming_the_file() {
     let d = tmp("bad");
     // a dataset directory that does not exist
-    fails(
-        snerf()
-            .arg("train")
-            .arg(d.join("nope"))
-            .arg("--out")
-            .arg(d.join("r"))
-            .output()
-            .unwrap(),
-        &["nope"],
-    );
+    fails(snerf().arg("train").arg(d.join("nope")).arg("--out").arg(d.join("r")).output().unwrap(), &["nope"]);
     // an image missing from a dataset
     let data = d.join("data");
     scene("object", &data, 8, "24x24");
     std::fs::remove_file(data.join("train/r_003.png")).unwrap();
-    fails(
-        snerf()
-            .arg("train")
-            .arg(&data)
-            .arg("--out")
-            .arg(d.join("r"))
-            .output()
-            .unwrap(),
-        &["r_003.png"],
-    );
-    assert!(
-        !d.join("r/checkpoint.snerfck").exists(),
-        "no partial run left looking complete"
-    );
+    fails(snerf().arg("train").arg(&data).arg("--out").arg(d.join("r")).output().unwrap(), &["r_003.png"]);
+    assert!(!d.join("r/checkpoint.snerfck").exists(), "no partial run left looking complete");
     // a NaN in a pose
     scene("object", &data, 8, "24x24");
     let tf = data.join("transforms_train.json");
@@ -364,69 +209,28 @@ fn bad_input_gets_a_clear_error_naming_the_file() {
     let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
     json["frames"][2]["transform_matrix"][0][3] = serde_json::Value::String("NaN".into());
     std::fs::write(&tf, serde_json::to_string(&json).unwrap()).unwrap();
-    fails(
-        snerf().arg("data").arg(&data).output().unwrap(),
-        &["transforms_train.json"],
-    );
+    fails(snerf().arg("data").arg(&data).output().unwrap(), &["transforms_train.json"]);
     std::fs::write(&tf, text).unwrap();
     // a corrupt checkpoint, and one from another version
     let run = d.join("run");
-    ok(snerf()
-        .args(["--json", "train"])
-        .arg(&data)
-        .arg("--out")
-        .arg(&run)
-        .args(["--steps", "3"])
-        .output()
-        .unwrap());
+    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "3"]).output().unwrap());
     let ck = run.join("checkpoint.snerfck");
     let mut bytes = std::fs::read(&ck).unwrap();
     let mid = bytes.len() / 2;
     bytes[mid] ^= 0x40;
     std::fs::write(&ck, &bytes).unwrap();
-    fails(
-        snerf().arg("eval").arg(&run).arg(&data).output().unwrap(),
-        &["checkpoint.snerfck", "corrupt"],
-    );
+    fails(snerf().arg("eval").arg(&run).arg(&data).output().unwrap(), &["checkpoint.snerfck", "corrupt"]);
     bytes[mid] ^= 0x40;
     bytes[8] = 99; // version field
     std::fs::write(&ck, &bytes).unwrap();
-    fails(
-        snerf().arg("eval").arg(&run).arg(&data).output().unwrap(),
-        &["checkpoint.snerfck", "version 99"],
-    );
+    fails(snerf().arg("eval").arg(&run).arg(&data).output().unwrap(), &["checkpoint.snerfck", "version 99"]);
     // a truncated checkpoint
     std::fs::write(&ck, &bytes[..100]).unwrap();
-    fails(
-        snerf().arg("eval").arg(&run).arg(&data).output().unwrap(),
-        &["checkpoint.snerfck"],
-    );
+    fails(snerf().arg("eval").arg(&run).arg(&data).output().unwrap(), &["checkpoint.snerfck"]);
     // unknown scene, bad size, unknown kind
-    fails(
-        snerf()
-            .args(["scene", "castle", "--out"])
-            .arg(d.join("c"))
-            .output()
-            .unwrap(),
-        &["castle", "object"],
-    );
-    fails(
-        snerf()
-            .args(["scene", "object", "--size", "12by12", "--out"])
-            .arg(d.join("c"))
-            .output()
-            .unwrap(),
-        &["12by12"],
-    );
-    fails(
-        snerf()
-            .arg("data")
-            .arg(&data)
-            .args(["--kind", "planet"])
-            .output()
-            .unwrap(),
-        &["planet"],
-    );
+    fails(snerf().args(["scene", "castle", "--out"]).arg(d.join("c")).output().unwrap(), &["castle", "object"]);
+    fails(snerf().args(["scene", "object", "--size", "12by12", "--out"]).arg(d.join("c")).output().unwrap(), &["12by12"]);
+    fails(snerf().arg("data").arg(&data).args(["--kind", "planet"]).output().unwrap(), &["planet"]);
 }
 
 /// The inputs of the `bench snerf` tests: a real model's folder (None, with a note, when
@@ -435,23 +239,12 @@ fn bad_input_gets_a_clear_error_naming_the_file() {
 fn bench_snerf_inputs(name: &str) -> Option<(&'static Path, PathBuf, PathBuf)> {
     let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
     if !models.is_dir() {
-        eprintln!(
-            "SKIP: {} not installed (apt-get install assimp-testmodels)",
-            models.display()
-        );
+        eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());
         return None;
     }
     let d = tmp(name);
     let style = d.join("stripes.png");
-    image::RgbImage::from_fn(64, 48, |x, y| {
-        if (x + y / 2) % 8 < 4 {
-            image::Rgb([200, 40, 30])
-        } else {
-            image::Rgb([240, 220, 120])
-        }
-    })
-    .save(&style)
-    .unwrap();
+    image::RgbImage::from_fn(64, 48, |x, y| if (x + y / 2) % 8 < 4 { image::Rgb([200, 40, 30]) } else { image::Rgb([240, 220, 120]) }).save(&style).unwrap();
     Some((models, d, style))
 }
 
@@ -460,31 +253,12 @@ fn bench_snerf_inputs(name: &str) -> Option<(&'static Path, PathBuf, PathBuf)> {
 /// training or stylizing again.
 #[test]
 fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
-    let Some((models, d, style)) = bench_snerf_inputs("bench-snerf") else {
-        return;
-    };
+    let Some((models, d, style)) = bench_snerf_inputs("bench-snerf") else { return };
     let out = d.join("grid");
     let args = |cmd: &mut Command| {
-        cmd.args(["--json", "bench", "snerf"])
-            .arg(models)
-            .arg("--out")
-            .arg(&out)
-            .arg("--styles")
-            .arg(&style);
-        cmd.args([
-            "--size",
-            "32",
-            "--views",
-            "8",
-            "--seconds",
-            "3",
-            "--frames",
-            "8",
-        ]);
-        cmd.args([
-            "--stylize-flags",
-            "--views 4 --rounds 2 --steps-per-round 5 --consistency-frames 8 --stylizer color",
-        ]);
+        cmd.args(["--json", "bench", "snerf"]).arg(models).arg("--out").arg(&out).arg("--styles").arg(&style);
+        cmd.args(["--size", "32", "--views", "8", "--seconds", "3", "--frames", "8"]);
+        cmd.args(["--stylize-flags", "--views 4 --rounds 2 --steps-per-round 5 --consistency-frames 8 --stylizer color"]);
     };
     let mut c = snerf();
     args(&mut c);
@@ -495,18 +269,8 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
     assert_eq!(pairs[0]["style"], "stripes");
     let sc = &pairs[0]["scores"];
     for k in ["short_range", "long_range", "style"] {
-        assert!(
-            sc["snerf_over_per_frame"][k]
-                .as_f64()
-                .is_some_and(|x| x.is_finite() && x > 0.0),
-            "{k}: {s}"
-        );
-        assert!(
-            sc["last_over_first_round"][k]
-                .as_f64()
-                .is_some_and(|x| x.is_finite() && x > 0.0),
-            "{k}: {s}"
-        );
+        assert!(sc["snerf_over_per_frame"][k].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{k}: {s}");
+        assert!(sc["last_over_first_round"][k].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{k}: {s}");
     }
     assert_eq!(s["bars"]["pairs"], 1);
     assert!(out.join("snerf.md").exists() && out.join("snerf.json").exists());
@@ -518,11 +282,7 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
     let mut c = snerf();
     args(&mut c);
     let again = ok(c.output().unwrap());
-    assert_eq!(
-        (stamp(&ck), stamp(&st)),
-        (ck0, st0),
-        "a finished step ran again"
-    );
+    assert_eq!((stamp(&ck), stamp(&st)), (ck0, st0), "a finished step ran again");
     assert_eq!(again["pairs"][0]["scores"], pairs[0]["scores"]);
 }
 
@@ -531,40 +291,18 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
 /// last digit (training adds its gradients in a fixed order; BENCH.md §5k).
 #[test]
 fn bench_snerf_with_a_step_budget_repeats_exactly() {
-    let Some((models, d, style)) = bench_snerf_inputs("bench-snerf-steps") else {
-        return;
-    };
+    let Some((models, d, style)) = bench_snerf_inputs("bench-snerf-steps") else { return };
     let grid = |name: &str| {
         let mut c = snerf();
-        c.args(["--json", "bench", "snerf"])
-            .arg(models)
-            .arg("--out")
-            .arg(d.join(name))
-            .arg("--styles")
-            .arg(&style);
-        c.args([
-            "--size", "32", "--views", "8", "--steps", "60", "--frames", "8",
-        ]);
-        c.args([
-            "--stylize-flags",
-            "--views 4 --rounds 2 --steps-per-round 5 --consistency-frames 8 --stylizer color",
-        ]);
+        c.args(["--json", "bench", "snerf"]).arg(models).arg("--out").arg(d.join(name)).arg("--styles").arg(&style);
+        c.args(["--size", "32", "--views", "8", "--steps", "60", "--frames", "8"]);
+        c.args(["--stylize-flags", "--views 4 --rounds 2 --steps-per-round 5 --consistency-frames 8 --stylizer color"]);
         ok(c.output().unwrap())
     };
     let (a, b) = (grid("a"), grid("b"));
-    let steps = |name: &str| -> serde_json::Value {
-        serde_json::from_slice(
-            &std::fs::read(d.join(name).join("runs/BoxTextured/metrics.json")).unwrap(),
-        )
-        .unwrap()
-    };
-    assert_eq!(
-        steps("a")["step"],
-        60,
-        "the realistic field trains the steps asked"
-    );
-    let doc: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("a/snerf.json")).unwrap()).unwrap();
+    let steps = |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(d.join(name).join("runs/BoxTextured/metrics.json")).unwrap()).unwrap() };
+    assert_eq!(steps("a")["step"], 60, "the realistic field trains the steps asked");
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(d.join("a/snerf.json")).unwrap()).unwrap();
     assert_eq!(doc["realistic_training"]["steps"], 60, "{doc}");
     assert!(a["pairs"][0]["scores"].is_object(), "{a}");
     assert_eq!(a["pairs"][0]["scores"], b["pairs"][0]["scores"]);

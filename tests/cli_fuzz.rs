@@ -26,17 +26,7 @@ impl Rng {
 }
 
 /// Values that must be refused wherever a number is expected.
-const WILD: &[&str] = &[
-    "NaN",
-    "inf",
-    "-inf",
-    "-1",
-    "abc",
-    "",
-    "1e400",
-    "18446744073709551616",
-    "0x10",
-];
+const WILD: &[&str] = &["NaN", "inf", "-inf", "-1", "abc", "", "1e400", "18446744073709551616", "0x10"];
 
 fn finite_everywhere(v: &serde_json::Value) -> bool {
     match v {
@@ -58,14 +48,7 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
     type Row<'a> = (Vec<String>, Vec<(&'a str, Vec<&'a str>)>);
     let table: Vec<Row> = vec![
         (
-            vec![
-                "train".into(),
-                p(ds),
-                "--out".into(),
-                p(&out.join("r")),
-                "--minutes".into(),
-                "0.01".into(),
-            ],
+            vec!["train".into(), p(ds), "--out".into(), p(&out.join("r")), "--minutes".into(), "0.01".into()],
             vec![
                 ("--steps", vec!["1", "3"]),
                 ("--lr-planes", vec!["0.04", "1e-9", "100"]),
@@ -82,39 +65,15 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
             ],
         ),
         (
-            vec![
-                "eval".into(),
-                p(run),
-                p(ds),
-                "--out".into(),
-                p(&out.join("e")),
-            ],
-            vec![
-                ("--split", vec!["test", "train", "val", "x"]),
-                ("--downscale", vec!["1", "2"]),
-            ],
+            vec!["eval".into(), p(run), p(ds), "--out".into(), p(&out.join("e"))],
+            vec![("--split", vec!["test", "train", "val", "x"]), ("--downscale", vec!["1", "2"])],
         ),
         (
-            vec![
-                "turntable".into(),
-                p(run),
-                p(ds),
-                "--out".into(),
-                p(&out.join("t")),
-            ],
+            vec!["turntable".into(), p(run), p(ds), "--out".into(), p(&out.join("t"))],
             vec![("--frames", vec!["1", "2", "0", "3601"])],
         ),
         (
-            vec![
-                "bake".into(),
-                p(run),
-                "--data".into(),
-                p(ds),
-                "--out".into(),
-                p(&out.join("b.snerf")),
-                "--resolution".into(),
-                "32".into(),
-            ],
+            vec!["bake".into(), p(run), "--data".into(), p(ds), "--out".into(), p(&out.join("b.snerf")), "--resolution".into(), "32".into()],
             vec![
                 ("--block", vec!["4", "8", "3", "65"]),
                 ("--keyframes", vec!["1", "0"]),
@@ -128,18 +87,10 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
         (vec!["inspect".into(), p(asset)], vec![]),
         (
             vec!["render".into(), p(asset), "--out".into(), p(&out.join("f"))],
-            vec![
-                ("--frames", vec!["1", "2", "0", "10001"]),
-                ("--size", vec!["8x8", "16x12", "0x0", "9000x9000", "axb"]),
-            ],
+            vec![("--frames", vec!["1", "2", "0", "10001"]), ("--size", vec!["8x8", "16x12", "0x0", "9000x9000", "axb"])],
         ),
         (
-            vec![
-                "export-gltf".into(),
-                p(asset),
-                "--out".into(),
-                p(&out.join("m.glb")),
-            ],
+            vec!["export-gltf".into(), p(asset), "--out".into(), p(&out.join("m.glb"))],
             vec![("--iso", vec!["0.5", "0", "1", "0.01"])],
         ),
         (
@@ -166,14 +117,7 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
             ],
         ),
         (
-            vec![
-                "scene".into(),
-                "object".into(),
-                "--out".into(),
-                p(&out.join("ds")),
-                "--size".into(),
-                "8x8".into(),
-            ],
+            vec!["scene".into(), "object".into(), "--out".into(), p(&out.join("ds")), "--size".into(), "8x8".into()],
             vec![
                 ("--views", vec!["1", "2", "0"]),
                 ("--test-views", vec!["1", "0"]),
@@ -181,32 +125,19 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
                 ("--path", vec!["sphere", "orbit", "line"]),
             ],
         ),
-        (
-            vec!["data".into(), p(ds)],
-            vec![
-                ("--holdout-every", vec!["2", "0", "1"]),
-                ("--downscale", vec!["1", "0"]),
-            ],
-        ),
+        (vec!["data".into(), p(ds)], vec![("--holdout-every", vec!["2", "0", "1"]), ("--downscale", vec!["1", "0"])]),
     ];
     let (base, flags) = &table[(rng.next() % table.len() as u64) as usize];
     let mut args = vec!["--json".to_string()];
     if rng.next().is_multiple_of(4) {
-        args.extend([
-            "--threads".to_string(),
-            rng.pick(&["1", "2", "0", "100000", "NaN"]).to_string(),
-        ]);
+        args.extend(["--threads".to_string(), rng.pick(&["1", "2", "0", "100000", "NaN"]).to_string()]);
     }
     args.extend(base.iter().cloned());
     for (flag, valid) in flags {
         if rng.next().is_multiple_of(2) {
             continue;
         }
-        let v = if rng.next().is_multiple_of(3) {
-            rng.pick(WILD)
-        } else {
-            rng.pick(valid)
-        };
+        let v = if rng.next().is_multiple_of(3) { rng.pick(WILD) } else { rng.pick(valid) };
         args.push(flag.to_string());
         args.push(v.to_string());
     }
@@ -218,58 +149,11 @@ fn prepare(d: &Path) -> (PathBuf, PathBuf, PathBuf) {
     let run = d.join("run");
     let asset = d.join("a.snerf");
     let check = |out: std::process::Output| {
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     };
-    check(
-        snerf()
-            .args([
-                "scene",
-                "object",
-                "--views",
-                "6",
-                "--test-views",
-                "2",
-                "--size",
-                "16x16",
-                "--supersample",
-                "1",
-                "--out",
-            ])
-            .arg(&ds)
-            .output()
-            .unwrap(),
-    );
-    check(
-        snerf()
-            .arg("train")
-            .arg(&ds)
-            .arg("--out")
-            .arg(&run)
-            .args(["--steps", "3"])
-            .output()
-            .unwrap(),
-    );
-    check(
-        snerf()
-            .arg("bake")
-            .arg(&run)
-            .arg("--out")
-            .arg(&asset)
-            .args([
-                "--resolution",
-                "32",
-                "--eval-views",
-                "1",
-                "--visibility-views",
-                "4",
-            ])
-            .output()
-            .unwrap(),
-    );
+    check(snerf().args(["scene", "object", "--views", "6", "--test-views", "2", "--size", "16x16", "--supersample", "1", "--out"]).arg(&ds).output().unwrap());
+    check(snerf().arg("train").arg(&ds).arg("--out").arg(&run).args(["--steps", "3"]).output().unwrap());
+    check(snerf().arg("bake").arg(&run).arg("--out").arg(&asset).args(["--resolution", "32", "--eval-views", "1", "--visibility-views", "4"]).output().unwrap());
     (ds, run, asset)
 }
 
@@ -279,10 +163,7 @@ fn random_command_lines_never_panic_and_json_stays_finite() {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     let (ds, run, asset) = prepare(&d);
-    let cases: usize = std::env::var("SNERF_FUZZ_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(60);
+    let cases: usize = std::env::var("SNERF_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(60);
     let mut rng = Rng(0x5eed_cafe_f00d_1234);
     let (mut succeeded, mut refused) = (0, 0);
     for i in 0..cases {
@@ -293,29 +174,19 @@ fn random_command_lines_never_panic_and_json_stays_finite() {
         let shown = format!("case {i}: snerf {}", c.args.join(" "));
         assert_ne!(out.status.code(), Some(101), "{shown}\n{stderr}");
         assert!(!stderr.contains("panicked"), "{shown}\n{stderr}");
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-            panic!(
-                "{shown}: stdout is not JSON ({e}): {}\n{stderr}",
-                String::from_utf8_lossy(&out.stdout)
-            )
-        });
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("{shown}: stdout is not JSON ({e}): {}\n{stderr}", String::from_utf8_lossy(&out.stdout)));
         assert!(finite_everywhere(&v), "{shown}: non-finite number in {v}");
         if out.status.success() {
             succeeded += 1;
             assert!(v.get("error").is_none(), "{shown}: {v}");
         } else {
             refused += 1;
-            assert!(
-                v["error"].as_str().is_some_and(|e| !e.is_empty()),
-                "{shown}: an error without a message: {v}"
-            );
+            assert!(v["error"].as_str().is_some_and(|e| !e.is_empty()), "{shown}: an error without a message: {v}");
         }
         let _ = std::fs::remove_dir_all(&out_dir);
     }
     println!("{cases} random command lines: {succeeded} ran, {refused} refused with a JSON error");
-    assert!(
-        succeeded > 0 && refused > 0,
-        "the generator should produce both ({succeeded}, {refused})"
-    );
+    assert!(succeeded > 0 && refused > 0, "the generator should produce both ({succeeded}, {refused})");
     let _ = std::fs::remove_dir_all(&d);
 }

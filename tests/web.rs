@@ -19,20 +19,12 @@ fn snerf() -> Command {
 fn ok(out: Output) -> serde_json::Value {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "stdout is not JSON ({e}): {}",
-            String::from_utf8_lossy(&out.stdout)
-        )
-    })
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 fn browser() -> Option<(PathBuf, PathBuf)> {
-    let chromium = std::env::var_os("SNERF_CHROMIUM")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
-    let pw = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/test-assets/playwright/node_modules/playwright-core");
+    let chromium = std::env::var_os("SNERF_CHROMIUM").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
+    let pw = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-assets/playwright/node_modules/playwright-core");
     let why = if !chromium.exists() {
         format!("no Chromium at {}", chromium.display())
     } else if !pw.join("package.json").exists() {
@@ -45,9 +37,7 @@ fn browser() -> Option<(PathBuf, PathBuf)> {
     if std::env::var("SNERF_REQUIRE_BROWSER").as_deref() == Ok("1") {
         panic!("SNERF_REQUIRE_BROWSER=1 but {why} (.ci/run installs it)");
     }
-    eprintln!(
-        "skipping the web viewer test: {why} (.ci/run installs chromium and playwright-core)"
-    );
+    eprintln!("skipping the web viewer test: {why} (.ci/run installs chromium and playwright-core)");
     None
 }
 
@@ -62,9 +52,7 @@ impl Drop for Server {
 
 #[test]
 fn snerf_serve_web_page_renders_what_snerf_render_draws() {
-    let Some((chromium, pw)) = browser() else {
-        return;
-    };
+    let Some((chromium, pw)) = browser() else { return };
     let d = std::env::temp_dir().join(format!("snerf-web-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
@@ -73,27 +61,11 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     ok(snerf()
         .args(["--json", "scene", "object", "--out"])
         .arg(&ds)
-        .args([
-            "--views",
-            "6",
-            "--test-views",
-            "2",
-            "--size",
-            "16x16",
-            "--supersample",
-            "1",
-        ])
+        .args(["--views", "6", "--test-views", "2", "--size", "16x16", "--supersample", "1"])
         .output()
         .unwrap());
     let run = d.join("run");
-    ok(snerf()
-        .args(["--json", "train"])
-        .arg(&ds)
-        .arg("--out")
-        .arg(&run)
-        .args(["--steps", "2"])
-        .output()
-        .unwrap());
+    ok(snerf().args(["--json", "train"]).arg(&ds).arg("--out").arg(&run).args(["--steps", "2"]).output().unwrap());
     let assets = d.join("assets");
     std::fs::create_dir_all(&assets).unwrap();
     let file = assets.join("a.snerf");
@@ -102,27 +74,12 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
         .arg(&run)
         .arg("--out")
         .arg(&file)
-        .args([
-            "--resolution",
-            "32",
-            "--eval-views",
-            "0",
-            "--visibility-views",
-            "4",
-        ])
+        .args(["--resolution", "32", "--eval-views", "0", "--visibility-views", "4"])
         .output()
         .unwrap());
     // The CPU reference image of the orbit's first camera.
     let frames = d.join("frames");
-    ok(snerf()
-        .args(["--json", "render"])
-        .arg(&file)
-        .args([
-            "--path", "orbit", "--frames", "1", "--size", "24x16", "--out",
-        ])
-        .arg(&frames)
-        .output()
-        .unwrap());
+    ok(snerf().args(["--json", "render"]).arg(&file).args(["--path", "orbit", "--frames", "1", "--size", "24x16", "--out"]).arg(&frames).output().unwrap());
     let png = image::open(frames.join("frame_000.png")).unwrap().to_rgb8();
     let asset = snerf_asset::Asset::read(&file).unwrap();
     let cam = snerf_asset::orbit(&asset.header, 1, 0, 24, 16, 40.0);
@@ -137,50 +94,21 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
         .spawn()
         .unwrap();
     let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
     let server = Server(child);
-    let ready: serde_json::Value =
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
+    let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
     let web = ready["web_url"].as_str().expect("web_url").to_string();
-    assert!(
-        ready["web_cert_sha256"]
-            .as_str()
-            .is_some_and(|h| h.len() == 64),
-        "{ready}"
-    );
+    assert!(ready["web_cert_sha256"].as_str().is_some_and(|h| h.len() == 64), "{ready}");
     let token = ready["token"].as_str().unwrap();
     let camj = serde_json::json!({"c2w": cam.c2w, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width, "height": cam.height}).to_string();
-    let enc: String = camj
-        .bytes()
-        .map(|b| {
-            if b.is_ascii_alphanumeric() || b"-_.".contains(&b) {
-                (b as char).to_string()
-            } else {
-                format!("%{b:02X}")
-            }
-        })
-        .collect();
+    let enc: String = camj.bytes().map(|b| if b.is_ascii_alphanumeric() || b"-_.".contains(&b) { (b as char).to_string() } else { format!("%{b:02X}") }).collect();
     let url = format!("{web}#token={token}&asset=a&cam={enc}");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/stream/tests/web/page.mjs");
-    let out = Command::new("node")
-        .arg(&script)
-        .arg(&pw)
-        .arg(&url)
-        .arg("done")
-        .env("SNERF_CHROMIUM", &chromium)
-        .output()
-        .unwrap();
+    let out = Command::new("node").arg(&script).arg(&pw).arg(&url).arg("done").env("SNERF_CHROMIUM", &chromium).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "page.mjs: {stderr}");
     let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(
-        r["error"],
-        serde_json::Value::Null,
-        "page error: {}",
-        r["error"]
-    );
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
     assert_eq!(r["sha256"].as_str().unwrap().len(), 64);
     assert_eq!(r["sha256"], r["asset"]["sha256"]);
     let rgba = r["lastRender"]["rgba"].as_array().unwrap();
@@ -195,28 +123,13 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     }
     let diff = diff.map(|x| x / (24.0 * 16.0));
     eprintln!("snerf serve web page vs snerf render: mean |diff| per channel {diff:?} (of 255)");
-    assert!(
-        diff.iter().all(|&x| x <= 2.0),
-        "mean |diff| {diff:?} > 2/255"
-    );
+    assert!(diff.iter().all(|&x| x <= 2.0), "mean |diff| {diff:?} > 2/255");
     // The object was trained with silhouette pixels as the mean of 4 rays, and the page draws
     // them so (march.wgsl's second pass): where that rule changes the CPU reference, the page
     // is the 4-ray image, not the one-ray one.
-    assert_eq!(
-        asset.header.pixel_rays, 4,
-        "a static object's asset carries the trainer's rule"
-    );
-    assert_eq!(
-        asset.header.pixel_rays_for(&cam),
-        4,
-        "this camera's pixels are about as coarse as the training views' ({:?})",
-        asset.header.train_pixel
-    );
-    assert_eq!(
-        r["lastFrame"]["pixelSides"],
-        serde_json::json!([2]),
-        "the page's own choice of rays (app.js pixelSide)"
-    );
+    assert_eq!(asset.header.pixel_rays, 4, "a static object's asset carries the trainer's rule");
+    assert_eq!(asset.header.pixel_rays_for(&cam), 4, "this camera's pixels are about as coarse as the training views' ({:?})", asset.header.train_pixel);
+    assert_eq!(r["lastFrame"]["pixelSides"], serde_json::json!([2]), "the page's own choice of rays (app.js pixelSide)");
     let four = snerf_asset::render(&asset, &cam, 0.0);
     let mut centre_only = asset.clone();
     centre_only.header.pixel_rays = 1;

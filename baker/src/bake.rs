@@ -19,15 +19,15 @@ use std::time::Instant;
 use anyhow::{bail, Result};
 use rayon::prelude::*;
 use serde::Serialize;
-use snerf_asset::chunk::CHUNK_HEADER_LEN;
 use snerf_asset::header::{DensityRange, Header, Keyframe, March, Orbit};
 use snerf_asset::mlp::ViewMlp;
+use snerf_asset::chunk::CHUNK_HEADER_LEN;
 use snerf_asset::mlp::MLP_FLOATS;
 use snerf_asset::quantize::{decode_voxel, encode_voxel};
 use snerf_asset::Asset;
 use snerf_data::{SceneKind, View};
-use snerf_geometry::unbounded_dt;
 use snerf_trainer::eval::render_camera;
+use snerf_geometry::unbounded_dt;
 use snerf_trainer::render::{values_batch, WorkspacePool};
 use snerf_trainer::space::{dot, norm, sub, Vec3};
 use snerf_trainer::train::Model;
@@ -67,16 +67,7 @@ pub struct BakeOptions {
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions {
-            res: 192,
-            block: 8,
-            keyframes: 24,
-            min_alpha: 0.005,
-            visibility_views: 32,
-            reuse_tolerance: 0.01,
-            time_budget: 1.8,
-            up: None,
-        }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None }
     }
 }
 
@@ -130,46 +121,19 @@ pub fn bake(
     // Density range: the smallest code must be negligible over a whole ray of steps; the
     // largest is where a single step is already opaque.
     let logit_min = (1.0e-5f32 / step).ln();
-    let logit_max = (30.0f32 / step)
-        .ln()
-        .min(snerf_trainer::field::SIGMA_LOGIT_MAX);
-    let range = DensityRange {
-        logit_min,
-        logit_max,
-    };
+    let logit_max = (30.0f32 / step).ln().min(snerf_trainer::field::SIGMA_LOGIT_MAX);
+    let range = DensityRange { logit_min, logit_max };
     let dynamic = space.dynamic;
     let frames = if dynamic { opts.keyframes.max(2) } else { 1 };
-    let field_times: Vec<f32> = (0..frames)
-        .map(|f| {
-            if dynamic {
-                f as f32 / (frames - 1) as f32
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let field_times: Vec<f32> = (0..frames).map(|f| if dynamic { f as f32 / (frames - 1) as f32 } else { 0.0 }).collect();
 
-    let mut report = BakeReport {
-        res,
-        block: b,
-        frames,
-        ..Default::default()
-    };
+    let mut report = BakeReport { res, block: b, frames, ..Default::default() };
     report.density_range = [logit_min, logit_max];
 
     let candidates = candidate_cells(model, g);
     let t0 = Instant::now();
     let visible = if opts.visibility_views > 0 {
-        visible_cells(
-            model,
-            pool,
-            views,
-            bg,
-            opts.visibility_views,
-            g,
-            &candidates,
-            progress,
-        )
+        visible_cells(model, pool, views, bg, opts.visibility_views, g, &candidates, progress)
     } else {
         candidates.clone()
     };
@@ -190,12 +154,7 @@ pub fn bake(
                 let logit = decode_voxel(&[code as u8, 0, 0, 0, 0, 0, 0, 0], &range)[0];
                 -(-(logit.exp() * delta).min(80.0)).exp_m1()
             });
-            CellSamples {
-                frames: Vec::new(),
-                blocks: Vec::new(),
-                vis: Vec::new(),
-                alpha,
-            }
+            CellSamples { frames: Vec::new(), blocks: Vec::new(), vis: Vec::new(), alpha }
         })
         .collect();
     let t0 = Instant::now();
@@ -212,11 +171,7 @@ pub fn bake(
                     for z in 0..bb {
                         for y in 0..bb {
                             for x in 0..bb {
-                                let idx = [
-                                    cx * b as usize + x,
-                                    cy * b as usize + y,
-                                    cz * b as usize + z,
-                                ];
+                                let idx = [cx * b as usize + x, cy * b as usize + y, cz * b as usize + z];
                                 pts.push(idx.map(|i| -1.0 + (i as f32 - 0.5) * 2.0 / res as f32));
                             }
                         }
@@ -251,22 +206,13 @@ pub fn bake(
                     }
                     let mut bytes = Vec::with_capacity(block_voxels * 8);
                     for v in &vals {
-                        bytes.extend_from_slice(&encode_voxel(
-                            v[0],
-                            [v[1], v[2], v[3]],
-                            [v[4], v[5], v[6], v[7]],
-                            &range,
-                        ));
+                        bytes.extend_from_slice(&encode_voxel(v[0], [v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]], &range));
                     }
                     Evaluated::Kept(bytes)
                 });
                 let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 if n.is_multiple_of(64) {
-                    progress(
-                        &format!("bake frame {}/{frames}", f + 1),
-                        n,
-                        cells.len() as u64,
-                    );
+                    progress(&format!("bake frame {}/{frames}", f + 1), n, cells.len() as u64);
                 }
                 r
             })
@@ -285,14 +231,8 @@ pub fn bake(
                 Evaluated::Kept(bytes) => Some(bytes),
             })
             .collect();
-        report
-            .frame_blocks
-            .push(kept.iter().filter(|k| k.is_some()).count());
-        let vis = if dynamic {
-            visibility(&cells, &kept, &samples, res as usize, b as usize)
-        } else {
-            Vec::new()
-        };
+        report.frame_blocks.push(kept.iter().filter(|k| k.is_some()).count());
+        let vis = if dynamic { visibility(&cells, &kept, &samples, res as usize, b as usize) } else { Vec::new() };
         for (i, blk) in kept.into_iter().enumerate() {
             if let Some(bytes) = blk {
                 samples[i].frames.push(f);
@@ -313,9 +253,7 @@ pub fn bake(
     let t0 = Instant::now();
     progress("time codebook", 0, 1);
     let extra = if frames > 1 {
-        let budget = opts.time_budget as f64 * report.static_frame_bytes as f64
-            - fixed
-            - frames as f64 * grid_chunk;
+        let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - frames as f64 * grid_chunk;
         ((budget / block_chunk).floor() - with_time as f64).max(0.0) as usize
     } else {
         0
@@ -329,17 +267,10 @@ pub fn bake(
     // the whole scene at its most typical state first.
     let mut atlas: Vec<u8> = Vec::new();
     let mut grids: Vec<Vec<u32>> = vec![vec![EMPTY; g * g * g]; frames];
-    let mut index: Vec<Vec<u32>> = books
-        .iter()
-        .map(|bk| vec![EMPTY; bk.assign.len()])
-        .collect();
+    let mut index: Vec<Vec<u32>> = books.iter().map(|bk| vec![EMPTY; bk.assign.len()]).collect();
     for pass in 0..2 {
         for (i, bk) in books.iter().enumerate() {
-            let stored = if pass == 0 {
-                &bk.stored[..bk.stored.len().min(1)]
-            } else {
-                bk.stored.get(1..).unwrap_or(&[])
-            };
+            let stored = if pass == 0 { &bk.stored[..bk.stored.len().min(1)] } else { bk.stored.get(1..).unwrap_or(&[]) };
             for &j in stored {
                 index[i][j] = (atlas.len() / (block_voxels * 8)) as u32;
                 atlas.extend_from_slice(&samples[i].blocks[j]);
@@ -355,17 +286,11 @@ pub fn bake(
         }
         report.codebook_error += bk.error as f64;
     }
-    report.extra_blocks = books
-        .iter()
-        .map(|bk| bk.stored.len().saturating_sub(1))
-        .sum();
+    report.extra_blocks = books.iter().map(|bk| bk.stored.len().saturating_sub(1)).sum();
     drop(samples);
     let atlas_blocks = atlas.len() / (block_voxels * 8);
     if atlas_blocks == 0 {
-        bail!(
-            "nothing to bake: no block of the field is both opaque (alpha >= {}) and visible",
-            opts.min_alpha
-        );
+        bail!("nothing to bake: no block of the field is both opaque (alpha >= {}) and visible", opts.min_alpha);
     }
     report.atlas_blocks = atlas_blocks;
 
@@ -375,15 +300,10 @@ pub fn bake(
         Some(up) => reorient(o, up),
         None => o,
     });
-    header.floor = header
-        .view
-        .and_then(|o| floor_height(&header, &grids[0], o.up()));
+    header.floor = header.view.and_then(|o| floor_height(&header, &grids[0], o.up()));
     header.atlas_blocks = atlas_blocks as u32;
     header.density = range;
-    header.march = March {
-        step,
-        t_terminate: snerf_trainer::render::T_TERMINATE,
-    };
+    header.march = March { step, t_terminate: snerf_trainer::render::T_TERMINATE };
     header.background = bg;
     // The asset's renderers draw silhouette pixels as the field was trained to be drawn, for
     // cameras whose pixels are about as coarse as the training views' (their median
@@ -392,31 +312,16 @@ pub fn bake(
     if header.pixel_rays > 1 {
         // the run's own record; runs from before it: the views given here (their training
         // views, unless the bake was pointed at another dataset)
-        header.train_pixel = model
-            .pixel_footprint
-            .or_else(|| snerf_trainer::train::views_pixel_footprint(views, header.space.center));
+        header.train_pixel = model.pixel_footprint.or_else(|| snerf_trainer::train::views_pixel_footprint(views, header.space.center));
     }
     if dynamic {
         let (lo, hi) = space.time_range;
         header.time_range = Some([lo, hi]);
-        header.frames = Some(
-            field_times
-                .iter()
-                .map(|&u| Keyframe {
-                    time: lo + u * (hi - lo),
-                })
-                .collect(),
-        );
+        header.frames = Some(field_times.iter().map(|&u| Keyframe { time: lo + u * (hi - lo) }).collect());
     }
     let view = &model.field.layout.view;
     let mlp = ViewMlp::from_flat(&model.field.params[view.w1..view.end])?;
-    let asset = Asset {
-        header,
-        mlp,
-        grids,
-        present: vec![true; atlas_blocks],
-        atlas,
-    };
+    let asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
     asset.validate()?;
     report.seconds_total = t_all.elapsed().as_secs_f64();
     Ok((asset, report))
@@ -425,13 +330,7 @@ pub fn bake(
 /// Visibility (0..=255) of every voxel of every kept block of one sample: the light from
 /// outside the grid that reaches the voxel along the best axis direction, through this
 /// sample's kept blocks (`temporal::optical_depth_in_front`).
-fn visibility(
-    cells: &[usize],
-    kept: &[Option<Vec<u8>>],
-    samples: &[CellSamples],
-    res: usize,
-    b: usize,
-) -> Vec<Vec<u8>> {
+fn visibility(cells: &[usize], kept: &[Option<Vec<u8>>], samples: &[CellSamples], res: usize, b: usize) -> Vec<Vec<u8>> {
     let g = res / b;
     let bb = b + 2;
     // Optical depth over one step of every voxel (interior voxels of kept blocks), on a grid
@@ -449,8 +348,7 @@ fn visibility(
                 for x in 1..=b {
                     let a = samples[i].alpha[bytes[((z * bb + y) * bb + x) * 8] as usize];
                     let (gx, gy, gz) = (cx * b + x - 1, cy * b + y - 1, cz * b + z - 1);
-                    s[((gz / k) * vr + gy / k) * vr + gx / k] +=
-                        -(1.0 - a).max(1e-30).ln() / (k * k) as f32;
+                    s[((gz / k) * vr + gy / k) * vr + gx / k] += -(1.0 - a).max(1e-30).ln() / (k * k) as f32;
                 }
             }
         }
@@ -464,8 +362,7 @@ fn visibility(
             }
             let c = cells[i];
             let base = [c % g, (c / g) % g, c / (g * g)].map(|k| (k * b) as isize - 1);
-            let at =
-                |k: usize, a: usize| (base[a] + k as isize).clamp(0, res as isize - 1) as usize;
+            let at = |k: usize, a: usize| (base[a] + k as isize).clamp(0, res as isize - 1) as usize;
             let mut v = Vec::with_capacity(bb * bb * bb);
             for z in 0..bb {
                 for y in 0..bb {
@@ -498,8 +395,7 @@ pub fn floor_height(h: &Header, grid: &[u32], up: [f32; 3]) -> Option<f32> {
         if b == snerf_asset::EMPTY {
             continue;
         }
-        let centre =
-            [c % g, (c / g) % g, c / (g * g)].map(|i| -1.0 + (i as f32 + 0.5) * 2.0 / g as f32);
+        let centre = [c % g, (c / g) % g, c / (g * g)].map(|i| -1.0 + (i as f32 + 0.5) * 2.0 / g as f32);
         if h.kind == snerf_geometry::SceneKind::Unbounded && centre.iter().any(|x| x.abs() > 0.5) {
             continue;
         }
@@ -523,57 +419,22 @@ pub fn reorient(o: Orbit, up: [f32; 3]) -> Orbit {
     use snerf_geometry::vec::{add, cross, normalize, scale};
     let up = normalize(up);
     match o {
-        Orbit::Around {
-            center,
-            start,
-            radius,
-            elevation,
-            up: old,
-        } => {
+        Orbit::Around { center, start, radius, elevation, up: old } => {
             let eye_dir = add(scale(start, elevation.cos()), scale(old, elevation.sin()));
             let elevation = dot(eye_dir, up).clamp(-1.0, 1.0).asin();
-            Orbit::Around {
-                center,
-                up,
-                start: horizontal(up, eye_dir),
-                radius,
-                elevation,
-            }
+            Orbit::Around { center, up, start: horizontal(up, eye_dir), radius, elevation }
         }
-        Orbit::Ellipse {
-            center,
-            right: old_right,
-            target,
-            rx,
-            ry,
-            ..
-        } => {
+        Orbit::Ellipse { center, right: old_right, target, rx, ry, .. } => {
             let fwd = normalize(sub(target, center));
             let r = cross(fwd, up);
-            let right = if norm(r) > 1e-3 {
-                normalize(r)
-            } else {
-                old_right
-            };
-            Orbit::Ellipse {
-                center,
-                right,
-                up: cross(right, fwd),
-                target,
-                rx,
-                ry,
-            }
+            let right = if norm(r) > 1e-3 { normalize(r) } else { old_right };
+            Orbit::Ellipse { center, right, up: cross(right, fwd), target, rx, ry }
         }
     }
 }
 
 /// The march-space step length at a grid point (what σ multiplies there).
-fn march_delta(
-    kind: SceneKind,
-    step: f32,
-    g: &Vec3,
-    space: &snerf_trainer::space::SceneSpace,
-) -> f32 {
+fn march_delta(kind: SceneKind, step: f32, g: &Vec3, space: &snerf_trainer::space::SceneSpace) -> f32 {
     match kind {
         SceneKind::Unbounded => unbounded_dt(step, space.grid_to_march(*g)),
         _ => step,
@@ -627,9 +488,7 @@ fn visible_cells(
     let picked: Vec<&View> = if views.len() <= max_views {
         views.iter().collect()
     } else {
-        (0..max_views)
-            .map(|i| &views[i * views.len() / max_views])
-            .collect()
+        (0..max_views).map(|i| &views[i * views.len() / max_views]).collect()
     };
     let cells: Vec<usize> = (0..g * g * g).filter(|&c| candidates[c]).collect();
     // world-space probe points of each cell: 8 corners and the centre
@@ -638,8 +497,7 @@ fn visible_cells(
         .map(|&c| {
             let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
             let at = |fx: f32, fy: f32, fz: f32| {
-                let gp = [cx as f32 + fx, cy as f32 + fy, cz as f32 + fz]
-                    .map(|u| -1.0 + u * 2.0 / g as f32);
+                let gp = [cx as f32 + fx, cy as f32 + fy, cz as f32 + fz].map(|u| -1.0 + u * 2.0 / g as f32);
                 space.march_point_to_world(space.grid_to_march(gp))
             };
             let mut p = [[0.0f32; 3]; 9];

@@ -26,13 +26,7 @@ pub struct SurfaceAgreement {
 
 /// Render up to 8 `views` from the field, take every pixel at least 90% opaque to its world
 /// surface point, and measure its distance to `mesh`.
-pub fn surface_agreement(
-    asset: &Asset,
-    mesh: &Mesh,
-    model: &Model,
-    pool: &WorkspacePool,
-    views: &[View],
-) -> Result<SurfaceAgreement> {
+pub fn surface_agreement(asset: &Asset, mesh: &Mesh, model: &Model, pool: &WorkspacePool, views: &[View]) -> Result<SurfaceAgreement> {
     let bg = asset.header.background;
     let mut points = Vec::new();
     for v in views.iter().take(8) {
@@ -42,13 +36,7 @@ pub fn surface_agreement(
                 continue;
             }
             let (x, y) = (p % r.width, p / r.width);
-            if let Some(ray) = model.space.ray(
-                &v.c2w,
-                &v.intrinsics,
-                x as f32 + 0.5,
-                y as f32 + 0.5,
-                v.time,
-            ) {
+            if let Some(ray) = model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time) {
                 points.push(model.space.march_to_world(&ray, r.depth[p]));
             }
         }
@@ -58,10 +46,7 @@ pub fn surface_agreement(
     }
     // one voxel in world units (exact for objects; at the centre for other kinds)
     let voxel = 2.0 / asset.header.res as f32 / asset.header.space.scale;
-    let mut d: Vec<f32> = crate::mesh_export::distances_to_mesh(mesh, &points, voxel * 2.0)
-        .into_iter()
-        .map(|x| x / voxel)
-        .collect();
+    let mut d: Vec<f32> = crate::mesh_export::distances_to_mesh(mesh, &points, voxel * 2.0).into_iter().map(|x| x / voxel).collect();
     d.sort_by(|a, b| a.total_cmp(b));
     let q = |f: f64| d[((d.len() - 1) as f64 * f) as usize];
     Ok(SurfaceAgreement {
@@ -82,10 +67,7 @@ pub fn validator_dir() -> Option<PathBuf> {
         return Some(PathBuf::from(d));
     }
     let local = Path::new("target/test-assets/gltf-validator");
-    local
-        .join("node_modules/gltf-validator")
-        .exists()
-        .then(|| local.to_path_buf())
+    local.join("node_modules/gltf-validator").exists().then(|| local.to_path_buf())
 }
 
 /// Run the Khronos glTF validator (Node.js + npm `gltf-validator`) on `path`; the report's
@@ -107,18 +89,12 @@ pub fn validate_glb(path: &Path) -> Result<Value> {
     {
         use std::io::Write;
         let mut stdin = child.stdin.take().context("node's stdin")?;
-        stdin
-            .write_all(VALIDATE_SCRIPT.as_bytes())
-            .context("writing the validator script to node")?;
+        stdin.write_all(VALIDATE_SCRIPT.as_bytes()).context("writing the validator script to node")?;
     }
     let out = child.wait_with_output().context("waiting for node")?;
-    let report: Value = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|_| json!({ "raw": String::from_utf8_lossy(&out.stdout) }));
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|_| json!({ "raw": String::from_utf8_lossy(&out.stdout) }));
     if out.status.code() == Some(2) {
-        bail!(
-            "glTF validator unavailable: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
+        bail!("glTF validator unavailable: {}", String::from_utf8_lossy(&out.stderr).trim());
     }
     Ok(report)
 }

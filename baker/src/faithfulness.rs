@@ -48,25 +48,11 @@ pub struct Faithfulness {
 /// The camera of a view in the asset renderer's terms (lens distortion is not baked).
 pub fn camera_of(v: &View) -> Camera {
     let k = &v.intrinsics;
-    Camera {
-        c2w: v.c2w,
-        fx: k.fx,
-        fy: k.fy,
-        cx: k.cx,
-        cy: k.cy,
-        width: k.width,
-        height: k.height,
-    }
+    Camera { c2w: v.c2w, fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy, width: k.width, height: k.height }
 }
 
 /// Score up to `max_views` evenly spaced views; `bg` must be the asset's background.
-pub fn measure(
-    model: &Model,
-    pool: &WorkspacePool,
-    asset: &Asset,
-    views: &[View],
-    max_views: usize,
-) -> Result<Faithfulness> {
+pub fn measure(model: &Model, pool: &WorkspacePool, asset: &Asset, views: &[View], max_views: usize) -> Result<Faithfulness> {
     let bg = asset.header.background;
     let n = views.len().min(max_views.max(1));
     let picked: Vec<&View> = (0..n).map(|i| &views[i * views.len() / n]).collect();
@@ -91,11 +77,7 @@ pub fn measure(
         let clamp = |x: &[f32]| x.iter().map(|v| v.clamp(0.0, 1.0)).collect::<Vec<f32>>();
         let f = clamp(&field.rgb);
         out.push(ViewFaithfulness {
-            name: v
-                .path
-                .file_stem()
-                .map(|s| s.to_string_lossy().to_string())
-                .unwrap_or_else(|| format!("view_{i}")),
+            name: v.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| format!("view_{i}")),
             time: v.time,
             baked_vs_field: psnr(&baked.rgb, &clamp(&centre)),
             field_vs_truth: psnr(&f, &truth),
@@ -103,14 +85,8 @@ pub fn measure(
             baked_vs_truth: psnr(&baked.rgb, &truth),
         });
     }
-    let mean = |f: &dyn Fn(&ViewFaithfulness) -> f64| {
-        out.iter().map(f).sum::<f64>() / out.len().max(1) as f64
-    };
-    let (bf, ft, bt) = (
-        mean(&|v| v.baked_vs_field),
-        mean(&|v| v.field_vs_truth),
-        mean(&|v| v.baked_vs_truth),
-    );
+    let mean = |f: &dyn Fn(&ViewFaithfulness) -> f64| out.iter().map(f).sum::<f64>() / out.len().max(1) as f64;
+    let (bf, ft, bt) = (mean(&|v| v.baked_vs_field), mean(&|v| v.field_vs_truth), mean(&|v| v.baked_vs_truth));
     let f1 = mean(&|v| v.field_as_asset_vs_truth);
     Ok(Faithfulness {
         views: out,

@@ -71,11 +71,7 @@ pub fn asset_mesh(asset: &Asset, frame: usize, iso: f32) -> Mesh {
         }
         let cell = [c % g, (c / g) % g, c / (g * g)];
         for k in 0..8 {
-            blocks.insert([
-                cell[0] + (k & 1),
-                cell[1] + ((k >> 1) & 1),
-                cell[2] + ((k >> 2) & 1),
-            ]);
+            blocks.insert([cell[0] + (k & 1), cell[1] + ((k >> 1) & 1), cell[2] + ((k >> 2) & 1)]);
         }
     }
     let blocks: Vec<[usize; 3]> = blocks.into_iter().collect();
@@ -109,11 +105,7 @@ fn recompute_normals(mesh: &mut Mesh) {
         let [a, b, c] = [t[0], t[1], t[2]].map(|i| mesh.positions[i as usize]);
         let e1 = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
         let e2 = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-        let f = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
+        let f = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
         for &i in t {
             for k in 0..3 {
                 n[i as usize][k] += f[k];
@@ -139,22 +131,11 @@ pub struct ExportReport {
 
 /// Write `asset` as a GLB: one mesh, or a flipbook of keyframe meshes for 4D assets.
 pub fn export_glb(asset: &Asset, iso: f32, path: &Path) -> Result<(ExportReport, Vec<Mesh>)> {
-    let opts = GltfOptions {
-        name: "snerf".into(),
-        iso: Some(iso),
-        ..GltfOptions::default()
-    };
-    let meshes: Vec<Mesh> = (0..asset.num_frames())
-        .map(|f| asset_mesh(asset, f, iso))
-        .collect();
+    let opts = GltfOptions { name: "snerf".into(), iso: Some(iso), ..GltfOptions::default() };
+    let meshes: Vec<Mesh> = (0..asset.num_frames()).map(|f| asset_mesh(asset, f, iso)).collect();
     let stats: GlbStats = if asset.is_dynamic() {
-        let times: Vec<f32> = (0..asset.num_frames())
-            .map(|f| asset.header.frame_time(f))
-            .collect();
-        let opts = GltfOptions {
-            animation: Some(FlipbookOptions::default()),
-            ..opts
-        };
+        let times: Vec<f32> = (0..asset.num_frames()).map(|f| asset.header.frame_time(f)).collect();
+        let opts = GltfOptions { animation: Some(FlipbookOptions::default()), ..opts };
         write_glb_frames(&meshes, &times, &opts, path)?
     } else {
         write_glb(&meshes[0], &opts, path)?
@@ -249,11 +230,7 @@ pub fn point_triangle_distance(p: [f32; 3], t: [[f32; 3]; 3]) -> f32 {
         let va = d3 * d6 - d5 * d4;
         if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
             let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-            return [
-                b[0] + w * (c[0] - b[0]),
-                b[1] + w * (c[1] - b[1]),
-                b[2] + w * (c[2] - b[2]),
-            ];
+            return [b[0] + w * (c[0] - b[0]), b[1] + w * (c[1] - b[1]), b[2] + w * (c[2] - b[2])];
         }
         let denom = 1.0 / (va + vb + vc);
         let (v, w) = (vb * denom, vc * denom);

@@ -34,58 +34,48 @@ pub fn optical_depth_in_front(s: &[f32], res: usize) -> Vec<f32> {
     assert_eq!(s.len(), plane * res);
     let mut best = vec![f32::INFINITY; s.len()];
     // ±x: rows are contiguous
-    best.par_chunks_mut(res)
-        .zip(s.par_chunks(res))
-        .for_each(|(b, s)| {
-            let mut cum = 0.0f32;
-            for x in 0..res {
-                b[x] = b[x].min(cum);
-                cum += s[x];
-            }
-            cum = 0.0;
-            for x in (0..res).rev() {
-                b[x] = b[x].min(cum);
-                cum += s[x];
-            }
-        });
+    best.par_chunks_mut(res).zip(s.par_chunks(res)).for_each(|(b, s)| {
+        let mut cum = 0.0f32;
+        for x in 0..res {
+            b[x] = b[x].min(cum);
+            cum += s[x];
+        }
+        cum = 0.0;
+        for x in (0..res).rev() {
+            b[x] = b[x].min(cum);
+            cum += s[x];
+        }
+    });
     // ±y: within each z slab
-    best.par_chunks_mut(plane)
-        .zip(s.par_chunks(plane))
-        .for_each(|(b, s)| {
-            let mut cum = vec![0.0f32; res];
-            for y in 0..res {
-                for x in 0..res {
-                    let i = y * res + x;
-                    b[i] = b[i].min(cum[x]);
-                    cum[x] += s[i];
-                }
+    best.par_chunks_mut(plane).zip(s.par_chunks(plane)).for_each(|(b, s)| {
+        let mut cum = vec![0.0f32; res];
+        for y in 0..res {
+            for x in 0..res {
+                let i = y * res + x;
+                b[i] = b[i].min(cum[x]);
+                cum[x] += s[i];
             }
-            cum.fill(0.0);
-            for y in (0..res).rev() {
-                for x in 0..res {
-                    let i = y * res + x;
-                    b[i] = b[i].min(cum[x]);
-                    cum[x] += s[i];
-                }
+        }
+        cum.fill(0.0);
+        for y in (0..res).rev() {
+            for x in 0..res {
+                let i = y * res + x;
+                b[i] = b[i].min(cum[x]);
+                cum[x] += s[i];
             }
-        });
+        }
+    });
     // ±z: slab by slab, each (x, y) column carrying its own sum
     let mut cum = vec![0.0f32; plane];
     for dir in 0..2 {
         cum.fill(0.0);
         for k in 0..res {
             let z = if dir == 0 { k } else { res - 1 - k };
-            let (b, sl) = (
-                &mut best[z * plane..(z + 1) * plane],
-                &s[z * plane..(z + 1) * plane],
-            );
-            b.par_iter_mut()
-                .zip(sl.par_iter())
-                .zip(cum.par_iter_mut())
-                .for_each(|((b, &s), c)| {
-                    *b = b.min(*c);
-                    *c += s;
-                });
+            let (b, sl) = (&mut best[z * plane..(z + 1) * plane], &s[z * plane..(z + 1) * plane]);
+            b.par_iter_mut().zip(sl.par_iter()).zip(cum.par_iter_mut()).for_each(|((b, &s), c)| {
+                *b = b.min(*c);
+                *c += s;
+            });
         }
     }
     best
@@ -169,22 +159,10 @@ impl State {
             })
             .unwrap_or(0);
         if n == 0 {
-            return State {
-                n,
-                m,
-                stored: Vec::new(),
-                cur: Vec::new(),
-                cur_from: Vec::new(),
-            };
+            return State { n, m, stored: Vec::new(), cur: Vec::new(), cur_from: Vec::new() };
         }
         let cur = m[medoid * n..(medoid + 1) * n].to_vec();
-        State {
-            n,
-            m,
-            stored: vec![medoid],
-            cur,
-            cur_from: vec![medoid; n],
-        }
+        State { n, m, stored: vec![medoid], cur, cur_from: vec![medoid; n] }
     }
     /// The best addition and the error it removes.
     fn best(&self) -> Option<(usize, f32)> {
@@ -192,14 +170,7 @@ impl State {
             .filter(|j| !self.stored.contains(j))
             .map(|j| {
                 let row = &self.m[j * self.n..(j + 1) * self.n];
-                (
-                    j,
-                    self.cur
-                        .iter()
-                        .zip(row)
-                        .map(|(&c, &e)| (c - e).max(0.0))
-                        .sum::<f32>(),
-                )
+                (j, self.cur.iter().zip(row).map(|(&c, &e)| (c - e).max(0.0)).sum::<f32>())
             })
             .max_by(|a, b| a.1.total_cmp(&b.1))
     }
@@ -253,9 +224,7 @@ pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codeboo
         }
         // the gain may be stale only if the cell changed since, which it did not (each cell
         // is in the heap once)
-        let Some((j, _)) = states[i].best() else {
-            continue;
-        };
+        let Some((j, _)) = states[i].best() else { continue };
         states[i].add(j);
         added += 1;
         if let Some((_, g)) = states[i].best() {
@@ -264,11 +233,7 @@ pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codeboo
     }
     states
         .into_iter()
-        .map(|s| Codebook {
-            error: s.cur.iter().sum(),
-            stored: s.stored,
-            assign: s.cur_from,
-        })
+        .map(|s| Codebook { error: s.cur.iter().sum(), stored: s.stored, assign: s.cur_from })
         .collect()
 }
 
@@ -279,9 +244,7 @@ mod tests {
     #[test]
     fn optical_depth_in_front_is_the_best_axis_prefix_sum() {
         let res = 5;
-        let s: Vec<f32> = (0..res * res * res)
-            .map(|i| ((i * 37) % 11) as f32 * 0.1)
-            .collect();
+        let s: Vec<f32> = (0..res * res * res).map(|i| ((i * 37) % 11) as f32 * 0.1).collect();
         let d = optical_depth_in_front(&s, res);
         let at = |x: usize, y: usize, z: usize| s[(z * res + y) * res + x];
         for z in 0..res {
@@ -311,10 +274,7 @@ mod tests {
         }
         CellSamples {
             frames: (0..states.len()).collect(),
-            blocks: states
-                .iter()
-                .map(|&(d, c)| vec![d, c, c, c, 0, 0, 0, 0])
-                .collect(),
+            blocks: states.iter().map(|&(d, c)| vec![d, c, c, c, 0, 0, 0, 0]).collect(),
             vis: states.iter().map(|_| vec![255]).collect(),
             alpha,
         }
@@ -335,50 +295,19 @@ mod tests {
     fn codebook_keeps_the_states_that_matter_within_budget() {
         // a cell that never changes, and one that toggles between two states (A A B A B A)
         let still = cell(&[(200, 50); 6]);
-        let toggling = cell(&[
-            (255, 0),
-            (255, 0),
-            (255, 250),
-            (255, 0),
-            (255, 250),
-            (255, 0),
-        ]);
+        let toggling = cell(&[(255, 0), (255, 0), (255, 250), (255, 0), (255, 250), (255, 0)]);
         // no budget: one block per cell, the toggling cell shows its majority state
-        let b = choose(
-            &[
-                cell(&[(200, 50); 6]),
-                cell(&[
-                    (255, 0),
-                    (255, 0),
-                    (255, 250),
-                    (255, 0),
-                    (255, 250),
-                    (255, 0),
-                ]),
-            ],
-            0,
-            0.0,
-        );
+        let b = choose(&[cell(&[(200, 50); 6]), cell(&[(255, 0), (255, 0), (255, 250), (255, 0), (255, 250), (255, 0)])], 0, 0.0);
         assert_eq!(b[0].stored.len(), 1);
         assert_eq!(b[1].stored.len(), 1);
         assert!(b[1].error > 0.0);
-        assert_eq!(
-            b[1].assign
-                .iter()
-                .map(|&j| toggling.blocks[j][1])
-                .collect::<Vec<_>>(),
-            vec![0; 6]
-        );
+        assert_eq!(b[1].assign.iter().map(|&j| toggling.blocks[j][1]).collect::<Vec<_>>(), vec![0; 6]);
         // budget of several blocks: only the toggling cell takes one, and then is exact
         let b = choose(&[still, toggling], 5, 1e-6);
         assert_eq!(b[0].stored.len(), 1);
         assert_eq!(b[1].stored.len(), 2);
         assert_eq!(b[1].error, 0.0);
-        let shown: Vec<u8> = b[1]
-            .assign
-            .iter()
-            .map(|&j| [0u8, 0, 250, 0, 250, 0][j])
-            .collect();
+        let shown: Vec<u8> = b[1].assign.iter().map(|&j| [0u8, 0, 250, 0, 250, 0][j]).collect();
         assert_eq!(shown, vec![0, 0, 250, 0, 250, 0]);
     }
 }

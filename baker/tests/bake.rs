@@ -40,10 +40,7 @@ fn static_object_bakes_faithfully_and_without_time_data() {
     let dir = tmp("object");
     let (data, t) = tiny_run("object", &dir, 300);
     let bg = eval_background(views_have_alpha(&data.train));
-    let opts = BakeOptions {
-        res: 128,
-        ..Default::default()
-    };
+    let opts = BakeOptions { res: 128, ..Default::default() };
     let (asset, report) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
     assert!(report.atlas_blocks > 0);
     // leave out what the scene does not need: no time data, no empty blocks
@@ -52,64 +49,30 @@ fn static_object_bakes_faithfully_and_without_time_data() {
     asset.write(&file).unwrap();
     let bytes = std::fs::read(&file).unwrap();
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]).to_string();
-    assert!(
-        !head.contains("time_range") && !head.contains("\"frames\""),
-        "static header carries time data: {head}"
-    );
+    assert!(!head.contains("time_range") && !head.contains("\"frames\""), "static header carries time data: {head}");
     let g = asset.grid_dim();
-    let occupied = asset.grids[0]
-        .iter()
-        .filter(|&&c| c != snerf_asset::EMPTY)
-        .count();
-    assert!(
-        occupied < g * g * g / 2,
-        "{occupied} of {} cells kept",
-        g * g * g
-    );
+    let occupied = asset.grids[0].iter().filter(|&&c| c != snerf_asset::EMPTY).count();
+    assert!(occupied < g * g * g / 2, "{occupied} of {} cells kept", g * g * g);
     assert!(report.dropped_transparent > 0, "{report:?}");
     // the capture's up and the floor travel with the asset
-    let up = asset
-        .header
-        .view
-        .expect("the asset carries its up and preview orbit")
-        .up();
+    let up = asset.header.view.expect("the asset carries its up and preview orbit").up();
     let cams_up = snerf_geometry::camera::mean_up(data.train.iter().map(|v| &v.c2w));
-    assert!(
-        snerf_geometry::vec::dot(up, cams_up) > 0.999,
-        "asset up {up:?} vs cameras' {cams_up:?}"
-    );
+    assert!(snerf_geometry::vec::dot(up, cams_up) > 0.999, "asset up {up:?} vs cameras' {cams_up:?}");
     let floor = asset.header.floor.expect("the asset carries its floor");
     let centre = snerf_geometry::vec::dot(asset.header.space.center, up);
     let half = 1.0 / asset.header.space.scale;
-    assert!(
-        floor < centre && floor > centre - 1.75 * half,
-        "floor {floor} vs centre height {centre} (box half {half})"
-    );
+    assert!(floor < centre && floor > centre - 1.75 * half, "floor {floor} vs centre height {centre} (box half {half})");
     let f = faithfulness::measure(&t.model, &t.pool, &asset, &data.test, 4).unwrap();
     eprintln!("{f:#?}\n{report:#?}");
-    assert!(
-        f.mean_baked_vs_field >= 30.0,
-        "baked vs field {:.2} dB",
-        f.mean_baked_vs_field
-    );
+    assert!(f.mean_baked_vs_field >= 30.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);
     // the bake's own loss, like with like (both drawn as the asset draws each camera)
-    assert!(
-        f.bake_loss_db <= 1.0,
-        "baking loses {:.2} dB on test views",
-        f.bake_loss_db
-    );
+    assert!(f.bake_loss_db <= 1.0, "baking loses {:.2} dB on test views", f.bake_loss_db);
     // a static object's asset carries the trainer's silhouette rule and the footprint of the
     // pixels it was trained on (the run's own record), under which the held-out views use it
     assert_eq!(asset.header.pixel_rays, 4);
-    let recorded = t
-        .model
-        .pixel_footprint
-        .expect("the run records its views' pixel footprint");
+    let recorded = t.model.pixel_footprint.expect("the run records its views' pixel footprint");
     assert_eq!(asset.header.train_pixel, Some(recorded));
-    assert!(data
-        .test
-        .iter()
-        .all(|v| asset.header.pixel_rays_for(&faithfulness::camera_of(v)) == 4));
+    assert!(data.test.iter().all(|v| asset.header.pixel_rays_for(&faithfulness::camera_of(v)) == 4));
     let back = snerf_asset::Asset::read(&file).unwrap();
     assert_eq!(back.atlas, asset.atlas);
 }
@@ -122,43 +85,21 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     let dir = tmp("avatar");
     let (data, t) = tiny_run("avatar", &dir, 300);
     let bg = eval_background(views_have_alpha(&data.train));
-    let opts = BakeOptions {
-        res: 64,
-        keyframes: 24,
-        ..Default::default()
-    };
+    let opts = BakeOptions { res: 64, keyframes: 24, ..Default::default() };
     let (asset, report) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
     assert!(asset.is_dynamic());
     assert_eq!(asset.num_frames(), 24);
-    assert!(
-        report.shared_blocks > 0,
-        "no block was shared between samples: {report:?}"
-    );
+    assert!(report.shared_blocks > 0, "no block was shared between samples: {report:?}");
     let file = dir.join("avatar.snerf");
     asset.write(&file).unwrap();
     let bytes = std::fs::metadata(&file).unwrap().len();
     let s = asset.summary(bytes);
     eprintln!("{report:#?}\n{s:#?}");
-    assert!(
-        bytes as f64 <= 2.0 * s.static_frame_bytes as f64,
-        "{bytes} bytes vs a static frame of {}",
-        s.static_frame_bytes
-    );
-    assert!(
-        report.static_frame_bytes.abs_diff(s.static_frame_bytes) * 20 < s.static_frame_bytes,
-        "{} vs {}",
-        report.static_frame_bytes,
-        s.static_frame_bytes
-    );
-    assert!(
-        s.animation_seconds.is_some() && s.bytes_per_second.as_ref().is_some_and(|r| r.total > 0.0)
-    );
+    assert!(bytes as f64 <= 2.0 * s.static_frame_bytes as f64, "{bytes} bytes vs a static frame of {}", s.static_frame_bytes);
+    assert!(report.static_frame_bytes.abs_diff(s.static_frame_bytes) * 20 < s.static_frame_bytes, "{} vs {}", report.static_frame_bytes, s.static_frame_bytes);
+    assert!(s.animation_seconds.is_some() && s.bytes_per_second.as_ref().is_some_and(|r| r.total > 0.0));
     let f = faithfulness::measure(&t.model, &t.pool, &asset, &data.test, 4).unwrap();
     eprintln!("{f:#?}");
     assert!(f.views.iter().all(|v| v.time.is_some()));
-    assert!(
-        f.mean_baked_vs_field >= 25.0,
-        "baked vs field {:.2} dB",
-        f.mean_baked_vs_field
-    );
+    assert!(f.mean_baked_vs_field >= 25.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);
 }

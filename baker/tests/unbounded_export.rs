@@ -4,8 +4,8 @@
 //! the contraction the field was sampled with.
 
 use snerf_asset::{encode_voxel, Asset, AssetBuilder, Header, Kind, ViewMlp};
-use snerf_baker::mesh_export::asset_mesh;
 use snerf_geometry::contract;
+use snerf_baker::mesh_export::asset_mesh;
 use snerf_geometry::vec::norm;
 
 const RES: u32 = 64;
@@ -39,12 +39,7 @@ fn sphere(kind: Kind, r: f32) -> Asset {
     let voxel = move |v: [usize; 3]| {
         let g = v.map(centre);
         let d = (sphere_grid_radius(kind, g, r) - norm(g)) / (2.0 / RES as f32);
-        encode_voxel(
-            (2.0 * d).clamp(-10.0, 10.0),
-            [0.5; 3],
-            [0.0; 4],
-            &voxel_density,
-        )
+        encode_voxel((2.0 * d).clamp(-10.0, 10.0), [0.5; 3], [0.0; 4], &voxel_density)
     };
     let mut b = AssetBuilder::new(h, ViewMlp::zeros()).unwrap();
     b.fill_from_fn(0, voxel).unwrap();
@@ -78,16 +73,10 @@ fn unbounded_export_is_on_the_surface_as_well_as_an_object_export() {
     // radius 3: the whole sphere lies in the contracted shell (|p|∞ from 1.7 to 3)
     let (unb_med, unb_p90, n_unb) = surface_error(Kind::Unbounded, 3.0);
     println!("object: {n_obj} vertices, median {obj_med:.3} p90 {obj_p90:.3} voxels; unbounded: {n_unb} vertices, median {unb_med:.3} p90 {unb_p90:.3} voxels");
-    assert!(
-        obj_med < 0.25,
-        "object export off its surface: median {obj_med} voxels"
-    );
+    assert!(obj_med < 0.25, "object export off its surface: median {obj_med} voxels");
     // Sub-voxel like the object's (median 0.20 against 0.06 voxels here: the contracted sphere
     // has ridges in grid space, where the L∞ contraction switches axis, which piecewise-linear
     // marching cubes follows less closely; p90 1.6 against 0.17). The inverse the export used
     // before (x / m · r on the minor axes) gives a median of 1.3 voxels on this test.
-    assert!(
-        unb_med < 0.3,
-        "unbounded export median {unb_med} voxels (object {obj_med})"
-    );
+    assert!(unb_med < 0.3, "unbounded export median {unb_med} voxels (object {obj_med})");
 }

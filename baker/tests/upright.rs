@@ -31,22 +31,8 @@ fn y_up_views() -> Vec<View> {
 }
 
 fn view(c2w: [[f32; 4]; 3]) -> View {
-    let intrinsics = Intrinsics {
-        width: 8,
-        height: 8,
-        fx: 8.0,
-        fy: 8.0,
-        cx: 4.0,
-        cy: 4.0,
-        distortion: [0.0; 4],
-    };
-    View {
-        path: "v.png".into(),
-        intrinsics,
-        c2w,
-        time: None,
-        rgba: vec![255; 8 * 8 * 4],
-    }
+    let intrinsics = Intrinsics { width: 8, height: 8, fx: 8.0, fy: 8.0, cx: 4.0, cy: 4.0, distortion: [0.0; 4] };
+    View { path: "v.png".into(), intrinsics, c2w, time: None, rgba: vec![255; 8 * 8 * 4] }
 }
 
 /// The same cameras in the z-up world.
@@ -54,11 +40,7 @@ fn rotated(v: &View) -> View {
     let m = v.c2w;
     let col = |j: usize| rot([m[0][j], m[1][j], m[2][j]]);
     let (x, y, z, t) = (col(0), col(1), col(2), col(3));
-    view([
-        [x[0], y[0], z[0], t[0]],
-        [x[1], y[1], z[1], t[1]],
-        [x[2], y[2], z[2], t[2]],
-    ])
+    view([[x[0], y[0], z[0], t[0]], [x[1], y[1], z[1], t[1]], [x[2], y[2], z[2], t[2]]])
 }
 
 /// A figure standing along +y in the y-up world: a body, a head, and colour from position
@@ -95,80 +77,34 @@ fn z_up_and_y_up_captures_render_the_same_upright_orbit_and_start_view() {
     let vy = y_up_views();
     let vz: Vec<View> = vy.iter().map(rotated).collect();
     let frame = Space::identity();
-    let oy = preview_orbit(
-        SceneKind::Object,
-        &frame,
-        &vy.iter().collect::<Vec<_>>(),
-        None,
-    );
-    let oz = preview_orbit(
-        SceneKind::Object,
-        &frame,
-        &vz.iter().collect::<Vec<_>>(),
-        None,
-    );
-    let (
-        Orbit::Around {
-            up: uy,
-            start: sy,
-            radius: ry,
-            elevation: ey,
-            ..
-        },
-        Orbit::Around {
-            up: uz,
-            start: sz,
-            radius: rz,
-            elevation: ez,
-            ..
-        },
-    ) = (oy, oz)
-    else {
+    let oy = preview_orbit(SceneKind::Object, &frame, &vy.iter().collect::<Vec<_>>(), None);
+    let oz = preview_orbit(SceneKind::Object, &frame, &vz.iter().collect::<Vec<_>>(), None);
+    let (Orbit::Around { up: uy, start: sy, radius: ry, elevation: ey, .. }, Orbit::Around { up: uz, start: sz, radius: rz, elevation: ez, .. }) = (oy, oz) else {
         panic!("objects orbit around their centre")
     };
-    assert!(
-        norm(sub(rot(uy), uz)) < 1e-4 && norm(sub(rot(sy), sz)) < 1e-4,
-        "orbits differ: {oy:?} vs {oz:?}"
-    );
+    assert!(norm(sub(rot(uy), uz)) < 1e-4 && norm(sub(rot(sy), sz)) < 1e-4, "orbits differ: {oy:?} vs {oz:?}");
     assert!((ry - rz).abs() < 1e-4 && (ey - ez).abs() < 1e-4);
     assert!(uz[2] > 0.99, "the z-up capture's up is +z: {uz:?}");
 
     let ay = asset(oy, |w| w);
     let az = asset(oz, unrot);
     let cams = |a: &Asset| -> Vec<Camera> {
-        let mut c: Vec<Camera> = [0, 2, 5]
-            .iter()
-            .map(|&i| orbit(&a.header, 8, i, 40, 40, 45.0))
-            .collect();
+        let mut c: Vec<Camera> = [0, 2, 5].iter().map(|&i| orbit(&a.header, 8, i, 40, 40, 45.0)).collect();
         c.push(Camera::from_fov(a.header.orbit().start_c2w(), 40, 40, 45.0));
         c
     };
     for (i, (cy, cz)) in cams(&ay).iter().zip(cams(&az)).enumerate() {
         let (fy, fz) = (render(&ay, cy, 0.0), render(&az, &cz, 0.0));
         let covered = fy.opacity.iter().filter(|&&o| o > 0.5).count();
-        assert!(
-            covered > 100,
-            "view {i}: the figure covers only {covered} pixels"
-        );
+        assert!(covered > 100, "view {i}: the figure covers only {covered} pixels");
         let d = mean_abs_diff(&fy.rgb, &fz.rgb);
-        assert!(
-            d < 1.0 / 255.0,
-            "view {i}: z-up and y-up renders differ by {:.2}/255",
-            d * 255.0
-        );
+        assert!(d < 1.0 / 255.0, "view {i}: z-up and y-up renders differ by {:.2}/255", d * 255.0);
     }
 
     // Without the stored up (an asset from before it existed) the z-up figure lies on its
     // side in the preview: the check above is what tells them apart.
     let mut old = az.clone();
     old.header.view = None;
-    let d = mean_abs_diff(
-        &render(&ay, &orbit(&ay.header, 8, 0, 40, 40, 45.0), 0.0).rgb,
-        &render(&old, &orbit(&old.header, 8, 0, 40, 40, 45.0), 0.0).rgb,
-    );
-    assert!(
-        d > 4.0 / 255.0,
-        "a model-+y orbit of the z-up capture should not look upright ({:.2}/255)",
-        d * 255.0
-    );
+    let d = mean_abs_diff(&render(&ay, &orbit(&ay.header, 8, 0, 40, 40, 45.0), 0.0).rgb, &render(&old, &orbit(&old.header, 8, 0, 40, 40, 45.0), 0.0).rgb);
+    assert!(d > 4.0 / 255.0, "a model-+y orbit of the z-up capture should not look upright ({:.2}/255)", d * 255.0);
 }

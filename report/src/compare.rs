@@ -35,25 +35,13 @@ pub struct Row {
 pub fn rows(plot: &Plot, a: &str, b: &str) -> Vec<Row> {
     let mut out = Vec::new();
     for sa in plot.series.iter().filter(|s| s.run == a) {
-        let Some(sb) = plot
-            .series
-            .iter()
-            .find(|s| s.run == b && s.metric == sa.metric)
-        else {
-            continue;
-        };
+        let Some(sb) = plot.series.iter().find(|s| s.run == b && s.metric == sa.metric) else { continue };
         let mut xs: Vec<f64> = sa.points.iter().chain(&sb.points).map(|p| p[0]).collect();
         xs.sort_by(f64::total_cmp);
         xs.dedup();
         for x in xs {
             if let (Some(va), Some(vb)) = (interpolate(&sa.points, x), interpolate(&sb.points, x)) {
-                out.push(Row {
-                    metric: sa.metric.clone(),
-                    x,
-                    a: va,
-                    b: vb,
-                    b_minus_a: vb - va,
-                });
+                out.push(Row { metric: sa.metric.clone(), x, a: va, b: vb, b_minus_a: vb - va });
             }
         }
     }
@@ -61,29 +49,10 @@ pub fn rows(plot: &Plot, a: &str, b: &str) -> Vec<Row> {
 }
 
 pub fn table(plot: &Plot, rows: &[Row], a: &str, b: &str) -> Table {
-    let mut t = Table {
-        header: vec![
-            "metric".into(),
-            plot.x_label.clone(),
-            a.into(),
-            b.into(),
-            format!("{b} − {a}"),
-        ],
-        rows: Vec::new(),
-    };
+    let mut t = Table { header: vec!["metric".into(), plot.x_label.clone(), a.into(), b.into(), format!("{b} − {a}")], rows: Vec::new() };
     for r in rows {
-        let d = if r.a.abs().max(r.b.abs()) >= 1e4 {
-            0
-        } else {
-            4
-        };
-        t.rows.push(vec![
-            r.metric.clone(),
-            format!("{:.2}", r.x),
-            format!("{:.d$}", r.a),
-            format!("{:.d$}", r.b),
-            format!("{:+.d$}", r.b_minus_a),
-        ]);
+        let d = if r.a.abs().max(r.b.abs()) >= 1e4 { 0 } else { 4 };
+        t.rows.push(vec![r.metric.clone(), format!("{:.2}", r.x), format!("{:.d$}", r.a), format!("{:.d$}", r.b), format!("{:+.d$}", r.b_minus_a)]);
     }
     t
 }

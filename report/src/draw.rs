@@ -54,15 +54,7 @@ pub fn short(v: f64) -> String {
         (v, "")
     };
     let ax = x.abs();
-    let digits = if ax == 0.0 || ax >= 100.0 {
-        0
-    } else if ax >= 10.0 {
-        1
-    } else if ax >= 1.0 {
-        2
-    } else {
-        3
-    };
+    let digits = if ax == 0.0 || ax >= 100.0 { 0 } else if ax >= 10.0 { 1 } else if ax >= 1.0 { 2 } else { 3 };
     let mut s = format!("{x:.digits$}");
     if s.contains('.') {
         s = s.trim_end_matches('0').trim_end_matches('.').to_string();
@@ -91,11 +83,7 @@ fn padded(lo: f64, hi: f64, log: bool) -> (f64, f64) {
 pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     let decades = (lo.log10().floor() as i32)..=(hi.log10().ceil() as i32);
     let pick = |mantissas: &[f64]| -> Vec<f64> {
-        decades
-            .clone()
-            .flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e)))
-            .filter(|&v| v >= lo && v <= hi)
-            .collect()
+        decades.clone().flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e))).filter(|&v| v >= lo && v <= hi).collect()
     };
     let t = pick(&[1.0, 2.0, 5.0]);
     if t.len() >= 3 {
@@ -106,9 +94,7 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
         return t;
     }
     // narrower than a mantissa step: evenly spaced
-    (0..5)
-        .map(|i| lo + (hi - lo) * (i as f64 + 0.5) / 5.0)
-        .collect()
+    (0..5).map(|i| lo + (hi - lo) * (i as f64 + 0.5) / 5.0).collect()
 }
 
 /// Draw `plot` on `root` (any backend, any size).
@@ -121,12 +107,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> R
     let (w, h) = root.dim_in_pixel();
     let scale = (w.min(h * 5 / 3) as f64 / 800.0).clamp(0.75, 2.0);
     let Some((xb, yb)) = plot.bounds() else {
-        root.draw(&Text::new(
-            format!("{}: no data yet", plot.title),
-            (10, 10),
-            (FAMILY, 16.0 * scale).into_font(),
-        ))
-        .map_err(err)?;
+        root.draw(&Text::new(format!("{}: no data yet", plot.title), (10, 10), (FAMILY, 16.0 * scale).into_font())).map_err(err)?;
         return Ok(());
     };
     let (y0, y1) = padded(yb[0], yb[1], false);
@@ -138,12 +119,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> R
         .x_label_area_size((44.0 * scale) as u32)
         .y_label_area_size((64.0 * scale) as u32);
     if plot.log_x {
-        let chart = builder
-            .build_cartesian_2d(
-                (x0..x1).log_scale().with_key_points(log_ticks(x0, x1)),
-                y0..y1,
-            )
-            .map_err(err)?;
+        let chart = builder.build_cartesian_2d((x0..x1).log_scale().with_key_points(log_ticks(x0, x1)), y0..y1).map_err(err)?;
         body(chart, plot, scale)
     } else {
         let chart = builder.build_cartesian_2d(x0..x1, y0..y1).map_err(err)?;
@@ -151,11 +127,7 @@ pub fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, plot: &Plot) -> R
     }
 }
 
-fn body<'a, DB: DrawingBackend + 'a, X>(
-    mut chart: ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>,
-    plot: &Plot,
-    scale: f64,
-) -> Result<()>
+fn body<'a, DB: DrawingBackend + 'a, X>(mut chart: ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>, plot: &Plot, scale: f64) -> Result<()>
 where
     X: Ranged<ValueType = f64> + ValueFormatter<f64> + 'a,
 {
@@ -183,12 +155,7 @@ where
         }
         let color = run_color(s.color);
         let style = color.stroke_width(lw);
-        let pts: Vec<(f64, f64)> = s
-            .points
-            .iter()
-            .map(|p| (p[0], p[1]))
-            .filter(|p| p.0.is_finite() && p.1.is_finite())
-            .collect();
+        let pts: Vec<(f64, f64)> = s.points.iter().map(|p| (p[0], p[1])).filter(|p| p.0.is_finite() && p.1.is_finite()).collect();
         let label = s.label.clone();
         let dashed = s.dashed;
         let legend = move |(x, y): (i32, i32)| {
@@ -200,34 +167,19 @@ where
         };
         // A dashed line beside a solid one of the same run is its secondary metric (the
         // title says which): one legend entry per run keeps the legend off the curves.
-        let secondary = s.dashed
-            && plot
-                .series
-                .iter()
-                .any(|o| o.run == s.run && !o.dashed && !o.points.is_empty());
+        let secondary = s.dashed && plot.series.iter().any(|o| o.run == s.run && !o.dashed && !o.points.is_empty());
         if s.dashed {
             let d = (7.0 * scale) as i32;
-            let drawn = chart
-                .draw_series(DashedLineSeries::new(pts.clone(), d, d * 2 / 3, style))
-                .map_err(err)?;
+            let drawn = chart.draw_series(DashedLineSeries::new(pts.clone(), d, d * 2 / 3, style)).map_err(err)?;
             if !secondary {
                 drawn.label(label).legend(legend);
             }
         } else {
-            chart
-                .draw_series(LineSeries::new(pts.clone(), style))
-                .map_err(err)?
-                .label(label)
-                .legend(legend);
+            chart.draw_series(LineSeries::new(pts.clone(), style)).map_err(err)?.label(label).legend(legend);
         }
         if s.markers {
             let r = (3.5 * scale).round() as i32;
-            chart
-                .draw_series(
-                    pts.iter()
-                        .map(|&p| Circle::new(p, r.max(2), color.filled())),
-                )
-                .map_err(err)?;
+            chart.draw_series(pts.iter().map(|&p| Circle::new(p, r.max(2), color.filled()))).map_err(err)?;
         }
     }
     let xr = chart.x_range();
@@ -238,18 +190,9 @@ where
         let (r, g, b) = REFERENCE[hl.role.min(1)];
         let style = RGBColor(r, g, b).stroke_width(lw);
         let d = (5.0 * scale) as i32;
-        let drawn = chart
-            .draw_series(DashedLineSeries::new(
-                vec![(xr.start, hl.y), (xr.end, hl.y)],
-                d,
-                d,
-                style,
-            ))
-            .map_err(err)?;
+        let drawn = chart.draw_series(DashedLineSeries::new(vec![(xr.start, hl.y), (xr.end, hl.y)], d, d, style)).map_err(err)?;
         if label_references {
-            drawn
-                .label(hl.label.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 6, y)], style));
+            drawn.label(hl.label.clone()).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 6, y)], style));
         }
     }
     let pos = match plot.id.as_str() {
@@ -285,11 +228,7 @@ pub fn png(plot: &Plot, w: u32, h: u32) -> Result<Vec<u8>> {
     image::ImageEncoder::write_image(
         // fast deflate: a running job redraws its report at each curve point, and flat-colour
         // plots compress well at any level
-        image::codecs::png::PngEncoder::new_with_quality(
-            &mut out,
-            image::codecs::png::CompressionType::Fast,
-            image::codecs::png::FilterType::Adaptive,
-        ),
+        image::codecs::png::PngEncoder::new_with_quality(&mut out, image::codecs::png::CompressionType::Fast, image::codecs::png::FilterType::Adaptive),
         img.as_raw(),
         w,
         h,
@@ -324,25 +263,14 @@ mod tests {
 
     #[test]
     fn a_short_log_axis_still_has_ticks() {
-        assert_eq!(
-            log_ticks(1.0, 300.0),
-            vec![1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0]
-        );
+        assert_eq!(log_ticks(1.0, 300.0), vec![1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0]);
         let t = log_ticks(2.0, 4.2);
-        assert!(
-            t.len() >= 3 && t.iter().all(|&v| (2.0..=4.2).contains(&v)),
-            "{t:?}"
-        );
+        assert!(t.len() >= 3 && t.iter().all(|&v| (2.0..=4.2).contains(&v)), "{t:?}");
         assert_eq!(log_ticks(3.1, 3.2).len(), 5);
     }
 
     #[test]
     fn the_embedded_font_parses() {
-        assert!(plotters::style::register_font(
-            "test-family",
-            plotters::style::FontStyle::Normal,
-            font::TTF
-        )
-        .is_ok());
+        assert!(plotters::style::register_font("test-family", plotters::style::FontStyle::Normal, font::TTF).is_ok());
     }
 }

@@ -13,13 +13,9 @@ pub static TTF: &[u8] = include_bytes!("../fonts/DejaVuSans-subset.ttf");
 pub fn register() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        for style in [
-            plotters::style::FontStyle::Normal,
-            plotters::style::FontStyle::Bold,
-        ] {
+        for style in [plotters::style::FontStyle::Normal, plotters::style::FontStyle::Bold] {
             // The font is a fixed, valid file checked by the tests: failure is a build defect.
-            plotters::style::register_font(FAMILY, style, TTF)
-                .unwrap_or_else(|_| panic!("the embedded font does not parse"));
+            plotters::style::register_font(FAMILY, style, TTF).unwrap_or_else(|_| panic!("the embedded font does not parse"));
         }
     });
 }

@@ -45,11 +45,7 @@ impl Table {
         if self.header.is_empty() {
             return String::new();
         }
-        let mut s = format!(
-            "| {} |\n|{}\n",
-            self.header.join(" | "),
-            "---|".repeat(self.header.len())
-        );
+        let mut s = format!("| {} |\n|{}\n", self.header.join(" | "), "---|".repeat(self.header.len()));
         for r in &self.rows {
             s.push_str(&format!("| {} |\n", r.join(" | ")));
         }

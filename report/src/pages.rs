@@ -39,10 +39,7 @@ pub struct Written {
 }
 
 fn esc(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
 fn html_table(t: &Table) -> String {
@@ -88,12 +85,7 @@ pub fn write_report(sources: &[Source], dir: &Path, opts: &Options) -> Result<Wr
     write_plots(sources, &plots, dir, opts)
 }
 
-pub fn write_plots(
-    sources: &[Source],
-    plots: &[Plot],
-    dir: &Path,
-    opts: &Options,
-) -> Result<Written> {
+pub fn write_plots(sources: &[Source], plots: &[Plot], dir: &Path, opts: &Options) -> Result<Written> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let (w, h) = draw::SIZE;
     let mut files = Vec::new();
@@ -106,26 +98,8 @@ pub fn write_plots(
     let mut src_html = String::from("<ul class=\"src\">");
     for s in sources {
         let files: Vec<String> = s.files.iter().map(|f| f.display().to_string()).collect();
-        src_md.push_str(&format!(
-            "- **{}** ({:?}): {}\n",
-            s.label,
-            s.kind,
-            if files.is_empty() {
-                s.path.display().to_string()
-            } else {
-                files.join(", ")
-            }
-        ));
-        src_html.push_str(&format!(
-            "<li><b>{}</b> ({:?}): {}</li>",
-            esc(&s.label),
-            s.kind,
-            esc(&if files.is_empty() {
-                s.path.display().to_string()
-            } else {
-                files.join(", ")
-            })
-        ));
+        src_md.push_str(&format!("- **{}** ({:?}): {}\n", s.label, s.kind, if files.is_empty() { s.path.display().to_string() } else { files.join(", ") }));
+        src_html.push_str(&format!("<li><b>{}</b> ({:?}): {}</li>", esc(&s.label), s.kind, esc(&if files.is_empty() { s.path.display().to_string() } else { files.join(", ") })));
     }
     md.push_str(&src_md);
     md.push('\n');
@@ -163,28 +137,16 @@ pub fn write_plots(
             html_table(&p.table)
         ));
         if let Some(t) = &cmp {
-            md.push_str(&format!(
-                "\nAt equal times ({}):\n\n{}",
-                p.x_label,
-                t.markdown()
-            ));
+            md.push_str(&format!("\nAt equal times ({}):\n\n{}", p.x_label, t.markdown()));
             if !t.rows.is_empty() {
-                html.push_str(&format!(
-                    "<p>At equal times ({}):</p>{}",
-                    esc(&p.x_label),
-                    html_table(t)
-                ));
+                html.push_str(&format!("<p>At equal times ({}):</p>{}", esc(&p.x_label), html_table(t)));
             }
         }
         md.push('\n');
         html.push_str("</div></div></section>\n");
         let mut v = serde_json::to_value(p)?;
         v["png"] = json!(format!("{}.png", p.id));
-        v["svg"] = if opts.svg {
-            json!(format!("{}.svg", p.id))
-        } else {
-            Value::Null
-        };
+        v["svg"] = if opts.svg { json!(format!("{}.svg", p.id)) } else { Value::Null };
         plots_json.push(v);
     }
     if plots.is_empty() {
@@ -199,11 +161,7 @@ pub fn write_plots(
         "plots": plots_json,
         "compare": if opts.compare.is_some() { Value::Array(compare_json) } else { Value::Null },
     });
-    for (name, bytes) in [
-        (MD, md.into_bytes()),
-        (HTML, html.into_bytes()),
-        (JSON, serde_json::to_vec_pretty(&doc)?),
-    ] {
+    for (name, bytes) in [(MD, md.into_bytes()), (HTML, html.into_bytes()), (JSON, serde_json::to_vec_pretty(&doc)?)] {
         let p = dir.join(name);
         snerf_files::write_atomic(&p, &bytes)?;
         files.push(p);

@@ -54,50 +54,26 @@ fn read_json(p: &Path) -> Result<Value> {
 }
 
 fn name_of(p: &Path) -> String {
-    let p = if p.file_name().is_none() {
-        std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf())
-    } else {
-        p.to_path_buf()
-    };
-    p.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| p.display().to_string())
+    let p = if p.file_name().is_none() { std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()) } else { p.to_path_buf() };
+    p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| p.display().to_string())
 }
 
 impl Source {
     /// A training run from its metrics record (as `metrics.json` holds it) and, when
     /// measured, its `eval.json`. Used by `snerf train` itself while it runs.
     pub fn train(label: &str, path: &Path, metrics: Value, eval: Option<Value>) -> Source {
-        Source {
-            kind: SourceKind::Train,
-            label: label.into(),
-            path: path.into(),
-            files: Vec::new(),
-            data: json!({ "metrics": metrics, "eval": eval }),
-        }
+        Source { kind: SourceKind::Train, label: label.into(), path: path.into(), files: Vec::new(), data: json!({ "metrics": metrics, "eval": eval }) }
     }
 
     /// A stylization run from its state record (as `stylize.json` holds it) and, when
     /// measured, its `consistency.json`.
     pub fn stylize(label: &str, path: &Path, state: Value, consistency: Option<Value>) -> Source {
-        Source {
-            kind: SourceKind::Stylize,
-            label: label.into(),
-            path: path.into(),
-            files: Vec::new(),
-            data: json!({ "state": state, "consistency": consistency }),
-        }
+        Source { kind: SourceKind::Stylize, label: label.into(), path: path.into(), files: Vec::new(), data: json!({ "state": state, "consistency": consistency }) }
     }
 
     /// One or more bakes of a run (each the JSON summary `snerf bake --json` prints).
     pub fn bakes(label: &str, path: &Path, bakes: Vec<Value>) -> Source {
-        Source {
-            kind: SourceKind::Bake,
-            label: label.into(),
-            path: path.into(),
-            files: Vec::new(),
-            data: json!({ "bakes": bakes }),
-        }
+        Source { kind: SourceKind::Bake, label: label.into(), path: path.into(), files: Vec::new(), data: json!({ "bakes": bakes }) }
     }
 }
 
@@ -154,10 +130,7 @@ fn load_dir(dir: &Path) -> Result<Option<Source>> {
     if metrics.is_file() {
         let m = read_json(&metrics)?;
         let eval_path = dir.join(EVAL);
-        let eval = eval_path
-            .is_file()
-            .then(|| read_json(&eval_path))
-            .transpose()?;
+        let eval = eval_path.is_file().then(|| read_json(&eval_path)).transpose()?;
         let mut s = Source::train(&label, dir, m, eval);
         s.files.push(metrics);
         if s.data["eval"].is_object() {
@@ -184,22 +157,13 @@ fn load_dir(dir: &Path) -> Result<Option<Source>> {
     let quality = dir.join(QUALITY);
     if quality.is_file() {
         let q = read_json(&quality)?;
-        return Ok(Some(Source {
-            kind: SourceKind::Quality,
-            label,
-            path: dir.into(),
-            files: vec![quality],
-            data: q,
-        }));
+        return Ok(Some(Source { kind: SourceKind::Quality, label, path: dir.into(), files: vec![quality], data: q }));
     }
     Ok(None)
 }
 
 fn sweep_source(label: &str, path: &Path, file: &Path, v: Value) -> Result<Source> {
-    let bakes = v["bakes"]
-        .as_array()
-        .cloned()
-        .with_context(|| format!("{}: no \"bakes\" list", file.display()))?;
+    let bakes = v["bakes"].as_array().cloned().with_context(|| format!("{}: no \"bakes\" list", file.display()))?;
     let mut s = Source::bakes(label, path, bakes);
     s.files.push(file.into());
     Ok(s)
@@ -208,14 +172,8 @@ fn sweep_source(label: &str, path: &Path, file: &Path, v: Value) -> Result<Sourc
 /// A record file: by its name when it is one of the run files, else by the `command` it
 /// records. `None`: JSON, but no record of a kind this crate draws.
 fn load_file(file: &Path) -> Result<Option<Source>> {
-    let fname = file
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let dir = file
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
+    let fname = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = file.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
     if [METRICS, STYLIZE, SWEEP, QUALITY].contains(&fname.as_str()) {
         return load_dir(dir);
     }
@@ -224,19 +182,9 @@ fn load_file(file: &Path) -> Result<Option<Source>> {
     let mut s = match v["command"].as_str() {
         Some("bake") => Source::bakes(&label, file, vec![v]),
         Some("bake sweep") => return sweep_source(&label, file, file, v).map(Some),
-        Some("bench quality") => Source {
-            kind: SourceKind::Quality,
-            label,
-            path: file.into(),
-            files: Vec::new(),
-            data: v,
-        },
-        Some("train") if v["metrics"].is_object() => {
-            Source::train(&label, file, v["metrics"].clone(), None)
-        }
-        Some("stylize") if v["state"].is_object() => {
-            Source::stylize(&label, file, v["state"].clone(), None)
-        }
+        Some("bench quality") => Source { kind: SourceKind::Quality, label, path: file.into(), files: Vec::new(), data: v },
+        Some("train") if v["metrics"].is_object() => Source::train(&label, file, v["metrics"].clone(), None),
+        Some("stylize") if v["state"].is_object() => Source::stylize(&label, file, v["state"].clone(), None),
         _ => return Ok(None),
     };
     s.files.push(file.into());
@@ -255,11 +203,7 @@ pub fn load_all(paths: &[PathBuf]) -> Result<Vec<Source>> {
 }
 
 pub fn unique_labels(sources: &mut [Source]) {
-    let dup = |s: &[Source], i: usize| {
-        s.iter()
-            .enumerate()
-            .any(|(j, o)| j != i && o.label == s[i].label)
-    };
+    let dup = |s: &[Source], i: usize| s.iter().enumerate().any(|(j, o)| j != i && o.label == s[i].label);
     let dups: Vec<usize> = (0..sources.len()).filter(|&i| dup(sources, i)).collect();
     for i in dups {
         let parent = sources[i].path.parent().map(name_of).unwrap_or_default();
@@ -268,10 +212,7 @@ pub fn unique_labels(sources: &mut [Source]) {
         }
     }
     for i in 0..sources.len() {
-        let n = sources[..i]
-            .iter()
-            .filter(|o| o.label == sources[i].label)
-            .count();
+        let n = sources[..i].iter().filter(|o| o.label == sources[i].label).count();
         if n > 0 {
             sources[i].label = format!("{} #{}", sources[i].label, n + 1);
         }

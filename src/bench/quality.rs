@@ -77,50 +77,18 @@ pub fn find_models(dirs: &[PathBuf]) -> Result<Vec<(String, PathBuf)>> {
         walk(d, &mut files);
     }
     let rank = |p: &Path| {
-        let parent = p
-            .parent()
-            .and_then(|q| q.file_name())
-            .map(|n| n.to_string_lossy().to_string())
-            .unwrap_or_default();
-        let variant = if parent.ends_with("-glTF") {
-            0
-        } else if parent.ends_with("-glTF-Binary") {
-            1
-        } else if parent.ends_with("-glTF-Embedded") {
-            2
-        } else {
-            3
-        };
+        let parent = p.parent().and_then(|q| q.file_name()).map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+        let variant = if parent.ends_with("-glTF") { 0 } else if parent.ends_with("-glTF-Binary") { 1 } else if parent.ends_with("-glTF-Embedded") { 2 } else { 3 };
         (variant, p.to_path_buf())
     };
     let mut by_name: std::collections::BTreeMap<String, PathBuf> = Default::default();
     for f in files {
         // `Foo-glTF*/Foo.gltf` is model Foo; otherwise the folder names it too
         // (`oculus-touch-v3/left.glb` is model oculus-touch-v3-left).
-        let stem = f
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_default();
-        let parent = f
-            .parent()
-            .and_then(|q| q.file_name())
-            .map(|n| n.to_string_lossy().to_string())
-            .unwrap_or_default();
-        let name = if parent.contains("glTF") || parent.is_empty() {
-            stem
-        } else {
-            format!("{parent}-{stem}")
-        };
-        let name: String = name
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
+        let stem = f.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+        let parent = f.parent().and_then(|q| q.file_name()).map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+        let name = if parent.contains("glTF") || parent.is_empty() { stem } else { format!("{parent}-{stem}") };
+        let name: String = name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();
         match by_name.get(&name) {
             Some(prev) if rank(prev) <= rank(&f) => {}
             _ => {
@@ -133,21 +101,11 @@ pub fn find_models(dirs: &[PathBuf]) -> Result<Vec<(String, PathBuf)>> {
 
 pub(super) fn snerf_json(args: &[String]) -> Result<Value> {
     let exe = std::env::current_exe().context("cannot find the snerf executable")?;
-    let out = Command::new(exe)
-        .arg("--json")
-        .args(args)
-        .output()
-        .context("cannot run snerf")?;
+    let out = Command::new(exe).arg("--json").args(args).output().context("cannot run snerf")?;
     let v: Value = serde_json::from_slice(&out.stdout).unwrap_or(Value::Null);
     if !out.status.success() {
-        let err = v["error"]
-            .as_str()
-            .map(str::to_string)
-            .unwrap_or_else(|| String::from_utf8_lossy(&out.stderr).trim().to_string());
-        bail!(
-            "snerf {}: {err}",
-            args.first().map(String::as_str).unwrap_or("")
-        );
+        let err = v["error"].as_str().map(str::to_string).unwrap_or_else(|| String::from_utf8_lossy(&out.stderr).trim().to_string());
+        bail!("snerf {}: {err}", args.first().map(String::as_str).unwrap_or(""));
     }
     Ok(v)
 }
@@ -196,14 +154,7 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
             .filter(|m| m["train_seconds"].as_f64().is_some_and(|t| t >= secs - 1.0));
         let mut peak = None;
         if done.is_none() {
-            let mut args = vec![
-                "train".to_string(),
-                s(&data),
-                "--out".into(),
-                s(&run),
-                "--minutes".into(),
-                format!("{}", secs / 60.0),
-            ];
+            let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run), "--minutes".into(), format!("{}", secs / 60.0)];
             if RunDir::new(&run).checkpoint().exists() {
                 args.push("--resume".into());
             }
@@ -213,20 +164,9 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
             let t = snerf_json(&args)?;
             peak = t["peak_rss_mb"].as_f64();
         }
-        let metrics: Value = serde_json::from_slice(
-            &std::fs::read(&metrics_path)
-                .with_context(|| format!("{}: missing", metrics_path.display()))?,
-        )?;
+        let metrics: Value = serde_json::from_slice(&std::fs::read(&metrics_path).with_context(|| format!("{}: missing", metrics_path.display()))?)?;
         let test = snerf_json(&["eval".into(), s(&run), s(&data)])?;
-        let train = snerf_json(&[
-            "eval".into(),
-            s(&run),
-            s(&data),
-            "--split".into(),
-            "train".into(),
-            "--out".into(),
-            s(&run.join("eval-train")),
-        ])?;
+        let train = snerf_json(&["eval".into(), s(&run), s(&data), "--split".into(), "train".into(), "--out".into(), s(&run.join("eval-train"))])?;
         let curve = metrics["curve"].as_array().cloned().unwrap_or_default();
         let test_psnr = test["report"]["mean_psnr"].as_f64();
         let train_psnr = train["report"]["mean_psnr"].as_f64();
@@ -255,9 +195,7 @@ fn mean_spread(xs: &[f64]) -> String {
         return "—".into();
     }
     let mean = xs.iter().sum::<f64>() / xs.len() as f64;
-    let (lo, hi) = xs
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(l, h), &x| (l.min(x), h.max(x)));
+    let (lo, hi) = xs.iter().fold((f64::MAX, f64::MIN), |(l, h), &x| (l.min(x), h.max(x)));
     format!("{mean:.2} ({lo:.2}…{hi:.2})")
 }
 
@@ -277,25 +215,14 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
         let name = m["model"].as_str().unwrap_or("?");
         if let Some(e) = m["error"].as_str() {
             let short: String = e.chars().take(100).collect();
-            md.push_str(&format!(
-                "| {name} | skipped: {short}{} |\n",
-                if e.len() > short.len() { "…" } else { "" }
-            ));
+            md.push_str(&format!("| {name} | skipped: {short}{} |\n", if e.len() > short.len() { "…" } else { "" }));
             continue;
         }
         for r in m["runs"].as_array().into_iter().flatten() {
             let secs = r["seconds"].as_f64().unwrap_or(0.0);
-            let at = |t: f64| {
-                r["psnr_at"]
-                    .as_array()
-                    .and_then(|a| a.iter().find(|p| p["t"].as_f64() == Some(t)))
-                    .and_then(|p| p["psnr"].as_f64())
-            };
+            let at = |t: f64| r["psnr_at"].as_array().and_then(|a| a.iter().find(|p| p["t"].as_f64() == Some(t))).and_then(|p| p["psnr"].as_f64());
             let base = baseline.and_then(|b| {
-                b["models"]
-                    .as_array()?
-                    .iter()
-                    .find(|x| x["model"] == m["model"])?["runs"]
+                b["models"].as_array()?.iter().find(|x| x["model"] == m["model"])?["runs"]
                     .as_array()?
                     .iter()
                     .find(|x| x["seconds"].as_f64() == Some(secs))?["eval_psnr"]
@@ -322,19 +249,11 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
                 fmt(r["eval_ssim"].as_f64(), 4),
                 fmt(r["train_psnr"].as_f64(), 2),
                 fmt(r["gap"].as_f64(), 2),
-                r["samples_per_second"]
-                    .as_f64()
-                    .map(|x| format!("{:.2} M", x / 1e6))
-                    .unwrap_or("—".into()),
+                r["samples_per_second"].as_f64().map(|x| format!("{:.2} M", x / 1e6)).unwrap_or("—".into()),
                 fmt(r["peak_rss_mb"].as_f64(), 0),
             ));
             if baseline.is_some() {
-                md.push_str(&format!(
-                    " {} |",
-                    eval.zip(base)
-                        .map(|(a, b)| format!("{:+.2}", a - b))
-                        .unwrap_or("—".into())
-                ));
+                md.push_str(&format!(" {} |", eval.zip(base).map(|(a, b)| format!("{:+.2}", a - b)).unwrap_or("—".into())));
             }
             md.push('\n');
         }
@@ -346,11 +265,7 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
             evals.len(),
             mean_spread(evals),
             mean_spread(gaps),
-            if deltas.is_empty() {
-                String::new()
-            } else {
-                format!("; Δ vs baseline {}", mean_spread(deltas))
-            }
+            if deltas.is_empty() { String::new() } else { format!("; Δ vs baseline {}", mean_spread(deltas)) }
         ));
     }
     md
@@ -374,11 +289,7 @@ fn curves_svg(models: &[Value]) -> String {
                 lo = lo.min(p);
                 hi = hi.max(p);
             }
-            let label = format!(
-                "{} ({:.0} s)",
-                m["model"].as_str().unwrap_or("?"),
-                run["seconds"].as_f64().unwrap_or(0.0)
-            );
+            let label = format!("{} ({:.0} s)", m["model"].as_str().unwrap_or("?"), run["seconds"].as_f64().unwrap_or(0.0));
             lines.push((label, pts));
         }
     }
@@ -398,18 +309,11 @@ fn curves_svg(models: &[Value]) -> String {
         svg.push_str(&format!("<line x1=\"{l}\" y1=\"{0:.1}\" x2=\"{1:.1}\" y2=\"{0:.1}\" stroke=\"#ddd\"/><text x=\"{2:.1}\" y=\"{3:.1}\" text-anchor=\"end\">{p}</text>\n", y(p), w - r, l - 6.0, y(p) + 4.0));
         p += if hi - lo > 20.0 { 5.0 } else { 1.0 };
     }
-    svg.push_str(&format!(
-        "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">training seconds (log)</text>\n",
-        (l + w - r) / 2.0,
-        h - 8.0
-    ));
+    svg.push_str(&format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">training seconds (log)</text>\n", (l + w - r) / 2.0, h - 8.0));
     svg.push_str(&format!("<text x=\"14\" y=\"{:.1}\" transform=\"rotate(-90 14 {:.1})\" text-anchor=\"middle\">held-out PSNR (dB)</text>\n", h / 2.0, h / 2.0));
     for (i, (label, pts)) in lines.iter().enumerate() {
         let hue = (i * 137) % 360;
-        let poly: Vec<String> = pts
-            .iter()
-            .map(|&(s, p)| format!("{:.1},{:.1}", x(s), y(p)))
-            .collect();
+        let poly: Vec<String> = pts.iter().map(|&(s, p)| format!("{:.1},{:.1}", x(s), y(p))).collect();
         svg.push_str(&format!("<polyline fill=\"none\" stroke=\"hsl({hue},70%,40%)\" stroke-width=\"1.5\" points=\"{}\"/>\n", poly.join(" ")));
         let ly = t + 14.0 * i as f64 + 10.0;
         svg.push_str(&format!("<line x1=\"{0:.1}\" y1=\"{ly:.1}\" x2=\"{1:.1}\" y2=\"{ly:.1}\" stroke=\"hsl({hue},70%,40%)\" stroke-width=\"2\"/><text x=\"{2:.1}\" y=\"{3:.1}\">{label}</text>\n", w - r + 8.0, w - r + 24.0, w - r + 28.0, ly + 4.0));
@@ -420,11 +324,7 @@ fn curves_svg(models: &[Value]) -> String {
 
 /// The models under `dirs` whose name contains one of `only` (all when empty), at most
 /// `limit` of them (0: all); an error when none is left.
-pub(super) fn select_models(
-    dirs: &[PathBuf],
-    only: &[String],
-    limit: usize,
-) -> Result<Vec<(String, PathBuf)>> {
+pub(super) fn select_models(dirs: &[PathBuf], only: &[String], limit: usize) -> Result<Vec<(String, PathBuf)>> {
     let mut models = find_models(dirs)?;
     if !only.is_empty() {
         models.retain(|(n, _)| only.iter().any(|o| n.contains(o.as_str())));
@@ -433,28 +333,16 @@ pub(super) fn select_models(
         models.truncate(limit);
     }
     if models.is_empty() {
-        bail!(
-            "no .gltf or .glb models under {}",
-            dirs.iter()
-                .map(|d| d.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
+        bail!("no .gltf or .glb models under {}", dirs.iter().map(|d| d.display().to_string()).collect::<Vec<_>>().join(", "));
     }
     Ok(models)
 }
 
 pub fn run(a: &BenchQualityArgs) -> Result<Value> {
     let models = select_models(&a.dirs, &a.only, a.limit)?;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     let baseline: Option<Value> = match &a.baseline {
-        Some(p) => Some(
-            serde_json::from_slice(
-                &std::fs::read(p).with_context(|| format!("{}: cannot read", p.display()))?,
-            )
-            .with_context(|| format!("{}: not JSON", p.display()))?,
-        ),
+        Some(p) => Some(serde_json::from_slice(&std::fs::read(p).with_context(|| format!("{}: cannot read", p.display()))?).with_context(|| format!("{}: not JSON", p.display()))?),
         None => None,
     };
     eprintln!("{} models, budgets {:?} s each", models.len(), a.seconds);

@@ -28,11 +28,7 @@ pub struct BenchSnerfArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Styles, comma-separated: `painting:KEY` or image files.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "painting:vangogh,painting:renoir,painting:kandinsky"
-    )]
+    #[arg(long, value_delimiter = ',', default_value = "painting:vangogh,painting:renoir,painting:kandinsky")]
     pub styles: Vec<String>,
     #[command(flatten)]
     pub grid: ModelGrid,
@@ -45,11 +41,7 @@ pub struct BenchSnerfArgs {
     #[arg(long, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
     pub steps: Option<u64>,
     /// Flags passed to every `snerf stylize` (the short settings BENCH.md §5 uses by default).
-    #[arg(
-        long,
-        allow_hyphen_values = true,
-        default_value = "--views 16 --rounds 5 --steps-per-round 100 --consistency-frames 12"
-    )]
+    #[arg(long, allow_hyphen_values = true, default_value = "--views 16 --rounds 5 --steps-per-round 100 --consistency-frames 12")]
     pub stylize_flags: String,
     /// Frames of the novel path `snerf consistency` scores.
     #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
@@ -83,9 +75,7 @@ pub(super) enum Budget {
 
 impl BenchSnerfArgs {
     fn budget(&self) -> Budget {
-        self.steps
-            .map(Budget::Steps)
-            .unwrap_or(Budget::Seconds(self.seconds))
+        self.steps.map(Budget::Steps).unwrap_or(Budget::Seconds(self.seconds))
     }
 }
 
@@ -94,9 +84,7 @@ impl Budget {
     fn spent(self, metrics: &Value) -> bool {
         match self {
             Budget::Steps(n) => metrics["step"].as_u64().is_some_and(|k| k >= n),
-            Budget::Seconds(t) => metrics["train_seconds"]
-                .as_f64()
-                .is_some_and(|done| done >= t - 1.0),
+            Budget::Seconds(t) => metrics["train_seconds"].as_f64().is_some_and(|done| done >= t - 1.0),
         }
     }
 
@@ -129,10 +117,7 @@ pub const SEPARATION: f64 = 1.5;
 pub(super) fn style_name(style: &str) -> String {
     match style.strip_prefix(snerf_stylize::paintings::STYLE_PREFIX) {
         Some(k) => k.to_string(),
-        None => std::path::Path::new(style)
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_else(|| style.to_string()),
+        None => std::path::Path::new(style).file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| style.to_string()),
     }
 }
 
@@ -152,10 +137,7 @@ pub fn pair_scores(c: &Value) -> Result<Value> {
     };
     let ratio = |a: &Value, b: &Value, k: &str| -> Result<f64> { Ok(f(a, k)? / f(b, k)?) };
     let rounds = c["rounds"].as_array().context("no per-round record")?;
-    let (first, last) = (
-        rounds.first().context("no rounds")?,
-        rounds.last().context("no rounds")?,
-    );
+    let (first, last) = (rounds.first().context("no rounds")?, rounds.last().context("no rounds")?);
     Ok(json!({
         "snerf_over_per_frame": {
             "short_range": ratio(snerf, per_frame, "short_range")?,
@@ -184,46 +166,19 @@ fn spread(xs: &[f64]) -> (f64, f64, f64) {
 
 /// Every bar over the scored pairs: value, whether it is met, and how many pairs meet it.
 pub fn bars(pairs: &[Value]) -> Value {
-    let col = |group: &str, k: &str| -> Vec<f64> {
-        pairs
-            .iter()
-            .filter_map(|p| p["scores"][group][k].as_f64())
-            .collect()
-    };
+    let col = |group: &str, k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"][group][k].as_f64()).collect() };
     let n = pairs.iter().filter(|p| p["scores"].is_object()).count();
-    let (short, long, style) = (
-        col("snerf_over_per_frame", "short_range"),
-        col("snerf_over_per_frame", "long_range"),
-        col("snerf_over_per_frame", "style"),
-    );
-    let sep: Vec<f64> = pairs
-        .iter()
-        .filter_map(|p| p["scores"]["separation"].as_f64())
-        .collect();
+    let (short, long, style) = (col("snerf_over_per_frame", "short_range"), col("snerf_over_per_frame", "long_range"), col("snerf_over_per_frame", "style"));
+    let sep: Vec<f64> = pairs.iter().filter_map(|p| p["scores"]["separation"].as_f64()).collect();
     let conv: Vec<f64> = pairs
         .iter()
         .filter_map(|p| {
             let r = &p["scores"]["last_over_first_round"];
-            Some(
-                r["short_range"]
-                    .as_f64()?
-                    .max(r["long_range"].as_f64()?)
-                    .max(r["style"].as_f64()?),
-            )
+            Some(r["short_range"].as_f64()?.max(r["long_range"].as_f64()?).max(r["style"].as_f64()?))
         })
         .collect();
     let (ms, ml, mst) = (spread(&short).0, spread(&long).0, spread(&style).0);
-    let pair_ok = pairs
-        .iter()
-        .filter(|p| {
-            p["scores"]["snerf_over_per_frame"]["short_range"]
-                .as_f64()
-                .is_some_and(|x| x <= PAIR_SHORT)
-                && p["scores"]["snerf_over_per_frame"]["long_range"]
-                    .as_f64()
-                    .is_some_and(|x| x <= PAIR_LONG)
-        })
-        .count();
+    let pair_ok = pairs.iter().filter(|p| p["scores"]["snerf_over_per_frame"]["short_range"].as_f64().is_some_and(|x| x <= PAIR_SHORT) && p["scores"]["snerf_over_per_frame"]["long_range"].as_f64().is_some_and(|x| x <= PAIR_LONG)).count();
     json!({
         "pairs": n,
         "ratios": { "mean_short_range": ms, "mean_long_range": ml, "mean_style": mst, "pairs_within": pair_ok,
@@ -237,11 +192,7 @@ pub fn bars(pairs: &[Value]) -> Value {
 pub fn table(pairs: &[Value], bars: &Value) -> String {
     let mut md = String::from("| model × style | SNeRF ÷ per-frame: short / long / style | last ÷ first round: short / long / style | separation | loop s |\n|---|---|---|---|---|\n");
     for p in pairs {
-        let name = format!(
-            "{} × {}",
-            p["model"].as_str().unwrap_or("?"),
-            p["style"].as_str().unwrap_or("?")
-        );
+        let name = format!("{} × {}", p["model"].as_str().unwrap_or("?"), p["style"].as_str().unwrap_or("?"));
         if let Some(e) = p["error"].as_str() {
             let short: String = e.chars().take(100).collect();
             md.push_str(&format!("| {name} | failed: {short} | | | |\n"));
@@ -261,12 +212,7 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
             p["loop_seconds"].as_f64().unwrap_or(f64::NAN),
         ));
     }
-    let col = |group: &str, k: &str| -> Vec<f64> {
-        pairs
-            .iter()
-            .filter_map(|p| p["scores"][group][k].as_f64())
-            .collect()
-    };
+    let col = |group: &str, k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"][group][k].as_f64()).collect() };
     let fmt = |xs: Vec<f64>| {
         if xs.is_empty() {
             return "—".to_string();
@@ -275,13 +221,7 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
         format!("{m:.3} ({lo:.3}…{hi:.3})")
     };
     let n = bars["pairs"].as_u64().unwrap_or(0);
-    let yes = |b: &Value| {
-        if b["met"].as_bool() == Some(true) {
-            "met"
-        } else {
-            "NOT met"
-        }
-    };
+    let yes = |b: &Value| if b["met"].as_bool() == Some(true) { "met" } else { "NOT met" };
     md.push_str(&format!(
         "\nOver {n} pairs, mean (min…max): SNeRF ÷ per-frame short {}, long {}, style {}; separation {}.\n",
         fmt(col("snerf_over_per_frame", "short_range")),
@@ -289,13 +229,7 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
         fmt(col("snerf_over_per_frame", "style")),
         fmt(pairs.iter().filter_map(|p| p["scores"]["separation"].as_f64()).collect()),
     ));
-    let missed = |k: &str| -> Vec<f64> {
-        pairs
-            .iter()
-            .filter_map(|p| p["scores"]["palette_missed"][k].as_f64())
-            .map(|x| 100.0 * x)
-            .collect()
-    };
+    let missed = |k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"]["palette_missed"][k].as_f64()).map(|x| 100.0 * x).collect() };
     let (pf_missed, sn_missed) = (missed("per_frame"), missed("snerf"));
     if !sn_missed.is_empty() {
         md.push_str(&format!(
@@ -327,35 +261,17 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
 /// Renders one model's views (`size`² pixels, `views` of them) into `out/data/NAME` and trains
 /// its realistic field into `out/runs/NAME` for `budget`; both are reused when already there.
 /// Returns (dataset, run).
-pub(super) fn realistic(
-    out: &std::path::Path,
-    grid: &ModelGrid,
-    budget: Budget,
-    name: &str,
-    file: &std::path::Path,
-) -> Result<(PathBuf, PathBuf)> {
+pub(super) fn realistic(out: &std::path::Path, grid: &ModelGrid, budget: Budget, name: &str, file: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
     for shared in ["data", "runs"] {
         no_dangling_link(&out.join(shared))?;
     }
     let data = out.join("data").join(name);
     if !data.join("transforms_train.json").exists() {
         let size = format!("{0}x{0}", grid.size);
-        snerf_json(&[
-            "scene".into(),
-            format!("gltf:{}", s(file)),
-            "--out".into(),
-            s(&data),
-            "--size".into(),
-            size,
-            "--views".into(),
-            grid.views.to_string(),
-        ])?;
+        snerf_json(&["scene".into(), format!("gltf:{}", s(file)), "--out".into(), s(&data), "--size".into(), size, "--views".into(), grid.views.to_string()])?;
     }
     let run = out.join("runs").join(name);
-    let done = std::fs::read(RunDir::new(&run).metrics())
-        .ok()
-        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
-        .is_some_and(|m| budget.spent(&m));
+    let done = std::fs::read(RunDir::new(&run).metrics()).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|m| budget.spent(&m));
     if !done {
         let mut args = vec!["train".to_string(), s(&data), "--out".into(), s(&run)];
         args.extend(budget.train_args());
@@ -370,66 +286,30 @@ pub(super) fn realistic(
 /// `out/data` and `out/runs` may be links to another benchmark's (to reuse its fields); one
 /// whose target is gone would otherwise surface as "File exists" from a command deep inside.
 fn no_dangling_link(p: &std::path::Path) -> Result<()> {
-    let is_link = p
-        .symlink_metadata()
-        .is_ok_and(|m| m.file_type().is_symlink());
+    let is_link = p.symlink_metadata().is_ok_and(|m| m.file_type().is_symlink());
     if is_link && !p.exists() {
-        let target = std::fs::read_link(p)
-            .map(|t| t.display().to_string())
-            .unwrap_or_default();
-        bail!(
-            "{}: a symbolic link to {target}, which does not exist",
-            p.display()
-        );
+        let target = std::fs::read_link(p).map(|t| t.display().to_string()).unwrap_or_default();
+        bail!("{}: a symbolic link to {target}, which does not exist", p.display());
     }
     Ok(())
 }
 
 /// Stylizes `run` with `style` and scores it (each step reused when already there).
 fn one_pair(a: &BenchSnerfArgs, run: &std::path::Path, model: &str, style: &str) -> Result<Value> {
-    let srun = a
-        .out
-        .join("stylized")
-        .join(format!("{model}--{}", style_name(style)));
+    let srun = a.out.join("stylized").join(format!("{model}--{}", style_name(style)));
     let cons = srun.join("consistency.json");
-    let scored = std::fs::read(&cons)
-        .ok()
-        .and_then(|b| serde_json::from_slice::<Value>(&b).ok())
-        .is_some_and(|c| c["frames"].as_u64() == Some(a.frames as u64));
+    let scored = std::fs::read(&cons).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|c| c["frames"].as_u64() == Some(a.frames as u64));
     if !scored {
         // `snerf stylize` resumes a run with the same options and does nothing once it is done
-        let mut args = vec![
-            "stylize".to_string(),
-            s(run),
-            "--style".into(),
-            style.to_string(),
-            "--out".into(),
-            s(&srun),
-        ];
+        let mut args = vec!["stylize".to_string(), s(run), "--style".into(), style.to_string(), "--out".into(), s(&srun)];
         args.extend(a.stylize_flags.split_whitespace().map(str::to_string));
         snerf_json(&args)?;
-        snerf_json(&[
-            "consistency".into(),
-            s(&srun),
-            "--frames".into(),
-            a.frames.to_string(),
-        ])?;
+        snerf_json(&["consistency".into(), s(&srun), "--frames".into(), a.frames.to_string()])?;
     }
-    let c: Value = serde_json::from_slice(
-        &std::fs::read(&cons).with_context(|| format!("{}: cannot read", cons.display()))?,
-    )
-    .with_context(|| format!("{}: not JSON", cons.display()))?;
-    let st: Value = serde_json::from_slice(
-        &std::fs::read(srun.join("stylize.json"))
-            .with_context(|| format!("{}: cannot read stylize.json", srun.display()))?,
-    )?;
-    let loop_seconds = st["records"]
-        .as_array()
-        .and_then(|r| r.last())
-        .and_then(|r| r["wall_seconds"].as_f64());
-    Ok(
-        json!({ "srun": pj(&srun), "scores": pair_scores(&c).with_context(|| format!("{}", cons.display()))?, "loop_seconds": loop_seconds }),
-    )
+    let c: Value = serde_json::from_slice(&std::fs::read(&cons).with_context(|| format!("{}: cannot read", cons.display()))?).with_context(|| format!("{}: not JSON", cons.display()))?;
+    let st: Value = serde_json::from_slice(&std::fs::read(srun.join("stylize.json")).with_context(|| format!("{}: cannot read stylize.json", srun.display()))?)?;
+    let loop_seconds = st["records"].as_array().and_then(|r| r.last()).and_then(|r| r["wall_seconds"].as_f64());
+    Ok(json!({ "srun": pj(&srun), "scores": pair_scores(&c).with_context(|| format!("{}", cons.display()))?, "loop_seconds": loop_seconds }))
 }
 
 pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
@@ -437,8 +317,7 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
     if a.styles.is_empty() {
         bail!("--styles is empty");
     }
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     eprintln!("{} models × {} styles", models.len(), a.styles.len());
     let mut pairs = Vec::new();
     for (i, (name, file)) in models.iter().enumerate() {
@@ -446,17 +325,11 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
         let run = realistic(&a.out, &a.grid, a.budget(), name, file).map(|(_, run)| run);
         for style in &a.styles {
             let mut p = json!({ "model": name, "style": style_name(style) });
-            match run
-                .as_ref()
-                .map_err(|e| anyhow::anyhow!("{e:#}"))
-                .and_then(|r| {
-                    eprintln!("      × {}", style_name(style));
-                    one_pair(a, r, name, style)
-                }) {
-                Ok(v) => p
-                    .as_object_mut()
-                    .unwrap()
-                    .extend(v.as_object().unwrap().clone()),
+            match run.as_ref().map_err(|e| anyhow::anyhow!("{e:#}")).and_then(|r| {
+                eprintln!("      × {}", style_name(style));
+                one_pair(a, r, name, style)
+            }) {
+                Ok(v) => p.as_object_mut().unwrap().extend(v.as_object().unwrap().clone()),
                 Err(e) => {
                     eprintln!("      failed: {e:#}");
                     p["error"] = json!(format!("{e:#}"));
@@ -475,14 +348,9 @@ pub fn run(a: &BenchSnerfArgs) -> Result<Value> {
     // A grid with a pair missing is not a measurement of the grid: say so with the exit status
     // (every pair, failed ones with their error, is in snerf.json either way).
     if let Some(msg) = failed_pairs(&pairs) {
-        bail!(
-            "{msg}; every pair's result is in {}",
-            a.out.join("snerf.json").display()
-        );
+        bail!("{msg}; every pair's result is in {}", a.out.join("snerf.json").display());
     }
-    Ok(
-        json!({ "command": "bench snerf", "out": pj(&a.out), "pairs": pairs, "bars": b, "table": md }),
-    )
+    Ok(json!({ "command": "bench snerf", "out": pj(&a.out), "pairs": pairs, "bars": b, "table": md }))
 }
 
 /// "N of M pairs failed (first: MODEL × STYLE: ERROR)", or None when none did.
@@ -513,20 +381,11 @@ mod tests {
         no_dangling_link(&dir.join("good")).unwrap();
         std::os::unix::fs::symlink(dir.join("gone"), dir.join("data")).unwrap();
         let e = no_dangling_link(&dir.join("data")).unwrap_err().to_string();
-        assert!(
-            e.contains("data: a symbolic link to") && e.contains("gone, which does not exist"),
-            "{e}"
-        );
+        assert!(e.contains("data: a symbolic link to") && e.contains("gone, which does not exist"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
-    fn consistency(
-        real: f64,
-        pf: (f64, f64, f64),
-        sn: (f64, f64, f64),
-        r1: (f64, f64, f64),
-        r5: (f64, f64, f64),
-    ) -> Value {
+    fn consistency(real: f64, pf: (f64, f64, f64), sn: (f64, f64, f64), r1: (f64, f64, f64), r5: (f64, f64, f64)) -> Value {
         let m = |s: f64, l: f64, st: f64| json!({ "short_range": s, "long_range": l, "style_swd": { "total": st } });
         json!({
             "methods": [m(0.001, 0.002, real), m(pf.0, pf.1, pf.2), m(sn.0, sn.1, sn.2)],
@@ -536,13 +395,7 @@ mod tests {
 
     #[test]
     fn scores_and_bars_follow_the_definitions() {
-        let c = consistency(
-            0.6,
-            (0.01, 0.02, 0.3),
-            (0.002, 0.005, 0.27),
-            (0.004, 0.01, 0.28),
-            (0.003, 0.008, 0.27),
-        );
+        let c = consistency(0.6, (0.01, 0.02, 0.3), (0.002, 0.005, 0.27), (0.004, 0.01, 0.28), (0.003, 0.008, 0.27));
         let s = pair_scores(&c).unwrap();
         assert!((s["snerf_over_per_frame"]["short_range"].as_f64().unwrap() - 0.2).abs() < 1e-12);
         assert!((s["snerf_over_per_frame"]["long_range"].as_f64().unwrap() - 0.25).abs() < 1e-12);
@@ -551,22 +404,9 @@ mod tests {
         assert!((s["separation"].as_f64().unwrap() - 2.0).abs() < 1e-12);
         let good = json!({ "model": "a", "style": "x", "scores": s });
         let b = bars(std::slice::from_ref(&good));
-        assert_eq!(
-            (
-                b["ratios"]["met"].as_bool(),
-                b["convergence"]["met"].as_bool(),
-                b["separation"]["met"].as_bool()
-            ),
-            (Some(true), Some(true), Some(true))
-        );
+        assert_eq!((b["ratios"]["met"].as_bool(), b["convergence"]["met"].as_bool(), b["separation"]["met"].as_bool()), (Some(true), Some(true), Some(true)));
         // round 5 a hair worse on style, and the realistic field only 1.2× as far: both bars fail
-        let c2 = consistency(
-            0.36,
-            (0.01, 0.02, 0.3),
-            (0.002, 0.005, 0.27),
-            (0.004, 0.01, 0.27),
-            (0.003, 0.008, 0.2701),
-        );
+        let c2 = consistency(0.36, (0.01, 0.02, 0.3), (0.002, 0.005, 0.27), (0.004, 0.01, 0.27), (0.003, 0.008, 0.2701));
         let bad = json!({ "model": "b", "style": "x", "scores": pair_scores(&c2).unwrap() });
         let failed = json!({ "model": "c", "style": "x", "error": "boom" });
         let pairs = [good, bad, failed];
@@ -578,16 +418,10 @@ mod tests {
         assert_eq!(b["ratios"]["met"], true);
         let md = table(&pairs, &b);
         assert!(md.contains("| a × x | 0.200 / 0.250 / 0.90 |"), "{md}");
-        assert_eq!(
-            failed_pairs(&pairs).as_deref(),
-            Some("1 of 3 pairs failed (first: c × x: boom)")
-        );
+        assert_eq!(failed_pairs(&pairs).as_deref(), Some("1 of 3 pairs failed (first: c × x: boom)"));
         assert_eq!(failed_pairs(&pairs[..2]), None);
         assert!(md.contains("c × x | failed: boom"), "{md}");
-        assert!(
-            md.contains("Separation") && md.contains("NOT met (1 of 2; lowest 1.20)"),
-            "{md}"
-        );
+        assert!(md.contains("Separation") && md.contains("NOT met (1 of 2; lowest 1.20)"), "{md}");
     }
 
     #[test]

@@ -14,9 +14,9 @@ use anyhow::{Context, Result};
 use clap::Args;
 use serde_json::{json, Value};
 use snerf_stylize::consistency::PathGeometry;
-use snerf_stylize::paintings;
 use snerf_stylize::style_metric::StyleScore;
 use snerf_stylize::stylizer::{self, Image, StylizerOptions};
+use snerf_stylize::paintings;
 use snerf_trainer::run_dir::RunDir;
 
 use super::quality::select_models;
@@ -58,23 +58,12 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
     let by_box = path.has_silhouette();
     let frames_dir = a.out.join("frames").join(name);
     if a.save_frames {
-        std::fs::create_dir_all(&frames_dir)
-            .with_context(|| format!("{}: cannot create", frames_dir.display()))?;
+        std::fs::create_dir_all(&frames_dir).with_context(|| format!("{}: cannot create", frames_dir.display()))?;
         let ring = path.realistic.iter().zip(&masks).skip(path.path_frames);
         for (k, (frame, m)) in ring.enumerate() {
             stylizer::save_png(&frames_dir.join(format!("realistic_{k}.png")), frame)?;
-            let data = m
-                .iter()
-                .flat_map(|&v| [if v { 1.0 } else { 0.0 }; 3])
-                .collect();
-            stylizer::save_png(
-                &frames_dir.join(format!("mask_{k}.png")),
-                &Image {
-                    width: frame.width,
-                    height: frame.height,
-                    data,
-                },
-            )?;
+            let data = m.iter().flat_map(|&v| [if v { 1.0 } else { 0.0 }; 3]).collect();
+            stylizer::save_png(&frames_dir.join(format!("mask_{k}.png")), &Image { width: frame.width, height: frame.height, data })?;
         }
     }
     let mut rows = Vec::new();
@@ -89,8 +78,7 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
             let per_frame = path.stylize_frames(st.as_ref(), by_box, 0, path.path_frames)?;
             if a.save_frames {
                 let dir = frames_dir.join(&sname);
-                std::fs::create_dir_all(&dir)
-                    .with_context(|| format!("{}: cannot create", dir.display()))?;
+                std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
                 for (k, frame) in path.ring_part(&per_frame).iter().enumerate() {
                     stylizer::save_png(&dir.join(format!("per_frame_{k}.png")), frame)?;
                 }
@@ -101,10 +89,7 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
         })();
         let mut v = json!({ "model": name, "style": sname });
         match row {
-            Ok(r) => v
-                .as_object_mut()
-                .unwrap()
-                .extend(r.as_object().unwrap().clone()),
+            Ok(r) => v.as_object_mut().unwrap().extend(r.as_object().unwrap().clone()),
             Err(e) => v["error"] = json!(format!("{e:#}")),
         }
         rows.push(v);
@@ -118,31 +103,15 @@ pub fn table(pairs: &[Value]) -> String {
     let score = |v: &Value| serde_json::from_value::<StyleScore>(v.clone()).ok();
     let mut seps = Vec::new();
     for p in pairs {
-        let name = format!(
-            "{} × {}",
-            p["model"].as_str().unwrap_or("?"),
-            p["style"].as_str().unwrap_or("?")
-        );
-        match (
-            score(&p["realistic"]),
-            score(&p["per_frame"]),
-            p["separation"].as_f64(),
-        ) {
+        let name = format!("{} × {}", p["model"].as_str().unwrap_or("?"), p["style"].as_str().unwrap_or("?"));
+        match (score(&p["realistic"]), score(&p["per_frame"]), p["separation"].as_f64()) {
             (Some(r), Some(f), Some(s)) => {
                 seps.push(s);
                 let mark = if s >= SEPARATION { "" } else { "**" };
-                md.push_str(&format!(
-                    "| {name} | {:.4} + {:.4} | {:.4} + {:.4} | {mark}{s:.2}{mark} |\n",
-                    r.color, r.texture, f.color, f.texture
-                ));
+                md.push_str(&format!("| {name} | {:.4} + {:.4} | {:.4} + {:.4} | {mark}{s:.2}{mark} |\n", r.color, r.texture, f.color, f.texture));
             }
             _ => {
-                let e: String = p["error"]
-                    .as_str()
-                    .unwrap_or("?")
-                    .chars()
-                    .take(100)
-                    .collect();
+                let e: String = p["error"].as_str().unwrap_or("?").chars().take(100).collect();
                 md.push_str(&format!("| {name} | failed: {e} | | |\n"));
             }
         }
@@ -168,9 +137,7 @@ pub fn table(pairs: &[Value]) -> String {
 fn spread(pairs: &[Value], key: &str) -> String {
     let mut groups: Vec<(String, Vec<f64>)> = Vec::new();
     for p in pairs {
-        let (Some(name), Some(s)) = (p[key].as_str(), p["separation"].as_f64()) else {
-            continue;
-        };
+        let (Some(name), Some(s)) = (p[key].as_str(), p["separation"].as_f64()) else { continue };
         match groups.iter_mut().find(|(n, _)| n == name) {
             Some((_, v)) => v.push(s),
             None => groups.push((name.to_string(), vec![s])),
@@ -180,16 +147,8 @@ fn spread(pairs: &[Value], key: &str) -> String {
     for (name, mut v) in groups {
         v.sort_by(|a, b| a.total_cmp(b));
         let n = v.len();
-        let median = if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        };
-        md.push_str(&format!(
-            "| {name} | {n} | {:.2} | {median:.2} | {:.2} |\n",
-            v[0],
-            v[n - 1]
-        ));
+        let median = if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) };
+        md.push_str(&format!("| {name} | {n} | {:.2} | {median:.2} | {:.2} |\n", v[0], v[n - 1]));
     }
     md
 }
@@ -198,21 +157,16 @@ pub fn run(a: &BenchStyleMetricArgs) -> Result<Value> {
     let models = select_models(&a.dirs, &a.grid.only, a.grid.limit)?;
     let mut a = a.clone();
     if a.styles.is_empty() {
-        a.styles = paintings::all()
-            .map(|p| format!("{}{}", paintings::STYLE_PREFIX, p.key))
-            .collect();
+        a.styles = paintings::all().map(|p| format!("{}{}", paintings::STYLE_PREFIX, p.key)).collect();
     }
     let a = &a;
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("{}: cannot create", a.out.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create", a.out.display()))?;
     eprintln!("{} models × {} styles", models.len(), a.styles.len());
     let budget = Budget::Steps(a.steps);
     let mut pairs = Vec::new();
     for (i, (name, file)) in models.iter().enumerate() {
         eprintln!("[{}/{}] {name}: realistic field", i + 1, models.len());
-        match realistic(&a.out, &a.grid, budget, name, file)
-            .and_then(|(data, run)| one_model(a, name, &data, &run))
-        {
+        match realistic(&a.out, &a.grid, budget, name, file).and_then(|(data, run)| one_model(a, name, &data, &run)) {
             Ok(rows) => pairs.extend(rows),
             Err(e) => {
                 eprintln!("      failed: {e:#}");
@@ -241,28 +195,13 @@ mod tests {
             json!({ "model": "n", "style": "a", "error": "no such file" }),
         ];
         let md = table(&pairs);
-        assert!(
-            md.contains("| m × a | 4.0000 + 2.0000 | 1.0000 + 1.0000 | 3.00 |"),
-            "{md}"
-        );
-        assert!(
-            md.contains("| m × b | 1.5000 + 1.0000 | 1.0000 + 1.0000 | **1.20** |"),
-            "{md}"
-        );
+        assert!(md.contains("| m × a | 4.0000 + 2.0000 | 1.0000 + 1.0000 | 3.00 |"), "{md}");
+        assert!(md.contains("| m × b | 1.5000 + 1.0000 | 1.0000 + 1.0000 | **1.20** |"), "{md}");
         assert!(md.contains("| n × a | failed: no such file |"), "{md}");
-        assert!(
-            md.contains(
-                "Separation over 2 pairs: mean 2.10 (min 1.20, max 3.00); at least 1.5× on 1 of 2."
-            ),
-            "{md}"
-        );
+        assert!(md.contains("Separation over 2 pairs: mean 2.10 (min 1.20, max 3.00); at least 1.5× on 1 of 2."), "{md}");
         // the spread per model and per style (a failed pair has no separation)
         assert!(md.contains("| m | 2 | 1.20 | 2.10 | 3.00 |"), "{md}");
-        assert!(
-            md.contains("| a | 1 | 3.00 | 3.00 | 3.00 |")
-                && md.contains("| b | 1 | 1.20 | 1.20 | 1.20 |"),
-            "{md}"
-        );
+        assert!(md.contains("| a | 1 | 3.00 | 3.00 | 3.00 |") && md.contains("| b | 1 | 1.20 | 1.20 | 1.20 |"), "{md}");
         assert!(!md.contains("| n |"), "{md}");
     }
 }

@@ -33,25 +33,13 @@ fn root() -> PathBuf {
 
 /// (chromium, playwright-core's directory) or a clear error saying how to get them.
 fn browser() -> Result<(PathBuf, PathBuf)> {
-    let chromium = std::env::var_os("SNERF_CHROMIUM")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| "/usr/bin/chromium".into());
+    let chromium = std::env::var_os("SNERF_CHROMIUM").map(PathBuf::from).unwrap_or_else(|| "/usr/bin/chromium".into());
     let pw = root().join("target/test-assets/playwright");
     if !chromium.exists() {
-        bail!(
-            "no Chromium at {} (apt-get install chromium, or set SNERF_CHROMIUM)",
-            chromium.display()
-        );
+        bail!("no Chromium at {} (apt-get install chromium, or set SNERF_CHROMIUM)", chromium.display());
     }
-    if !pw
-        .join("node_modules/playwright-core/package.json")
-        .exists()
-        || !pw.join("node_modules/iwer/build/iwer.min.js").exists()
-    {
-        bail!(
-            "no playwright-core and iwer under {} (bash .ci/run installs them)",
-            pw.display()
-        );
+    if !pw.join("node_modules/playwright-core/package.json").exists() || !pw.join("node_modules/iwer/build/iwer.min.js").exists() {
+        bail!("no playwright-core and iwer under {} (bash .ci/run installs them)", pw.display());
     }
     Ok((chromium, pw))
 }
@@ -59,11 +47,7 @@ fn browser() -> Result<(PathBuf, PathBuf)> {
 pub fn run(a: &BenchWebArgs) -> Result<Value> {
     let (chromium, pw) = browser()?;
     let (w, h) = crate::args::parse_size(&a.size)?;
-    let eye = if a.eye == "none" {
-        None
-    } else {
-        Some(crate::args::parse_size(&a.eye)?)
-    };
+    let eye = if a.eye == "none" { None } else { Some(crate::args::parse_size(&a.eye)?) };
     let asset = snerf_asset::Asset::read(&a.asset)?;
     let state = std::env::temp_dir().join(format!("snerf-bench-web-{}", std::process::id()));
     let mut o = snerf_stream::ServeOptions::new(&a.asset, "127.0.0.1:0".parse()?);
@@ -71,35 +55,16 @@ pub fn run(a: &BenchWebArgs) -> Result<Value> {
     o.quiet = true;
     o.web = Some("127.0.0.1:0".parse()?);
     let server = snerf_stream::spawn(o)?;
-    let web = server
-        .web()
-        .ok_or_else(|| anyhow!("the web viewer did not start"))?
-        .clone();
+    let web = server.web().ok_or_else(|| anyhow!("the web viewer did not start"))?.clone();
     let name = snerf_stream::server::asset_name(&a.asset);
     let cam = snerf_asset::orbit(&asset.header, 1, 0, w, h, 40.0);
     let cam_json = json!({ "c2w": cam.c2w, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": w, "height": h }).to_string();
     let frag = |pairs: &[(&str, &str)]| -> String {
-        pairs
-            .iter()
-            .map(|(k, v)| format!("{}={}", k, urlencode(v)))
-            .collect::<Vec<_>>()
-            .join("&")
+        pairs.iter().map(|(k, v)| format!("{}={}", k, urlencode(v))).collect::<Vec<_>>().join("&")
     };
-    let flat = format!(
-        "{}#{}",
-        web.url(),
-        frag(&[("token", server.token()), ("asset", &name)])
-    );
+    let flat = format!("{}#{}", web.url(), frag(&[("token", server.token()), ("asset", &name)]));
     let xr = match eye {
-        Some(_) => format!(
-            "{}#{}",
-            web.url(),
-            frag(&[
-                ("token", server.token()),
-                ("asset", &name),
-                ("xrscale", "1")
-            ])
-        ),
+        Some(_) => format!("{}#{}", web.url(), frag(&[("token", server.token()), ("asset", &name), ("xrscale", "1")])),
         None => "-".into(),
     };
     let (ew, eh) = eye.unwrap_or((0, 0));
@@ -107,43 +72,21 @@ pub fn run(a: &BenchWebArgs) -> Result<Value> {
     let out = Command::new("node")
         .arg(root().join("scripts/bench-web.mjs"))
         .arg(&pw)
-        .args([
-            &flat,
-            &xr,
-            &a.frames.to_string(),
-            &ew.to_string(),
-            &eh.to_string(),
-            &cam_json,
-        ])
+        .args([&flat, &xr, &a.frames.to_string(), &ew.to_string(), &eh.to_string(), &cam_json])
         .env("SNERF_CHROMIUM", &chromium)
         .output()
         .context("running node (is Node.js installed?)")?;
     if !out.status.success() {
-        bail!(
-            "scripts/bench-web.mjs failed: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        bail!("scripts/bench-web.mjs failed: {}", String::from_utf8_lossy(&out.stderr));
     }
     let page: Value = serde_json::from_slice(&out.stdout).context("bench-web.mjs output")?;
     server.shutdown();
     let _ = std::fs::remove_dir_all(&state);
     // The native side, same machine, same run.
     eprintln!("bench web: native QUIC fetch ...");
-    let stream = snerf_stream::bench::run(
-        &a.asset,
-        &snerf_stream::bench::BenchOptions {
-            rounds: 1,
-            ..Default::default()
-        },
-    )?;
+    let stream = snerf_stream::bench::run(&a.asset, &snerf_stream::bench::BenchOptions { rounds: 1, ..Default::default() })?;
     eprintln!("bench web: native frame time ...");
-    let mut vo = snerf_viewer::BenchOptions {
-        width: w,
-        height: h,
-        frames: a.frames,
-        cpu_frames: 1,
-        ..Default::default()
-    };
+    let mut vo = snerf_viewer::BenchOptions { width: w, height: h, frames: a.frames, cpu_frames: 1, ..Default::default() };
     if let Some(e) = eye {
         vo.stereo = true;
         vo.stereo_size = e;
@@ -159,13 +102,7 @@ pub fn run(a: &BenchWebArgs) -> Result<Value> {
     let xr_frame = f(&page["xr"], "frameMsMedian");
     let native_stereo = native.stereo.as_ref().map(|s| s.gpu_median_ms);
     let mut t = String::new();
-    t += &format!(
-        "asset: {} ({:.2} MiB), browser adapter {}, native adapter {}\n",
-        a.asset.display(),
-        size / (1 << 20) as f64,
-        pf["adapter"],
-        native.adapter
-    );
+    t += &format!("asset: {} ({:.2} MiB), browser adapter {}, native adapter {}\n", a.asset.display(), size / (1 << 20) as f64, pf["adapter"], native.adapter);
     t += &format!(
         "navigation -> first rendered frame: {:.0} ms ({}x{}, {} blocks in); -> complete view {:.0} ms\n",
         f(pf, "firstFrameAt"),
@@ -174,25 +111,9 @@ pub fn run(a: &BenchWebArgs) -> Result<Value> {
         pf["firstFrame"]["blocks"],
         f(pf, "completeAt")
     );
-    t += &format!(
-        "native first view (snerf bench stream): {:.0} ms; complete {:.0} ms\n",
-        stream.first_view.as_secs_f64() * 1e3,
-        stream.complete.as_secs_f64() * 1e3
-    );
-    t += &format!(
-        "download: WebTransport {:.1} MiB/s, native QUIC fetch {:.1} MiB/s (ratio {:.2})\n",
-        wt_mb_s,
-        native_mb_s,
-        wt_mb_s / native_mb_s
-    );
-    t += &format!(
-        "frame {}x{}: Chromium {:.1} ms, native {:.1} ms (ratio {:.2})\n",
-        w,
-        h,
-        web_frame,
-        native.gpu_median_ms,
-        web_frame / native.gpu_median_ms
-    );
+    t += &format!("native first view (snerf bench stream): {:.0} ms; complete {:.0} ms\n", stream.first_view.as_secs_f64() * 1e3, stream.complete.as_secs_f64() * 1e3);
+    t += &format!("download: WebTransport {:.1} MiB/s, native QUIC fetch {:.1} MiB/s (ratio {:.2})\n", wt_mb_s, native_mb_s, wt_mb_s / native_mb_s);
+    t += &format!("frame {}x{}: Chromium {:.1} ms, native {:.1} ms (ratio {:.2})\n", w, h, web_frame, native.gpu_median_ms, web_frame / native.gpu_median_ms);
     if let (Some(ns), Some((ew, eh))) = (native_stereo, eye) {
         t += &format!(
             "immersive 2 x {}x{}: Chromium (emulated Quest 3) {:.1} ms, native side-by-side {:.1} ms (ratio {:.2}); Enter VR -> first immersive frame {:.0} ms\n",

@@ -48,14 +48,7 @@ unsafe impl Sync for SharedFlags {}
 
 impl Adam {
     pub fn new(n: usize) -> Adam {
-        Adam {
-            beta1: 0.9,
-            beta2: 0.99,
-            eps: 1e-15,
-            step: 0,
-            m: vec![0.0; n],
-            v: vec![0.0; n],
-        }
+        Adam { beta1: 0.9, beta2: 0.99, eps: 1e-15, step: 0, m: vec![0.0; n], v: vec![0.0; n] }
     }
 
     /// Start a step: advances the bias-correction counter once for all ranges.
@@ -78,32 +71,15 @@ impl Adam {
     }
 
     /// Dense update of `params[range]` with learning rate `lr`.
-    pub fn update_dense(
-        &mut self,
-        params: &mut [f32],
-        grads: &mut [&mut Vec<f32>],
-        range: std::ops::Range<usize>,
-        lr: f32,
-    ) {
+    pub fn update_dense(&mut self, params: &mut [f32], grads: &mut [&mut Vec<f32>], range: std::ops::Range<usize>, lr: f32) {
         // The raw-pointer reads below rely on these bounds; checked here, once per call, so
         // this safe function cannot touch memory outside any buffer whatever it is given.
-        assert!(
-            range.end <= params.len() && range.end <= self.m.len(),
-            "Adam range {range:?} beyond {} parameters",
-            params.len().min(self.m.len())
-        );
-        assert!(
-            grads.iter().all(|g| g.len() >= range.end),
-            "a gradient buffer is shorter than the update range {range:?}"
-        );
+        assert!(range.end <= params.len() && range.end <= self.m.len(), "Adam range {range:?} beyond {} parameters", params.len().min(self.m.len()));
+        assert!(grads.iter().all(|g| g.len() >= range.end), "a gradient buffer is shorter than the update range {range:?}");
         let step = self.step_size(lr);
         let bufs: Vec<Shared> = grads.iter_mut().map(|g| Shared(g.as_mut_ptr())).collect();
         let start = range.start;
-        let this = Adam {
-            m: Vec::new(),
-            v: Vec::new(),
-            ..*self
-        };
+        let this = Adam { m: Vec::new(), v: Vec::new(), ..*self };
         const BLOCK: usize = 1 << 12;
         params[range.clone()]
             .par_chunks_mut(BLOCK)
@@ -140,30 +116,13 @@ impl Adam {
     ) -> usize {
         let cells = flags.first().map(|f| f.len()).unwrap_or(0);
         // Bounds for the raw-pointer accesses below, checked once per call (see update_dense).
-        assert!(
-            flags.iter().all(|f| f.len() == cells),
-            "flag buffers of different lengths"
-        );
-        assert!(
-            cells * cell <= params.len() && cells * cell <= self.m.len(),
-            "{cells} cells of {cell} beyond {} parameters",
-            params.len().min(self.m.len())
-        );
-        assert!(
-            grads.iter().all(|g| g.len() >= cells * cell),
-            "a gradient buffer is shorter than {cells} cells of {cell}"
-        );
+        assert!(flags.iter().all(|f| f.len() == cells), "flag buffers of different lengths");
+        assert!(cells * cell <= params.len() && cells * cell <= self.m.len(), "{cells} cells of {cell} beyond {} parameters", params.len().min(self.m.len()));
+        assert!(grads.iter().all(|g| g.len() >= cells * cell), "a gradient buffer is shorter than {cells} cells of {cell}");
         let step = self.step_size(lr);
         let bufs: Vec<Shared> = grads.iter_mut().map(|g| Shared(g.as_mut_ptr())).collect();
-        let fl: Vec<SharedFlags> = flags
-            .iter_mut()
-            .map(|f| SharedFlags(f.as_mut_ptr()))
-            .collect();
-        let this = Adam {
-            m: Vec::new(),
-            v: Vec::new(),
-            ..*self
-        };
+        let fl: Vec<SharedFlags> = flags.iter_mut().map(|f| SharedFlags(f.as_mut_ptr())).collect();
+        let this = Adam { m: Vec::new(), v: Vec::new(), ..*self };
         const BLOCK: usize = 1 << 10; // cells per parallel block
         params[..cells * cell]
             .par_chunks_mut(BLOCK * cell)

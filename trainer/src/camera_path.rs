@@ -3,8 +3,8 @@
 //! asset and every viewer); this module only chooses its parameters from a capture.
 
 use snerf_data::{SceneKind, View};
-use snerf_geometry::camera::{forward_axis, horizontal, mean_up, position};
 pub use snerf_geometry::look_at;
+use snerf_geometry::camera::{forward_axis, horizontal, mean_up, position};
 use snerf_geometry::vec::{add, cross, dot, norm, normalize, scale, sub, Vec3};
 use snerf_geometry::{Orbit, Space};
 
@@ -23,64 +23,31 @@ use crate::{checkpoint, eval};
 /// least 20° above; forward-facing scenes: a small ellipse in front of the mean pose
 /// looking at the near content.
 pub fn preview_orbit(kind: SceneKind, frame: &Space, views: &[&View], up: Option<Vec3>) -> Orbit {
-    let up = up
-        .map(normalize)
-        .unwrap_or_else(|| mean_up(views.iter().map(|v| &v.c2w)));
+    let up = up.map(normalize).unwrap_or_else(|| mean_up(views.iter().map(|v| &v.c2w)));
     let n = views.len().max(1) as f32;
     match kind {
         SceneKind::Forward => {
-            let c = scale(
-                views.iter().fold([0.0; 3], |a, v| add(a, position(&v.c2w))),
-                1.0 / n,
-            );
-            let fwd = normalize(
-                views
-                    .iter()
-                    .fold([0.0; 3], |a, v| add(a, forward_axis(&v.c2w))),
-            );
-            let spread = views
-                .iter()
-                .map(|v| norm(sub(position(&v.c2w), c)))
-                .fold(0.0f32, f32::max)
-                .max(1e-3);
+            let c = scale(views.iter().fold([0.0; 3], |a, v| add(a, position(&v.c2w))), 1.0 / n);
+            let fwd = normalize(views.iter().fold([0.0; 3], |a, v| add(a, forward_axis(&v.c2w))));
+            let spread = views.iter().map(|v| norm(sub(position(&v.c2w), c))).fold(0.0f32, f32::max).max(1e-3);
             // look at a point at twice the near-content depth (1/(0.75 scale) is the near bound)
             let depth = 1.0 / (0.75 * frame.scale) * 2.0;
             let right = normalize(cross(fwd, up));
             let up_in_plane = cross(right, fwd);
-            Orbit::Ellipse {
-                center: c,
-                right,
-                up: up_in_plane,
-                target: add(c, scale(fwd, depth)),
-                rx: spread,
-                ry: 0.6 * spread,
-            }
+            Orbit::Ellipse { center: c, right, up: up_in_plane, target: add(c, scale(fwd, depth)), rx: spread, ry: 0.6 * spread }
         }
         SceneKind::Object | SceneKind::Unbounded => {
             let center = frame.center;
-            let rel: Vec<Vec3> = views
-                .iter()
-                .map(|v| sub(position(&v.c2w), center))
-                .collect();
+            let rel: Vec<Vec3> = views.iter().map(|v| sub(position(&v.c2w), center)).collect();
             let radius = (rel.iter().map(|r| norm(*r)).sum::<f32>() / n).max(1e-6);
             let height = rel.iter().map(|r| dot(*r, up)).sum::<f32>() / n;
             let elev = (height / radius).clamp(-0.9, 0.9).asin();
             // objects look best from a little above; unbounded scenes keep the capture height
-            let elevation = if kind == SceneKind::Object {
-                elev.max(0.35)
-            } else {
-                elev
-            };
+            let elevation = if kind == SceneKind::Object { elev.max(0.35) } else { elev };
             // First frame: the first training camera's side of the scene, so the same
             // capture in any world frame starts from the same place.
             let start = horizontal(up, rel.first().copied().unwrap_or([0.3, 0.1, 0.9]));
-            Orbit::Around {
-                center,
-                up,
-                start,
-                radius,
-                elevation,
-            }
+            Orbit::Around { center, up, start, radius, elevation }
         }
     }
 }
@@ -125,21 +92,11 @@ pub fn render_turntable(
         .iter()
         .enumerate()
         .map(|(i, c2w)| snerf_geometry::camera_path::PathCamera {
-            cam: snerf_geometry::Pinhole {
-                c2w: *c2w,
-                fx: k.fx,
-                fy: k.fy,
-                cx: k.cx,
-                cy: k.cy,
-                width: k.width,
-                height: k.height,
-            },
+            cam: snerf_geometry::Pinhole { c2w: *c2w, fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy, width: k.width, height: k.height },
             time: time_of(i),
         })
         .collect();
-    snerf_files::atomic::write_atomic(
-        &out.join("camera_path.json"),
-        snerf_geometry::camera_path::to_json(&path, 24.0).as_bytes(),
-    )?;
+    snerf_files::atomic::write_atomic(&out.join("camera_path.json"), snerf_geometry::camera_path::to_json(&path, 24.0).as_bytes())?;
     Ok(files)
 }
+

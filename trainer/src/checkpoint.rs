@@ -113,64 +113,35 @@ pub fn save(trainer: &Trainer, path: &Path) -> Result<()> {
 }
 
 pub fn load(path: &Path) -> Result<Checkpoint> {
-    let bytes =
-        fs::read(path).with_context(|| format!("{}: cannot read checkpoint", path.display()))?;
+    let bytes = fs::read(path).with_context(|| format!("{}: cannot read checkpoint", path.display()))?;
     let name = path.display();
-    ensure!(
-        bytes.len() >= 28,
-        "{name}: not a snerf checkpoint (file is {} bytes)",
-        bytes.len()
-    );
-    ensure!(
-        &bytes[..8] == MAGIC,
-        "{name}: not a snerf checkpoint (bad magic bytes)"
-    );
+    ensure!(bytes.len() >= 28, "{name}: not a snerf checkpoint (file is {} bytes)", bytes.len());
+    ensure!(&bytes[..8] == MAGIC, "{name}: not a snerf checkpoint (bad magic bytes)");
     let version = u32::from_le_bytes(bytes[8..12].try_into().unwrap());
     if version != VERSION {
         bail!("{name}: checkpoint version {version}, this snerf reads version {VERSION}; retrain or use a matching snerf");
     }
     let body = &bytes[..bytes.len() - 8];
     let stored = u64::from_le_bytes(bytes[bytes.len() - 8..].try_into().unwrap());
-    ensure!(
-        checksum(body) == stored,
-        "{name}: checkpoint is corrupt or truncated (checksum mismatch)"
-    );
+    ensure!(checksum(body) == stored, "{name}: checkpoint is corrupt or truncated (checksum mismatch)");
     let hlen = u64::from_le_bytes(bytes[12..20].try_into().unwrap()) as usize;
-    ensure!(
-        hlen <= body.len() - 20,
-        "{name}: header length {hlen} exceeds the file"
-    );
-    let header: Header = serde_json::from_slice(&bytes[20..20 + hlen])
-        .with_context(|| format!("{name}: bad checkpoint header"))?;
-    header
-        .cfg
-        .validate()
-        .with_context(|| format!("{name}: bad checkpoint header"))?;
-    let field = Field::new(header.cfg.field.clone(), 0)
-        .with_context(|| format!("{name}: bad field config"))?;
+    ensure!(hlen <= body.len() - 20, "{name}: header length {hlen} exceeds the file");
+    let header: Header =
+        serde_json::from_slice(&bytes[20..20 + hlen]).with_context(|| format!("{name}: bad checkpoint header"))?;
+    header.cfg.validate().with_context(|| format!("{name}: bad checkpoint header"))?;
+    let field = Field::new(header.cfg.field.clone(), 0).with_context(|| format!("{name}: bad field config"))?;
     ensure!(
         field.params.len() == header.params,
         "{name}: header says {} parameters, its field config needs {}",
         header.params,
         field.params.len()
     );
-    let cells = header
-        .occupancy_res
-        .checked_pow(3)
-        .filter(|&c| c <= 1 << 30)
-        .context("bad occupancy size")?;
+    let cells = header.occupancy_res.checked_pow(3).filter(|&c| c <= 1 << 30).context("bad occupancy size")?;
     let need = 20 + hlen + 3 * 4 * header.params + 5 * cells;
-    ensure!(
-        body.len() == need,
-        "{name}: expected {need} bytes of data, found {}",
-        body.len()
-    );
+    ensure!(body.len() == need, "{name}: expected {need} bytes of data, found {}", body.len());
     let mut off = 20 + hlen;
     let mut take = |n: usize| -> Vec<f32> {
-        let v = bytes[off..off + 4 * n]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
-            .collect();
+        let v = bytes[off..off + 4 * n].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
         off += 4 * n;
         v
     };
@@ -179,31 +150,12 @@ pub fn load(path: &Path) -> Result<Checkpoint> {
     let v = take(header.params);
     let depth = take(cells);
     let allowed = bytes[off..off + cells].iter().map(|&b| b != 0).collect();
-    let mut occ = Occupancy {
-        res: header.occupancy_res,
-        step: header.occupancy_step,
-        depth,
-        allowed,
-        occ: Vec::new(),
-    };
+    let mut occ = Occupancy { res: header.occupancy_res, step: header.occupancy_step, depth, allowed, occ: Vec::new() };
     occ.refresh_bits();
     let (beta1, beta2, eps) = header.adam_betas;
     Ok(Checkpoint {
-        model: Model {
-            space: header.space,
-            field: Field { params, ..field },
-            occ,
-            pixel_rays: header.cfg.pixel_rays,
-            pixel_footprint: header.cfg.pixel_footprint,
-        },
-        adam: Adam {
-            beta1,
-            beta2,
-            eps,
-            step: header.adam_step,
-            m,
-            v,
-        },
+        model: Model { space: header.space, field: Field { params, ..field }, occ, pixel_rays: header.cfg.pixel_rays, pixel_footprint: header.cfg.pixel_footprint },
+        adam: Adam { beta1, beta2, eps, step: header.adam_step, m, v },
         cfg: header.cfg,
         step: header.step,
         train_seconds: header.train_seconds,
@@ -216,9 +168,7 @@ pub use snerf_files::{write_atomic, write_json_atomic};
 
 pub fn write_png_atomic(path: &Path, img: &image::RgbImage) -> Result<()> {
     let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )?;
+    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)?;
     write_atomic(path, &bytes)
 }
+

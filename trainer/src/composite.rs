@@ -115,11 +115,7 @@ pub fn backward(
         let ds = t_after * gv - suffix - t_final * grad_t_final;
         let sg = sigma[k] * delta[k];
         // Where the clamp in `optical_depth` is active the derivative is 0.
-        d_sigma[k] = if (0.0..S_MAX).contains(&sg) {
-            delta[k] * ds
-        } else {
-            0.0
-        };
+        d_sigma[k] = if (0.0..S_MAX).contains(&sg) { delta[k] * ds } else { 0.0 };
         suffix += wk * gv;
     }
 }
@@ -131,10 +127,7 @@ pub fn backward(
 /// both in O(n) with prefix sums.
 pub fn distortion(w: &[f32], mid: &[f32], len: &[f32], grad_w: &mut [f32]) -> f32 {
     let n = w.len();
-    let (tot_w, tot_wm) = w
-        .iter()
-        .zip(mid)
-        .fold((0.0f32, 0.0f32), |(a, b), (&wi, &mi)| (a + wi, b + wi * mi));
+    let (tot_w, tot_wm) = w.iter().zip(mid).fold((0.0f32, 0.0f32), |(a, b), (&wi, &mi)| (a + wi, b + wi * mi));
     let (mut below_w, mut below_wm) = (0.0f32, 0.0f32);
     let mut loss = 0.0f32;
     for i in 0..n {

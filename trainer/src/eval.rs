@@ -51,28 +51,16 @@ pub fn render_camera_with(
     let render = |pixels: &[(usize, f32, f32)]| -> Vec<RayResult> {
         let mut out = vec![RayResult::default(); pixels.len()];
         const CHUNK: usize = 256;
-        out.par_chunks_mut(CHUNK)
-            .zip(pixels.par_chunks(CHUNK))
-            .for_each(|(out, px)| {
-                let tasks: Vec<RayTask> = px
-                    .iter()
-                    .map(|&(p, sx, sy)| {
-                        let ray =
-                            model
-                                .space
-                                .ray(c2w, k, (p % w) as f32 + sx, (p / w) as f32 + sy, time);
-                        RayTask {
-                            ray,
-                            bg,
-                            target: [0.0; 3],
-                            jitter: 0.5,
-                        }
-                    })
-                    .collect();
-                pool.with(|ws| {
-                    render_chunk(&model.field, &model.space, &model.occ, &tasks, ws, out)
-                });
-            });
+        out.par_chunks_mut(CHUNK).zip(pixels.par_chunks(CHUNK)).for_each(|(out, px)| {
+            let tasks: Vec<RayTask> = px
+                .iter()
+                .map(|&(p, sx, sy)| {
+                    let ray = model.space.ray(c2w, k, (p % w) as f32 + sx, (p / w) as f32 + sy, time);
+                    RayTask { ray, bg, target: [0.0; 3], jitter: 0.5 }
+                })
+                .collect();
+            pool.with(|ws| render_chunk(&model.field, &model.space, &model.occ, &tasks, ws, out));
+        });
         out
     };
     let mut results = render(&(0..w * h).map(|p| (p, 0.5, 0.5)).collect::<Vec<_>>());
@@ -81,13 +69,8 @@ pub fn render_camera_with(
         // Silhouette pixels (mixed coverage around them, the trainer's rule on rendered
         // opacity) again, as the mean over their square, as they were trained.
         let o: Vec<f32> = results.iter().map(|r| r.opacity).collect();
-        let edge: Vec<usize> = (0..w * h)
-            .filter(|&p| mixed_coverage(&o, w, h, p % w, p / w))
-            .collect();
-        let px: Vec<(usize, f32, f32)> = edge
-            .iter()
-            .flat_map(|&p| sub.iter().map(move |&(sx, sy)| (p, sx, sy)))
-            .collect();
+        let edge: Vec<usize> = (0..w * h).filter(|&p| mixed_coverage(&o, w, h, p % w, p / w)).collect();
+        let px: Vec<(usize, f32, f32)> = edge.iter().flat_map(|&p| sub.iter().map(move |&(sx, sy)| (p, sx, sy))).collect();
         let rs = render(&px);
         for (&p, g) in edge.iter().zip(rs.chunks(sub.len())) {
             results[p] = average(g);
@@ -110,12 +93,7 @@ pub use snerf_geometry::silhouette::{min_max_3x3, mixed_coverage};
 fn average(g: &[RayResult]) -> RayResult {
     let rays: Vec<([f32; 3], f32, f32)> = g.iter().map(|r| (r.rgb, r.opacity, r.depth)).collect();
     let (rgb, opacity, depth) = snerf_geometry::silhouette::mean_of_rays(&rays);
-    RayResult {
-        rgb,
-        depth,
-        opacity,
-        samples: g.iter().map(|r| r.samples).sum(),
-    }
+    RayResult { rgb, depth, opacity, samples: g.iter().map(|r| r.samples).sum() }
 }
 
 /// Ground truth of a view as RGB floats composited over `bg`.
@@ -171,27 +149,14 @@ pub fn evaluate(
         let gt = ground_truth(v, bg);
         let p = psnr(&r.rgb, &gt);
         let s = ssim(&r.rgb, &gt, r.width, r.height);
-        let name = v
-            .path
-            .file_stem()
-            .map(|s| s.to_string_lossy().to_string())
-            .unwrap_or_else(|| format!("view_{i:03}"));
+        let name = v.path.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_else(|| format!("view_{i:03}"));
         if let Some(dir) = out_dir {
             let disparity = model.space.kind == snerf_data::SceneKind::Unbounded;
-            let img = side_by_side(
-                &[&r.rgb, &gt, &depth_image(&r, disparity)],
-                r.width,
-                r.height,
-            );
+            let img = side_by_side(&[&r.rgb, &gt, &depth_image(&r, disparity)], r.width, r.height);
             crate::checkpoint::write_png_atomic(&dir.join(format!("{name}.png")), &img)
                 .with_context(|| format!("writing evaluation image for {name}"))?;
         }
-        scores.push(ViewScore {
-            name,
-            psnr: p,
-            ssim: s,
-            time: v.time,
-        });
+        scores.push(ViewScore { name, psnr: p, ssim: s, time: v.time });
     }
     let n = scores.len().max(1) as f64;
     Ok(EvalReport {
@@ -207,13 +172,7 @@ pub fn evaluate(
 /// grey level follows 1/depth, so near structure stays visible.
 pub fn depth_image(r: &Rendered, disparity: bool) -> Vec<f32> {
     let map = |d: f32| if disparity { -1.0 / d.max(1e-3) } else { d };
-    let covered: Vec<f32> = r
-        .depth
-        .iter()
-        .zip(&r.opacity)
-        .filter(|(_, &a)| a > 0.5)
-        .map(|(&d, _)| map(d))
-        .collect();
+    let covered: Vec<f32> = r.depth.iter().zip(&r.opacity).filter(|(_, &a)| a > 0.5).map(|(&d, _)| map(d)).collect();
     let lo = covered.iter().cloned().fold(f32::INFINITY, f32::min);
     let hi = covered.iter().cloned().fold(f32::NEG_INFINITY, f32::max);
     let span = if hi > lo { hi - lo } else { 1.0 };
@@ -221,11 +180,7 @@ pub fn depth_image(r: &Rendered, disparity: bool) -> Vec<f32> {
         .iter()
         .zip(&r.opacity)
         .flat_map(|(&d, &a)| {
-            let v = if a > 0.05 && lo.is_finite() {
-                (1.0 - (map(d) - lo) / span).clamp(0.0, 1.0) * a
-            } else {
-                0.0
-            };
+            let v = if a > 0.05 && lo.is_finite() { (1.0 - (map(d) - lo) / span).clamp(0.0, 1.0) * a } else { 0.0 };
             [v; 3]
         })
         .collect()
@@ -238,11 +193,7 @@ pub fn side_by_side(images: &[&[f32]], w: usize, h: usize) -> image::RgbImage {
         for y in 0..h {
             for x in 0..w {
                 let i = (y * w + x) * 3;
-                out.put_pixel(
-                    (k * w + x) as u32,
-                    y as u32,
-                    image::Rgb([0, 1, 2].map(|c| to_u8(img[i + c]))),
-                );
+                out.put_pixel((k * w + x) as u32, y as u32, image::Rgb([0, 1, 2].map(|c| to_u8(img[i + c]))));
             }
         }
     }
@@ -256,10 +207,7 @@ pub fn to_u8(v: f32) -> u8 {
 
 /// A fixed random sample of held-out pixels: (view index, x, y).
 pub fn sample_pixels(views: &[View], n: usize, seed: u64) -> Vec<(usize, u32, u32)> {
-    let total: usize = views
-        .iter()
-        .map(|v| (v.intrinsics.width * v.intrinsics.height) as usize)
-        .sum();
+    let total: usize = views.iter().map(|v| (v.intrinsics.width * v.intrinsics.height) as usize).sum();
     if total == 0 {
         return Vec::new();
     }
@@ -268,11 +216,7 @@ pub fn sample_pixels(views: &[View], n: usize, seed: u64) -> Vec<(usize, u32, u3
         .map(|_| {
             let vi = rng.below(views.len());
             let k = &views[vi].intrinsics;
-            (
-                vi,
-                rng.below(k.width as usize) as u32,
-                rng.below(k.height as usize) as u32,
-            )
+            (vi, rng.below(k.width as usize) as u32, rng.below(k.height as usize) as u32)
         })
         .collect()
 }
@@ -280,13 +224,7 @@ pub fn sample_pixels(views: &[View], n: usize, seed: u64) -> Vec<(usize, u32, u3
 /// PSNR of the pooled squared error over a sample of held-out pixels: an unbiased estimate
 /// of the held-out MSE at a small fraction of the cost of rendering whole views (used for
 /// the error-against-time curve; `evaluate` scores whole images).
-pub fn sampled_psnr(
-    model: &Model,
-    pool: &WorkspacePool,
-    views: &[View],
-    has_alpha: bool,
-    pixels: &[(usize, u32, u32)],
-) -> f64 {
+pub fn sampled_psnr(model: &Model, pool: &WorkspacePool, views: &[View], has_alpha: bool, pixels: &[(usize, u32, u32)]) -> f64 {
     let bg = eval_background(has_alpha);
     const CHUNK: usize = 256;
     let se: f64 = pixels
@@ -302,26 +240,13 @@ pub fn sampled_psnr(
                 .flat_map(|&(vi, x, y)| {
                     let v = &views[vi];
                     sub.iter().map(move |&(sx, sy)| {
-                        let ray = model.space.ray(
-                            &v.c2w,
-                            &v.intrinsics,
-                            x as f32 + sx,
-                            y as f32 + sy,
-                            v.time,
-                        );
-                        RayTask {
-                            ray,
-                            bg,
-                            target: [0.0; 3],
-                            jitter: 0.5,
-                        }
+                        let ray = model.space.ray(&v.c2w, &v.intrinsics, x as f32 + sx, y as f32 + sy, v.time);
+                        RayTask { ray, bg, target: [0.0; 3], jitter: 0.5 }
                     })
                 })
                 .collect();
             let mut tmp = vec![RayResult::default(); tasks.len()];
-            pool.with(|ws| {
-                render_chunk(&model.field, &model.space, &model.occ, &tasks, ws, &mut tmp)
-            });
+            pool.with(|ws| render_chunk(&model.field, &model.space, &model.occ, &tasks, ws, &mut tmp));
             let out: Vec<RayResult> = tmp.chunks(sub.len()).map(average).collect();
             chunk
                 .iter()

@@ -77,30 +77,21 @@ impl FieldConfig {
         (fwd, bwd)
     }
     pub fn validate(&self) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            !self.resolutions.is_empty(),
-            "field needs at least one level"
-        );
+        anyhow::ensure!(!self.resolutions.is_empty(), "field needs at least one level");
         anyhow::ensure!(
             self.resolutions.iter().all(|&r| (2..=4096).contains(&r)),
             "plane resolutions must be in 2..=4096, got {:?}",
             self.resolutions
         );
         anyhow::ensure!(
-            self.time_resolutions.is_empty()
-                || self.time_resolutions.len() == self.resolutions.len(),
+            self.time_resolutions.is_empty() || self.time_resolutions.len() == self.resolutions.len(),
             "time resolutions must be empty (static) or one per level"
         );
         anyhow::ensure!(
-            self.time_resolutions
-                .iter()
-                .all(|&r| (2..=1024).contains(&r)),
+            self.time_resolutions.iter().all(|&r| (2..=1024).contains(&r)),
             "time resolutions must be in 2..=1024"
         );
-        anyhow::ensure!(
-            self.hidden >= 4 && self.hidden.is_multiple_of(4),
-            "hidden width must be a multiple of 4"
-        );
+        anyhow::ensure!(self.hidden >= 4 && self.hidden.is_multiple_of(4), "hidden width must be a multiple of 4");
         Ok(())
     }
 }
@@ -140,17 +131,8 @@ impl Layout {
             let r = cfg.resolutions[l] as usize;
             let mut level = Vec::new();
             for &axes in PLANE_AXES.iter().take(cfg.planes()) {
-                let rv = if axes.1 == 3 {
-                    cfg.time_resolutions[l] as usize
-                } else {
-                    r
-                };
-                level.push(PlaneRef {
-                    offset: off,
-                    ru: r,
-                    rv,
-                    axes,
-                });
+                let rv = if axes.1 == 3 { cfg.time_resolutions[l] as usize } else { r };
+                level.push(PlaneRef { offset: off, ru: r, rv, axes });
                 off += r * rv * C;
             }
             planes.push(level);
@@ -168,18 +150,7 @@ impl Layout {
         off += OUT;
         let view = ViewLayout::new(off);
         off = view.end;
-        Layout {
-            planes,
-            plane_end,
-            w1,
-            b1,
-            w2,
-            b2,
-            view,
-            total: off,
-            input,
-            hidden,
-        }
+        Layout { planes, plane_end, w1, b1, w2, b2, view, total: off, input, hidden }
     }
 }
 
@@ -209,12 +180,7 @@ fn bilerp(params: &[f32], p: &PlaneRef, g: &[f32; 3], t: f32) -> ([f32; C], [usi
     let (iv, fv) = plane_coord(g, t, p.axes.1, p.rv);
     let base = p.offset + (iv * p.ru + iu) * C;
     let idx = [base, base + C, base + p.ru * C, base + p.ru * C + C];
-    let wts = [
-        (1.0 - fu) * (1.0 - fv),
-        fu * (1.0 - fv),
-        (1.0 - fu) * fv,
-        fu * fv,
-    ];
+    let wts = [(1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv];
     let mut out = [0.0f32; C];
     for k in 0..4 {
         let v = &params[idx[k]..idx[k] + C];
@@ -300,11 +266,7 @@ impl Field {
             *x = s2 * (2.0 * rng.uniform() - 1.0);
         }
         layout.view.init(&mut params, &mut rng);
-        Ok(Field {
-            cfg,
-            layout,
-            params,
-        })
+        Ok(Field { cfg, layout, params })
     }
 
     /// Prefetch the plane cells a point will read. Plane lookups are cache misses by nature
@@ -324,11 +286,7 @@ impl Field {
                         if off < self.params.len() {
                             // SAFETY: `off` is in bounds (checked), so `add` stays inside the
                             // allocation; a prefetch has no architectural effect.
-                            unsafe {
-                                _mm_prefetch::<_MM_HINT_T0>(
-                                    self.params.as_ptr().add(off) as *const i8
-                                )
-                            };
+                            unsafe { _mm_prefetch::<_MM_HINT_T0>(self.params.as_ptr().add(off) as *const i8) };
                         }
                     }
                 }
@@ -372,12 +330,7 @@ impl Field {
                 for c in 0..C {
                     acc[c] *= v[c];
                 }
-                hits[h] = PlaneHit {
-                    idx: idx[0] as u32,
-                    row: (idx[2] - idx[0]) as u32,
-                    wts,
-                    val: v,
-                };
+                hits[h] = PlaneHit { idx: idx[0] as u32, row: (idx[2] - idx[0]) as u32, wts, val: v };
                 h += 1;
             }
             out[l * C..(l + 1) * C].copy_from_slice(&acc);
@@ -386,14 +339,7 @@ impl Field {
 
     /// Backward of [`encode`]: scatters dL/d(features) into the plane gradients;
     /// `touched[cell]` is set for every plane cell (C floats) that receives gradient.
-    pub fn encode_backward(
-        &self,
-        g: &[f32; 3],
-        t: f32,
-        d_feat: &[f32],
-        grad: &mut [f32],
-        touched: &mut [u8],
-    ) {
+    pub fn encode_backward(&self, g: &[f32; 3], t: f32, d_feat: &[f32], grad: &mut [f32], touched: &mut [u8]) {
         let mut hits = [PlaneHit::default(); 6 * 16];
         let n = self.hits_per_point();
         let mut feat = vec![0.0; self.layout.input];
@@ -403,13 +349,7 @@ impl Field {
 
     /// Backward of [`encode_recorded`] from its record.
     #[inline]
-    pub fn encode_backward_recorded(
-        &self,
-        hits: &[PlaneHit],
-        d_feat: &[f32],
-        grad: &mut [f32],
-        touched: &mut [u8],
-    ) {
+    pub fn encode_backward_recorded(&self, hits: &[PlaneHit], d_feat: &[f32], grad: &mut [f32], touched: &mut [u8]) {
         let np = self.cfg.planes();
         for (l, level_hits) in hits.chunks_exact(np).enumerate() {
             let df = &d_feat[l * C..(l + 1) * C];
@@ -456,9 +396,7 @@ impl Field {
                 let (ru, rv) = (p.ru, p.rv);
                 let w = weight / (((ru - 1) * rv + ru * (rv - 1)) * C) as f32;
                 let plane = &self.params[p.offset..p.offset + ru * rv * C];
-                let cell = |u: usize, v: usize| -> &[f32] {
-                    &plane[(v * ru + u) * C..(v * ru + u + 1) * C]
-                };
+                let cell = |u: usize, v: usize| -> &[f32] { &plane[(v * ru + u) * C..(v * ru + u + 1) * C] };
                 // Each cell's gradient depends only on its 4 neighbours, so rows are
                 // independent: one parallel task per row, each writing only its own row.
                 loss += grad[p.offset..p.offset + ru * rv * C]
@@ -516,14 +454,7 @@ impl Field {
         }
         // hid (n x h) += feat (n x inp) * W1^T (inp x h); W1 is stored h x inp.
         let w1 = &p[self.layout.w1..self.layout.b1];
-        gemm(
-            1.0,
-            Mat(feat, n, inp, inp, 1),
-            Mat(w1, inp, h, 1, inp),
-            1.0,
-            hid,
-            (h, 1),
-        );
+        gemm(1.0, Mat(feat, n, inp, inp, 1), Mat(w1, inp, h, 1, inp), 1.0, hid, (h, 1));
         for x in &mut hid[..n * h] {
             *x = x.max(0.0);
         }
@@ -532,14 +463,7 @@ impl Field {
             out[r * OUT..(r + 1) * OUT].copy_from_slice(b2);
         }
         let w2 = &p[self.layout.w2..self.layout.b2];
-        gemm(
-            1.0,
-            Mat(hid, n, h, h, 1),
-            Mat(w2, h, OUT, 1, h),
-            1.0,
-            out,
-            (OUT, 1),
-        );
+        gemm(1.0, Mat(hid, n, h, h, 1), Mat(w2, h, OUT, 1, h), 1.0, out, (OUT, 1));
     }
 
     /// Decoder backward on `n` samples. `d_out` (n x OUT) is dL/d(raw outputs); `d_hid` is
@@ -561,56 +485,28 @@ impl Field {
         let l = &self.layout;
         let (w1, w2) = (&p[l.w1..l.b1], &p[l.w2..l.b2]);
         // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
-        gemm(
-            1.0,
-            Mat(d_out, OUT, n, 1, OUT),
-            Mat(hid, n, h, h, 1),
-            1.0,
-            &mut grad[l.w2..l.b2],
-            (h, 1),
-        );
+        gemm(1.0, Mat(d_out, OUT, n, 1, OUT), Mat(hid, n, h, h, 1), 1.0, &mut grad[l.w2..l.b2], (h, 1));
         for r in 0..n {
             for k in 0..OUT {
                 grad[l.b2 + k] += d_out[r * OUT + k];
             }
         }
         // d_hid (n x h) = d_out (n x OUT) * W2 (OUT x h), masked by ReLU.
-        gemm(
-            1.0,
-            Mat(d_out, n, OUT, OUT, 1),
-            Mat(w2, OUT, h, h, 1),
-            0.0,
-            d_hid,
-            (h, 1),
-        );
+        gemm(1.0, Mat(d_out, n, OUT, OUT, 1), Mat(w2, OUT, h, h, 1), 0.0, d_hid, (h, 1));
         for (d, &x) in d_hid[..n * h].iter_mut().zip(&hid[..n * h]) {
             if x <= 0.0 {
                 *d = 0.0;
             }
         }
         // dW1 (h x inp) += d_hid^T (h x n) * feat (n x inp)
-        gemm(
-            1.0,
-            Mat(d_hid, h, n, 1, h),
-            Mat(feat, n, inp, inp, 1),
-            1.0,
-            &mut grad[l.w1..l.b1],
-            (inp, 1),
-        );
+        gemm(1.0, Mat(d_hid, h, n, 1, h), Mat(feat, n, inp, inp, 1), 1.0, &mut grad[l.w1..l.b1], (inp, 1));
         for r in 0..n {
             for j in 0..h {
                 grad[l.b1 + j] += d_hid[r * h + j];
             }
         }
         // d_feat (n x inp) = d_hid (n x h) * W1 (h x inp)
-        gemm(
-            1.0,
-            Mat(d_hid, n, h, h, 1),
-            Mat(w1, h, inp, inp, 1),
-            0.0,
-            d_feat,
-            (inp, 1),
-        );
+        gemm(1.0, Mat(d_hid, n, h, h, 1), Mat(w1, h, inp, inp, 1), 0.0, d_feat, (inp, 1));
     }
 }
 
@@ -635,20 +531,10 @@ fn gemm(alpha: f32, a: Mat, b: Mat, beta: f32, c: &mut [f32], (rsc, csc): (usize
     // SAFETY: extents checked above; a, b and c are distinct borrows.
     unsafe {
         matrixmultiply::sgemm(
-            m,
-            k,
-            n,
-            alpha,
-            a.0.as_ptr(),
-            a.3 as isize,
-            a.4 as isize,
-            b.0.as_ptr(),
-            b.3 as isize,
-            b.4 as isize,
-            beta,
-            c.as_mut_ptr(),
-            rsc as isize,
-            csc as isize,
+            m, k, n, alpha,
+            a.0.as_ptr(), a.3 as isize, a.4 as isize,
+            b.0.as_ptr(), b.3 as isize, b.4 as isize,
+            beta, c.as_mut_ptr(), rsc as isize, csc as isize,
         );
     }
 }
@@ -667,19 +553,8 @@ pub fn activate(o: &[f32]) -> (f32, [f32; 7]) {
 /// Backward of [`activate`]: given σ, the activated values and their gradients, writes
 /// dL/d(raw outputs).
 #[inline]
-pub fn activate_backward(
-    o: &[f32],
-    sigma: f32,
-    v: &[f32],
-    d_sigma: f32,
-    d_v: &[f32],
-    d_o: &mut [f32],
-) {
-    d_o[0] = if o[0] > SIGMA_LOGIT_MIN && o[0] < SIGMA_LOGIT_MAX {
-        d_sigma * sigma
-    } else {
-        0.0
-    };
+pub fn activate_backward(o: &[f32], sigma: f32, v: &[f32], d_sigma: f32, d_v: &[f32], d_o: &mut [f32]) {
+    d_o[0] = if o[0] > SIGMA_LOGIT_MIN && o[0] < SIGMA_LOGIT_MAX { d_sigma * sigma } else { 0.0 };
     for c in 0..7 {
         d_o[c + 1] = d_v[c] * v[c] * (1.0 - v[c]);
     }
@@ -698,24 +573,10 @@ mod tests {
     fn flops_per_sample_match_a_hand_count() {
         // Static, 2 levels, hidden 16: 6 plane lookups of 4 corners x 8 channels (FMA = 2)
         // plus 8 products each = 6 x 72 = 432; decoder (16 x 16 + 16 x 8) FMAs = 768.
-        let cfg = FieldConfig {
-            resolutions: vec![16, 32],
-            time_resolutions: vec![],
-            hidden: 16,
-        };
-        assert_eq!(
-            cfg.flops_per_sample(),
-            (432.0 + 768.0, 2.0 * 768.0 + 432.0 + 6.0 * 8.0 * 3.0)
-        );
+        let cfg = FieldConfig { resolutions: vec![16, 32], time_resolutions: vec![], hidden: 16 };
+        assert_eq!(cfg.flops_per_sample(), (432.0 + 768.0, 2.0 * 768.0 + 432.0 + 6.0 * 8.0 * 3.0));
         // Dynamic, 1 level, hidden 8: 6 planes x 72 = 432; decoder (8 x 8 + 8 x 8) FMAs = 256.
-        let cfg = FieldConfig {
-            resolutions: vec![8],
-            time_resolutions: vec![4],
-            hidden: 8,
-        };
-        assert_eq!(
-            cfg.flops_per_sample(),
-            (432.0 + 256.0, 2.0 * 256.0 + 432.0 + 6.0 * 8.0 * 3.0)
-        );
+        let cfg = FieldConfig { resolutions: vec![8], time_resolutions: vec![4], hidden: 8 };
+        assert_eq!(cfg.flops_per_sample(), (432.0 + 256.0, 2.0 * 256.0 + 432.0 + 6.0 * 8.0 * 3.0));
     }
 }

@@ -4,12 +4,7 @@
 /// PSNR in dB between two RGB float images in [0,1] (same length).
 pub fn psnr(a: &[f32], b: &[f32]) -> f64 {
     assert_eq!(a.len(), b.len());
-    let mse: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| ((x - y) as f64).powi(2))
-        .sum::<f64>()
-        / a.len().max(1) as f64;
+    let mse: f64 = a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>() / a.len().max(1) as f64;
     crate::train::mse_to_psnr(mse)
 }
 
@@ -59,14 +54,8 @@ pub fn ssim(a: &[f32], b: &[f32], w: usize, h: usize) -> f64 {
             let my = y.iter().sum::<f64>() / n;
             let vx = x.iter().map(|v| (v - mx).powi(2)).sum::<f64>() / n;
             let vy = y.iter().map(|v| (v - my).powi(2)).sum::<f64>() / n;
-            let cxy = x
-                .iter()
-                .zip(&y)
-                .map(|(p, q)| (p - mx) * (q - my))
-                .sum::<f64>()
-                / n;
-            total += ((2.0 * mx * my + c1) * (2.0 * cxy + c2))
-                / ((mx * mx + my * my + c1) * (vx + vy + c2));
+            let cxy = x.iter().zip(&y).map(|(p, q)| (p - mx) * (q - my)).sum::<f64>() / n;
+            total += ((2.0 * mx * my + c1) * (2.0 * cxy + c2)) / ((mx * mx + my * my + c1) * (vx + vy + c2));
             continue;
         }
         let xx: Vec<f64> = x.iter().map(|v| v * v).collect();
@@ -80,8 +69,7 @@ pub fn ssim(a: &[f32], b: &[f32], w: usize, h: usize) -> f64 {
             let v1 = sxx[i] - m1 * m1;
             let v2 = syy[i] - m2 * m2;
             let cov = sxy[i] - m1 * m2;
-            s += ((2.0 * m1 * m2 + c1) * (2.0 * cov + c2))
-                / ((m1 * m1 + m2 * m2 + c1) * (v1 + v2 + c2));
+            s += ((2.0 * m1 * m2 + c1) * (2.0 * cov + c2)) / ((m1 * m1 + m2 * m2 + c1) * (v1 + v2 + c2));
         }
         total += s / mx.len() as f64;
     }
@@ -94,23 +82,15 @@ mod tests {
 
     #[test]
     fn identical_images_score_perfectly() {
-        let img: Vec<f32> = (0..32 * 24 * 3)
-            .map(|i| ((i * 37) % 101) as f32 / 100.0)
-            .collect();
+        let img: Vec<f32> = (0..32 * 24 * 3).map(|i| ((i * 37) % 101) as f32 / 100.0).collect();
         assert!((ssim(&img, &img, 32, 24) - 1.0).abs() < 1e-9);
         assert!(psnr(&img, &img) > 100.0);
     }
 
     #[test]
     fn noise_lowers_ssim_and_psnr_matches_definition() {
-        let a: Vec<f32> = (0..32 * 32 * 3)
-            .map(|i| ((i / 3) % 32) as f32 / 32.0)
-            .collect();
-        let b: Vec<f32> = a
-            .iter()
-            .enumerate()
-            .map(|(i, v)| v + if i % 2 == 0 { 0.1 } else { -0.1 })
-            .collect();
+        let a: Vec<f32> = (0..32 * 32 * 3).map(|i| ((i / 3) % 32) as f32 / 32.0).collect();
+        let b: Vec<f32> = a.iter().enumerate().map(|(i, v)| v + if i % 2 == 0 { 0.1 } else { -0.1 }).collect();
         // every pixel off by 0.1 -> MSE 0.01 -> 20 dB
         assert!((psnr(&a, &b) - 20.0).abs() < 1e-4);
         let s = ssim(&a, &b, 32, 32);

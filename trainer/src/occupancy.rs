@@ -62,12 +62,7 @@ impl Occupancy {
     }
 
     pub fn refresh_bits(&mut self) {
-        self.occ = self
-            .depth
-            .iter()
-            .zip(&self.allowed)
-            .map(|(&d, &a)| (a && d > OCCUPIED_DEPTH) as u8)
-            .collect();
+        self.occ = self.depth.iter().zip(&self.allowed).map(|(&d, &a)| (a && d > OCCUPIED_DEPTH) as u8).collect();
     }
 
     pub fn occupied_fraction(&self) -> f32 {
@@ -113,21 +108,14 @@ impl Occupancy {
     /// Start marching a ray: jitter in [0,1) shifts the sample lattice (stratified sampling).
     pub fn start(&self, space: &SceneSpace, ray: &Ray, jitter: f32) -> MarchState {
         let dt = self.dt_at(space, ray, ray.t0);
-        MarchState {
-            t: ray.t0 + jitter * dt,
-            done: false,
-        }
+        MarchState { t: ray.t0 + jitter * dt, done: false }
     }
 
     #[inline]
     fn dt_at(&self, space: &SceneSpace, ray: &Ray, t: f32) -> f32 {
         match space.kind {
             SceneKind::Unbounded => {
-                let p = [
-                    ray.o[0] + t * ray.d[0],
-                    ray.o[1] + t * ray.d[1],
-                    ray.o[2] + t * ray.d[2],
-                ];
+                let p = [ray.o[0] + t * ray.d[0], ray.o[1] + t * ray.d[1], ray.o[2] + t * ray.d[2]];
                 unbounded_dt(self.step, p)
             }
             _ => self.step / grid_speed(space, ray),
@@ -135,14 +123,7 @@ impl Occupancy {
     }
 
     /// Append up to `max` occupied samples of `ray` to `out`, continuing from `state`.
-    pub fn march(
-        &self,
-        space: &SceneSpace,
-        ray: &Ray,
-        state: &mut MarchState,
-        max: usize,
-        out: &mut Vec<Sample>,
-    ) {
+    pub fn march(&self, space: &SceneSpace, ray: &Ray, state: &mut MarchState, max: usize, out: &mut Vec<Sample>) {
         if state.done {
             return;
         }
@@ -159,24 +140,12 @@ impl Occupancy {
                 state.done = true;
                 break;
             }
-            let p = [
-                ray.o[0] + t * ray.d[0],
-                ray.o[1] + t * ray.d[1],
-                ray.o[2] + t * ray.d[2],
-            ];
+            let p = [ray.o[0] + t * ray.d[0], ray.o[1] + t * ray.d[1], ray.o[2] + t * ray.d[2]];
             let g = space.to_grid(p);
-            let dt = if affine {
-                self.step / speed
-            } else {
-                unbounded_dt(self.step, p)
-            };
+            let dt = if affine { self.step / speed } else { unbounded_dt(self.step, p) };
             match self.cell(&g) {
                 Some(c) if self.occ[c] != 0 => {
-                    out.push(Sample {
-                        g,
-                        delta: dt * dlen,
-                        t,
-                    });
+                    out.push(Sample { g, delta: dt * dlen, t });
                     taken += 1;
                     t += dt;
                 }

@@ -91,14 +91,7 @@ pub struct ChunkStats {
 }
 
 /// Names of the timed phases in [`ChunkStats::ns`].
-pub const PHASES: [&str; 6] = [
-    "march",
-    "encode",
-    "decode",
-    "composite+view",
-    "decode backward",
-    "encode backward",
-];
+pub const PHASES: [&str; 6] = ["march", "encode", "decode", "composite+view", "decode backward", "encode backward"];
 
 impl ChunkStats {
     pub fn merge(self, b: ChunkStats) -> ChunkStats {
@@ -128,11 +121,7 @@ fn lap(t: &mut std::time::Instant) -> u64 {
 impl Workspace {
     /// A workspace whose gradient buffer fits `params` parameters.
     pub fn new(params: usize) -> Workspace {
-        Workspace {
-            grad: vec![0.0; params],
-            touched: vec![0; params / crate::field::C],
-            ..Default::default()
-        }
+        Workspace { grad: vec![0.0; params], touched: vec![0; params / crate::field::C], ..Default::default() }
     }
 
     fn reset(&mut self, n_rays: usize) {
@@ -233,8 +222,7 @@ impl Workspace {
                 self.depth_sum[ri] += composite::optical_depth(sg, self.samples[k].delta);
             }
             let (states, depth_sum) = (&self.states, &self.depth_sum);
-            self.live
-                .retain(|&ri| !states[ri as usize].done && depth_sum[ri as usize] < log_terminate);
+            self.live.retain(|&ri| !states[ri as usize].done && depth_sum[ri as usize] < log_terminate);
             ns[2] += lap(&mut clock);
         }
     }
@@ -269,10 +257,7 @@ pub use snerf_geometry::silhouette::subpixel_grid;
 fn ray_colour(field: &Field, ws: &mut Workspace, ri: usize, ray: &Ray, bg: &[f32; 3]) -> [f32; 3] {
     ws.gather(ri);
     let comp = composite::forward(&ws.c_sigma, &ws.c_delta, &ws.c_v);
-    let (spec, _) = field
-        .layout
-        .view
-        .forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
+    let (spec, _) = field.layout.view.forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
     shade(&comp.value, comp.t_final, &spec, bg)
 }
 
@@ -289,12 +274,7 @@ pub fn render_chunk(
     let view: &ViewLayout = &field.layout.view;
     for (ri, task) in tasks.iter().enumerate() {
         let Some(ray) = task.ray else {
-            results[ri] = RayResult {
-                rgb: task.bg,
-                depth: 0.0,
-                opacity: 0.0,
-                samples: 0,
-            };
+            results[ri] = RayResult { rgb: task.bg, depth: 0.0, opacity: 0.0, samples: 0 };
             continue;
         };
         ws.gather(ri);
@@ -302,12 +282,7 @@ pub fn render_chunk(
         let (spec, _) = view.forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
         // expected depth
         let mut depth = 0.0f32;
-        composite::weights(
-            &ws.c_sigma,
-            &ws.c_delta,
-            &mut ws.c_dsigma,
-            &mut ws.c_scratch,
-        );
+        composite::weights(&ws.c_sigma, &ws.c_delta, &mut ws.c_dsigma, &mut ws.c_scratch);
         for (j, &k) in ws.ray_samples[ri].iter().enumerate() {
             depth += ws.c_dsigma[j] * ws.samples[k as usize].t;
         }
@@ -338,16 +313,8 @@ pub fn train_chunk(
     distortion: f32,
     groups: &[u16],
 ) -> ChunkStats {
-    let pixels = if groups.is_empty() {
-        tasks.len()
-    } else {
-        groups.len()
-    };
-    let mut stats = ChunkStats {
-        rays: tasks.len() as u64,
-        pixels: pixels as u64,
-        ..Default::default()
-    };
+    let pixels = if groups.is_empty() { tasks.len() } else { groups.len() };
+    let mut stats = ChunkStats { rays: tasks.len() as u64, pixels: pixels as u64, ..Default::default() };
     ws.forward_field(field, space, occ, tasks, true, &mut stats.ns);
     let mut clock = std::time::Instant::now();
     let n = ws.samples.len();
@@ -365,10 +332,7 @@ pub fn train_chunk(
         // A pixel is the mean of its k rays: its loss is (mean - target)^2, so each ray's
         // colour gradient is 2 (mean - target) / k.
         if ri == group_end {
-            k = next_group
-                .next()
-                .map_or(1, |&g| g.max(1) as usize)
-                .min(tasks.len() - ri);
+            k = next_group.next().map_or(1, |&g| g.max(1) as usize).min(tasks.len() - ri);
             group_end = ri + k;
             if k > 1 {
                 let mut m = [0.0f32; 3];
@@ -461,29 +425,14 @@ pub fn train_chunk(
             let k = k as usize;
             let o = &ws.out[k * OUT..(k + 1) * OUT];
             let v = &ws.c_v[j];
-            activate_backward(
-                o,
-                ws.c_sigma[j],
-                &v[..7],
-                ws.c_dsigma[j],
-                &ws.c_dv[j][..7],
-                &mut ws.d_out[k * OUT..(k + 1) * OUT],
-            );
+            activate_backward(o, ws.c_sigma[j], &v[..7], ws.c_dsigma[j], &ws.c_dv[j][..7], &mut ws.d_out[k * OUT..(k + 1) * OUT]);
         }
     }
     stats.ns[3] += lap(&mut clock);
     if n > 0 {
         ws.d_hid.resize(n * h, 0.0);
         ws.d_feat.resize(n * inp, 0.0);
-        field.decode_backward(
-            n,
-            &ws.feat[..n * inp],
-            &ws.hid[..n * h],
-            &ws.d_out,
-            &mut ws.d_hid,
-            &mut ws.d_feat,
-            &mut ws.grad,
-        );
+        field.decode_backward(n, &ws.feat[..n * inp], &ws.hid[..n * h], &ws.d_out, &mut ws.d_hid, &mut ws.d_feat, &mut ws.grad);
         stats.ns[4] += lap(&mut clock);
         let nh = field.hits_per_point();
         const AHEAD: usize = 4;
@@ -505,13 +454,7 @@ pub fn train_chunk(
 
 /// Decode the field at many grid points, in batches of 1024; `f(k, raw_outputs)` sees each
 /// point's raw decoder outputs (OUT values).
-fn decode_points(
-    field: &Field,
-    points: &[[f32; 3]],
-    times: &[f32],
-    ws: &mut Workspace,
-    mut f: impl FnMut(usize, &[f32]),
-) {
+fn decode_points(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, mut f: impl FnMut(usize, &[f32])) {
     let (inp, h) = (field.layout.input, field.layout.hidden);
     const B: usize = 1024;
     for (bi, chunk) in points.chunks(B).enumerate() {
@@ -522,12 +465,7 @@ fn decode_points(
         for (k, g) in chunk.iter().enumerate() {
             field.encode(g, times[bi * B + k], &mut ws.feat[k * inp..(k + 1) * inp]);
         }
-        field.decode_forward(
-            n,
-            &ws.feat[..n * inp],
-            &mut ws.hid[..n * h],
-            &mut ws.out[..n * OUT],
-        );
+        field.decode_forward(n, &ws.feat[..n * inp], &mut ws.hid[..n * h], &mut ws.out[..n * OUT]);
         for k in 0..n {
             f(bi * B + k, &ws.out[k * OUT..(k + 1) * OUT]);
         }
@@ -535,25 +473,13 @@ fn decode_points(
 }
 
 /// σ at many grid points (occupancy refresh): forward only, in batches.
-pub fn density_batch(
-    field: &Field,
-    points: &[[f32; 3]],
-    times: &[f32],
-    ws: &mut Workspace,
-    out: &mut [f32],
-) {
+pub fn density_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, out: &mut [f32]) {
     decode_points(field, points, times, ws, |i, o| out[i] = activate(o).0);
 }
 
 /// Everything the baker stores, at many grid points: the density logit (clamped to the
 /// field's range, so σ = exp(logit)) and the 7 activated values (diffuse rgb, 4 features).
-pub fn values_batch(
-    field: &Field,
-    points: &[[f32; 3]],
-    times: &[f32],
-    ws: &mut Workspace,
-    out: &mut [[f32; 8]],
-) {
+pub fn values_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, out: &mut [[f32; 8]]) {
     decode_points(field, points, times, ws, |i, o| {
         let (_, v) = activate(o);
         out[i][0] = o[0].clamp(crate::field::SIGMA_LOGIT_MIN, crate::field::SIGMA_LOGIT_MAX);
@@ -618,9 +544,7 @@ impl WorkspacePool {
 
     /// The calling thread's workspace.
     pub fn with<R>(&self, f: impl FnOnce(&mut Workspace) -> R) -> R {
-        let i = rayon::current_thread_index()
-            .unwrap_or(0)
-            .min(self.slots.len() - 1);
+        let i = rayon::current_thread_index().unwrap_or(0).min(self.slots.len() - 1);
         let mut ws = self.slots[i].lock().unwrap_or_else(|e| e.into_inner());
         f(&mut ws)
     }

@@ -15,9 +15,7 @@ use crate::run_dir::RunDir;
 use crate::train::{CurvePoint, StepStats, TrainConfig, Trainer};
 
 /// When to measure test PSNR (training seconds); after the last, every 60 s.
-pub const EVAL_AT: [f64; 12] = [
-    2.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0,
-];
+pub const EVAL_AT: [f64; 12] = [2.0, 5.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0, 120.0, 180.0, 240.0];
 
 #[derive(Clone, Debug)]
 pub struct RunOptions {
@@ -49,11 +47,7 @@ pub fn open(data: &Dataset, cfg: TrainConfig, dir: &Path, resume: bool) -> Resul
             "{}: checkpoint is for a {:?}{} scene, the data is {:?}{}",
             ck.display(),
             c.model.space.kind,
-            if c.model.space.dynamic {
-                " dynamic"
-            } else {
-                ""
-            },
+            if c.model.space.dynamic { " dynamic" } else { "" },
             data.kind,
             if data.dynamic { " dynamic" } else { "" }
         );
@@ -74,14 +68,8 @@ pub fn open(data: &Dataset, cfg: TrainConfig, dir: &Path, resume: bool) -> Resul
 }
 
 fn progress(t: &Trainer, o: &RunOptions) -> f64 {
-    let a = o
-        .steps
-        .map(|s| t.step as f64 / s.max(1) as f64)
-        .unwrap_or(0.0);
-    let b = o
-        .seconds
-        .map(|s| t.train_seconds / s.max(1e-9))
-        .unwrap_or(0.0);
+    let a = o.steps.map(|s| t.step as f64 / s.max(1) as f64).unwrap_or(0.0);
+    let b = o.seconds.map(|s| t.train_seconds / s.max(1e-9)).unwrap_or(0.0);
     a.max(b)
 }
 
@@ -98,16 +86,15 @@ pub fn run(
     opts: &RunOptions,
     on_step: &mut dyn FnMut(&Trainer, &StepStats, f64),
 ) -> Result<()> {
-    std::fs::create_dir_all(&opts.dir)
-        .with_context(|| format!("{}: cannot create run directory", opts.dir.display()))?;
+    std::fs::create_dir_all(&opts.dir).with_context(|| format!("{}: cannot create run directory", opts.dir.display()))?;
     let pixels = crate::eval::sample_pixels(&data.test, opts.curve_pixels, 0x7e57);
     let has_alpha = t.has_alpha();
     let mut next_eval = next_eval_after(t.train_seconds);
     let mut last_ckpt = t.train_seconds;
     let mut recent = StepStats::default();
     let measure = |t: &mut Trainer, last: &StepStats| {
-        let test_psnr = (!pixels.is_empty())
-            .then(|| sampled_psnr(&t.model, &t.pool, &data.test, has_alpha, &pixels));
+        let test_psnr =
+            (!pixels.is_empty()).then(|| sampled_psnr(&t.model, &t.pool, &data.test, has_alpha, &pixels));
         t.curve.push(CurvePoint {
             step: t.step,
             train_seconds: t.train_seconds,
@@ -170,11 +157,7 @@ pub fn run(
 }
 
 fn next_eval_after(s: f64) -> f64 {
-    EVAL_AT
-        .iter()
-        .cloned()
-        .find(|&e| e > s)
-        .unwrap_or(((s / 60.0).floor() + 1.0) * 60.0)
+    EVAL_AT.iter().cloned().find(|&e| e > s).unwrap_or(((s / 60.0).floor() + 1.0) * 60.0)
 }
 
 /// Checkpoint + metrics.json + config.json, each written atomically.

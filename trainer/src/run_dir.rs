@@ -62,12 +62,7 @@ impl RunDir {
 
     /// The files of the run that no command may overwrite through an `--out`.
     pub fn files(&self) -> Vec<PathBuf> {
-        vec![
-            self.checkpoint(),
-            self.metrics(),
-            self.config(),
-            self.stylize_record(),
-        ]
+        vec![self.checkpoint(), self.metrics(), self.config(), self.stylize_record()]
     }
 
     /// The dataset the run was trained on: `dataset.root` of config.json, or for a
@@ -76,13 +71,9 @@ impl RunDir {
         if !self.path.is_dir() {
             bail!("{}: no such run directory (expected the --out of `snerf train` or `snerf stylize`)", self.path.display());
         }
-        for (file, pointer) in [
-            (self.config(), "/dataset/root"),
-            (self.stylize_record(), "/options/data"),
-        ] {
+        for (file, pointer) in [(self.config(), "/dataset/root"), (self.stylize_record(), "/options/data")] {
             if let Ok(bytes) = std::fs::read(&file) {
-                let v: Value = serde_json::from_slice(&bytes)
-                    .with_context(|| format!("{}: not JSON", file.display()))?;
+                let v: Value = serde_json::from_slice(&bytes).with_context(|| format!("{}: not JSON", file.display()))?;
                 if let Some(root) = v.pointer(pointer).and_then(|r| r.as_str()) {
                     let root = PathBuf::from(root);
                     // Runs trained before roots were recorded absolute hold the path as it
@@ -110,11 +101,7 @@ impl RunDir {
     pub fn load_model(&self) -> Result<(Model, WorkspacePool)> {
         let path = self.checkpoint();
         if !path.exists() {
-            bail!(
-                "{}: no checkpoint here (expected {}); run `snerf train` first",
-                self.path.display(),
-                path.display()
-            );
+            bail!("{}: no checkpoint here (expected {}); run `snerf train` first", self.path.display(), path.display());
         }
         let ck = checkpoint::load(&path)?;
         let pool = WorkspacePool::new(ck.model.field.params.len());
@@ -159,30 +146,18 @@ mod tests {
                 })
                 .collect();
             let doc = serde_json::json!({ "camera_angle_x": 0.7, "frames": frames });
-            std::fs::write(
-                dir.join(format!("transforms_{split}.json")),
-                doc.to_string(),
-            )
-            .unwrap();
+            std::fs::write(dir.join(format!("transforms_{split}.json")), doc.to_string()).unwrap();
         }
     }
 
     #[test]
     fn a_missing_checkpoint_or_directory_is_named_in_the_error() {
         let d = tmp("missing");
-        let Err(e) = RunDir::new(&d).load_model() else {
-            panic!("a model from an empty directory")
-        };
+        let Err(e) = RunDir::new(&d).load_model() else { panic!("a model from an empty directory") };
         let e = format!("{e:#}");
-        assert!(
-            e.contains(&RunDir::new(&d).checkpoint().display().to_string()),
-            "{e}"
-        );
+        assert!(e.contains(&RunDir::new(&d).checkpoint().display().to_string()), "{e}");
         let e = format!("{:#}", RunDir::new(&d).dataset().unwrap_err());
-        assert!(
-            e.contains(&d.display().to_string()) && e.contains(RunDir::CONFIG),
-            "{e}"
-        );
+        assert!(e.contains(&d.display().to_string()) && e.contains(RunDir::CONFIG), "{e}");
         let gone = d.join("no-such-run");
         let e = format!("{:#}", RunDir::new(&gone).dataset().unwrap_err());
         assert!(e.contains(&gone.display().to_string()), "{e}");
@@ -199,13 +174,7 @@ mod tests {
         cfg.field.resolutions = vec![8, 16];
         cfg.batch_rays = 256;
         cfg.batch_samples = 0;
-        let opts = RunOptions {
-            dir: d.join("run"),
-            steps: Some(3),
-            seconds: None,
-            curve_pixels: 64,
-            checkpoint_every: 1e9,
-        };
+        let opts = RunOptions { dir: d.join("run"), steps: Some(3), seconds: None, curve_pixels: 64, checkpoint_every: 1e9 };
         let mut t = run::open(&data, cfg, &opts.dir, false).unwrap();
         run::run(&mut t, &data, &opts, &mut |_, _, _| {}).unwrap();
 
@@ -225,21 +194,14 @@ mod tests {
         run::save(&t, &rel, &opts).unwrap();
         let config: Value = serde_json::from_slice(&std::fs::read(dir.config()).unwrap()).unwrap();
         let recorded = PathBuf::from(config["dataset"]["root"].as_str().unwrap());
-        assert!(
-            recorded.is_absolute() && recorded.ends_with("datasets/some-scene"),
-            "{}",
-            recorded.display()
-        );
+        assert!(recorded.is_absolute() && recorded.ends_with("datasets/some-scene"), "{}", recorded.display());
         assert_eq!(dir.dataset().unwrap(), recorded);
         // A run recorded before that (a relative path that is not there) gets a clear error.
         let mut old = config.clone();
         old["dataset"]["root"] = "datasets/some-scene".into();
         std::fs::write(dir.config(), serde_json::to_vec(&old).unwrap()).unwrap();
         let e = format!("{:#}", dir.dataset().unwrap_err());
-        assert!(
-            e.contains("relative path datasets/some-scene") && e.contains("--data"),
-            "{e}"
-        );
+        assert!(e.contains("relative path datasets/some-scene") && e.contains("--data"), "{e}");
         std::fs::remove_dir_all(&d).ok();
     }
 }

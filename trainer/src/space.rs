@@ -13,9 +13,7 @@ use serde::{Deserialize, Serialize};
 use snerf_data::{Dataset, Intrinsics, SceneKind, View};
 pub use snerf_geometry::camera::{forward_axis as c2w_forward, position as c2w_position};
 pub use snerf_geometry::march::{UNBOUNDED_FAR, UNBOUNDED_NEAR};
-pub use snerf_geometry::vec::{
-    add, cross, dot, mat_vec, norm, normalize, scale, sub, Vec3, IDENTITY,
-};
+pub use snerf_geometry::vec::{add, cross, dot, mat_vec, norm, normalize, scale, sub, Vec3, IDENTITY};
 pub use snerf_geometry::{box_hit, contract, uncontract, Ndc, Orbit, Space};
 
 /// The mapping world -> model -> grid for one scene, and where to look at it from.
@@ -51,11 +49,7 @@ impl SceneSpace {
     /// Choose the mapping from the dataset: its kind, its box hint, or its camera layout.
     pub fn from_dataset(data: &Dataset) -> anyhow::Result<SceneSpace> {
         let views: Vec<&View> = data.train.iter().collect();
-        anyhow::ensure!(
-            !views.is_empty(),
-            "{}: no training views",
-            data.root.display()
-        );
+        anyhow::ensure!(!views.is_empty(), "{}: no training views", data.root.display());
         let times: Vec<f32> = views.iter().filter_map(|v| v.time).collect();
         let time_range = if data.dynamic && !times.is_empty() {
             let lo = times.iter().cloned().fold(f32::INFINITY, f32::min);
@@ -75,11 +69,7 @@ impl SceneSpace {
                     }
                     None => estimate_region(&views),
                 };
-                anyhow::ensure!(
-                    half.is_finite() && half > 0.0,
-                    "{}: degenerate scene box",
-                    data.root.display()
-                );
+                anyhow::ensure!(half.is_finite() && half > 0.0, "{}: degenerate scene box", data.root.display());
                 (center, identity, 1.0 / half, None)
             }
             SceneKind::Forward => {
@@ -103,55 +93,26 @@ impl SceneSpace {
                         best.max(1e-3)
                     }
                     (None, None) => {
-                        let spread = views
-                            .iter()
-                            .map(|v| norm(sub(position(v), center)))
-                            .fold(0.0f32, f32::max);
+                        let spread = views.iter().map(|v| norm(sub(position(v), center))).fold(0.0f32, f32::max);
                         (spread * 10.0).max(1e-3)
                     }
                 };
                 // LLFF convention: scale so the nearest content sits at depth 1/0.75.
                 let s = 1.0 / (near * 0.75);
                 let v0 = views[0].intrinsics;
-                let ndc = Ndc {
-                    fx: v0.fx,
-                    fy: v0.fy,
-                    width: v0.width as f32,
-                    height: v0.height as f32,
-                    near: 1.0,
-                    xy_extent: 1.25,
-                };
+                let ndc = Ndc { fx: v0.fx, fy: v0.fy, width: v0.width as f32, height: v0.height as f32, near: 1.0, xy_extent: 1.25 };
                 (center, rot, s, Some(ndc))
             }
         };
-        let frame = Space {
-            center,
-            rot,
-            scale,
-            ndc,
-        };
-        let orbit = Some(crate::camera_path::preview_orbit(
-            data.kind, &frame, &views, None,
-        ));
-        Ok(SceneSpace {
-            kind: data.kind,
-            dynamic: data.dynamic,
-            frame,
-            time_range,
-            orbit,
-        })
+        let frame = Space { center, rot, scale, ndc };
+        let orbit = Some(crate::camera_path::preview_orbit(data.kind, &frame, &views, None));
+        Ok(SceneSpace { kind: data.kind, dynamic: data.dynamic, frame, time_range, orbit })
     }
 
     /// The identity mapping: world = model, with `kind`'s grid mapping (a unit box for
     /// objects, the contraction for unbounded scenes). For tests and synthetic setups.
     pub fn identity(kind: SceneKind, dynamic: bool) -> SceneSpace {
-        SceneSpace {
-            kind,
-            dynamic,
-            frame: Space::identity(),
-            time_range: (0.0, 1.0),
-            orbit: None,
-        }
+        SceneSpace { kind, dynamic, frame: Space::identity(), time_range: (0.0, 1.0), orbit: None }
     }
 
     /// World point to model point.
@@ -195,14 +156,7 @@ impl SceneSpace {
 
     /// The ray through pixel (px, py) (pixel centres at +0.5) of a camera, in march space.
     /// `None` when it cannot meet the field (misses the box, or points away in NDC).
-    pub fn ray(
-        &self,
-        c2w: &[[f32; 4]; 3],
-        k: &Intrinsics,
-        px: f32,
-        py: f32,
-        time: Option<f32>,
-    ) -> Option<Ray> {
+    pub fn ray(&self, c2w: &[[f32; 4]; 3], k: &Intrinsics, px: f32, py: f32, time: Option<f32>) -> Option<Ray> {
         let (xu, yu) = undistort((px - k.cx) / k.fx, (py - k.cy) / k.fy, &k.distortion);
         // OpenGL camera: x right, y up, looking down -z.
         let dw = snerf_geometry::camera::camera_dir_to_world(c2w, [xu, -yu, -1.0]);
@@ -212,14 +166,7 @@ impl SceneSpace {
 
     pub fn world_ray(&self, ow: Vec3, dw: Vec3, time: Option<f32>) -> Option<Ray> {
         let r = self.frame.march_ray(self.kind, ow, dw)?;
-        Some(Ray {
-            o: r.o,
-            d: r.d,
-            t0: r.t0,
-            t1: r.t1,
-            dir: dw,
-            time: self.field_time(time),
-        })
+        Some(Ray { o: r.o, d: r.d, t0: r.t0, t1: r.t1, dir: dw, time: self.field_time(time) })
     }
 }
 
@@ -304,8 +251,7 @@ fn estimate_region(views: &[&View]) -> (Vec3, f32) {
     let mut sizes: Vec<f32> = views
         .iter()
         .map(|v| {
-            let half_fov =
-                (0.5 * v.intrinsics.width.min(v.intrinsics.height) as f32 / v.intrinsics.fx).atan();
+            let half_fov = (0.5 * v.intrinsics.width.min(v.intrinsics.height) as f32 / v.intrinsics.fx).atan();
             norm(sub(position(v), c)) * half_fov.tan()
         })
         .collect();
@@ -314,8 +260,7 @@ fn estimate_region(views: &[&View]) -> (Vec3, f32) {
 }
 
 fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<Vec3> {
-    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
-        - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
         + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
     if det.abs() < 1e-9 {
         return None;
@@ -326,8 +271,7 @@ fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<Vec3> {
         for i in 0..3 {
             m[i][k] = b[i];
         }
-        let dk = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        let dk = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
         *xk = (dk / det) as f32;
     }

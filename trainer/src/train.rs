@@ -74,12 +74,7 @@ impl TrainConfig {
     /// Defaults that suit the dataset: plane resolution follows image resolution, time planes
     /// only for dynamic scenes.
     pub fn for_dataset(data: &Dataset) -> TrainConfig {
-        let max_dim = data
-            .train
-            .iter()
-            .map(|v| v.intrinsics.width.max(v.intrinsics.height))
-            .max()
-            .unwrap_or(128);
+        let max_dim = data.train.iter().map(|v| v.intrinsics.width.max(v.intrinsics.height)).max().unwrap_or(128);
         let finest = match (data.kind, data.dynamic, pixels_across_box(data)) {
             // A static object: one plane cell per pixel that the views see across the scene's
             // box (the median view). Finer cells than the views sample are constrained by no
@@ -90,11 +85,7 @@ impl TrainConfig {
             // About two plane cells per pixel across the object / the contracted inner cube;
             // forward-facing NDC spans exactly the image, so one cell per pixel.
             _ => {
-                let per_pixel = if data.kind == SceneKind::Forward {
-                    1
-                } else {
-                    2
-                };
+                let per_pixel = if data.kind == SceneKind::Forward { 1 } else { 2 };
                 (per_pixel * max_dim).next_power_of_two().clamp(128, 512)
             }
         };
@@ -117,35 +108,15 @@ impl TrainConfig {
             occupancy_res: 64,
             steps_per_diagonal: 512,
             occupancy_every: 16,
-            distortion: if data.kind == SceneKind::Object {
-                0.0
-            } else {
-                0.01
-            },
-            tv: if data.kind == SceneKind::Object && !data.dynamic {
-                1e-3
-            } else {
-                0.0
-            },
+            distortion: if data.kind == SceneKind::Object { 0.0 } else { 0.01 },
+            tv: if data.kind == SceneKind::Object && !data.dynamic { 1e-3 } else { 0.0 },
             freeze_geometry: false,
             freeze_view: false,
             seed: 0,
-            field: FieldConfig {
-                resolutions,
-                time_resolutions,
-                hidden: 32,
-            },
+            field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
             // Static objects only: forward, unbounded and dynamic scenes were not re-measured.
-            pixel_rays: if data.kind == SceneKind::Object && !data.dynamic {
-                4
-            } else {
-                1
-            },
-            pixel_footprint: if data.kind == SceneKind::Object && !data.dynamic {
-                train_pixel_footprint(data)
-            } else {
-                None
-            },
+            pixel_rays: if data.kind == SceneKind::Object && !data.dynamic { 4 } else { 1 },
+            pixel_footprint: if data.kind == SceneKind::Object && !data.dynamic { train_pixel_footprint(data) } else { None },
         }
     }
 }
@@ -155,24 +126,15 @@ impl TrainConfig {
     /// they fail with a message instead of a panic deep inside a step.
     pub fn validate(&self) -> Result<()> {
         let pos = |name: &str, v: f32| {
-            anyhow::ensure!(
-                v.is_finite() && v > 0.0,
-                "training setting {name} must be a positive number (is {v})"
-            );
+            anyhow::ensure!(v.is_finite() && v > 0.0, "training setting {name} must be a positive number (is {v})");
             Ok(())
         };
         let nonneg = |name: &str, v: f32| {
-            anyhow::ensure!(
-                v.is_finite() && v >= 0.0,
-                "training setting {name} must be a number >= 0 (is {v})"
-            );
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "training setting {name} must be a number >= 0 (is {v})");
             Ok(())
         };
         let count = |name: &str, v: usize, max: usize| {
-            anyhow::ensure!(
-                (1..=max).contains(&v),
-                "training setting {name} must be in 1..={max} (is {v})"
-            );
+            anyhow::ensure!((1..=max).contains(&v), "training setting {name} must be in 1..={max} (is {v})");
             Ok(())
         };
         pos("lr_planes", self.lr_planes)?;
@@ -182,28 +144,16 @@ impl TrainConfig {
         nonneg("tv", self.tv)?;
         count("batch_rays", self.batch_rays, 1 << 20)?;
         count("max_batch_rays", self.max_batch_rays, 1 << 20)?;
-        anyhow::ensure!(
-            self.batch_samples <= 1 << 24,
-            "training setting batch_samples must be at most {} (is {})",
-            1 << 24,
-            self.batch_samples
-        );
+        anyhow::ensure!(self.batch_samples <= 1 << 24, "training setting batch_samples must be at most {} (is {})", 1 << 24, self.batch_samples);
         count("chunk_rays", self.chunk_rays, 1 << 16)?;
         count("occupancy_res", self.occupancy_res, 1024)?;
         count("steps_per_diagonal", self.steps_per_diagonal, 1 << 16)?;
         count("occupancy_every", self.occupancy_every as usize, 1 << 20)?;
         count("pixel_rays", self.pixel_rays, MAX_PIXEL_RAYS)?;
         let side = (self.pixel_rays as f64).sqrt().round() as usize;
-        anyhow::ensure!(
-            side * side == self.pixel_rays,
-            "training setting pixel_rays must be a square number: 1, 4, 9 or 16 (is {})",
-            self.pixel_rays
-        );
+        anyhow::ensure!(side * side == self.pixel_rays, "training setting pixel_rays must be a square number: 1, 4, 9 or 16 (is {})", self.pixel_rays);
         let f = &self.field;
-        anyhow::ensure!(
-            !f.resolutions.is_empty() && f.resolutions.len() <= 8,
-            "training setting field.resolutions must have 1..=8 levels"
-        );
+        anyhow::ensure!(!f.resolutions.is_empty() && f.resolutions.len() <= 8, "training setting field.resolutions must have 1..=8 levels");
         for &r in f.resolutions.iter().chain(&f.time_resolutions) {
             count("a plane resolution", r as usize, 4096)?;
         }
@@ -211,11 +161,7 @@ impl TrainConfig {
             f.time_resolutions.is_empty() || f.time_resolutions.len() == f.resolutions.len(),
             "training setting field.time_resolutions must be empty or have one entry per level"
         );
-        anyhow::ensure!(
-            f.hidden >= 4 && f.hidden <= 1024 && f.hidden.is_multiple_of(4),
-            "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})",
-            f.hidden
-        );
+        anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden.is_multiple_of(4), "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
         Ok(())
     }
 }
@@ -228,10 +174,7 @@ pub use snerf_geometry::silhouette::MAX_PIXEL_RAYS;
 /// coverage-weighted mean over the pixel's square (what a supersampling renderer or a camera
 /// sensor records), which no single ray through the centre of a sharp edge can return.
 pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
-    let total: usize = views
-        .iter()
-        .map(|v| (v.intrinsics.width * v.intrinsics.height) as usize)
-        .sum();
+    let total: usize = views.iter().map(|v| (v.intrinsics.width * v.intrinsics.height) as usize).sum();
     let mut bits = vec![0u64; total.div_ceil(64)];
     let mut base = 0usize;
     for v in views {
@@ -252,20 +195,12 @@ pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
 
 /// The training views' median pixel footprint at the scene's centre (world units).
 pub fn train_pixel_footprint(data: &Dataset) -> Option<f32> {
-    views_pixel_footprint(
-        &data.train,
-        SceneSpace::from_dataset(data).ok()?.frame.center,
-    )
+    views_pixel_footprint(&data.train, SceneSpace::from_dataset(data).ok()?.frame.center)
 }
 
 /// The median pixel footprint of `views` at the scene's centre `centre` (world units).
 pub fn views_pixel_footprint(views: &[View], centre: [f32; 3]) -> Option<f32> {
-    snerf_geometry::silhouette::median_footprint(
-        views
-            .iter()
-            .map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)),
-        centre,
-    )
+    snerf_geometry::silhouette::median_footprint(views.iter().map(|v| (snerf_geometry::camera::position(&v.c2w), v.intrinsics.fx)), centre)
 }
 
 /// How many pixels the scene's box spans across in the median training view: the finest detail
@@ -281,10 +216,7 @@ pub fn pixels_across_box(data: &Dataset) -> Option<f32> {
         .train
         .iter()
         .map(|v| {
-            let d = crate::space::norm(crate::space::sub(
-                crate::space::position(v),
-                space.frame.center,
-            ));
+            let d = crate::space::norm(crate::space::sub(crate::space::position(v), space.frame.center));
             side * v.intrinsics.fx.max(v.intrinsics.fy) / d
         })
         .filter(|p| p.is_finite() && *p > 0.0)
@@ -369,9 +301,7 @@ pub fn mse_to_psnr(mse: f64) -> f64 {
 
 /// True when any training image has transparent pixels (a bounded object on no background).
 pub fn views_have_alpha(views: &[View]) -> bool {
-    views
-        .iter()
-        .any(|v| v.rgba.chunks_exact(4).any(|p| p[3] < 255))
+    views.iter().any(|v| v.rgba.chunks_exact(4).any(|p| p[3] < 255))
 }
 
 impl Trainer {
@@ -381,18 +311,7 @@ impl Trainer {
         let field = Field::new(cfg.field.clone(), cfg.seed)?;
         let occ = Occupancy::new(cfg.occupancy_res, cfg.steps_per_diagonal);
         let adam = Adam::new(field.params.len());
-        let mut t = Trainer::from_parts(
-            data,
-            cfg,
-            Model {
-                space,
-                field,
-                occ,
-                pixel_rays,
-                pixel_footprint,
-            },
-            adam,
-        )?;
+        let mut t = Trainer::from_parts(data, cfg, Model { space, field, occ, pixel_rays, pixel_footprint }, adam)?;
         if t.model.space.kind == SceneKind::Object && t.has_alpha {
             t.carve();
         }
@@ -400,17 +319,8 @@ impl Trainer {
     }
 
     /// Rebuild a trainer around saved state (resume) and the dataset's training views.
-    pub fn from_parts(
-        data: &Dataset,
-        cfg: TrainConfig,
-        mut model: Model,
-        adam: Adam,
-    ) -> Result<Trainer> {
-        anyhow::ensure!(
-            !data.train.is_empty(),
-            "{}: no training views",
-            data.root.display()
-        );
+    pub fn from_parts(data: &Dataset, cfg: TrainConfig, mut model: Model, adam: Adam) -> Result<Trainer> {
+        anyhow::ensure!(!data.train.is_empty(), "{}: no training views", data.root.display());
         cfg.validate()?;
         model.pixel_rays = cfg.pixel_rays; // the model renders as it is trained
         let views = data.train.clone();
@@ -542,38 +452,16 @@ impl Trainer {
             };
             let target = [0, 1, 2].map(|c| px[c] as f32 / 255.0 * a + bg[c] * (1.0 - a));
             if side < 2 || self.edge[p / 64] >> (p % 64) & 1 == 0 {
-                let ray = self.model.space.ray(
-                    &v.c2w,
-                    &v.intrinsics,
-                    x as f32 + 0.5,
-                    y as f32 + 0.5,
-                    v.time,
-                );
-                tasks.push(RayTask {
-                    ray,
-                    bg,
-                    target,
-                    jitter: self.rng.uniform(),
-                });
+                let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time);
+                tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
                 groups.push(1);
                 continue;
             }
             for j in 0..side * side {
                 let sx = ((j % side) as f32 + self.rng.uniform()) / side as f32;
                 let sy = ((j / side) as f32 + self.rng.uniform()) / side as f32;
-                let ray = self.model.space.ray(
-                    &v.c2w,
-                    &v.intrinsics,
-                    x as f32 + sx,
-                    y as f32 + sy,
-                    v.time,
-                );
-                tasks.push(RayTask {
-                    ray,
-                    bg,
-                    target,
-                    jitter: self.rng.uniform(),
-                });
+                let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + sx, y as f32 + sy, v.time);
+                tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
             }
             groups.push((side * side) as u16);
         }
@@ -619,21 +507,9 @@ impl Trainer {
             .into_par_iter()
             .map(|slot| {
                 pool.with_slot(slot, |ws| {
-                    chunks.iter().skip(slot).step_by(n).fold(
-                        ChunkStats::default(),
-                        |acc, (tr, gr)| {
-                            acc.merge(train_chunk(
-                                &model.field,
-                                &model.space,
-                                &model.occ,
-                                &tasks[tr.clone()],
-                                ws,
-                                loss_scale,
-                                distortion,
-                                &groups[gr.clone()],
-                            ))
-                        },
-                    )
+                    chunks.iter().skip(slot).step_by(n).fold(ChunkStats::default(), |acc, (tr, gr)| {
+                        acc.merge(train_chunk(&model.field, &model.space, &model.occ, &tasks[tr.clone()], ws, loss_scale, distortion, &groups[gr.clone()]))
+                    })
                 })
             })
             .collect::<Vec<_>>()
@@ -643,9 +519,7 @@ impl Trainer {
         let s = self.lr_scale(progress);
         let (mut grads, mut flags) = self.pool.grads();
         if self.cfg.tv > 0.0 {
-            self.model
-                .field
-                .tv_backward(self.cfg.tv, grads[0], flags[0]);
+            self.model.field.tv_backward(self.cfg.tv, grads[0], flags[0]);
         }
         let params = &mut self.model.field.params;
         let plane_end = self.model.field.layout.plane_end;
@@ -658,31 +532,17 @@ impl Trainer {
         let (sigma_row_end, b2, view) = (l.w2 + l.hidden, l.b2, l.view.w1..l.view.end);
         let geometry = if self.cfg.freeze_geometry { 0.0 } else { 1.0 };
         let view_lr = if self.cfg.freeze_view { 0.0 } else { lr };
-        self.adam.update_cells(
-            params,
-            &mut grads,
-            &mut flags,
-            crate::field::C,
-            self.cfg.lr_planes * s * geometry,
-        );
+        self.adam.update_cells(params, &mut grads, &mut flags, crate::field::C, self.cfg.lr_planes * s * geometry);
         // decoder: shared hidden layer + density row | colour rows | density bias | colour biases
-        self.adam
-            .update_dense(params, &mut grads, plane_end..sigma_row_end, lr * geometry);
-        self.adam
-            .update_dense(params, &mut grads, sigma_row_end..b2, lr);
-        self.adam
-            .update_dense(params, &mut grads, b2..b2 + 1, lr * geometry);
-        self.adam
-            .update_dense(params, &mut grads, b2 + 1..view.start, lr);
-        self.adam
-            .update_dense(params, &mut grads, view.start..view.end, view_lr);
-        self.adam
-            .update_dense(params, &mut grads, view.end..total, lr);
+        self.adam.update_dense(params, &mut grads, plane_end..sigma_row_end, lr * geometry);
+        self.adam.update_dense(params, &mut grads, sigma_row_end..b2, lr);
+        self.adam.update_dense(params, &mut grads, b2..b2 + 1, lr * geometry);
+        self.adam.update_dense(params, &mut grads, b2 + 1..view.start, lr);
+        self.adam.update_dense(params, &mut grads, view.start..view.end, view_lr);
+        self.adam.update_dense(params, &mut grads, view.end..total, lr);
         let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
-        if self.step.is_multiple_of(self.cfg.occupancy_every)
-            || (self.step < 64 && self.step.is_multiple_of(4))
-        {
+        if self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4)) {
             self.update_occupancy();
         }
         let secs = t0.elapsed().as_secs_f64();
@@ -715,10 +575,7 @@ impl Trainer {
         let res = occ.res;
         let n = res * res * res;
         let cell = 2.0 / res as f32;
-        let cells: Vec<usize> = (phase..n)
-            .step_by(stride)
-            .filter(|&i| occ.allowed[i])
-            .collect();
+        let cells: Vec<usize> = (phase..n).step_by(stride).filter(|&i| occ.allowed[i]).collect();
         let mut rng = Rng::new(self.rng.next_u64());
         let mut points = Vec::with_capacity(cells.len());
         let mut times = Vec::with_capacity(cells.len());

@@ -40,15 +40,7 @@ impl ViewLayout {
         let b2 = w2 + VH * VH;
         let w3 = b2 + VH;
         let b3 = w3 + VOUT * VH;
-        ViewLayout {
-            w1,
-            b1,
-            w2,
-            b2,
-            w3,
-            b3,
-            end: b3 + VOUT,
-        }
+        ViewLayout { w1, b1, w2, b2, w3, b3, end: b3 + VOUT }
     }
 
     pub fn init(&self, params: &mut [f32], rng: &mut Rng) {
@@ -79,40 +71,16 @@ impl ViewLayout {
 
     pub fn forward(&self, p: &[f32], x: [f32; VIN]) -> ([f32; VOUT], ViewCache) {
         let mut h1 = [0.0f32; VH];
-        dense(
-            &p[self.w1..self.b1],
-            &p[self.b1..self.w2],
-            &x,
-            &mut h1,
-            true,
-        );
+        dense(&p[self.w1..self.b1], &p[self.b1..self.w2], &x, &mut h1, true);
         let mut h2 = [0.0f32; VH];
-        dense(
-            &p[self.w2..self.b2],
-            &p[self.b2..self.w3],
-            &h1,
-            &mut h2,
-            true,
-        );
+        dense(&p[self.w2..self.b2], &p[self.b2..self.w3], &h1, &mut h2, true);
         let mut out = [0.0f32; VOUT];
-        dense(
-            &p[self.w3..self.b3],
-            &p[self.b3..self.end],
-            &h2,
-            &mut out,
-            false,
-        );
+        dense(&p[self.w3..self.b3], &p[self.b3..self.end], &h2, &mut out, false);
         (out, ViewCache { x, h1, h2 })
     }
 
     /// Accumulates weight gradients into `grad`; returns dL/d(diffuse rgb, features).
-    pub fn backward(
-        &self,
-        p: &[f32],
-        cache: &ViewCache,
-        d_out: &[f32; VOUT],
-        grad: &mut [f32],
-    ) -> [f32; 7] {
+    pub fn backward(&self, p: &[f32], cache: &ViewCache, d_out: &[f32; VOUT], grad: &mut [f32]) -> [f32; 7] {
         let mut d_h2 = [0.0f32; VH];
         for k in 0..VOUT {
             grad[self.b3 + k] += d_out[k];

@@ -36,9 +36,7 @@ fn small_field(dynamic: bool) -> Field {
 fn compositing_backward_matches_finite_differences() {
     let mut rng = Rng::new(11);
     let n = 12;
-    let sigma: Vec<f32> = (0..n)
-        .map(|i| if i == 5 { 40.0 } else { 3.0 * rng.uniform() })
-        .collect();
+    let sigma: Vec<f32> = (0..n).map(|i| if i == 5 { 40.0 } else { 3.0 * rng.uniform() }).collect();
     let delta: Vec<f32> = (0..n).map(|_| 0.05 + 0.05 * rng.uniform()).collect();
     let v: Vec<[f32; V]> = (0..n).map(|_| [0; V].map(|_| rng.uniform())).collect();
     let g: [f32; V] = [0; V].map(|_| rng.uniform() - 0.5);
@@ -49,17 +47,7 @@ fn compositing_backward_matches_finite_differences() {
     };
     let mut ds = vec![0.0; n];
     let mut dv = vec![[0.0; V]; n];
-    composite::backward(
-        &sigma,
-        &delta,
-        &v,
-        &g,
-        g_t,
-        &[],
-        &mut ds,
-        &mut dv,
-        &mut Vec::new(),
-    );
+    composite::backward(&sigma, &delta, &v, &g, g_t, &[], &mut ds, &mut dv, &mut Vec::new());
     for k in 0..n {
         let h = 1e-2 * sigma[k].max(0.1);
         let (mut a, mut b) = (sigma.clone(), sigma.clone());
@@ -93,28 +81,16 @@ fn encoding_backward_matches_finite_differences_static_and_dynamic() {
         };
         let mut grad = vec![0.0f32; f.params.len()];
         f.encode_backward(&g, t, &w, &mut grad, &mut vec![0u8; f.params.len() / 8]);
-        let touched: Vec<usize> = (0..f.layout.plane_end)
-            .filter(|&i| grad[i] != 0.0)
-            .collect();
+        let touched: Vec<usize> = (0..f.layout.plane_end).filter(|&i| grad[i] != 0.0).collect();
         // 2 levels x planes x 4 corners x C channels
-        assert_eq!(
-            touched.len(),
-            2 * f.cfg.planes() * 4 * 8,
-            "dynamic={dynamic}"
-        );
+        assert_eq!(touched.len(), 2 * f.cfg.planes() * 4 * 8, "dynamic={dynamic}");
         for &i in touched.iter().step_by(7) {
             let mut fa = f.clone();
             fa.params[i] += 1e-2;
             let mut fb = f.clone();
             fb.params[i] -= 1e-2;
             let num = (loss(&fa) - loss(&fb)) / 2e-2;
-            assert_close(
-                &format!("plane param {i} (dynamic={dynamic})"),
-                grad[i] as f64,
-                num,
-                1e-2,
-                1e-6,
-            );
+            assert_close(&format!("plane param {i} (dynamic={dynamic})"), grad[i] as f64, num, 1e-2, 1e-6);
         }
     }
 }
@@ -149,14 +125,7 @@ fn decoder_and_activation_backward_match_finite_differences() {
     for r in 0..n {
         let o = &out[r * OUT..(r + 1) * OUT];
         let (sg, v) = activate(o);
-        activate_backward(
-            o,
-            sg,
-            &v,
-            wo[r * 8],
-            &wo[r * 8 + 1..r * 8 + 8],
-            &mut d_out[r * OUT..(r + 1) * OUT],
-        );
+        activate_backward(o, sg, &v, wo[r * 8], &wo[r * 8 + 1..r * 8 + 8], &mut d_out[r * OUT..(r + 1) * OUT]);
     }
     let mut grad = vec![0.0f32; f.params.len()];
     let mut d_hid = vec![0.0; n * h];
@@ -169,13 +138,7 @@ fn decoder_and_activation_backward_match_finite_differences() {
         let mut fb = f.clone();
         fb.params[i] -= 1e-3;
         let num = (loss(&fa, &feat) - loss(&fb, &feat)) / 2e-3;
-        assert_close(
-            &format!("decoder param {i}"),
-            grad[i] as f64,
-            num,
-            2e-2,
-            2e-4,
-        );
+        assert_close(&format!("decoder param {i}"), grad[i] as f64, num, 2e-2, 2e-4);
     }
     for i in (0..n * inp).step_by(3) {
         let (mut a, mut b) = (feat.clone(), feat.clone());
@@ -240,11 +203,7 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
         let mut rng = Rng::new(13);
         let tasks: Vec<RayTask> = (0..6)
             .map(|i| {
-                let o = [
-                    3.0 * (i as f32 * 0.7).cos(),
-                    0.4 * i as f32 - 1.0,
-                    3.0 * (i as f32 * 0.7).sin(),
-                ];
+                let o = [3.0 * (i as f32 * 0.7).cos(), 0.4 * i as f32 - 1.0, 3.0 * (i as f32 * 0.7).sin()];
                 let d = snerf_trainer::space::normalize([-o[0] + 0.1, -o[1] * 0.5, -o[2]]);
                 RayTask {
                     ray: space.world_ray(o, d, Some(i as f32 / 6.0)),
@@ -258,11 +217,7 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
         let tasks: Vec<RayTask> = tasks
             .iter()
             .enumerate()
-            .map(|(i, t)| RayTask {
-                target: tasks[i / k * k].target,
-                bg: tasks[i / k * k].bg,
-                ..*t
-            })
+            .map(|(i, t)| RayTask { target: tasks[i / k * k].target, bg: tasks[i / k * k].bg, ..*t })
             .collect();
         assert!(tasks.iter().all(|t| t.ray.is_some()));
         let groups = vec![k as u16; tasks.len() / k];
@@ -276,21 +231,12 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
         let mut ws = Workspace::new(field.params.len());
         let stats = train_chunk(&field, &space, &occ, &tasks, &mut ws, 1.0, lambda, &groups);
         assert!(lambda == 0.0 || stats.distortion_sum > 0.0);
-        assert!(
-            stats.samples > 50,
-            "rays must cross the field ({} samples)",
-            stats.samples
-        );
+        assert!(stats.samples > 50, "rays must cross the field ({} samples)", stats.samples);
         let grad = ws.grad.clone();
         let l = &field.layout;
-        let plane_touched: Vec<usize> =
-            (0..l.plane_end).filter(|&i| grad[i].abs() > 1e-4).collect();
+        let plane_touched: Vec<usize> = (0..l.plane_end).filter(|&i| grad[i].abs() > 1e-4).collect();
         assert!(!plane_touched.is_empty());
-        let mut checks: Vec<usize> = plane_touched
-            .iter()
-            .step_by((plane_touched.len() / 12).max(1))
-            .cloned()
-            .collect();
+        let mut checks: Vec<usize> = plane_touched.iter().step_by((plane_touched.len() / 12).max(1)).cloned().collect();
         checks.extend((l.w1..l.b2 + 8).step_by(17));
         checks.extend((l.view.w1..l.view.end).step_by(37));
         let mut checked = 0;
@@ -301,13 +247,7 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
             let mut fb = field.clone();
             fb.params[i] -= h;
             let num = (loss_of(&fa) - loss_of(&fb)) / (2.0 * h as f64);
-            assert_close(
-                &format!("param {i} (dynamic={dynamic}, rays per pixel {k})"),
-                grad[i] as f64,
-                num,
-                5e-2,
-                5e-4,
-            );
+            assert_close(&format!("param {i} (dynamic={dynamic}, rays per pixel {k})"), grad[i] as f64, num, 5e-2, 5e-4);
             checked += 1;
         }
         assert!(checked > 20);
@@ -346,13 +286,7 @@ fn distortion_loss_gradient_matches_finite_differences() {
         a[k] += 1e-3;
         b[k] -= 1e-3;
         let num = (brute(&a) - brute(&b)) / 2e-3;
-        assert_close(
-            &format!("d distortion / dw[{k}]"),
-            g[k] as f64,
-            num,
-            1e-2,
-            1e-6,
-        );
+        assert_close(&format!("d distortion / dw[{k}]"), g[k] as f64, num, 1e-2, 1e-6);
         scratch[k] = g[k];
     }
 }
@@ -365,10 +299,7 @@ fn total_variation_gradient_matches_finite_differences() {
     let l0 = f.tv_backward(0.5, &mut grad, &mut touched);
     assert!(l0 > 0.0);
     let plane0 = &f.layout.planes[0][0];
-    assert!(
-        touched[..plane0.ru * plane0.rv].iter().all(|&t| t == 1),
-        "spatial cells are marked for the optimizer"
-    );
+    assert!(touched[..plane0.ru * plane0.rv].iter().all(|&t| t == 1), "spatial cells are marked for the optimizer");
     let loss = |f: &Field| -> f64 {
         let mut g = vec![0.0f32; f.params.len()];
         let mut t = vec![0u8; f.params.len() / 8];
@@ -376,9 +307,7 @@ fn total_variation_gradient_matches_finite_differences() {
     };
     // time planes are not regularized here
     let time_plane = &f.layout.planes[0][3];
-    assert!(grad[time_plane.offset..time_plane.offset + 8]
-        .iter()
-        .all(|&g| g == 0.0));
+    assert!(grad[time_plane.offset..time_plane.offset + 8].iter().all(|&g| g == 0.0));
     for i in (0..f.layout.plane_end).step_by(13) {
         let mut a = f.clone();
         a.params[i] += 1e-2;

@@ -15,10 +15,7 @@ fn all_finite(xs: &[f32]) -> bool {
 
 /// Forward + backward of one ray with a fixed upstream gradient; returns
 /// (value, T_final, weights, dσ, dv) and asserts finiteness and Σw ≤ 1.
-fn run_ray(
-    sigma: &[f32],
-    delta: &[f32],
-) -> (composite::RayComposite, Vec<f32>, Vec<f32>, Vec<[f32; V]>) {
+fn run_ray(sigma: &[f32], delta: &[f32]) -> (composite::RayComposite, Vec<f32>, Vec<f32>, Vec<[f32; V]>) {
     let n = sigma.len();
     let v: Vec<[f32; V]> = (0..n).map(|k| [0.25 + 0.05 * (k % 5) as f32; V]).collect();
     let c = composite::forward(sigma, delta, &v);
@@ -26,31 +23,14 @@ fn run_ray(
     let t_final = composite::weights(sigma, delta, &mut w, &mut t);
     let mut ds = vec![0.0; n];
     let mut dv = vec![[0.0; V]; n];
-    composite::backward(
-        sigma,
-        delta,
-        &v,
-        &[1.0; V],
-        0.5,
-        &[],
-        &mut ds,
-        &mut dv,
-        &mut Vec::new(),
-    );
-    assert!(
-        all_finite(&c.value) && c.t_final.is_finite(),
-        "forward not finite: {c:?}"
-    );
+    composite::backward(sigma, delta, &v, &[1.0; V], 0.5, &[], &mut ds, &mut dv, &mut Vec::new());
+    assert!(all_finite(&c.value) && c.t_final.is_finite(), "forward not finite: {c:?}");
     assert!(all_finite(&w) && all_finite(&t) && t_final.is_finite());
     assert!(all_finite(&ds), "dσ not finite: {ds:?}");
     assert!(dv.iter().all(|d| all_finite(d)));
     let sum: f32 = w.iter().sum();
     assert!(sum <= 1.0 + 1e-6, "weights sum to {sum} > 1");
-    assert!(
-        (sum + t_final - 1.0).abs() < 1e-4,
-        "Σw + T_N = {} (should be 1)",
-        sum + t_final
-    );
+    assert!((sum + t_final - 1.0).abs() < 1e-4, "Σw + T_N = {} (should be 1)", sum + t_final);
     assert!((0.0..=1.0).contains(&t_final));
     (c, w, ds, dv)
 }
@@ -70,10 +50,7 @@ fn sigma_1e10_is_opaque_at_the_first_dense_sample() {
     sigma[3] = 1e10;
     let (c, w, _, _) = run_ray(&sigma, &[0.01; 16]);
     assert!(c.t_final == 0.0);
-    assert!(
-        w[4..].iter().all(|&x| x == 0.0),
-        "nothing behind an opaque sample is seen"
-    );
+    assert!(w[4..].iter().all(|&x| x == 0.0), "nothing behind an opaque sample is seen");
     assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-6);
 }
 
@@ -130,11 +107,7 @@ fn mixed_stiff_ray_gradient_matches_finite_differences() {
         let mut b = sigma;
         b[k] -= h;
         let num = (loss(&a) - loss(&b)) / (2.0 * h as f64);
-        assert!(
-            (ds[k] as f64 - num).abs() < 1e-3 + 1e-2 * num.abs(),
-            "dσ[{k}] {} vs {num}",
-            ds[k]
-        );
+        assert!((ds[k] as f64 - num).abs() < 1e-3 + 1e-2 * num.abs(), "dσ[{k}] {} vs {num}", ds[k]);
     }
     assert_eq!(ds[2], 0.0, "clamped optical depth has zero gradient");
 }
@@ -144,12 +117,8 @@ fn weights_sum_to_at_most_one_on_random_rays() {
     let mut rng = Rng::new(1);
     for _ in 0..500 {
         let n = 1 + rng.below(64);
-        let sigma: Vec<f32> = (0..n)
-            .map(|_| 10f32.powf(rng.uniform() * 14.0 - 4.0))
-            .collect();
-        let delta: Vec<f32> = (0..n)
-            .map(|_| 10f32.powf(rng.uniform() * 8.0 - 6.0))
-            .collect();
+        let sigma: Vec<f32> = (0..n).map(|_| 10f32.powf(rng.uniform() * 14.0 - 4.0)).collect();
+        let delta: Vec<f32> = (0..n).map(|_| 10f32.powf(rng.uniform() * 8.0 - 6.0)).collect();
         run_ray(&sigma, &delta);
     }
 }
@@ -159,11 +128,7 @@ fn object_space(dynamic: bool) -> SceneSpace {
 }
 
 fn dense_field(dynamic: bool, sigma_bias: f32) -> Field {
-    let cfg = FieldConfig {
-        resolutions: vec![8, 16],
-        time_resolutions: if dynamic { vec![4, 4] } else { vec![] },
-        hidden: 8,
-    };
+    let cfg = FieldConfig { resolutions: vec![8, 16], time_resolutions: if dynamic { vec![4, 4] } else { vec![] }, hidden: 8 };
     let mut f = Field::new(cfg, 1).unwrap();
     f.params[f.layout.b2] = sigma_bias;
     f
@@ -186,20 +151,8 @@ fn ray_starting_inside_dense_matter_sees_the_matter_at_once() {
     let field = dense_field(false, 14.0); // σ ≈ e^14 ≈ 1.2e6 everywhere
     let ray = space.world_ray([0.1, 0.2, 0.0], [0.0, 0.0, -1.0], None);
     assert!(ray.is_some(), "a camera inside the box still gets a ray");
-    let r = render_one(
-        &field,
-        &space,
-        RayTask {
-            ray,
-            bg: [1.0, 0.0, 0.0],
-            target: [0.5; 3],
-            jitter: 0.5,
-        },
-    );
-    assert!(
-        r.opacity > 0.999 && r.samples <= 24,
-        "terminates early: {r:?}"
-    );
+    let r = render_one(&field, &space, RayTask { ray, bg: [1.0, 0.0, 0.0], target: [0.5; 3], jitter: 0.5 });
+    assert!(r.opacity > 0.999 && r.samples <= 24, "terminates early: {r:?}");
     assert!(all_finite(&r.rgb));
 }
 
@@ -209,16 +162,7 @@ fn ray_that_misses_the_scene_shows_the_background() {
     let field = dense_field(false, 0.0);
     let ray = space.world_ray([5.0, 5.0, 5.0], [1.0, 0.0, 0.0], None);
     assert!(ray.is_none());
-    let r = render_one(
-        &field,
-        &space,
-        RayTask {
-            ray,
-            bg: [0.2, 0.4, 0.6],
-            target: [0.0; 3],
-            jitter: 0.5,
-        },
-    );
+    let r = render_one(&field, &space, RayTask { ray, bg: [0.2, 0.4, 0.6], target: [0.0; 3], jitter: 0.5 });
     assert_eq!(r.rgb, [0.2, 0.4, 0.6]);
     assert_eq!(r.opacity, 0.0);
 }
@@ -228,16 +172,7 @@ fn ray_through_empty_field_is_background_and_finite() {
     let space = object_space(false);
     let field = dense_field(false, -40.0);
     let ray = space.world_ray([0.0, 0.0, 3.0], [0.0, 0.0, -1.0], None);
-    let r = render_one(
-        &field,
-        &space,
-        RayTask {
-            ray,
-            bg: [0.3; 3],
-            target: [0.0; 3],
-            jitter: 0.5,
-        },
-    );
+    let r = render_one(&field, &space, RayTask { ray, bg: [0.3; 3], target: [0.0; 3], jitter: 0.5 });
     assert!((r.rgb[0] - 0.3).abs() < 1e-4);
 }
 
@@ -247,44 +182,19 @@ fn unbounded_space() -> SceneSpace {
 
 #[test]
 fn contraction_is_finite_for_huge_infinite_and_nan_points() {
-    for p in [
-        [1e30f32, 0.0, 0.0],
-        [f32::INFINITY, 1.0, -2.0],
-        [f32::NAN, 0.5, 0.5],
-        [-1e38, -1e38, 3.0],
-    ] {
+    for p in [[1e30f32, 0.0, 0.0], [f32::INFINITY, 1.0, -2.0], [f32::NAN, 0.5, 0.5], [-1e38, -1e38, 3.0]] {
         let c = contract(p);
-        assert!(
-            c.iter().all(|x| x.is_finite() && x.abs() <= 2.0),
-            "{p:?} -> {c:?}"
-        );
+        assert!(c.iter().all(|x| x.is_finite() && x.abs() <= 2.0), "{p:?} -> {c:?}");
     }
-    assert_eq!(
-        contract([0.5, -0.25, 0.0]),
-        [0.5, -0.25, 0.0],
-        "identity inside the unit cube"
-    );
+    assert_eq!(contract([0.5, -0.25, 0.0]), [0.5, -0.25, 0.0], "identity inside the unit cube");
 }
 
 #[test]
 fn camera_far_outside_the_contraction_renders_finitely() {
     let space = unbounded_space();
     let field = dense_field(false, 0.0);
-    let ray = space.world_ray(
-        [1e6, 2e5, -3e6],
-        snerf_trainer::space::normalize([-1.0, -0.2, 3.0]),
-        None,
-    );
-    let r = render_one(
-        &field,
-        &space,
-        RayTask {
-            ray,
-            bg: [0.0; 3],
-            target: [0.5; 3],
-            jitter: 0.5,
-        },
-    );
+    let ray = space.world_ray([1e6, 2e5, -3e6], snerf_trainer::space::normalize([-1.0, -0.2, 3.0]), None);
+    let r = render_one(&field, &space, RayTask { ray, bg: [0.0; 3], target: [0.5; 3], jitter: 0.5 });
     assert!(all_finite(&r.rgb) && r.depth.is_finite());
 }
 
@@ -294,16 +204,7 @@ fn camera_at_the_centre_of_the_contraction_renders_finitely() {
     let field = dense_field(false, -2.0);
     for d in [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.577, 0.577, 0.577]] {
         let ray = space.world_ray([0.0; 3], d, None);
-        let r = render_one(
-            &field,
-            &space,
-            RayTask {
-                ray,
-                bg: [0.0; 3],
-                target: [0.5; 3],
-                jitter: 0.5,
-            },
-        );
+        let r = render_one(&field, &space, RayTask { ray, bg: [0.0; 3], target: [0.5; 3], jitter: 0.5 });
         assert!(all_finite(&r.rgb) && r.samples > 0, "{r:?}");
     }
 }
@@ -323,16 +224,7 @@ fn time_outside_zero_one_is_clamped_to_the_ends() {
     field.encode(&[0.1, 0.2, 0.3], 1.0, &mut b);
     assert_eq!(a, b);
     let ray = space.world_ray([0.0, 0.0, 3.0], [0.0, 0.0, -1.0], Some(42.0));
-    let r = render_one(
-        &field,
-        &space,
-        RayTask {
-            ray,
-            bg: [0.0; 3],
-            target: [0.5; 3],
-            jitter: 0.5,
-        },
-    );
+    let r = render_one(&field, &space, RayTask { ray, bg: [0.0; 3], target: [0.5; 3], jitter: 0.5 });
     assert!(all_finite(&r.rgb));
 }
 
@@ -340,11 +232,7 @@ fn time_outside_zero_one_is_clamped_to_the_ends() {
 fn grid_points_far_outside_the_planes_clamp_to_the_border() {
     let field = dense_field(false, 0.0);
     let mut a = vec![0.0; field.layout.input];
-    for g in [
-        [1e9f32, -1e9, 0.0],
-        [f32::NAN, 0.0, 0.0],
-        [f32::INFINITY, f32::NEG_INFINITY, 2.0],
-    ] {
+    for g in [[1e9f32, -1e9, 0.0], [f32::NAN, 0.0, 0.0], [f32::INFINITY, f32::NEG_INFINITY, 2.0]] {
         field.encode(&g, 0.0, &mut a);
         assert!(all_finite(&a), "{g:?}");
     }
@@ -361,10 +249,7 @@ fn adam_survives_huge_infinite_nan_and_zero_gradients() {
         adam.begin_step();
         adam.update_dense(&mut params, &mut [&mut grad], 0..n, 0.01);
         assert!(all_finite(&params), "params after g={g}: {params:?}");
-        assert!(
-            all_finite(&adam.m) && all_finite(&adam.v),
-            "state after g={g}"
-        );
+        assert!(all_finite(&adam.m) && all_finite(&adam.v), "state after g={g}");
         assert!(grad.iter().all(|&x| x == 0.0), "gradient buffer is reset");
     }
     // and it still learns afterwards: a plain positive gradient lowers the parameter

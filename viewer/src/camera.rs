@@ -33,12 +33,7 @@ pub fn stereo_pair(
     height: u32,
     fov_y: f32,
 ) -> (Camera, Camera) {
-    let proj = snerf_geometry::camera::perspective(
-        fov_y,
-        eye_width as f32 / height.max(1) as f32,
-        0.01,
-        100.0,
-    );
+    let proj = snerf_geometry::camera::perspective(fov_y, eye_width as f32 / height.max(1) as f32, 0.01, 100.0);
     snerf_geometry::camera::stereo_eyes(c2w, ipd, &proj, eye_width, height)
 }
 
@@ -68,10 +63,7 @@ pub fn load_poses(path: impl AsRef<Path>) -> Result<Vec<PoseSample>> {
         .map_err(|e| anyhow!("{}: {}", path.display(), e))?;
     Ok(cams
         .iter()
-        .map(|c| PoseSample {
-            c2w: c.cam.c2w.to_vec(),
-            time: c.time,
-        })
+        .map(|c| PoseSample { c2w: c.cam.c2w.to_vec(), time: c.time })
         .collect())
 }
 

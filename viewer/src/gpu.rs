@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 
 use snerf_asset::{Asset, Camera, Frame, Header, ViewMlp, EMPTY};
 
-pub use snerf_geometry::march::PRESENT_WGSL;
 pub use snerf_geometry::march::{ATLAS_FILTER_WGSL, ATLAS_LOAD_WGSL, MARCH_WGSL};
+pub use snerf_geometry::march::PRESENT_WGSL;
 
 /// Workgroup edge of the march shader (WG x WG pixels per workgroup).
 const WG: u32 = snerf_geometry::march::WORKGROUP;
@@ -934,11 +934,7 @@ impl GpuRenderer {
         // side 1: the centre pass only.
         let sides: Vec<u32> = views
             .iter()
-            .map(|v| {
-                snerf_geometry::silhouette::subpixel_side(
-                    self.header().pixel_rays_for(&v.cam) as usize
-                ) as u32
-            })
+            .map(|v| snerf_geometry::silhouette::subpixel_side(self.header().pixel_rays_for(&v.cam) as usize) as u32)
             .collect();
         for (i, v) in views.iter().enumerate() {
             let mut p = self.params_for(v, width);

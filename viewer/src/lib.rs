@@ -30,8 +30,6 @@ pub use gpu::{
     GpuRenderer, LimitError, NoAdapterError, View,
 };
 pub use headless::{render_frames, render_frames_or_cpu, render_frames_with, RenderedBy};
-pub use stream_source::StreamSource;
 pub use wgpu;
-pub use window::{
-    keys_help, run_window, Applied, AssetSource, AssetUpdate, FileSource, ViewOptions,
-};
+pub use stream_source::StreamSource;
+pub use window::{keys_help, run_window, Applied, AssetSource, AssetUpdate, FileSource, ViewOptions};

@@ -16,12 +16,7 @@ pub struct StreamSource {
 
 impl StreamSource {
     pub fn new(live: LiveAsset) -> StreamSource {
-        StreamSource {
-            live,
-            sent: false,
-            grids: Vec::new(),
-            generation: 0,
-        }
+        StreamSource { live, sent: false, grids: Vec::new(), generation: 0 }
     }
 
     /// Connect to `quic://HOST:PORT/ASSET` (pinned certificate, access token).
@@ -53,32 +48,21 @@ impl AssetSource for StreamSource {
         }
         // a changed keyframe grid first, then the new blocks
         let changed = self.live.with_asset(|a| {
-            a.grids
-                .iter()
-                .enumerate()
-                .find(|(f, grid)| self.grids.get(*f) != Some(*grid))
-                .map(|(f, grid)| (f, grid.clone()))
+            a.grids.iter().enumerate().find(|(f, grid)| self.grids.get(*f) != Some(*grid)).map(|(f, grid)| (f, grid.clone()))
         })?;
         if let Some((f, entries)) = changed {
             if self.grids.len() <= f {
                 self.grids.resize(f + 1, Vec::new());
             }
             self.grids[f] = entries.clone();
-            return Some(AssetUpdate::Grid {
-                frame: f as u32,
-                entries,
-            });
+            return Some(AssetUpdate::Grid { frame: f as u32, entries });
         }
         self.generation = g;
         let new = self.live.take_new_blocks();
         if new.is_empty() {
             return None;
         }
-        let blocks = self.live.with_asset(|a| {
-            new.iter()
-                .filter_map(|&i| a.block(i).map(|b| (i, b.to_vec())))
-                .collect()
-        })?;
+        let blocks = self.live.with_asset(|a| new.iter().filter_map(|&i| a.block(i).map(|b| (i, b.to_vec()))).collect())?;
         Some(AssetUpdate::Blocks(blocks))
     }
 
@@ -90,11 +74,6 @@ impl AssetSource for StreamSource {
         if let Some(e) = self.live.error() {
             return Some(format!("stream error: {e}"));
         }
-        (!self.live.is_complete()).then(|| {
-            format!(
-                "streaming: {:.1} MB",
-                self.live.bytes_received() as f64 / 1e6
-            )
-        })
+        (!self.live.is_complete()).then(|| format!("streaming: {:.1} MB", self.live.bytes_received() as f64 / 1e6))
     }
 }

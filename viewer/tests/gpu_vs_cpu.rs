@@ -174,23 +174,10 @@ fn codebook_4d_asset_matches_cpu_at_two_times() {
     let mut r = GpuRenderer::new(&a).unwrap();
     let cs = cams(&a.header, 3, W, H);
     for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
-        check(
-            &format!("codebook 4D t={} cam {}", t, i),
-            &a,
-            &mut r,
-            &cs[i],
-            t,
-        );
+        check(&format!("codebook 4D t={} cam {}", t, i), &a, &mut r, &cs[i], t);
         let mut at = |t: f32| r.render(&cs[i], t).unwrap();
-        let (here, lo, hi) = (
-            at(t),
-            at(if t < 0.5 { 0.0 } else { 0.5 }),
-            at(if t < 0.5 { 0.5 } else { 1.0 }),
-        );
-        assert!(
-            diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4,
-            "t={t} is not a blend"
-        );
+        let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
+        assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} is not a blend");
     }
 }
 
@@ -433,21 +420,14 @@ fn check_rule(name: &str, gpu: &[f32], cpu: &[f32]) {
     let n = cpu.len() / 3;
     let (mut sum, mut worst, mut over) = (0.0f64, 0.0f32, 0usize);
     for p in 0..n {
-        let d = (0..3)
-            .map(|c| (gpu[p * 3 + c] - cpu[p * 3 + c]).abs())
-            .fold(0.0f32, f32::max);
-        sum += (0..3)
-            .map(|c| (gpu[p * 3 + c] - cpu[p * 3 + c]).abs() as f64)
-            .sum::<f64>();
+        let d = (0..3).map(|c| (gpu[p * 3 + c] - cpu[p * 3 + c]).abs()).fold(0.0f32, f32::max);
+        sum += (0..3).map(|c| (gpu[p * 3 + c] - cpu[p * 3 + c]).abs() as f64).sum::<f64>();
         worst = worst.max(d);
         over += (d as f64 > MAX_BOUND) as usize;
     }
     let mean = sum / (3 * n) as f64;
     println!("{name}: mean {mean:.2e} max {worst:.2e}, {over} pixels over {MAX_BOUND}");
-    assert!(
-        mean <= 1.0 / 255.0 && over <= n / 500,
-        "{name}: mean {mean}, {over} of {n} pixels over {MAX_BOUND}"
-    );
+    assert!(mean <= 1.0 / 255.0 && over <= n / 500, "{name}: mean {mean}, {over} of {n} pixels over {MAX_BOUND}");
 }
 
 /// An asset trained with the silhouette rule (header `pixel_rays` > 1): the shader's second
@@ -464,27 +444,14 @@ fn silhouette_pixels_match_cpu() {
         let mut r = GpuRenderer::new(&a).unwrap();
         for (i, c) in cams(&a.header, 3, W, H).iter().enumerate() {
             let gpu = r.render(c, 0.0).unwrap();
-            check_rule(
-                &format!("object, {k} rays on silhouettes, cam {i}"),
-                &gpu.rgb,
-                &snerf_asset::render(&a, c, 0.0).rgb,
-            );
+            check_rule(&format!("object, {k} rays on silhouettes, cam {i}"), &gpu.rgb, &snerf_asset::render(&a, c, 0.0).rgb);
         }
         let c = cams(&a.header, 3, W, H)[1];
         let (l, rr) = stereo_pair(c.c2w, 0.1, W, H, 50.0);
         let f = r.render_stereo(&l, &rr, 0.0).unwrap();
         for (x0, cam) in [(0, l), (W, rr)] {
-            let eye: Vec<f32> = (0..H)
-                .flat_map(|y| {
-                    f.rgb[((y * 2 * W + x0) * 3) as usize..((y * 2 * W + x0 + W) * 3) as usize]
-                        .to_vec()
-                })
-                .collect();
-            check_rule(
-                &format!("stereo eye at x {x0}, {k} rays"),
-                &eye,
-                &snerf_asset::render(&a, &cam, 0.0).rgb,
-            );
+            let eye: Vec<f32> = (0..H).flat_map(|y| f.rgb[((y * 2 * W + x0) * 3) as usize..((y * 2 * W + x0 + W) * 3) as usize].to_vec()).collect();
+            check_rule(&format!("stereo eye at x {x0}, {k} rays"), &eye, &snerf_asset::render(&a, &cam, 0.0).rgb);
         }
     }
     // The second pass changes the silhouette and nothing else.
@@ -493,14 +460,9 @@ fn silhouette_pixels_match_cpu() {
     let one = snerf_asset::render(&a, &c, 0.0);
     a.header.pixel_rays = 4;
     let four = GpuRenderer::new(&a).unwrap().render(&c, 0.0).unwrap();
-    let changed = (0..(W * H) as usize)
-        .filter(|&p| (0..3).any(|k| (one.rgb[p * 3 + k] - four.rgb[p * 3 + k]).abs() > 1e-3))
-        .count();
+    let changed = (0..(W * H) as usize).filter(|&p| (0..3).any(|k| (one.rgb[p * 3 + k] - four.rgb[p * 3 + k]).abs() > 1e-3)).count();
     println!("4 rays changed {changed} of {} pixels", W * H);
-    assert!(
-        changed > 20 && changed < (W * H / 2) as usize,
-        "{changed} pixels changed"
-    );
+    assert!(changed > 20 && changed < (W * H / 2) as usize, "{changed} pixels changed");
     // where the rule changes the CPU image, the GPU's is the rule's (so a GPU that skipped
     // the second pass fails here even on this asset's soft edges)
     let cpu4 = snerf_asset::render(&a, &c, 0.0);
@@ -512,23 +474,10 @@ fn silhouette_pixels_match_cpu() {
         }
     }
     println!("GPU on the pixels the rule changes: {to_rule:.2e} from the rule's image, {to_one:.2e} from one ray's");
-    assert!(
-        to_rule < 0.01 * to_one,
-        "GPU {to_rule} from the rule's image, {to_one} from one ray's"
-    );
+    assert!(to_rule < 0.01 * to_one, "GPU {to_rule} from the rule's image, {to_one} from one ray's");
     // Trained on pixels 4x as wide as this camera's: one ray per pixel, as the CPU draws it.
-    let footprint = snerf_geometry::silhouette::pixel_footprint(
-        snerf_geometry::camera::position(&c.c2w),
-        a.header.space.center,
-        c.fx,
-    );
+    let footprint = snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&c.c2w), a.header.space.center, c.fx);
     a.header.train_pixel = Some(4.0 * footprint);
-    check(
-        "object, trained on coarser pixels",
-        &a,
-        &mut GpuRenderer::new(&a).unwrap(),
-        &c,
-        0.0,
-    );
+    check("object, trained on coarser pixels", &a, &mut GpuRenderer::new(&a).unwrap(), &c, 0.0);
     assert_eq!(diff(&snerf_asset::render(&a, &c, 0.0), &one).max, 0.0);
 }

@@ -38,10 +38,7 @@ fn follow(src: &mut StreamSource, held: &mut Option<Asset>) {
         if finished {
             return;
         }
-        assert!(
-            Instant::now() < give_up,
-            "the stream neither completed nor ended"
-        );
+        assert!(Instant::now() < give_up, "the stream neither completed nor ended");
         std::thread::sleep(Duration::from_millis(2));
     }
 }
@@ -59,45 +56,23 @@ fn a_streamed_asset_is_drawable_early_and_exact_at_the_end() {
 
     // Cut after half the file: what arrived must draw, be the served asset wherever it is
     // present, and say that the stream broke.
-    let opts = ClientOptions {
-        abort_after_bytes: Some(size / 2),
-        ..Default::default()
-    };
-    let mut src = StreamSource::new(
-        LiveAsset::connect_with(&url, server.fingerprint(), server.token(), opts).unwrap(),
-    );
+    let opts = ClientOptions { abort_after_bytes: Some(size / 2), ..Default::default() };
+    let mut src = StreamSource::new(LiveAsset::connect_with(&url, server.fingerprint(), server.token(), opts).unwrap());
     let mut held = None;
     follow(&mut src, &mut held);
     assert!(!src.live().is_complete());
-    assert!(
-        src.status().is_some_and(|s| s.starts_with("stream error")),
-        "{:?}",
-        src.status()
-    );
+    assert!(src.status().is_some_and(|s| s.starts_with("stream error")), "{:?}", src.status());
     let partial = held.expect("nothing drawable arrived in half the file");
-    assert!(
-        partial.present.iter().any(|&p| !p),
-        "half the file held every block"
-    );
-    assert_eq!(
-        (&partial.header, &partial.mlp, &partial.grids),
-        (&served.header, &served.mlp, &served.grids)
-    );
+    assert!(partial.present.iter().any(|&p| !p), "half the file held every block");
+    assert_eq!((&partial.header, &partial.mlp, &partial.grids), (&served.header, &served.mlp, &served.grids));
     let bb = served.block_bytes();
     for (i, _) in partial.present.iter().enumerate().filter(|(_, &p)| p) {
-        assert_eq!(
-            partial.atlas[i * bb..(i + 1) * bb],
-            served.atlas[i * bb..(i + 1) * bb],
-            "block {i}"
-        );
+        assert_eq!(partial.atlas[i * bb..(i + 1) * bb], served.atlas[i * bb..(i + 1) * bb], "block {i}");
     }
     let cam = snerf_asset::orbit(&served.header, 4, 0, 48, 48, 50.0);
     let frame = snerf_asset::render(&partial, &cam, 0.0);
     assert!(frame.rgb.iter().all(|v| v.is_finite()));
-    assert!(
-        common::coverage(&frame) > 0.0,
-        "the partial asset draws nothing"
-    );
+    assert!(common::coverage(&frame) > 0.0, "the partial asset draws nothing");
 
     // Uncut: the adapter ends with the served asset, block for block.
     let mut src = StreamSource::connect(&url, server.fingerprint(), server.token()).unwrap();
@@ -105,10 +80,7 @@ fn a_streamed_asset_is_drawable_early_and_exact_at_the_end() {
     follow(&mut src, &mut held);
     assert!(src.live().is_complete(), "{:?}", src.live().error());
     assert_eq!(src.status(), None);
-    assert!(
-        held.as_ref() == Some(&served),
-        "the streamed asset differs from the served one"
-    );
+    assert!(held.as_ref() == Some(&served), "the streamed asset differs from the served one");
 
     server.shutdown();
     std::fs::remove_dir_all(&dir).ok();

@@ -7,8 +7,8 @@ use anyhow::{anyhow, bail, ensure, Result};
 
 use crate::asset::{Asset, EMPTY};
 use crate::chunk::{
-    check_preamble, le_u32, parse_chunk_at, tag_name, ChunkIter, MAX_HEAD_LEN, PREAMBLE_LEN,
-    TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP,
+    check_preamble, le_u32, parse_chunk_at, tag_name, ChunkIter, MAX_HEAD_LEN, PREAMBLE_LEN, TAG_BLKS, TAG_END,
+    TAG_GRID, TAG_HEAD, TAG_VMLP,
 };
 use crate::header::Header;
 use crate::mlp::{ViewMlp, MLP_FLOATS};
@@ -27,15 +27,9 @@ pub struct Assembler {
 
 /// Parse and validate a `HEAD` payload.
 pub fn parse_head(payload: &[u8]) -> Result<Header> {
-    ensure!(
-        payload.len() <= MAX_HEAD_LEN,
-        "HEAD is {} bytes (max {})",
-        payload.len(),
-        MAX_HEAD_LEN
-    );
+    ensure!(payload.len() <= MAX_HEAD_LEN, "HEAD is {} bytes (max {})", payload.len(), MAX_HEAD_LEN);
     let text = std::str::from_utf8(payload).map_err(|e| anyhow!("HEAD is not UTF-8: {}", e))?;
-    let h: Header =
-        serde_json::from_str(text).map_err(|e| anyhow!("HEAD is not a valid header: {}", e))?;
+    let h: Header = serde_json::from_str(text).map_err(|e| anyhow!("HEAD is not a valid header: {}", e))?;
     h.validate()?;
     Ok(h)
 }
@@ -46,11 +40,7 @@ impl Assembler {
     pub fn new(bytes: &[u8]) -> Result<Assembler> {
         check_preamble(bytes)?;
         let head = parse_chunk_at(bytes, PREAMBLE_LEN, 0)?;
-        ensure!(
-            head.tag == TAG_HEAD,
-            "chunk 0 is {}, expected HEAD",
-            tag_name(&head.tag)
-        );
+        ensure!(head.tag == TAG_HEAD, "chunk 0 is {}, expected HEAD", tag_name(&head.tag));
         let header = parse_head(&bytes[head.payload.clone()])?;
         let mut asm = Assembler::with_header(header, false)?;
         for c in ChunkIter::new(bytes, head.range.end, 1) {
@@ -68,11 +58,7 @@ impl Assembler {
             None => bail!("file has no chunks after the preamble (truncated?)"),
             Some(c) => c?,
         };
-        ensure!(
-            head.tag == TAG_HEAD,
-            "chunk 0 is {}, expected HEAD",
-            tag_name(&head.tag)
-        );
+        ensure!(head.tag == TAG_HEAD, "chunk 0 is {}, expected HEAD", tag_name(&head.tag));
         let header = parse_head(&bytes[head.payload.clone()])?;
         // Before allocating from the header: could the rest of the file even hold what it
         // claims? Every block and grid entry needs its bytes on disk.
@@ -92,18 +78,10 @@ impl Assembler {
         let mut asm = Assembler::with_header(header, true)?;
         for c in iter {
             let c = c?;
-            ensure!(
-                asm.end.is_none(),
-                "chunk {} ({}) follows the END chunk",
-                c.index,
-                tag_name(&c.tag)
-            );
+            ensure!(asm.end.is_none(), "chunk {} ({}) follows the END chunk", c.index, tag_name(&c.tag));
             asm.push(c.tag, &bytes[c.payload])?;
         }
-        ensure!(
-            asm.end.is_some(),
-            "file ends without an END chunk (truncated?)"
-        );
+        ensure!(asm.end.is_some(), "file ends without an END chunk (truncated?)");
         Ok(asm)
     }
 
@@ -112,22 +90,9 @@ impl Assembler {
         let n = header.atlas_blocks as usize;
         let frames = header.num_frames();
         let atlas = vec![0u8; n * header.block_bytes()];
-        let asset = Asset {
-            mlp: ViewMlp::zeros(),
-            grids: vec![Vec::new(); frames],
-            atlas,
-            present: vec![false; n],
-            header,
-        };
-        Ok(Assembler {
-            asset,
-            have_mlp: false,
-            have_grid: vec![false; frames],
-            missing: n,
-            seen: 1,
-            end: None,
-            strict,
-        })
+        let asset =
+            Asset { mlp: ViewMlp::zeros(), grids: vec![Vec::new(); frames], atlas, present: vec![false; n], header };
+        Ok(Assembler { asset, have_mlp: false, have_grid: vec![false; frames], missing: n, seen: 1, end: None, strict })
     }
 
     /// Accept one whole encoded chunk (checks its framing and CRC).
@@ -169,10 +134,7 @@ impl Assembler {
             MLP_FLOATS * 4,
             MLP_FLOATS
         );
-        let floats: Vec<f32> = p
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
+        let floats: Vec<f32> = p.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         self.asset.mlp = ViewMlp::from_flat(&floats)?;
         self.have_mlp = true;
         Ok(())
@@ -190,25 +152,13 @@ impl Assembler {
         );
         let frame = le_u32(&p[..4]) as usize;
         let frames = self.asset.num_frames();
-        ensure!(
-            frame < frames,
-            "GRID for frame {} but the asset has {} frames",
-            frame,
-            frames
-        );
+        ensure!(frame < frames, "GRID for frame {} but the asset has {} frames", frame, frames);
         ensure!(!self.have_grid[frame], "duplicate GRID for frame {}", frame);
         let n = self.asset.header.atlas_blocks;
         let mut grid = Vec::with_capacity(cells);
         for (c, b) in p[4..].chunks_exact(4).enumerate() {
             let e = le_u32(b);
-            ensure!(
-                e == EMPTY || e < n,
-                "frame {} cell {} points at block {} (atlas has {})",
-                frame,
-                c,
-                e,
-                n
-            );
+            ensure!(e == EMPTY || e < n, "frame {} cell {} points at block {} (atlas has {})", frame, c, e, n);
             grid.push(e);
         }
         self.asset.grids[frame] = grid;
@@ -222,13 +172,7 @@ impl Assembler {
         let count = le_u32(&p[4..8]) as u64;
         let n = self.asset.header.atlas_blocks as u64;
         ensure!(count >= 1, "BLKS with count 0");
-        ensure!(
-            first + count <= n,
-            "BLKS blocks {}..{} out of range (atlas has {})",
-            first,
-            first + count,
-            n
-        );
+        ensure!(first + count <= n, "BLKS blocks {}..{} out of range (atlas has {})", first, first + count, n);
         let bb = self.asset.block_bytes() as u64;
         ensure!(
             (p.len() - 8) as u64 == count * bb,
@@ -281,13 +225,7 @@ impl Assembler {
         let h = self.asset.header.clone();
         std::mem::replace(
             &mut self.asset,
-            Asset {
-                header: h,
-                mlp: ViewMlp::zeros(),
-                grids: Vec::new(),
-                atlas: Vec::new(),
-                present: Vec::new(),
-            },
+            Asset { header: h, mlp: ViewMlp::zeros(), grids: Vec::new(), atlas: Vec::new(), present: Vec::new() },
         )
     }
     pub fn into_asset(self) -> Asset {
@@ -301,21 +239,10 @@ impl Assembler {
         self.have_mlp && self.missing == 0 && self.have_grid.iter().all(|&g| g)
     }
     pub fn missing_blocks(&self) -> Vec<u32> {
-        self.asset
-            .present
-            .iter()
-            .enumerate()
-            .filter(|(_, &p)| !p)
-            .map(|(i, _)| i as u32)
-            .collect()
+        self.asset.present.iter().enumerate().filter(|(_, &p)| !p).map(|(i, _)| i as u32).collect()
     }
     pub fn missing_frames(&self) -> Vec<usize> {
-        self.have_grid
-            .iter()
-            .enumerate()
-            .filter(|(_, &g)| !g)
-            .map(|(i, _)| i)
-            .collect()
+        self.have_grid.iter().enumerate().filter(|(_, &g)| !g).map(|(i, _)| i).collect()
     }
     /// Whether the END chunk has arrived (the stream's sender says it is done).
     pub fn saw_end(&self) -> bool {

@@ -68,13 +68,7 @@ impl Asset {
         header.frames = None;
         header.time_range = None;
         header.atlas_blocks = remap.len() as u32;
-        let a = Asset {
-            header,
-            mlp: self.mlp.clone(),
-            grids: vec![grid],
-            atlas,
-            present: vec![true; remap.len()],
-        };
+        let a = Asset { header, mlp: self.mlp.clone(), grids: vec![grid], atlas, present: vec![true; remap.len()] };
         a.validate()?;
         Ok(a)
     }
@@ -91,8 +85,7 @@ impl Asset {
     /// Read and fully validate a file; errors name the file.
     pub fn read(path: impl AsRef<Path>) -> Result<Asset> {
         let path = path.as_ref();
-        let bytes =
-            std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
+        let bytes = std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
         Asset::from_bytes(&bytes).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
     }
 
@@ -102,26 +95,16 @@ impl Asset {
         let missing = asm.missing_blocks();
         let frames = asm.missing_frames();
         ensure!(asm.has_mlp(), "file has no VMLP chunk");
-        ensure!(
-            frames.is_empty(),
-            "file has no GRID chunk for frame {}",
-            frames[0]
-        );
-        ensure!(
-            missing.is_empty(),
-            "file lacks {} atlas blocks (first: block {})",
-            missing.len(),
-            missing[0]
-        );
+        ensure!(frames.is_empty(), "file has no GRID chunk for frame {}", frames[0]);
+        ensure!(missing.is_empty(), "file lacks {} atlas blocks (first: block {})", missing.len(), missing[0]);
         Ok(asm.take_asset())
     }
 
     /// Encode: preamble, HEAD, VMLP, one GRID per frame, one BLKS per block, END. Blocks not
     /// present and grids not arrived are left out (such a file reads back as incomplete).
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(
-            64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>(),
-        );
+        let mut out =
+            Vec::with_capacity(64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>());
         out.extend_from_slice(&preamble());
         let mut n = 0u32;
         let mut put = |out: &mut Vec<u8>, tag, payload: &[u8]| {
@@ -130,12 +113,7 @@ impl Asset {
         };
         let head = serde_json::to_vec(&self.header).expect("header serializes");
         put(&mut out, TAG_HEAD, &head);
-        let mlp: Vec<u8> = self
-            .mlp
-            .to_flat()
-            .iter()
-            .flat_map(|x| x.to_le_bytes())
-            .collect();
+        let mlp: Vec<u8> = self.mlp.to_flat().iter().flat_map(|x| x.to_le_bytes()).collect();
         put(&mut out, TAG_VMLP, &mlp);
         for (f, grid) in self.grids.iter().enumerate() {
             if grid.is_empty() {
@@ -168,13 +146,7 @@ impl Asset {
     /// a crash never leaves a torn asset where a good one was.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
         let path = path.as_ref();
-        self.validate().map_err(|e| {
-            anyhow!(
-                "{}: refusing to write an invalid asset: {:#}",
-                path.display(),
-                e
-            )
-        })?;
+        self.validate().map_err(|e| anyhow!("{}: refusing to write an invalid asset: {:#}", path.display(), e))?;
         write_atomic(path, &self.to_bytes())
     }
 
@@ -200,33 +172,12 @@ impl Asset {
         if let Some(i) = self.present.iter().position(|p| !p) {
             anyhow::bail!("atlas block {} is missing", i);
         }
-        ensure!(
-            self.grids.len() == self.num_frames(),
-            "{} grids for {} frames",
-            self.grids.len(),
-            self.num_frames()
-        );
+        ensure!(self.grids.len() == self.num_frames(), "{} grids for {} frames", self.grids.len(), self.num_frames());
         let g = self.grid_dim();
         for (f, grid) in self.grids.iter().enumerate() {
-            ensure!(
-                grid.len() == g * g * g,
-                "frame {} grid has {} entries, expected {}",
-                f,
-                grid.len(),
-                g * g * g
-            );
-            if let Some((c, e)) = grid
-                .iter()
-                .enumerate()
-                .find(|(_, &e)| e != EMPTY && e >= h.atlas_blocks)
-            {
-                anyhow::bail!(
-                    "frame {} cell {} points at block {} (atlas has {})",
-                    f,
-                    c,
-                    e,
-                    h.atlas_blocks
-                );
+            ensure!(grid.len() == g * g * g, "frame {} grid has {} entries, expected {}", f, grid.len(), g * g * g);
+            if let Some((c, e)) = grid.iter().enumerate().find(|(_, &e)| e != EMPTY && e >= h.atlas_blocks) {
+                anyhow::bail!("frame {} cell {} points at block {} (atlas has {})", f, c, e, h.atlas_blocks);
             }
         }
         Ok(())

@@ -28,13 +28,7 @@ impl AssetBuilder {
         mlp.validate()?;
         let g = header.grid_dim();
         let grids = vec![vec![EMPTY; g * g * g]; header.num_frames()];
-        Ok(AssetBuilder {
-            header,
-            mlp,
-            grids,
-            atlas: Vec::new(),
-            blocks: 0,
-        })
+        Ok(AssetBuilder { header, mlp, grids, atlas: Vec::new(), blocks: 0 })
     }
 
     pub fn header(&self) -> &Header {
@@ -46,18 +40,8 @@ impl AssetBuilder {
 
     fn cell_index(&self, frame: usize, cell: [usize; 3]) -> Result<usize> {
         let g = self.header.grid_dim();
-        ensure!(
-            frame < self.grids.len(),
-            "frame {} out of range ({} frames)",
-            frame,
-            self.grids.len()
-        );
-        ensure!(
-            cell.iter().all(|&c| c < g),
-            "cell {:?} out of range (grid {}^3)",
-            cell,
-            g
-        );
+        ensure!(frame < self.grids.len(), "frame {} out of range ({} frames)", frame, self.grids.len());
+        ensure!(cell.iter().all(|&c| c < g), "cell {:?} out of range (grid {}^3)", cell, g);
         Ok((cell[2] * g + cell[1]) * g + cell[0])
     }
 
@@ -67,16 +51,10 @@ impl AssetBuilder {
     pub fn set_block(&mut self, frame: usize, cell: [usize; 3], voxels: &[u8]) -> Result<u32> {
         let idx = self.cell_index(frame, cell)?;
         let bb = self.header.block_bytes();
-        ensure!(
-            voxels.len() == bb,
-            "block has {} bytes, expected {}",
-            voxels.len(),
-            bb
-        );
+        ensure!(voxels.len() == bb, "block has {} bytes, expected {}", voxels.len(), bb);
         if frame > 0 {
             let prev = self.grids[frame - 1][idx];
-            if prev != EMPTY && self.atlas[prev as usize * bb..(prev as usize + 1) * bb] == *voxels
-            {
+            if prev != EMPTY && self.atlas[prev as usize * bb..(prev as usize + 1) * bb] == *voxels {
                 self.grids[frame][idx] = prev;
                 return Ok(prev);
             }
@@ -91,12 +69,7 @@ impl AssetBuilder {
     /// Point `cell` of `frame` at an already stored block (explicit sharing).
     pub fn share_block(&mut self, frame: usize, cell: [usize; 3], block: u32) -> Result<()> {
         let idx = self.cell_index(frame, cell)?;
-        ensure!(
-            block < self.blocks,
-            "block {} not stored yet ({} blocks)",
-            block,
-            self.blocks
-        );
+        ensure!(block < self.blocks, "block {} not stored yet ({} blocks)", block, self.blocks);
         self.grids[frame][idx] = block;
         Ok(())
     }
@@ -104,11 +77,7 @@ impl AssetBuilder {
     /// Lay out one block of `cell` from a per-voxel function of *global* voxel indices. The
     /// apron reads the neighbours' voxels; beyond the grid edge the index is clamped (edge
     /// voxels repeat), so `voxel` only ever sees indices in 0..res.
-    pub fn block_from_fn(
-        &self,
-        cell: [usize; 3],
-        mut voxel: impl FnMut([usize; 3]) -> [u8; CHANNELS],
-    ) -> Vec<u8> {
+    pub fn block_from_fn(&self, cell: [usize; 3], mut voxel: impl FnMut([usize; 3]) -> [u8; CHANNELS]) -> Vec<u8> {
         let b = self.header.block as i64;
         let res = self.header.res as i64;
         let e = (b + 2) as usize;
@@ -116,9 +85,7 @@ impl AssetBuilder {
         for z in 0..e {
             for y in 0..e {
                 for x in 0..e {
-                    let gi = |c: usize, l: usize| {
-                        (c as i64 * b - 1 + l as i64).clamp(0, res - 1) as usize
-                    };
+                    let gi = |c: usize, l: usize| (c as i64 * b - 1 + l as i64).clamp(0, res - 1) as usize;
                     let v = voxel([gi(cell[0], x), gi(cell[1], y), gi(cell[2], z)]);
                     let off = ((z * e + y) * e + x) * CHANNELS;
                     out[off..off + CHANNELS].copy_from_slice(&v);
@@ -130,11 +97,7 @@ impl AssetBuilder {
 
     /// Store a block at every cell of `frame` from a per-voxel function of global voxel
     /// indices (a dense asset; tests and synthetic scenes).
-    pub fn fill_from_fn(
-        &mut self,
-        frame: usize,
-        voxel: impl Fn([usize; 3]) -> [u8; CHANNELS],
-    ) -> Result<()> {
+    pub fn fill_from_fn(&mut self, frame: usize, voxel: impl Fn([usize; 3]) -> [u8; CHANNELS]) -> Result<()> {
         let g = self.header.grid_dim();
         for z in 0..g {
             for y in 0..g {

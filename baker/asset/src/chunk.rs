@@ -38,24 +38,11 @@ pub fn check_preamble(bytes: &[u8]) -> Result<()> {
         bytes.len(),
         PREAMBLE_LEN
     );
-    ensure!(
-        bytes[..8] == MAGIC,
-        "not a snerf asset (bad magic {})",
-        tag_name(&bytes[..8])
-    );
+    ensure!(bytes[..8] == MAGIC, "not a snerf asset (bad magic {})", tag_name(&bytes[..8]));
     let version = le_u32(&bytes[8..12]);
-    ensure!(
-        version == VERSION,
-        "unsupported asset version {} (this reader knows version {})",
-        version,
-        VERSION
-    );
+    ensure!(version == VERSION, "unsupported asset version {} (this reader knows version {})", version, VERSION);
     let flags = le_u32(&bytes[12..16]);
-    ensure!(
-        flags == 0,
-        "unsupported asset flags {:#x} (version 1 defines none)",
-        flags
-    );
+    ensure!(flags == 0, "unsupported asset flags {:#x} (version 1 defines none)", flags);
     Ok(())
 }
 
@@ -100,12 +87,7 @@ pub struct ChunkIter<'a> {
 impl<'a> ChunkIter<'a> {
     /// Walk from byte `pos`, numbering the first chunk found there `index`.
     pub fn new(bytes: &'a [u8], pos: usize, index: usize) -> ChunkIter<'a> {
-        ChunkIter {
-            bytes,
-            pos,
-            index,
-            failed: false,
-        }
+        ChunkIter { bytes, pos, index, failed: false }
     }
 }
 
@@ -143,14 +125,7 @@ pub fn parse_chunk_at(bytes: &[u8], pos: usize, index: usize) -> Result<ChunkRef
     let len = le_u32(&rest[4..8]) as usize;
     let crc = le_u32(&rest[8..12]);
     let avail = rest.len() - CHUNK_HEADER_LEN;
-    ensure!(
-        len <= MAX_CHUNK_LEN,
-        "chunk {} ({}) claims {} bytes (max {})",
-        index,
-        name,
-        len,
-        MAX_CHUNK_LEN
-    );
+    ensure!(len <= MAX_CHUNK_LEN, "chunk {} ({}) claims {} bytes (max {})", index, name, len, MAX_CHUNK_LEN);
     ensure!(
         len <= avail,
         "chunk {} ({}) claims {} bytes but only {} remain (file truncated?)",
@@ -161,30 +136,14 @@ pub fn parse_chunk_at(bytes: &[u8], pos: usize, index: usize) -> Result<ChunkRef
     );
     let start = pos + CHUNK_HEADER_LEN;
     let payload = start..start + len;
-    ensure!(
-        crc32fast::hash(&bytes[payload.clone()]) == crc,
-        "chunk {} ({}) checksum mismatch",
-        index,
-        name
-    );
-    Ok(ChunkRef {
-        index,
-        tag,
-        range: pos..payload.end,
-        payload,
-    })
+    ensure!(crc32fast::hash(&bytes[payload.clone()]) == crc, "chunk {} ({}) checksum mismatch", index, name);
+    Ok(ChunkRef { index, tag, range: pos..payload.end, payload })
 }
 
 /// Printable form of a tag for messages (non-ASCII bytes escaped, so garbage stays readable).
 pub fn tag_name(tag: &[u8]) -> String {
     tag.iter()
-        .map(|&b| {
-            if b.is_ascii_graphic() || b == b' ' {
-                (b as char).to_string()
-            } else {
-                format!("\\x{:02x}", b)
-            }
-        })
+        .map(|&b| if b.is_ascii_graphic() || b == b' ' { (b as char).to_string() } else { format!("\\x{:02x}", b) })
         .collect()
 }
 

@@ -54,12 +54,7 @@ pub struct MlpShape {
 
 impl Default for MlpShape {
     fn default() -> Self {
-        MlpShape {
-            inputs: 34,
-            hidden: 16,
-            outputs: 3,
-            octaves: 4,
-        }
+        MlpShape { inputs: 34, hidden: 16, outputs: 3, octaves: 4 }
     }
 }
 
@@ -126,9 +121,7 @@ impl Header {
     pub fn pixel_rays_for(&self, cam: &snerf_geometry::Pinhole) -> u32 {
         let eye = snerf_geometry::camera::position(&cam.c2w);
         let footprint = snerf_geometry::silhouette::pixel_footprint(eye, self.space.center, cam.fx);
-        if self.pixel_rays > 1
-            && snerf_geometry::silhouette::draws_pixel_means(self.train_pixel, footprint)
-        {
+        if self.pixel_rays > 1 && snerf_geometry::silhouette::draws_pixel_means(self.train_pixel, footprint) {
             self.pixel_rays
         } else {
             1
@@ -144,14 +137,8 @@ impl Header {
             res,
             block,
             atlas_blocks: 0,
-            density: DensityRange {
-                logit_min: -10.0,
-                logit_max: 10.0,
-            },
-            march: March {
-                step: 2.0 / res.max(1) as f32,
-                t_terminate: 1.0e-4,
-            },
+            density: DensityRange { logit_min: -10.0, logit_max: 10.0 },
+            march: March { step: 2.0 / res.max(1) as f32, t_terminate: 1.0e-4 },
             background: [1.0, 1.0, 1.0],
             view_mlp: MlpShape::default(),
             time_range: None,
@@ -213,26 +200,13 @@ impl Header {
 
     /// Keyframe time of frame `i` (0 for static assets).
     pub fn frame_time(&self, i: usize) -> f32 {
-        self.frames
-            .as_ref()
-            .and_then(|f| f.get(i))
-            .map_or(0.0, |k| k.time)
+        self.frames.as_ref().and_then(|f| f.get(i)).map_or(0.0, |k| k.time)
     }
 
     /// Check every field; sizes first, so later code may allocate from them.
     pub fn validate(&self) -> Result<()> {
-        ensure!(
-            self.format == FORMAT_NAME,
-            "header format is {:?}, expected {:?}",
-            self.format,
-            FORMAT_NAME
-        );
-        ensure!(
-            self.res >= 1 && self.res <= MAX_RES,
-            "header claims res {} (max {})",
-            self.res,
-            MAX_RES
-        );
+        ensure!(self.format == FORMAT_NAME, "header format is {:?}, expected {:?}", self.format, FORMAT_NAME);
+        ensure!(self.res >= 1 && self.res <= MAX_RES, "header claims res {} (max {})", self.res, MAX_RES);
         ensure!(
             (MIN_BLOCK..=MAX_BLOCK).contains(&self.block),
             "header claims block {} (must be {}..={})",
@@ -240,30 +214,17 @@ impl Header {
             MIN_BLOCK,
             MAX_BLOCK
         );
-        ensure!(
-            self.res % self.block == 0,
-            "header res {} is not a multiple of block {}",
-            self.res,
-            self.block
-        );
+        ensure!(self.res % self.block == 0, "header res {} is not a multiple of block {}", self.res, self.block);
         ensure!(
             snerf_geometry::silhouette::valid_pixel_rays(self.pixel_rays as usize),
             "header pixel_rays is {} (must be 1, 4, 9 or 16)",
             self.pixel_rays
         );
         if let Some(t) = self.train_pixel {
-            ensure!(
-                t.is_finite() && t > 0.0,
-                "header train_pixel is {t} (must be finite and > 0)"
-            );
+            ensure!(t.is_finite() && t > 0.0, "header train_pixel is {t} (must be finite and > 0)");
         }
         let g = self.grid_dim() as u64;
-        ensure!(
-            g * g * g <= MAX_GRID_CELLS,
-            "header grid has {}^3 cells (max {})",
-            g,
-            MAX_GRID_CELLS
-        );
+        ensure!(g * g * g <= MAX_GRID_CELLS, "header grid has {}^3 cells (max {})", g, MAX_GRID_CELLS);
         let atlas_bytes = self.atlas_blocks as u64 * self.block_bytes() as u64;
         ensure!(
             atlas_bytes <= MAX_ATLAS_BYTES,
@@ -301,57 +262,21 @@ impl Header {
             "header t_terminate {} must be in [0, 1)",
             m.t_terminate
         );
-        ensure!(
-            self.background.iter().all(|x| x.is_finite()),
-            "header background is not finite"
-        );
+        ensure!(self.background.iter().all(|x| x.is_finite()), "header background is not finite");
         self.validate_space()?;
         if let Some(o) = &self.view {
-            let unit = |v: [f32; 3]| {
-                v.iter().all(|x| x.is_finite())
-                    && (v.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-3
-            };
+            let unit = |v: [f32; 3]| v.iter().all(|x| x.is_finite()) && (v.iter().map(|x| x * x).sum::<f32>() - 1.0).abs() < 1e-3;
             let ok = match *o {
-                Orbit::Around {
-                    center,
-                    up,
-                    start,
-                    radius,
-                    elevation,
-                } => {
-                    center.iter().all(|x| x.is_finite())
-                        && unit(up)
-                        && unit(start)
-                        && radius.is_finite()
-                        && radius > 0.0
-                        && elevation.is_finite()
+                Orbit::Around { center, up, start, radius, elevation } => {
+                    center.iter().all(|x| x.is_finite()) && unit(up) && unit(start) && radius.is_finite() && radius > 0.0 && elevation.is_finite()
                 }
-                Orbit::Ellipse {
-                    center,
-                    right,
-                    up,
-                    target,
-                    rx,
-                    ry,
-                } => {
-                    center.iter().chain(&target).all(|x| x.is_finite())
-                        && unit(right)
-                        && unit(up)
-                        && rx.is_finite()
-                        && ry.is_finite()
+                Orbit::Ellipse { center, right, up, target, rx, ry } => {
+                    center.iter().chain(&target).all(|x| x.is_finite()) && unit(right) && unit(up) && rx.is_finite() && ry.is_finite()
                 }
             };
-            ensure!(
-                ok,
-                "header view {:?} needs finite values, unit directions and a positive radius",
-                o
-            );
+            ensure!(ok, "header view {:?} needs finite values, unit directions and a positive radius", o);
         }
-        ensure!(
-            self.floor.is_none_or(f32::is_finite),
-            "header floor {:?} is not finite",
-            self.floor
-        );
+        ensure!(self.floor.is_none_or(f32::is_finite), "header floor {:?} is not finite", self.floor);
         match (&self.time_range, &self.frames) {
             (None, None) => {}
             (Some(r), Some(frames)) => {
@@ -368,16 +293,9 @@ impl Header {
                     MAX_FRAMES
                 );
                 for (i, w) in frames.windows(2).enumerate() {
-                    ensure!(
-                        w[0].time <= w[1].time,
-                        "header frame times not sorted at frame {}",
-                        i + 1
-                    );
+                    ensure!(w[0].time <= w[1].time, "header frame times not sorted at frame {}", i + 1);
                 }
-                ensure!(
-                    frames.iter().all(|f| f.time.is_finite()),
-                    "header has a non-finite frame time"
-                );
+                ensure!(frames.iter().all(|f| f.time.is_finite()), "header has a non-finite frame time");
             }
             _ => bail!("header must have both time_range and frames (dynamic) or neither (static)"),
         }
@@ -395,12 +313,7 @@ impl Header {
             for j in 0..3 {
                 let dot: f32 = (0..3).map(|k| s.rot[i][k] * s.rot[j][k]).sum();
                 let want = if i == j { 1.0 } else { 0.0 };
-                ensure!(
-                    (dot - want).abs() < 1e-3,
-                    "header space rot is not orthonormal (rows {} and {})",
-                    i,
-                    j
-                );
+                ensure!((dot - want).abs() < 1e-3, "header space rot is not orthonormal (rows {} and {})", i, j);
             }
         }
         match (self.kind, &s.ndc) {

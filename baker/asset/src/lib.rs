@@ -18,11 +18,7 @@
 
 // `!(x < y)` and `.max(0.0).min(1.0)` are deliberate: both send NaN down the safe branch
 // (clamp() would pass NaN through). `%` instead of is_multiple_of keeps the 1.80 MSRV.
-#![allow(
-    clippy::neg_cmp_op_on_partial_ord,
-    clippy::manual_clamp,
-    clippy::manual_is_multiple_of
-)]
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::manual_clamp, clippy::manual_is_multiple_of)]
 
 pub mod assemble;
 pub mod asset;
@@ -43,8 +39,6 @@ pub use chunk::{chunks, encode_chunk, preamble, ChunkRef};
 pub use header::{DensityRange, Header, Keyframe, Kind, March, MlpShape, Ndc, Space};
 pub use mlp::ViewMlp;
 pub use quantize::{decode_density, encode_density, encode_voxel, quantize_unit};
-pub use render::{
-    contact_strip, orbit, render, render_pixel, render_ray, write_png, Camera, Frame, PixelResult,
-};
+pub use render::{contact_strip, orbit, render, render_pixel, render_ray, write_png, Camera, Frame, PixelResult};
 pub use sample::{Loc, TimeSlot};
 pub use summary::{PartBytes, PartRates, Summary};

@@ -10,12 +10,8 @@ pub const MLP_HIDDEN: usize = view_mlp::HIDDEN;
 pub const MLP_OUT: usize = view_mlp::OUTPUTS;
 pub const MLP_OCTAVES: usize = view_mlp::OCTAVES;
 /// Total f32 count in the `VMLP` chunk.
-pub const MLP_FLOATS: usize = MLP_HIDDEN * MLP_IN
-    + MLP_HIDDEN
-    + MLP_HIDDEN * MLP_HIDDEN
-    + MLP_HIDDEN
-    + MLP_OUT * MLP_HIDDEN
-    + MLP_OUT;
+pub const MLP_FLOATS: usize =
+    MLP_HIDDEN * MLP_IN + MLP_HIDDEN + MLP_HIDDEN * MLP_HIDDEN + MLP_HIDDEN + MLP_OUT * MLP_HIDDEN + MLP_OUT;
 
 /// Weights are output-major (row j of w1 = the 34 weights feeding hidden unit j).
 #[derive(Clone, Debug, PartialEq)]
@@ -43,16 +39,8 @@ impl ViewMlp {
 
     /// From the flat order of the `VMLP` chunk (w1, b1, w2, b2, w3, b3).
     pub fn from_flat(v: &[f32]) -> Result<ViewMlp> {
-        ensure!(
-            v.len() == MLP_FLOATS,
-            "view MLP has {} floats, expected {}",
-            v.len(),
-            MLP_FLOATS
-        );
-        ensure!(
-            v.iter().all(|x| x.is_finite()),
-            "view MLP has non-finite weights"
-        );
+        ensure!(v.len() == MLP_FLOATS, "view MLP has {} floats, expected {}", v.len(), MLP_FLOATS);
+        ensure!(v.iter().all(|x| x.is_finite()), "view MLP has non-finite weights");
         let mut rest = v;
         let mut take = |n: usize| {
             let (a, b) = rest.split_at(n);
@@ -70,10 +58,7 @@ impl ViewMlp {
     }
 
     pub fn to_flat(&self) -> Vec<f32> {
-        [&self.w1, &self.b1, &self.w2, &self.b2, &self.w3, &self.b3]
-            .iter()
-            .flat_map(|v| v.iter().copied())
-            .collect()
+        [&self.w1, &self.b1, &self.w2, &self.b2, &self.w3, &self.b3].iter().flat_map(|v| v.iter().copied()).collect()
     }
 
     /// Sizes and finiteness (public fields can be set to anything by a caller).

@@ -21,10 +21,10 @@ use crate::sample::TimeSlot;
 
 pub use snerf_geometry::march::{MAX_ITERS, MAX_OPTICAL_DEPTH, UNBOUNDED_FAR, UNBOUNDED_NEAR};
 pub use snerf_geometry::ndc::NDC_MIN_DZ;
+pub use snerf_geometry::{contract, unbounded_dt};
 use snerf_geometry::silhouette::{mean_of_rays, mixed_coverage, subpixel_grid};
 use snerf_geometry::vec::norm;
 use snerf_geometry::{box_hit, MarchRay};
-pub use snerf_geometry::{contract, unbounded_dt};
 
 /// A pinhole camera. c2w is camera-to-world (OpenGL: x right, y up, looking down -z),
 /// rows of [R | t].
@@ -71,14 +71,7 @@ struct Accum {
 
 impl Accum {
     fn new() -> Accum {
-        Accum {
-            vals: [0.0; 7],
-            acc: 0.0,
-            depth: 0.0,
-            optical: 0.0,
-            trans: 1.0,
-            samples: 0,
-        }
+        Accum { vals: [0.0; 7], acc: 0.0, depth: 0.0, optical: 0.0, trans: 1.0, samples: 0 }
     }
     /// Add one sample; returns true when the ray should stop (T below t_terminate).
     #[inline]
@@ -202,9 +195,7 @@ pub fn render_ray(asset: &Asset, ow: V3, dw: V3, time: f32) -> PixelResult {
         let slot = asset.time_slot(time);
         let step = h.march.step;
         match (h.kind, h.space.ndc) {
-            (Kind::Object, _) => {
-                march_affine(asset, &slot, r.o, r.d, r.t0, r.t1, step, step, 0, &mut acc)
-            }
+            (Kind::Object, _) => march_affine(asset, &slot, r.o, r.d, r.t0, r.t1, step, step, 0, &mut acc),
             (Kind::Forward, Some(n)) => march_forward(asset, &slot, &r, &n, &mut acc),
             (Kind::Forward, None) => {}
             (Kind::Unbounded, _) => march_unbounded(asset, &slot, r.o, r.d, &mut acc),
@@ -215,13 +206,7 @@ pub fn render_ray(asset: &Asset, ow: V3, dw: V3, time: f32) -> PixelResult {
 
 /// Forward-facing: NeRF's ndc_rays on the model ray, then an affine march over t in [0,1]
 /// restricted to where the grid ray is inside [-1,1]^3 (outside samples contribute nothing).
-fn march_forward(
-    asset: &Asset,
-    slot: &TimeSlot,
-    r: &MarchRay,
-    n: &crate::header::Ndc,
-    acc: &mut Accum,
-) {
+fn march_forward(asset: &Asset, slot: &TimeSlot, r: &MarchRay, n: &crate::header::Ndc, acc: &mut Accum) {
     let (go, gd) = (n.to_grid(r.o), n.to_grid(r.d));
     if !go.iter().chain(gd.iter()).all(|x| x.is_finite()) {
         return;
@@ -232,49 +217,19 @@ fn march_forward(
     if !(dt > 0.0 && dt.is_finite() && delta.is_finite()) {
         return;
     }
-    let Some((tb0, tb1)) = box_hit(go, gd, 1.0) else {
-        return;
-    };
+    let Some((tb0, tb1)) = box_hit(go, gd, 1.0) else { return };
     // First lattice index at or just before the box entry (outside points are skipped).
     let i_start = ((tb0.max(0.0) / dt - 0.5).floor().max(0.0)) as usize;
-    march_affine(
-        asset,
-        slot,
-        go,
-        gd,
-        0.0,
-        tb1.min(r.t1),
-        dt,
-        delta,
-        i_start,
-        acc,
-    );
+    march_affine(asset, slot, go, gd, 0.0, tb1.min(r.t1), dt, delta, i_start, acc);
 }
 
 /// Final pixel colour: diffuse + opacity·specular + T·background, clamped to [0,1].
 fn shade(asset: &Asset, acc: &Accum, dw: V3) -> PixelResult {
     let bg = asset.header.background;
-    let spec = if acc.acc > 0.0 {
-        asset.mlp.forward(&ViewMlp::input(&acc.vals, dw))
-    } else {
-        [0.0; 3]
-    };
-    let rgb = [0, 1, 2].map(|c| {
-        (acc.vals[c] + acc.acc * spec[c] + acc.trans * bg[c])
-            .max(0.0)
-            .min(1.0)
-    });
-    let depth = if acc.acc > 1e-6 {
-        acc.depth / acc.acc
-    } else {
-        0.0
-    };
-    PixelResult {
-        rgb,
-        depth,
-        opacity: acc.acc,
-        samples: acc.samples,
-    }
+    let spec = if acc.acc > 0.0 { asset.mlp.forward(&ViewMlp::input(&acc.vals, dw)) } else { [0.0; 3] };
+    let rgb = [0, 1, 2].map(|c| (acc.vals[c] + acc.acc * spec[c] + acc.trans * bg[c]).max(0.0).min(1.0));
+    let depth = if acc.acc > 1e-6 { acc.depth / acc.acc } else { 0.0 };
+    PixelResult { rgb, depth, opacity: acc.acc, samples: acc.samples }
 }
 
 /// One pixel (centre at px+0.5, py+0.5).
@@ -284,14 +239,7 @@ pub fn render_pixel(asset: &Asset, cam: &Camera, px: u32, py: u32, time: f32) ->
 }
 
 /// One pixel as the mean of `k` rays on its sub-pixel grid (`silhouette::subpixel_grid`).
-pub fn render_pixel_mean(
-    asset: &Asset,
-    cam: &Camera,
-    px: u32,
-    py: u32,
-    time: f32,
-    k: usize,
-) -> PixelResult {
+pub fn render_pixel_mean(asset: &Asset, cam: &Camera, px: u32, py: u32, time: f32, k: usize) -> PixelResult {
     let rays: Vec<PixelResult> = subpixel_grid(k)
         .into_iter()
         .map(|(sx, sy)| {
@@ -299,18 +247,8 @@ pub fn render_pixel_mean(
             render_ray(asset, o, d, time)
         })
         .collect();
-    let (rgb, opacity, depth) = mean_of_rays(
-        &rays
-            .iter()
-            .map(|r| (r.rgb, r.opacity, r.depth))
-            .collect::<Vec<_>>(),
-    );
-    PixelResult {
-        rgb,
-        depth,
-        opacity,
-        samples: rays.iter().map(|r| r.samples).sum(),
-    }
+    let (rgb, opacity, depth) = mean_of_rays(&rays.iter().map(|r| (r.rgb, r.opacity, r.depth)).collect::<Vec<_>>());
+    PixelResult { rgb, depth, opacity, samples: rays.iter().map(|r| r.samples).sum() }
 }
 
 /// A whole image, rows in parallel: one ray through every pixel's centre, then, for an
@@ -327,13 +265,9 @@ pub fn render(asset: &Asset, cam: &Camera, time: f32) -> Frame {
     let k = asset.header.pixel_rays_for(cam) as usize;
     if k > 1 {
         let opacity: Vec<f32> = px.iter().map(|p| p.opacity).collect();
-        let edge: Vec<usize> = (0..w * h)
-            .filter(|&p| mixed_coverage(&opacity, w, h, p % w, p / w))
-            .collect();
-        let means: Vec<PixelResult> = edge
-            .par_iter()
-            .map(|&p| render_pixel_mean(asset, cam, (p % w) as u32, (p / w) as u32, time, k))
-            .collect();
+        let edge: Vec<usize> = (0..w * h).filter(|&p| mixed_coverage(&opacity, w, h, p % w, p / w)).collect();
+        let means: Vec<PixelResult> =
+            edge.par_iter().map(|&p| render_pixel_mean(asset, cam, (p % w) as u32, (p / w) as u32, time, k)).collect();
         for (&p, m) in edge.iter().zip(means) {
             px[p] = m;
         }
@@ -349,23 +283,15 @@ pub fn render(asset: &Asset, cam: &Camera, time: f32) -> Frame {
 
 fn to_png_bytes(img: image::RgbImage) -> Result<Vec<u8>> {
     let mut buf = std::io::Cursor::new(Vec::new());
-    img.write_to(&mut buf, image::ImageFormat::Png)
-        .map_err(|e| anyhow!("PNG encoding failed: {}", e))?;
+    img.write_to(&mut buf, image::ImageFormat::Png).map_err(|e| anyhow!("PNG encoding failed: {}", e))?;
     Ok(buf.into_inner())
 }
 
 fn frame_image(frame: &Frame) -> Result<image::RgbImage> {
     let n = frame.width as usize * frame.height as usize * 3;
-    ensure!(
-        frame.rgb.len() == n,
-        "frame has {} rgb values for {}x{}",
-        frame.rgb.len(),
-        frame.width,
-        frame.height
-    );
+    ensure!(frame.rgb.len() == n, "frame has {} rgb values for {}x{}", frame.rgb.len(), frame.width, frame.height);
     let data: Vec<u8> = frame.rgb.iter().map(|&v| quantize_unit(v)).collect();
-    image::RgbImage::from_raw(frame.width, frame.height, data)
-        .ok_or_else(|| anyhow!("bad frame size"))
+    image::RgbImage::from_raw(frame.width, frame.height, data).ok_or_else(|| anyhow!("bad frame size"))
 }
 
 /// Save a frame's colour as PNG (atomically).
@@ -379,11 +305,7 @@ pub fn write_png(frame: &Frame, path: impl AsRef<Path>) -> Result<()> {
 pub fn contact_strip(frames: &[Frame], path: impl AsRef<Path>) -> Result<()> {
     let path = path.as_ref();
     let frames = &frames[..frames.len().min(8)];
-    ensure!(
-        !frames.is_empty(),
-        "{}: no frames for the contact strip",
-        path.display()
-    );
+    ensure!(!frames.is_empty(), "{}: no frames for the contact strip", path.display());
     let w: u32 = frames.iter().map(|f| f.width).sum();
     let h = frames.iter().map(|f| f.height).max().unwrap_or(0);
     let mut canvas = image::RgbImage::new(w, h);

@@ -37,10 +37,7 @@ impl Asset {
             // Stored block starts at global voxel c*b - 1 (the apron); centre-aligned coords.
             local[a] = v - 0.5 - (c * b) as f32 + 1.0;
         }
-        Some(Loc {
-            cell: (cell[2] * gd + cell[1]) * gd + cell[0],
-            local,
-        })
+        Some(Loc { cell: (cell[2] * gd + cell[1]) * gd + cell[0], local })
     }
 
     /// Atlas block of `cell` in `frame`; None if empty, not arrived, or out of range.
@@ -60,10 +57,7 @@ impl Asset {
         let b = self.header.block as usize;
         let e = b + 2;
         let bb = self.block_bytes();
-        let Some(data) = self
-            .atlas
-            .get(block as usize * bb..(block as usize + 1) * bb)
-        else {
+        let Some(data) = self.atlas.get(block as usize * bb..(block as usize + 1) * bb) else {
             return self.empty_values();
         };
         let mut i0 = [0usize; 3];

@@ -100,8 +100,7 @@ impl Asset {
         let grids_bytes = self.grids.iter().filter(|g| !g.is_empty()).count() as u64 * grid_chunk;
         let blocks_bytes = present_blocks * block_chunk;
         let mean_occupied = occupied.iter().sum::<u64>() as f64 / occupied.len().max(1) as f64;
-        let static_frame_bytes =
-            head + mlp + grid_chunk + (mean_occupied * block_chunk as f64).round() as u64;
+        let static_frame_bytes = head + mlp + grid_chunk + (mean_occupied * block_chunk as f64).round() as u64;
         let (mut cells_changing, mut cells_occupied_any_frame) = (0u64, 0u64);
         for c in 0..cells as usize {
             let at = |g: &Vec<u32>| g.get(c).copied().unwrap_or(EMPTY);
@@ -109,10 +108,7 @@ impl Asset {
             cells_changing += self.grids.iter().any(|g| at(g) != first) as u64;
             cells_occupied_any_frame += self.grids.iter().any(|g| at(g) != EMPTY) as u64;
         }
-        let animation_seconds = h
-            .time_range
-            .map(|r| (r[1] - r[0]) as f64)
-            .filter(|&s| s > 0.0);
+        let animation_seconds = h.time_range.map(|r| (r[1] - r[0]) as f64).filter(|&s| s > 0.0);
         let bytes_per_second = animation_seconds.map(|s| PartRates {
             header: head as f64 / s,
             mlp: mlp as f64 / s,
@@ -126,18 +122,9 @@ impl Asset {
             block: h.block,
             frames: self.num_frames(),
             atlas_blocks: h.atlas_blocks,
-            occupied_fraction: occupied
-                .iter()
-                .map(|&o| o as f64 / cells.max(1) as f64)
-                .collect(),
+            occupied_fraction: occupied.iter().map(|&o| o as f64 / cells.max(1) as f64).collect(),
             occupied_cells: occupied,
-            bytes: PartBytes {
-                header: head,
-                mlp,
-                grids: grids_bytes,
-                blocks: blocks_bytes,
-                total: file_bytes,
-            },
+            bytes: PartBytes { header: head, mlp, grids: grids_bytes, blocks: blocks_bytes, total: file_bytes },
             frame0_bytes: per_frame.first().copied().unwrap_or(0),
             keyframe_bytes: per_frame.iter().skip(1).copied().collect(),
             unreferenced_blocks: seen.iter().filter(|&&s| !s).count() as u64,

@@ -81,10 +81,7 @@ fn streaming_rejects_bad_chunks_but_accepts_resent_blocks() {
     assert!(err.contains("duplicate HEAD"), "{}", err);
     let err = asm.push(*b"XXXX", b"").unwrap_err().to_string();
     assert!(err.contains("unknown"), "{}", err);
-    let err = asm
-        .push_chunk(&encode_chunk(*b"GRID", &[0; 7]))
-        .unwrap_err()
-        .to_string();
+    let err = asm.push_chunk(&encode_chunk(*b"GRID", &[0; 7])).unwrap_err().to_string();
     assert!(err.contains("GRID"), "{}", err);
     // a whole file can be given to new() too
     let whole = Assembler::new(&bytes).unwrap();

@@ -1,17 +1,13 @@
 //! Malformed files: every problem is an error that names the chunk/field, never a panic or
 //! a large allocation.
-use snerf_asset::{
-    chunks, encode_chunk, encode_voxel, preamble, Asset, AssetBuilder, Header, Kind, ViewMlp,
-};
+use snerf_asset::{chunks, encode_chunk, encode_voxel, preamble, Asset, AssetBuilder, Header, Kind, ViewMlp};
 
 /// A tiny asset: res 8, block 4, 3 blocks.
 fn tiny() -> Asset {
     let h = Header::new(Kind::Object, 8, 4);
     let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
     for cell in [[0, 0, 0], [1, 0, 0], [1, 1, 1]] {
-        let blk = b.block_from_fn(cell, |v| {
-            encode_voxel(v[0] as f32 * 0.1, [0.5; 3], [0.0; 4], &h.density)
-        });
+        let blk = b.block_from_fn(cell, |v| encode_voxel(v[0] as f32 * 0.1, [0.5; 3], [0.0; 4], &h.density));
         b.set_block(0, cell, &blk).unwrap();
     }
     b.finish().unwrap()
@@ -46,10 +42,7 @@ fn with_header(edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
 }
 
 fn err_of(bytes: &[u8]) -> String {
-    format!(
-        "{:#}",
-        Asset::from_bytes(bytes).expect_err("must be rejected")
-    )
+    format!("{:#}", Asset::from_bytes(bytes).expect_err("must be rejected"))
 }
 
 #[test]
@@ -67,11 +60,7 @@ fn every_truncation_is_an_error() {
     assert!(e.contains("END"), "{}", e);
     let last_blks = cs.len() - 2;
     let e = err_of(&bytes[..cs[last_blks].range.end - 5]);
-    assert!(
-        e.contains(&format!("chunk {} (BLKS)", last_blks)) && e.contains("truncated"),
-        "{}",
-        e
-    );
+    assert!(e.contains(&format!("chunk {} (BLKS)", last_blks)) && e.contains("truncated"), "{}", e);
     // cut early: the header's claims no longer fit in what follows
     let e = err_of(&bytes[..cs[2].range.end + 5]);
     assert!(e.contains("bytes follow"), "{}", e);
@@ -87,11 +76,7 @@ fn flipped_bit_in_each_chunk_names_the_chunk() {
         b[mid] ^= 0x10;
         let name = String::from_utf8_lossy(&c.tag).to_string();
         let e = err_of(&b);
-        assert!(
-            e.contains(&format!("chunk {} ({})", c.index, name)) && e.contains("checksum mismatch"),
-            "{}",
-            e
-        );
+        assert!(e.contains(&format!("chunk {} ({})", c.index, name)) && e.contains("checksum mismatch"), "{}", e);
         // and in the stored CRC itself
         let mut b = bytes.clone();
         b[c.range.start + 9] ^= 0x01;
@@ -111,9 +96,7 @@ fn absurd_header_sizes_are_rejected_before_allocating() {
         v["block"] = 4.into();
     }));
     assert!(e.contains("512^3 cells"), "{}", e);
-    let e = err_of(&with_header(|v| {
-        v["atlas_blocks"] = 4_000_000_000u32.into()
-    }));
+    let e = err_of(&with_header(|v| v["atlas_blocks"] = 4_000_000_000u32.into()));
     assert!(e.contains("atlas blocks") && e.contains("max"), "{}", e);
     let e = err_of(&with_header(|v| v["atlas_blocks"] = 1_000_000.into()));
     assert!(e.contains("only") && e.contains("bytes follow"), "{}", e);
@@ -151,11 +134,7 @@ fn structural_errors() {
     let g = idx(b"GRID");
     p[g].1[4..8].copy_from_slice(&3u32.to_le_bytes());
     let e = err_of(&build(&p));
-    assert!(
-        e.contains("GRID") && e.contains("points at block 3 (atlas has 3)"),
-        "{}",
-        e
-    );
+    assert!(e.contains("GRID") && e.contains("points at block 3 (atlas has 3)"), "{}", e);
 
     // BLKS index + count out of range
     let mut p = good.clone();
@@ -245,11 +224,7 @@ fn huge_chunk_length_is_rejected() {
     let at = cs[1].range.start + 4;
     bytes[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes());
     let e = err_of(&bytes);
-    assert!(
-        e.contains("chunk 1 (VMLP) claims 4294967295 bytes (max"),
-        "{}",
-        e
-    );
+    assert!(e.contains("chunk 1 (VMLP) claims 4294967295 bytes (max"), "{}", e);
     bytes[at..at + 4].copy_from_slice(&(100u32 << 20).to_le_bytes());
     let e = err_of(&bytes);
     assert!(e.contains("remain"), "{}", e);

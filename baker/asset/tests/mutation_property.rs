@@ -5,24 +5,18 @@ mod common;
 use common::*;
 use snerf_asset::chunk::parse_chunk_at;
 use snerf_asset::{
-    chunks, encode_chunk, encode_voxel, preamble, Assembler, Asset, AssetBuilder, Header, Kind,
-    ViewMlp,
+    chunks, encode_chunk, encode_voxel, preamble, Assembler, Asset, AssetBuilder, Header, Kind, ViewMlp,
 };
 use std::time::Instant;
 
 fn small_valid() -> Vec<u8> {
     let mut h = Header::new(Kind::Unbounded, 8, 4);
     h.time_range = Some([0.0, 1.0]);
-    h.frames = Some(vec![
-        snerf_asset::Keyframe { time: 0.0 },
-        snerf_asset::Keyframe { time: 1.0 },
-    ]);
+    h.frames = Some(vec![snerf_asset::Keyframe { time: 0.0 }, snerf_asset::Keyframe { time: 1.0 }]);
     let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
     for f in 0..2 {
         for cell in [[0, 0, 0], [1, 0, 1]] {
-            let blk = b.block_from_fn(cell, |v| {
-                encode_voxel(v[0] as f32 * f as f32, [0.5; 3], [0.0; 4], &h.density)
-            });
+            let blk = b.block_from_fn(cell, |v| encode_voxel(v[0] as f32 * f as f32, [0.5; 3], [0.0; 4], &h.density));
             b.set_block(f, cell, &blk).unwrap();
         }
     }
@@ -52,9 +46,7 @@ fn exercise(bytes: &[u8]) {
             let _ = a.summary(bytes.len() as u64);
             assert!(Asset::from_bytes(&a.to_bytes()).is_ok());
         }
-        let head_end = parse_chunk_at(bytes, 16, 0)
-            .map(|c| c.range.end)
-            .unwrap_or(bytes.len());
+        let head_end = parse_chunk_at(bytes, 16, 0).map(|c| c.range.end).unwrap_or(bytes.len());
         if let Ok(mut asm) = Assembler::new(&bytes[..head_end]) {
             if let Ok(cs) = chunks(bytes) {
                 for c in cs {
@@ -65,12 +57,7 @@ fn exercise(bytes: &[u8]) {
             let _ = asm.is_complete();
         }
     });
-    assert!(
-        r.is_ok(),
-        "panic on input of {} bytes: {:?}",
-        bytes.len(),
-        &bytes[..bytes.len().min(64)]
-    );
+    assert!(r.is_ok(), "panic on input of {} bytes: {:?}", bytes.len(), &bytes[..bytes.len().min(64)]);
 }
 
 #[test]
@@ -108,15 +95,8 @@ fn mutated_files_never_panic() {
                     // overwrite a plausible u32 field (length / index / count) with an extreme
                     if b.len() >= 4 {
                         let i = rng.below(b.len() as u64 - 3) as usize;
-                        let v = [
-                            0u32,
-                            1,
-                            2,
-                            0xFFFF_FFFF,
-                            0x7FFF_FFFF,
-                            1 << 28,
-                            rng.next() as u32,
-                        ][rng.below(7) as usize];
+                        let v =
+                            [0u32, 1, 2, 0xFFFF_FFFF, 0x7FFF_FFFF, 1 << 28, rng.next() as u32][rng.below(7) as usize];
                         b[i..i + 4].copy_from_slice(&v.to_le_bytes());
                     }
                 }
@@ -124,10 +104,7 @@ fn mutated_files_never_panic() {
                     let i = rng.below(b.len() as u64 + 1) as usize;
                     b.splice(
                         i..i,
-                        encode_chunk(
-                            *[b"BLKS", b"GRID", b"VMLP", b"END ", b"HEAD"][rng.below(5) as usize],
-                            &[],
-                        ),
+                        encode_chunk(*[b"BLKS", b"GRID", b"VMLP", b"END ", b"HEAD"][rng.below(5) as usize], &[]),
                     );
                 }
                 _ => {
@@ -150,14 +127,7 @@ fn mutated_files_never_panic() {
 fn random_chunk_streams_never_panic() {
     let mut rng = Rng(42);
     let start = Instant::now();
-    let tags = [
-        *b"HEAD",
-        *b"VMLP",
-        *b"GRID",
-        *b"BLKS",
-        *b"END ",
-        *b"\0\xff ?",
-    ];
+    let tags = [*b"HEAD", *b"VMLP", *b"GRID", *b"BLKS", *b"END ", *b"\0\xff ?"];
     let head = {
         let v = small_valid();
         let c = &chunks(&v).unwrap()[0];
@@ -175,10 +145,7 @@ fn random_chunk_streams_never_panic() {
             if n >= 8 && rng.below(2) == 0 {
                 payload[..4].copy_from_slice(&(rng.below(4) as u32).to_le_bytes());
             }
-            b.extend(encode_chunk(
-                tags[rng.below(tags.len() as u64) as usize],
-                &payload,
-            ));
+            b.extend(encode_chunk(tags[rng.below(tags.len() as u64) as usize], &payload));
         }
         if rng.below(3) == 0 {
             let n = rng.below(64) as usize;

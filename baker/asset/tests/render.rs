@@ -3,8 +3,8 @@ mod common;
 use common::*;
 use snerf_asset::render::{camera_ray, render_ray};
 use snerf_asset::{
-    contact_strip, decode_density, encode_voxel, orbit, render, render_pixel, write_png, Asset,
-    AssetBuilder, Camera, Header, Kind, Ndc, ViewMlp,
+    contact_strip, decode_density, encode_voxel, orbit, render, render_pixel, write_png, Asset, AssetBuilder, Camera,
+    Header, Kind, Ndc, ViewMlp,
 };
 
 const CODE: u8 = 130;
@@ -21,9 +21,7 @@ fn half_slab(t_terminate: f32) -> Asset {
     for z in 0..2 {
         for y in 0..4 {
             for x in 0..4 {
-                let blk = b.block_from_fn([x, y, z], |_| {
-                    [CODE, COLOUR[0], COLOUR[1], COLOUR[2], 0, 0, 0, 0]
-                });
+                let blk = b.block_from_fn([x, y, z], |_| [CODE, COLOUR[0], COLOUR[1], COLOUR[2], 0, 0, 0, 0]);
                 b.set_block(0, [x, y, z], &blk).unwrap();
             }
         }
@@ -39,11 +37,7 @@ fn constant_slab_matches_closed_form() {
     // Ray straight down -z from z = 3: box from t = 2 to 4, the slab (z < 0) from t = 3 to 4,
     // which holds exactly 32 lattice points t = 2 + (i + 0.5) dt, i = 32..63.
     let cam = Camera {
-        c2w: [
-            [1.0, 0.0, 0.0, 0.013],
-            [0.0, 1.0, 0.0, -0.021],
-            [0.0, 0.0, 1.0, 3.0],
-        ],
+        c2w: [[1.0, 0.0, 0.0, 0.013], [0.0, 1.0, 0.0, -0.021], [0.0, 0.0, 1.0, 3.0]],
         fx: 1.0,
         fy: 1.0,
         cx: 0.5,
@@ -55,21 +49,10 @@ fn constant_slab_matches_closed_form() {
     assert_eq!(p.samples, 32);
     let t_final = (-sigma).exp();
     let opacity = 1.0 - t_final;
-    assert!(
-        (p.opacity as f64 - opacity).abs() < 1e-3,
-        "{} vs {}",
-        p.opacity,
-        opacity
-    );
+    assert!((p.opacity as f64 - opacity).abs() < 1e-3, "{} vs {}", p.opacity, opacity);
     for (c, &col) in COLOUR.iter().enumerate() {
         let want = col as f64 / 255.0 * opacity + t_final * a.header.background[c] as f64;
-        assert!(
-            (p.rgb[c] as f64 - want).abs() < 1e-3,
-            "channel {}: {} vs {}",
-            c,
-            p.rgb[c],
-            want
-        );
+        assert!((p.rgb[c] as f64 - want).abs() < 1e-3, "channel {}: {} vs {}", c, p.rgb[c], want);
     }
     // depth: geometric weights over the 32 samples
     let a_k = 1.0 - (-sigma * dt).exp();
@@ -79,12 +62,7 @@ fn constant_slab_matches_closed_form() {
         num += w * (3.0 + (k as f64 + 0.5) * dt);
         den += w;
     }
-    assert!(
-        (p.depth as f64 - num / den).abs() < 1e-3,
-        "{} vs {}",
-        p.depth,
-        num / den
-    );
+    assert!((p.depth as f64 - num / den).abs() < 1e-3, "{} vs {}", p.depth, num / den);
 
     // The same ray marched without empty-space skipping must agree: compare against a dense
     // asset whose "empty" half is stored explicitly with the lowest density code... the
@@ -120,30 +98,15 @@ fn view_mlp_adds_specular() {
     assert!((spec.rgb[2] - (base.rgb[2] - 0.1 * base.opacity)).abs() < 1e-5);
     // ViewMlp input layout
     let x = ViewMlp::input(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0], [0.0, 0.6, 0.8]);
-    assert_eq!(
-        &x[..10],
-        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 0.0, 0.6, 0.8]
-    );
+    assert_eq!(&x[..10], &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 0.0, 0.6, 0.8]);
     assert_eq!((x[10], x[11]), (0.0, 1.0));
     let f = 8.0 * std::f32::consts::PI;
     assert!((x[32] - (f * 0.8).sin()).abs() < 1e-6 && (x[33] - (f * 0.8).cos()).abs() < 1e-6);
 }
 
 fn check_finite(p: &snerf_asset::PixelResult, what: &str) {
-    assert!(
-        p.rgb
-            .iter()
-            .all(|c| c.is_finite() && (0.0..=1.0).contains(c)),
-        "{}: {:?}",
-        what,
-        p
-    );
-    assert!(
-        p.depth.is_finite() && p.opacity.is_finite() && (0.0..=1.0001).contains(&p.opacity),
-        "{}: {:?}",
-        what,
-        p
-    );
+    assert!(p.rgb.iter().all(|c| c.is_finite() && (0.0..=1.0).contains(c)), "{}: {:?}", what, p);
+    assert!(p.depth.is_finite() && p.opacity.is_finite() && (0.0..=1.0001).contains(&p.opacity), "{}: {:?}", what, p);
 }
 
 fn dense_asset(kind: Kind) -> Asset {
@@ -151,14 +114,7 @@ fn dense_asset(kind: Kind) -> Asset {
     h.march.step = 2.0 / 48.0;
     h.density.logit_max = 80.0; // huge σ at the top codes: the clamp must hold
     if kind == Kind::Forward {
-        h.space.ndc = Some(Ndc {
-            fx: 50.0,
-            fy: 50.0,
-            width: 100.0,
-            height: 80.0,
-            near: 1.0,
-            xy_extent: 1.25,
-        });
+        h.space.ndc = Some(Ndc { fx: 50.0, fy: 50.0, width: 100.0, height: 80.0, near: 1.0, xy_extent: 1.25 });
     }
     let mut b = AssetBuilder::new(h.clone(), small_mlp()).unwrap();
     for z in 0..4 {
@@ -193,20 +149,10 @@ fn unbounded_and_forward_are_finite_for_any_ray() {
     ];
     let mut rng = Rng(11);
     for _ in 0..300 {
-        dirs.push([
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        ]);
+        dirs.push([rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)]);
     }
-    let origins = [
-        [0.0, 0.0, 0.0],
-        [0.3, -0.2, 0.1],
-        [5.0, 5.0, 5.0],
-        [0.0, 0.0, 1e6],
-        [-40.0, 3.0, 0.5],
-        [0.0, 0.0, 0.99],
-    ];
+    let origins =
+        [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [5.0, 5.0, 5.0], [0.0, 0.0, 1e6], [-40.0, 3.0, 0.5], [0.0, 0.0, 0.99]];
     for kind in [Kind::Unbounded, Kind::Forward, Kind::Object] {
         let a = dense_asset(kind);
         let mut hit = 0;
@@ -264,21 +210,14 @@ fn orbit_cameras_see_the_object_and_images_save() {
     assert_eq!((img.width(), img.height()), (24 * 6, 16));
     let one = image::open(dir.join("one.png")).unwrap().to_rgb8();
     let px = one.get_pixel(12, 8);
-    assert_eq!(
-        px.0[0],
-        snerf_asset::quantize_unit(frames[0].rgb[3 * (8 * 24 + 12)])
-    );
+    assert_eq!(px.0[0], snerf_asset::quantize_unit(frames[0].rgb[3 * (8 * 24 + 12)]));
     std::fs::remove_dir_all(&dir).unwrap();
 
     // forward orbit: parallel cameras around the reference one, looking down model -z
     let f = dense_asset(Kind::Forward);
     let cam = orbit(&f.header, 8, 3, 10, 10, 50.0);
     let (o, d) = camera_ray(&cam, 4, 4);
-    assert!(
-        (o[0].hypot(o[1]) - 0.1).abs() < 1e-5 && o[2].abs() < 1e-6,
-        "{:?}",
-        o
-    );
+    assert!((o[0].hypot(o[1]) - 0.1).abs() < 1e-5 && o[2].abs() < 1e-6, "{:?}", o);
     assert!(d[2] < -0.99, "{:?}", d);
 }
 
@@ -292,13 +231,7 @@ fn dynamic_render_follows_time() {
     let r1 = render_ray(&a, o, d, 1.0);
     let rh = render_ray(&a, o, d, 0.5);
     assert!(r0.rgb != r1.rgb);
-    assert!(
-        (rh.rgb[2] - 0.5 * (r0.rgb[2] + r1.rgb[2])).abs() < 0.02,
-        "{:?} {:?} {:?}",
-        r0,
-        rh,
-        r1
-    );
+    assert!((rh.rgb[2] - 0.5 * (r0.rgb[2] + r1.rgb[2])).abs() < 0.02, "{:?} {:?} {:?}", r0, rh, r1);
     // through the unchanged half, time does not matter
     let o = [-0.3, 0.05, 3.0];
     assert_eq!(render_ray(&a, o, d, 0.0), render_ray(&a, o, d, 1.7));
@@ -307,35 +240,17 @@ fn dynamic_render_follows_time() {
 #[test]
 fn a_frame_as_a_static_asset_renders_as_that_frame() {
     let a = sphere_asset(true);
-    let times: Vec<f32> = a
-        .header
-        .frames
-        .as_ref()
-        .unwrap()
-        .iter()
-        .map(|k| k.time)
-        .collect();
+    let times: Vec<f32> = a.header.frames.as_ref().unwrap().iter().map(|k| k.time).collect();
     for (f, &t) in times.iter().enumerate() {
         let s = a.frame_as_static(f).unwrap();
         assert!(!s.is_dynamic() && s.header.frames.is_none() && s.grids.len() == 1);
         // Only the blocks that frame uses.
-        let used: std::collections::HashSet<u32> = a.grids[f]
-            .iter()
-            .copied()
-            .filter(|&e| e != snerf_asset::EMPTY)
-            .collect();
+        let used: std::collections::HashSet<u32> = a.grids[f].iter().copied().filter(|&e| e != snerf_asset::EMPTY).collect();
         assert_eq!(s.header.atlas_blocks as usize, used.len());
         let cam = snerf_asset::orbit(&a.header, 3, 1, 32, 24, 40.0);
-        assert_eq!(
-            snerf_asset::render(&s, &cam, 0.0).rgb,
-            snerf_asset::render(&a, &cam, t).rgb,
-            "frame {f}"
-        );
+        assert_eq!(snerf_asset::render(&s, &cam, 0.0).rgb, snerf_asset::render(&a, &cam, t).rgb, "frame {f}");
         // And it survives the file format.
-        assert_eq!(
-            snerf_asset::Asset::from_bytes(&s.to_bytes()).unwrap().atlas,
-            s.atlas
-        );
+        assert_eq!(snerf_asset::Asset::from_bytes(&s.to_bytes()).unwrap().atlas, s.atlas);
     }
     assert!(a.frame_as_static(times.len()).is_err());
 }
@@ -384,16 +299,8 @@ fn reference_ray(a: &Asset, ow: [f32; 3], dw: [f32; 3]) -> (f32, [f32; 7], f32, 
                 let o = [0, 1, 2].map(|k| o[k] + t * d[k]);
                 let ax = -nd.fx / (nd.width / 2.0);
                 let ay = -nd.fy / (nd.height / 2.0);
-                let on = [
-                    ax * o[0] / o[2],
-                    ay * o[1] / o[2],
-                    1.0 + 2.0 * nd.near / o[2],
-                ];
-                let dnd = [
-                    ax * (d[0] / d[2] - o[0] / o[2]),
-                    ay * (d[1] / d[2] - o[1] / o[2]),
-                    -2.0 * nd.near / o[2],
-                ];
+                let on = [ax * o[0] / o[2], ay * o[1] / o[2], 1.0 + 2.0 * nd.near / o[2]];
+                let dnd = [ax * (d[0] / d[2] - o[0] / o[2]), ay * (d[1] / d[2] - o[1] / o[2]), -2.0 * nd.near / o[2]];
                 let e = nd.xy_extent;
                 let s = ((dnd[0] / e).powi(2) + (dnd[1] / e).powi(2) + dnd[2].powi(2)).sqrt();
                 let dt = h.march.step / s;
@@ -423,13 +330,7 @@ fn reference_ray(a: &Asset, ow: [f32; 3], dw: [f32; 3]) -> (f32, [f32; 7], f32, 
                 let c = if m <= 1.0 {
                     p
                 } else {
-                    p.map(|x| {
-                        if x.abs() == m {
-                            (2.0 - 1.0 / m) * x.signum()
-                        } else {
-                            x / m
-                        }
-                    })
+                    p.map(|x| if x.abs() == m { (2.0 - 1.0 / m) * x.signum() } else { x / m })
                 };
                 let dt = udt(t);
                 samples.push((t, c.map(|x| x / 2.0), dt));
@@ -437,8 +338,7 @@ fn reference_ray(a: &Asset, ow: [f32; 3], dw: [f32; 3]) -> (f32, [f32; 7], f32, 
             }
         }
     }
-    let (mut vals, mut acc, mut optical, mut depth, mut count) =
-        ([0f32; 7], 0f32, 0f32, 0f32, 0u32);
+    let (mut vals, mut acc, mut optical, mut depth, mut count) = ([0f32; 7], 0f32, 0f32, 0f32, 0u32);
     for (t, g, delta) in samples {
         let Some(v) = a.sample(0, g) else { continue };
         let sd = (v[0].exp() * delta).clamp(0.0, 80.0);
@@ -462,30 +362,16 @@ fn skipping_march_equals_the_literal_march() {
     let mut rng = Rng(2024);
     let mut sphere = sphere_asset(false);
     sphere.header.march.t_terminate = 0.0; // compare whole rays, sample for sample
-    for (name, a) in [
-        ("object", sphere),
-        ("forward", dense_asset(Kind::Forward)),
-        ("unbounded", dense_asset(Kind::Unbounded)),
-    ] {
+    for (name, a) in
+        [("object", sphere), ("forward", dense_asset(Kind::Forward)), ("unbounded", dense_asset(Kind::Unbounded))]
+    {
         let mut nonempty = 0;
         for _ in 0..400 {
             let o = match a.header.kind {
-                Kind::Forward => [
-                    rng.range(-0.3, 0.3),
-                    rng.range(-0.3, 0.3),
-                    rng.range(-0.2, 0.2),
-                ],
-                _ => [
-                    rng.range(-3.0, 3.0),
-                    rng.range(-3.0, 3.0),
-                    rng.range(-3.0, 3.0),
-                ],
+                Kind::Forward => [rng.range(-0.3, 0.3), rng.range(-0.3, 0.3), rng.range(-0.2, 0.2)],
+                _ => [rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0)],
             };
-            let target = [
-                rng.range(-0.8, 0.8),
-                rng.range(-0.8, 0.8),
-                rng.range(-0.8, 0.8),
-            ];
+            let target = [rng.range(-0.8, 0.8), rng.range(-0.8, 0.8), rng.range(-0.8, 0.8)];
             let d = match a.header.kind {
                 Kind::Forward => [rng.range(-0.5, 0.5), rng.range(-0.5, 0.5), -1.0],
                 _ => [0, 1, 2].map(|k| target[k] - o[k]),
@@ -493,25 +379,14 @@ fn skipping_march_equals_the_literal_march() {
             let got = render_ray(&a, o, d, 0.0);
             let (acc, vals, depth, count) = reference_ray(&a, o, d);
             assert_eq!(got.samples, count, "{}: o {:?} d {:?}", name, o, d);
-            assert!(
-                (got.opacity - acc).abs() < 1e-5,
-                "{}: {} vs {}",
-                name,
-                got.opacity,
-                acc
-            );
+            assert!((got.opacity - acc).abs() < 1e-5, "{}: {} vs {}", name, got.opacity, acc);
             if acc > 1e-6 {
                 assert!((got.depth - depth / acc).abs() < 1e-3 * (1.0 + got.depth.abs()));
             }
             let _ = vals;
             nonempty += (count > 0) as u32;
         }
-        assert!(
-            nonempty > 100,
-            "{}: {} rays sampled anything",
-            name,
-            nonempty
-        );
+        assert!(nonempty > 100, "{}: {} rays sampled anything", name, nonempty);
     }
 }
 
@@ -530,11 +405,7 @@ fn codebook_4d_asset_renders_continuously_between_samples() {
     let f1 = img(1.0);
     // frame 2 shows frame 0's blocks; frame 1 differs
     assert_eq!(img(2.0), f0);
-    let d01 = f0
-        .iter()
-        .zip(&f1)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0f32, f32::max);
+    let d01 = f0.iter().zip(&f1).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(d01 > 0.05, "the samples look the same ({d01})");
     // Lipschitz in t: a step of h changes no channel by more than a few times h·d01/1 (the
     // samples are 1 apart), on a fine grid of times spanning both intervals and beyond.
@@ -544,26 +415,15 @@ fn codebook_4d_asset_renders_continuously_between_samples() {
     for i in 1..=(3.0 / h) as usize {
         let t = -0.5 + i as f32 * h;
         let cur = img(t);
-        let d = prev
-            .iter()
-            .zip(&cur)
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0f32, f32::max);
+        let d = prev.iter().zip(&cur).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
         worst = worst.max(d);
         prev = cur;
     }
-    assert!(
-        worst <= 3.0 * h * d01,
-        "a step of {h} in time changed a pixel by {worst} (samples differ by {d01})"
-    );
+    assert!(worst <= 3.0 * h * d01, "a step of {h} in time changed a pixel by {worst} (samples differ by {d01})");
     // approaching a sample from either side converges to it
     for (t, f) in [(1.0f32, &f1), (2.0, &f0)] {
         for e in [1e-3f32, -1e-3] {
-            let d = img(t + e)
-                .iter()
-                .zip(f.iter())
-                .map(|(x, y)| (x - y).abs())
-                .fold(0.0f32, f32::max);
+            let d = img(t + e).iter().zip(f.iter()).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
             assert!(d <= 0.01, "t={t}{e:+}: {d} away from the sample");
         }
     }
@@ -583,32 +443,21 @@ fn silhouette_pixels_are_the_mean_of_their_rays() {
     let mut edges = 0;
     for p in 0..w * h {
         let (x, y) = ((p % w) as u32, (p / w) as u32);
-        let expect = if snerf_geometry::silhouette::mixed_coverage(&one.opacity, w, h, p % w, p / w)
-        {
+        let expect = if snerf_geometry::silhouette::mixed_coverage(&one.opacity, w, h, p % w, p / w) {
             edges += 1;
             snerf_asset::render::render_pixel_mean(&a, &cam, x, y, 0.0, 4)
         } else {
             render_pixel(&a, &cam, x, y, 0.0)
         };
-        assert_eq!(
-            (&four.rgb[p * 3..p * 3 + 3], four.opacity[p], four.depth[p]),
-            (&expect.rgb[..], expect.opacity, expect.depth),
-            "pixel ({x}, {y})"
-        );
+        assert_eq!((&four.rgb[p * 3..p * 3 + 3], four.opacity[p], four.depth[p]), (&expect.rgb[..], expect.opacity, expect.depth), "pixel ({x}, {y})");
     }
     assert!(edges > 20 && edges < w * h / 2, "{edges} silhouette pixels");
     // the mean covers the square: an edge pixel's 4 rays are not all alike
-    let differs = (0..w * h)
-        .filter(|&p| (four.opacity[p] - one.opacity[p]).abs() > 0.05)
-        .count();
+    let differs = (0..w * h).filter(|&p| (four.opacity[p] - one.opacity[p]).abs() > 0.05).count();
     assert!(differs > 5, "only {differs} pixels changed opacity");
     // Trained on pixels this camera's are as coarse as: the rule applies. Trained on pixels
     // 4x as wide: this camera's finer pixels take one ray each.
-    let footprint = snerf_geometry::silhouette::pixel_footprint(
-        snerf_geometry::camera::position(&cam.c2w),
-        a.header.space.center,
-        cam.fx,
-    );
+    let footprint = snerf_geometry::silhouette::pixel_footprint(snerf_geometry::camera::position(&cam.c2w), a.header.space.center, cam.fx);
     a.header.train_pixel = Some(footprint);
     assert_eq!(render(&a, &cam, 0.0), four);
     a.header.train_pixel = Some(4.0 * footprint);

@@ -15,11 +15,7 @@ fn static_roundtrip_in_memory() {
     assert_eq!(a.num_frames(), 1);
     assert!(!a.is_dynamic());
     let occupied = a.grids[0].iter().filter(|&&e| e != EMPTY).count();
-    assert!(
-        occupied > 8 && occupied < 64,
-        "sphere occupies {} of 64 cells",
-        occupied
-    );
+    assert!(occupied > 8 && occupied < 64, "sphere occupies {} of 64 cells", occupied);
     let bytes = a.to_bytes();
     let b = Asset::from_bytes(&bytes).unwrap();
     assert_eq!(a, b);
@@ -34,16 +30,9 @@ fn static_header_has_no_time_fields() {
     assert!(!json.contains("frames"), "{}", json);
     assert!(json.contains("\"kind\":\"object\""), "{}", json);
     // exactly one GRID chunk, for frame 0
-    let grids: Vec<_> = chunks(&bytes)
-        .unwrap()
-        .into_iter()
-        .filter(|c| &c.tag == b"GRID")
-        .collect();
+    let grids: Vec<_> = chunks(&bytes).unwrap().into_iter().filter(|c| &c.tag == b"GRID").collect();
     assert_eq!(grids.len(), 1);
-    assert_eq!(
-        &bytes[grids[0].payload.start..grids[0].payload.start + 4],
-        &0u32.to_le_bytes()
-    );
+    assert_eq!(&bytes[grids[0].payload.start..grids[0].payload.start + 4], &0u32.to_le_bytes());
 }
 
 #[test]
@@ -51,11 +40,7 @@ fn dynamic_roundtrip_shares_blocks() {
     let a = sphere_asset(true);
     assert_eq!(a.num_frames(), 3);
     let json = head_json(&a.to_bytes());
-    assert!(
-        json.contains("time_range") && json.contains("frames"),
-        "{}",
-        json
-    );
+    assert!(json.contains("time_range") && json.contains("frames"), "{}", json);
     // Voxels with x-cell >= 2 change colour per frame; so do blocks of x-cell 1 (their apron
     // reaches into x-cell 2). Only x-cell 0 blocks are identical: frames 1, 2 share them.
     let g = a.grid_dim();
@@ -88,9 +73,7 @@ fn dynamic_roundtrip_shares_blocks() {
     assert_eq!(s.unreferenced_blocks, 0);
     let parts = s.bytes.header + s.bytes.mlp + s.bytes.grids + s.bytes.blocks + 16; // + END chunk
     assert_eq!(parts, s.bytes.total, "{:?}", s);
-    assert!(serde_json::to_string(&s)
-        .unwrap()
-        .contains("keyframe_bytes"));
+    assert!(serde_json::to_string(&s).unwrap().contains("keyframe_bytes"));
 }
 
 #[test]
@@ -104,20 +87,13 @@ fn file_roundtrip_is_atomic() {
         assert_eq!(Asset::read(&path).unwrap(), a);
     }
     // no temp files left behind
-    let names: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name())
-        .collect();
+    let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
     assert_eq!(names.len(), 1, "{:?}", names);
     // an invalid asset is refused and the good file stays
     let mut bad = sphere_asset(false);
     bad.present[0] = false;
     let err = bad.write(&path).unwrap_err().to_string();
-    assert!(
-        err.contains("scene.snerf") && err.contains("missing"),
-        "{}",
-        err
-    );
+    assert!(err.contains("scene.snerf") && err.contains("missing"), "{}", err);
     assert_eq!(Asset::read(&path).unwrap(), sphere_asset(true));
     // errors name the file
     let missing = dir.join("nope.snerf");
@@ -132,10 +108,7 @@ fn file_roundtrip_is_atomic() {
 #[test]
 fn the_silhouette_rule_is_written_only_when_it_applies_and_checked_on_reading() {
     let mut a = sphere_asset(false);
-    assert!(
-        !head_json(&a.to_bytes()).contains("pixel_rays"),
-        "one ray per pixel is the default, not written"
-    );
+    assert!(!head_json(&a.to_bytes()).contains("pixel_rays"), "one ray per pixel is the default, not written");
     a.header.pixel_rays = 4;
     let bytes = a.to_bytes();
     assert!(head_json(&bytes).contains("\"pixel_rays\":4"));

@@ -8,9 +8,7 @@ fn hash_voxel(h: &Header, v: [usize; 3]) -> [u8; 8] {
     let mut x = (v[0] * 73856093) ^ (v[1] * 19349663) ^ (v[2] * 83492791);
     let mut out = [0u8; 8];
     for o in out.iter_mut() {
-        x = x
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         *o = (x >> 33) as u8;
     }
     let _ = h;
@@ -66,18 +64,9 @@ fn trilinear_matches_hand_computation() {
     for i in 0..5000 {
         let g = if i < 8 {
             // corners and edges of the grid
-            [
-                [-1.0, -1.0, -1.0],
-                [1.0, 1.0, 1.0],
-                [1.0, -1.0, 0.0],
-                [0.0, 0.0, 0.0],
-            ][i % 4]
+            [[-1.0, -1.0, -1.0], [1.0, 1.0, 1.0], [1.0, -1.0, 0.0], [0.0, 0.0, 0.0]][i % 4]
         } else {
-            [
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-                rng.range(-1.0, 1.0),
-            ]
+            [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)]
         };
         let s = a.sample(0, g).expect("all cells occupied");
         let m = manual(&h, &|v| hash_voxel(&h, v), g);
@@ -96,11 +85,7 @@ fn sparse_sampling_matches_and_empty_is_none() {
     let mut rng = Rng(99);
     let (mut hits, mut misses) = (0, 0);
     for _ in 0..5000 {
-        let p = [
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-            rng.range(-1.0, 1.0),
-        ];
+        let p = [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)];
         let cell = p.map(|x| (((x + 1.0) * 0.5 * g as f32) as usize).min(g - 1));
         match a.sample(0, p) {
             Some(s) => {
@@ -124,11 +109,7 @@ fn dynamic_interpolation() {
     let mut rng = Rng(5);
     let mut changed = 0;
     for _ in 0..2000 {
-        let p = [
-            rng.range(-0.7, 0.7),
-            rng.range(-0.7, 0.7),
-            rng.range(-0.7, 0.7),
-        ];
+        let p = [rng.range(-0.7, 0.7), rng.range(-0.7, 0.7), rng.range(-0.7, 0.7)];
         for k in 0..3 {
             assert_eq!(a.sample_at_time(k as f32, p), a.sample(k, p));
         }
@@ -154,9 +135,7 @@ fn empty_side_counts_as_lowest_density_and_zero() {
     h.time_range = Some([0.0, 1.0]);
     h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }]);
     let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
-    let blk = b.block_from_fn([0, 0, 0], |_| {
-        encode_voxel(5.0, [1.0, 0.5, 0.0], [1.0; 4], &h.density)
-    });
+    let blk = b.block_from_fn([0, 0, 0], |_| encode_voxel(5.0, [1.0, 0.5, 0.0], [1.0; 4], &h.density));
     b.set_block(0, [0, 0, 0], &blk).unwrap();
     let a = b.finish().unwrap();
     let p = [-0.5, -0.5, -0.5];

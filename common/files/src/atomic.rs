@@ -53,9 +53,7 @@ impl TempPath {
         sweep_stale(&parent_dir(target));
         let path = temp_path(target)?;
         remove_any(&path);
-        LIVE.lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(path.clone());
+        LIVE.lock().unwrap_or_else(|e| e.into_inner()).push(path.clone());
         Ok(TempPath { path, armed: true })
     }
 
@@ -137,15 +135,11 @@ pub fn sweep_stale(dir: &Path) -> usize {
             return 0;
         }
     }
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return 0;
-    };
+    let Ok(entries) = std::fs::read_dir(dir) else { return 0 };
     let mut removed = 0;
     for e in entries.flatten() {
         let name = e.file_name();
-        let Some(pid) = name.to_str().and_then(temp_owner) else {
-            continue;
-        };
+        let Some(pid) = name.to_str().and_then(temp_owner) else { continue };
         if !process_alive(pid) {
             remove_any(&e.path());
             removed += 1;
@@ -187,8 +181,8 @@ pub fn write_atomic_with(
 
 /// Pretty JSON with a trailing newline, atomically.
 pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
-    let mut bytes = serde_json::to_vec_pretty(value)
-        .with_context(|| format!("{}: cannot encode", path.display()))?;
+    let mut bytes =
+        serde_json::to_vec_pretty(value).with_context(|| format!("{}: cannot encode", path.display()))?;
     bytes.push(b'\n');
     write_atomic(path, &bytes)
 }
@@ -215,10 +209,7 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read(&p).unwrap(), b"old");
-        let names: Vec<_> = std::fs::read_dir(&d)
-            .unwrap()
-            .map(|e| e.unwrap().file_name())
-            .collect();
+        let names: Vec<_> = std::fs::read_dir(&d).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(names.len(), 1, "left behind: {names:?}");
         write_atomic(&p, b"new").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"new");

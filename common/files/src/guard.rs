@@ -130,9 +130,7 @@ pub enum Ownership {
 
 fn list_files(dir: &Path) -> Result<BTreeMap<String, u64>> {
     fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<String, u64>) -> Result<()> {
-        for e in
-            std::fs::read_dir(dir).with_context(|| format!("{}: cannot read", dir.display()))?
-        {
+        for e in std::fs::read_dir(dir).with_context(|| format!("{}: cannot read", dir.display()))? {
             let e = e.with_context(|| format!("{}: cannot read", dir.display()))?;
             let t = e.file_type()?;
             let p = e.path();
@@ -140,16 +138,8 @@ fn list_files(dir: &Path) -> Result<BTreeMap<String, u64>> {
                 walk(root, &p, out)?;
             } else {
                 let rel = p.strip_prefix(root).unwrap_or(&p);
-                let key = rel
-                    .components()
-                    .map(|c| c.as_os_str().to_string_lossy())
-                    .collect::<Vec<_>>()
-                    .join("/");
-                let len = if t.is_symlink() {
-                    u64::MAX
-                } else {
-                    e.metadata()?.len()
-                };
+                let key = rel.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/");
+                let len = if t.is_symlink() { u64::MAX } else { e.metadata()?.len() };
                 out.insert(key, len);
             }
         }
@@ -164,13 +154,7 @@ fn list_files(dir: &Path) -> Result<BTreeMap<String, u64>> {
 pub fn write_manifest(dir: &Path, tool: &str) -> Result<()> {
     let mut files = list_files(dir)?;
     files.remove(MANIFEST);
-    crate::atomic::write_json_atomic(
-        &dir.join(MANIFEST),
-        &Manifest {
-            written_by: tool.into(),
-            files,
-        },
-    )
+    crate::atomic::write_json_atomic(&dir.join(MANIFEST), &Manifest { written_by: tool.into(), files })
 }
 
 /// Whether `dir` may be replaced by a command that wrote it.
@@ -180,41 +164,23 @@ pub fn ownership(dir: &Path) -> Result<Ownership> {
         Ok(m) => m,
     };
     if !meta.is_dir() {
-        return Ok(Ownership::Foreign(format!(
-            "{} is not a directory",
-            dir.display()
-        )));
+        return Ok(Ownership::Foreign(format!("{} is not a directory", dir.display())));
     }
     let mut files = list_files(dir)?;
     if files.is_empty() {
         return Ok(Ownership::Empty); // no files at all (empty folders hold nothing to lose)
     }
     let Some(_) = files.remove(MANIFEST) else {
-        return Ok(Ownership::Foreign(format!(
-            "it has no {MANIFEST}, so snerf cannot tell that it wrote the files there"
-        )));
+        return Ok(Ownership::Foreign(format!("it has no {MANIFEST}, so snerf cannot tell that it wrote the files there")));
     };
-    let m: Manifest = match std::fs::read(dir.join(MANIFEST))
-        .ok()
-        .and_then(|b| serde_json::from_slice(&b).ok())
-    {
+    let m: Manifest = match std::fs::read(dir.join(MANIFEST)).ok().and_then(|b| serde_json::from_slice(&b).ok()) {
         Some(m) => m,
         None => return Ok(Ownership::Foreign(format!("its {MANIFEST} is unreadable"))),
     };
     for (name, len) in &files {
         match m.files.get(name) {
-            None => {
-                return Ok(Ownership::Foreign(format!(
-                    "{name} was not written by {}",
-                    m.written_by
-                )))
-            }
-            Some(l) if l != len => {
-                return Ok(Ownership::Foreign(format!(
-                    "{name} changed since {} wrote it",
-                    m.written_by
-                )))
-            }
+            None => return Ok(Ownership::Foreign(format!("{name} was not written by {}", m.written_by))),
+            Some(l) if l != len => return Ok(Ownership::Foreign(format!("{name} changed since {} wrote it", m.written_by))),
             Some(_) => {}
         }
     }
@@ -274,9 +240,7 @@ mod tests {
         write_manifest(&ds, "snerf scene").unwrap();
         assert_eq!(ownership(&ds).unwrap(), Ownership::Owned);
         std::fs::write(ds.join("train/IMG_precious.png"), b"mine").unwrap();
-        assert!(
-            matches!(ownership(&ds).unwrap(), Ownership::Foreign(m) if m.contains("IMG_precious"))
-        );
+        assert!(matches!(ownership(&ds).unwrap(), Ownership::Foreign(m) if m.contains("IMG_precious")));
         std::fs::remove_file(ds.join("train/IMG_precious.png")).unwrap();
         std::fs::write(ds.join("train/r_000.png"), b"edited by the user").unwrap();
         assert!(matches!(ownership(&ds).unwrap(), Ownership::Foreign(m) if m.contains("changed")));

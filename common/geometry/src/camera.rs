@@ -39,15 +39,7 @@ impl Pinhole {
     /// Square pixels, principal point at the centre, vertical field of view `fov_y` degrees.
     pub fn from_fov(c2w: C2w, width: u32, height: u32, fov_y: f32) -> Pinhole {
         let f = 0.5 * height as f32 / (0.5 * fov_y.to_radians()).tan();
-        Pinhole {
-            c2w,
-            fx: f,
-            fy: f,
-            cx: 0.5 * width as f32,
-            cy: 0.5 * height as f32,
-            width,
-            height,
-        }
+        Pinhole { c2w, fx: f, fy: f, cx: 0.5 * width as f32, cy: 0.5 * height as f32, width, height }
     }
 
     /// The camera of one eye given as WebXR does: a column-major OpenGL projection matrix
@@ -76,11 +68,7 @@ impl Pinhole {
     /// World origin and unit world direction through the point (sx, sy) of pixel (px, py)'s
     /// square (pixel units from its corner; (0.5, 0.5) is the centre, as [`Pinhole::ray`]).
     pub fn ray_at(&self, px: u32, py: u32, sx: f32, sy: f32) -> (Vec3, Vec3) {
-        let dc = [
-            (px as f32 + sx - self.cx) / self.fx,
-            -(py as f32 + sy - self.cy) / self.fy,
-            -1.0,
-        ];
+        let dc = [(px as f32 + sx - self.cx) / self.fx, -(py as f32 + sy - self.cy) / self.fy, -1.0];
         (position(&self.c2w), camera_dir_to_world(&self.c2w, dc))
     }
 }
@@ -100,13 +88,7 @@ pub fn perspective(fov_y: f32, aspect: f32, near: f32, far: f32) -> [f32; 16] {
 
 /// The two eyes of a head pose `c2w` for a side-by-side display: each moved by ∓ipd/2 along
 /// the head's right axis, each with `proj`, through `Pinhole::from_projection`.
-pub fn stereo_eyes(
-    c2w: C2w,
-    ipd: f32,
-    proj: &[f32; 16],
-    eye_width: u32,
-    height: u32,
-) -> (Pinhole, Pinhole) {
+pub fn stereo_eyes(c2w: C2w, ipd: f32, proj: &[f32; 16], eye_width: u32, height: u32) -> (Pinhole, Pinhole) {
     let right = normalize([c2w[0][0], c2w[1][0], c2w[2][0]]);
     let eye = |s: f32| {
         let mut m = c2w;
@@ -193,23 +175,10 @@ pub fn horizontal(up: Vec3, hint: Vec3) -> Vec3 {
 pub enum Orbit {
     /// Objects and unbounded scenes: a circle around `center` at `elevation` radians above
     /// the plane ⟂ `up`, starting in direction `start` (unit, ⟂ up), looking at the centre.
-    Around {
-        center: Vec3,
-        up: Vec3,
-        start: Vec3,
-        radius: f32,
-        elevation: f32,
-    },
+    Around { center: Vec3, up: Vec3, start: Vec3, radius: f32, elevation: f32 },
     /// Forward-facing scenes: an ellipse around `center` in the plane spanned by `right`
     /// and `up` (radii `rx`, `ry`), looking at `target`.
-    Ellipse {
-        center: Vec3,
-        right: Vec3,
-        up: Vec3,
-        target: Vec3,
-        rx: f32,
-        ry: f32,
-    },
+    Ellipse { center: Vec3, right: Vec3, up: Vec3, target: Vec3, rx: f32, ry: f32 },
 }
 
 impl Orbit {
@@ -224,30 +193,14 @@ impl Orbit {
     pub fn c2w(&self, i: usize, n: usize) -> C2w {
         let a = std::f32::consts::TAU * i as f32 / n.max(1) as f32;
         match *self {
-            Orbit::Around {
-                center,
-                up,
-                start,
-                radius,
-                elevation,
-            } => {
+            Orbit::Around { center, up, start, radius, elevation } => {
                 let side = cross(up, start);
                 let horiz = add(scale(start, a.cos()), scale(side, a.sin()));
                 let dir = add(scale(horiz, elevation.cos()), scale(up, elevation.sin()));
                 look_at(add(center, scale(dir, radius)), center, up)
             }
-            Orbit::Ellipse {
-                center,
-                right,
-                up,
-                target,
-                rx,
-                ry,
-            } => {
-                let eye = add(
-                    center,
-                    add(scale(right, rx * a.cos()), scale(up, ry * a.sin())),
-                );
+            Orbit::Ellipse { center, right, up, target, rx, ry } => {
+                let eye = add(center, add(scale(right, rx * a.cos()), scale(up, ry * a.sin())));
                 look_at(eye, target, up)
             }
         }
@@ -280,11 +233,7 @@ mod tests {
 
     #[test]
     fn a_projection_matrix_gives_the_pinhole_it_describes() {
-        let c2w = [
-            [1.0, 0.0, 0.0, 0.5],
-            [0.0, 1.0, 0.0, 1.0],
-            [0.0, 0.0, 1.0, 2.0],
-        ];
+        let c2w = [[1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.0, 1.0], [0.0, 0.0, 1.0, 2.0]];
         // Symmetric: the same camera as from_fov.
         let p = perspective(60.0, 4.0 / 3.0, 0.1, 100.0);
         let a = Pinhole::from_projection(&p, c2w, 64, 48);
@@ -303,22 +252,12 @@ mod tests {
         m[10] = -(f + n) / (f - n);
         m[11] = -1.0;
         m[14] = -2.0 * f * n / (f - n);
-        let id = [
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-        ];
+        let id = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
         let c = Pinhole::from_projection(&m, id, 80, 60);
         let (x, y, _) = project(&id, c.fx, c.fy, c.cx, c.cy, [l, t, -n]).unwrap();
-        assert!(
-            x.abs() < 1e-3 && y.abs() < 1e-3,
-            "top-left corner at ({x}, {y})"
-        );
+        assert!(x.abs() < 1e-3 && y.abs() < 1e-3, "top-left corner at ({x}, {y})");
         let (x, y, _) = project(&id, c.fx, c.fy, c.cx, c.cy, [r, bt, -n]).unwrap();
-        assert!(
-            (x - 80.0).abs() < 1e-3 && (y - 60.0).abs() < 1e-3,
-            "bottom-right corner at ({x}, {y})"
-        );
+        assert!((x - 80.0).abs() < 1e-3 && (y - 60.0).abs() < 1e-3, "bottom-right corner at ({x}, {y})");
         // Stereo eyes: an IPD apart along the head's right axis, the same intrinsics.
         let (le, re) = stereo_eyes(c2w, 0.064, &p, 64, 48);
         assert!((re.c2w[0][3] - le.c2w[0][3] - 0.064).abs() < 1e-6 && le.fx == a.fx);
@@ -326,19 +265,9 @@ mod tests {
 
     #[test]
     fn orbit_is_upright_and_looks_at_the_centre() {
-        for up in [
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            normalize([0.2, 0.9, -0.1]),
-        ] {
+        for up in [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], normalize([0.2, 0.9, -0.1])] {
             let start = horizontal(up, [1.0, 0.0, 0.0]);
-            let o = Orbit::Around {
-                center: [1.0, 2.0, 3.0],
-                up,
-                start,
-                radius: 4.0,
-                elevation: 0.5,
-            };
+            let o = Orbit::Around { center: [1.0, 2.0, 3.0], up, start, radius: 4.0, elevation: 0.5 };
             for m in o.path(7) {
                 let eye = position(&m);
                 assert!((norm(sub(eye, [1.0, 2.0, 3.0])) - 4.0).abs() < 1e-4);
@@ -348,27 +277,13 @@ mod tests {
                 assert!(dot(up_axis(&m), up) > 0.0);
             }
         }
-        let ups = [
-            look_at([0.0, -3.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0]),
-            look_at([3.0, 0.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0]),
-        ];
+        let ups = [look_at([0.0, -3.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0]), look_at([3.0, 0.0, 1.0], [0.0; 3], [0.0, 0.0, 1.0])];
         let u = mean_up(ups.iter());
         // project is the inverse of ray: a point on a pixel's ray lands in that pixel's centre
         let cam = Pinhole::from_fov(ups[0], 32, 24, 50.0);
         let (o, d) = cam.ray(7, 5);
-        let (x, y, dist) = project(
-            &cam.c2w,
-            cam.fx,
-            cam.fy,
-            cam.cx,
-            cam.cy,
-            add(o, scale(d, 2.5)),
-        )
-        .unwrap();
-        assert!(
-            (x - 7.5).abs() < 1e-3 && (y - 5.5).abs() < 1e-3 && (dist - 2.5).abs() < 1e-4,
-            "{x} {y} {dist}"
-        );
+        let (x, y, dist) = project(&cam.c2w, cam.fx, cam.fy, cam.cx, cam.cy, add(o, scale(d, 2.5))).unwrap();
+        assert!((x - 7.5).abs() < 1e-3 && (y - 5.5).abs() < 1e-3 && (dist - 2.5).abs() < 1e-4, "{x} {y} {dist}");
         assert!(u[2] > 0.9, "{u:?}");
     }
 }

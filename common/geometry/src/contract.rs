@@ -14,21 +14,9 @@ pub fn contract(p: Vec3) -> Vec3 {
         return p;
     }
     if !m.is_finite() {
-        return p.map(|x| {
-            if x.is_infinite() {
-                2.0 * x.signum()
-            } else {
-                0.0
-            }
-        });
+        return p.map(|x| if x.is_infinite() { 2.0 * x.signum() } else { 0.0 });
     }
-    p.map(|x| {
-        if x.abs() == m {
-            (2.0 - 1.0 / m) * x.signum()
-        } else {
-            x / m
-        }
-    })
+    p.map(|x| if x.abs() == m { (2.0 - 1.0 / m) * x.signum() } else { x / m })
 }
 
 /// The largest |c|∞ that [`uncontract`] inverts exactly; beyond it points map to the same
@@ -64,10 +52,7 @@ mod tests {
         let c = contract([3.0, 1.5, 0.0]);
         assert!((c[0] - 5.0 / 3.0).abs() < 1e-6 && (c[1] - 0.5).abs() < 1e-6);
         let p = uncontract(c);
-        assert!(
-            (p[0] - 3.0).abs() < 1e-4 && (p[1] - 1.5).abs() < 1e-4,
-            "{p:?}"
-        );
+        assert!((p[0] - 3.0).abs() < 1e-4 && (p[1] - 1.5).abs() < 1e-4, "{p:?}");
         let mut s = 1u32;
         for _ in 0..2000 {
             let mut r = || {
@@ -77,10 +62,7 @@ mod tests {
             let p = [(r() - 0.5) * 40.0, (r() - 0.5) * 4.0, (r() - 0.5) * 0.5];
             let q = uncontract(contract(p));
             for i in 0..3 {
-                assert!(
-                    (p[i] - q[i]).abs() <= 1e-3 * p[i].abs().max(1.0),
-                    "{p:?} -> {q:?}"
-                );
+                assert!((p[i] - q[i]).abs() <= 1e-3 * p[i].abs().max(1.0), "{p:?} -> {q:?}");
             }
         }
         assert!(contract([f32::INFINITY, 0.0, f32::NAN]) == [2.0, 0.0, 0.0]);

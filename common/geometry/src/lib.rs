@@ -35,7 +35,7 @@ pub mod vec;
 pub mod view_mlp;
 
 pub use camera::{look_at, Orbit, Pinhole};
-pub use contract::{contract, unbounded_dt, uncontract};
+pub use contract::{contract, uncontract, unbounded_dt};
 pub use kind::SceneKind;
 pub use march::box_hit;
 pub use ndc::Ndc;

@@ -94,19 +94,12 @@ mod tests {
         assert!(p.contains("const MAX_OPTICAL_DEPTH: f32 = 10000.0;"), "{p}");
         assert!(p.contains("const NDC_MIN_DZ: f32 = 1e-6;"), "{p}");
         assert!(p.contains("const MAX_ITERS: u32 = 1048576u;"), "{p}");
-        assert!(
-            p.contains("const COVER_EMPTY: f32 = 0.003921569;")
-                && p.contains("const COVER_FULL: f32 = 0.99607843;"),
-            "{p}"
-        );
+        assert!(p.contains("const COVER_EMPTY: f32 = 0.003921569;") && p.contains("const COVER_FULL: f32 = 0.99607843;"), "{p}");
     }
 
     #[test]
     fn box_hit_cases() {
-        assert_eq!(
-            box_hit([0.0, 0.0, 3.0], [0.0, 0.0, -1.0], 1.0),
-            Some((2.0, 4.0))
-        );
+        assert_eq!(box_hit([0.0, 0.0, 3.0], [0.0, 0.0, -1.0], 1.0), Some((2.0, 4.0)));
         assert_eq!(box_hit([0.0, 2.0, 3.0], [0.0, 0.0, -1.0], 1.0), None);
         assert_eq!(box_hit([0.0, 0.0, 3.0], [0.0, 0.0, 1.0], 1.0), None);
     }

@@ -26,10 +26,7 @@ pub const NDC_MAX_Z: f32 = 0.999;
 
 impl Ndc {
     fn axes(&self) -> (f32, f32) {
-        (
-            -self.fx / (self.width * 0.5),
-            -self.fy / (self.height * 0.5),
-        )
+        (-self.fx / (self.width * 0.5), -self.fy / (self.height * 0.5))
     }
 
     /// A model-space ray (origin `o`, unit direction `d`) in NDC: origin on the near plane,
@@ -42,16 +39,8 @@ impl Ndc {
         let t = -(self.near + o[2]) / d[2];
         let o = add(o, scale(d, t));
         let (ax, ay) = self.axes();
-        let o_ndc = [
-            ax * o[0] / o[2],
-            ay * o[1] / o[2],
-            1.0 + 2.0 * self.near / o[2],
-        ];
-        let d_ndc = [
-            ax * (d[0] / d[2] - o[0] / o[2]),
-            ay * (d[1] / d[2] - o[1] / o[2]),
-            -2.0 * self.near / o[2],
-        ];
+        let o_ndc = [ax * o[0] / o[2], ay * o[1] / o[2], 1.0 + 2.0 * self.near / o[2]];
+        let d_ndc = [ax * (d[0] / d[2] - o[0] / o[2]), ay * (d[1] / d[2] - o[1] / o[2]), -2.0 * self.near / o[2]];
         Some((o_ndc, d_ndc))
     }
 
@@ -80,14 +69,7 @@ mod tests {
 
     #[test]
     fn points_on_a_projected_ray_unproject_onto_the_model_ray() {
-        let n = Ndc {
-            fx: 60.0,
-            fy: 55.0,
-            width: 64.0,
-            height: 48.0,
-            near: 1.0,
-            xy_extent: 1.25,
-        };
+        let n = Ndc { fx: 60.0, fy: 55.0, width: 64.0, height: 48.0, near: 1.0, xy_extent: 1.25 };
         let o = [0.1, -0.05, 0.2];
         let d = crate::vec::normalize([0.2, 0.1, -1.0]);
         let (on, dn) = n.project_ray(o, d).unwrap();
@@ -99,10 +81,7 @@ mod tests {
                 assert!((o[i] + s * d[i] - m[i]).abs() < 1e-4, "t={t}: {m:?}");
             }
             let g = n.to_grid(add(on, scale(dn, t)));
-            assert_eq!(
-                n.from_grid(g).map(|x| (x * 1e4).round()),
-                add(on, scale(dn, t)).map(|x| (x * 1e4).round())
-            );
+            assert_eq!(n.from_grid(g).map(|x| (x * 1e4).round()), add(on, scale(dn, t)).map(|x| (x * 1e4).round()));
         }
         assert!(n.project_ray(o, [0.0, 0.0, 1.0]).is_none());
     }

@@ -23,14 +23,7 @@ pub fn subpixel_side(k: usize) -> usize {
 /// in pixel units from the pixel's corner: how a renderer takes the mean over a pixel's square.
 pub fn subpixel_grid(k: usize) -> Vec<(f32, f32)> {
     let side = subpixel_side(k);
-    (0..side * side)
-        .map(|j| {
-            (
-                ((j % side) as f32 + 0.5) / side as f32,
-                ((j / side) as f32 + 0.5) / side as f32,
-            )
-        })
-        .collect()
+    (0..side * side).map(|j| (((j % side) as f32 + 0.5) / side as f32, ((j / side) as f32 + 0.5) / side as f32)).collect()
 }
 
 /// Whether `k` rays form a square grid the renderers accept (1, 4, 9 or 16).
@@ -40,13 +33,7 @@ pub fn valid_pixel_rays(k: usize) -> bool {
 
 /// The smallest and largest of `at(pixel index)` over the 3x3 neighbourhood of (x, y) in a
 /// `w` x `h` image (clipped at the borders): the one home of the silhouette rule's window.
-pub fn min_max_3x3<T: Copy + PartialOrd>(
-    w: usize,
-    h: usize,
-    x: usize,
-    y: usize,
-    at: impl Fn(usize) -> T,
-) -> (T, T) {
+pub fn min_max_3x3<T: Copy + PartialOrd>(w: usize, h: usize, x: usize, y: usize, at: impl Fn(usize) -> T) -> (T, T) {
     let (mut lo, mut hi) = (at(y * w + x), at(y * w + x));
     for yy in y.saturating_sub(1)..(y + 2).min(h) {
         for xx in x.saturating_sub(1)..(x + 2).min(w) {
@@ -96,23 +83,14 @@ pub const MEAN_PIXEL_RATIO: f32 = std::f32::consts::FRAC_1_SQRT_2;
 /// A camera's pixel footprint at the scene's centre: the width in world units one pixel
 /// spans at that distance (distance / focal length in pixels).
 pub fn pixel_footprint(eye: [f32; 3], centre: [f32; 3], fx: f32) -> f32 {
-    let d = ((eye[0] - centre[0]).powi(2)
-        + (eye[1] - centre[1]).powi(2)
-        + (eye[2] - centre[2]).powi(2))
-    .sqrt();
+    let d = ((eye[0] - centre[0]).powi(2) + (eye[1] - centre[1]).powi(2) + (eye[2] - centre[2]).powi(2)).sqrt();
     d / fx.abs()
 }
 
 /// The median [`pixel_footprint`] of cameras given as (eye, focal length in pixels) at the
 /// scene's centre: how fine the pixels were that a field learnt its edges from.
-pub fn median_footprint(
-    cams: impl Iterator<Item = ([f32; 3], f32)>,
-    centre: [f32; 3],
-) -> Option<f32> {
-    let mut f: Vec<f32> = cams
-        .map(|(eye, fx)| pixel_footprint(eye, centre, fx))
-        .filter(|f| f.is_finite() && *f > 0.0)
-        .collect();
+pub fn median_footprint(cams: impl Iterator<Item = ([f32; 3], f32)>, centre: [f32; 3]) -> Option<f32> {
+    let mut f: Vec<f32> = cams.map(|(eye, fx)| pixel_footprint(eye, centre, fx)).filter(|f| f.is_finite() && *f > 0.0).collect();
     f.sort_by(|a, b| a.total_cmp(b));
     f.get(f.len() / 2).copied()
 }
@@ -138,29 +116,17 @@ mod tests {
     #[test]
     fn subpixel_grid_covers_the_square_evenly() {
         assert_eq!(subpixel_grid(1), vec![(0.5, 0.5)]);
-        assert_eq!(
-            subpixel_grid(4),
-            vec![(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]
-        );
+        assert_eq!(subpixel_grid(4), vec![(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]);
         let g = subpixel_grid(16);
-        let mean = g
-            .iter()
-            .fold((0.0, 0.0), |a, p| (a.0 + p.0 / 16.0, a.1 + p.1 / 16.0));
+        let mean = g.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0 / 16.0, a.1 + p.1 / 16.0));
         assert!((mean.0 - 0.5f32).abs() < 1e-6 && (mean.1 - 0.5f32).abs() < 1e-6);
         assert!([1, 4, 9, 16].iter().all(|&k| valid_pixel_rays(k)));
-        assert!([0, 2, 3, 5, 8, 17, 25]
-            .iter()
-            .all(|&k| !valid_pixel_rays(k)));
+        assert!([0, 2, 3, 5, 8, 17, 25].iter().all(|&k| !valid_pixel_rays(k)));
     }
 
     #[test]
     fn the_mean_of_rays_weights_depth_by_opacity() {
-        let (rgb, o, d) = mean_of_rays(&[
-            ([1.0, 0.0, 0.5], 1.0, 2.0),
-            ([0.0, 0.0, 0.5], 0.0, 0.0),
-            ([1.0, 1.0, 0.5], 0.5, 4.0),
-            ([0.0, 1.0, 0.5], 0.5, 4.0),
-        ]);
+        let (rgb, o, d) = mean_of_rays(&[([1.0, 0.0, 0.5], 1.0, 2.0), ([0.0, 0.0, 0.5], 0.0, 0.0), ([1.0, 1.0, 0.5], 0.5, 4.0), ([0.0, 1.0, 0.5], 0.5, 4.0)]);
         assert_eq!(rgb, [0.5, 0.5, 0.5]);
         assert_eq!(o, 0.5);
         assert_eq!(d, 3.0);
@@ -172,16 +138,9 @@ mod tests {
         let f = pixel_footprint([0.0, 3.0, 4.0], [0.0; 3], 100.0);
         assert_eq!(f, 0.05);
         assert!(draws_pixel_means(Some(0.05), f));
-        assert!(
-            draws_pixel_means(Some(0.07), f),
-            "0.71 of a training pixel still does"
-        );
+        assert!(draws_pixel_means(Some(0.07), f), "0.71 of a training pixel still does");
         assert!(!draws_pixel_means(Some(0.1), f), "half does not");
         assert!(!draws_pixel_means(Some(0.2), f), "a quarter does not");
-        assert!(
-            draws_pixel_means(None, f)
-                && draws_pixel_means(Some(0.0), f)
-                && draws_pixel_means(Some(f32::NAN), f)
-        );
+        assert!(draws_pixel_means(None, f) && draws_pixel_means(Some(0.0), f) && draws_pixel_means(Some(f32::NAN), f));
     }
 }

@@ -38,12 +38,7 @@ pub struct MarchRay {
 
 impl Space {
     pub fn identity() -> Space {
-        Space {
-            center: [0.0; 3],
-            rot: IDENTITY,
-            scale: 1.0,
-            ndc: None,
-        }
+        Space { center: [0.0; 3], rot: IDENTITY, scale: 1.0, ndc: None }
     }
 
     #[inline]
@@ -53,10 +48,7 @@ impl Space {
     /// Inverse of [`Space::to_model`] (rot is orthonormal).
     #[inline]
     pub fn to_world(&self, m: Vec3) -> Vec3 {
-        add(
-            mat_t_vec(&self.rot, scale(m, 1.0 / self.scale)),
-            self.center,
-        )
+        add(mat_t_vec(&self.rot, scale(m, 1.0 / self.scale)), self.center)
     }
     /// A world direction in model space (unit).
     #[inline]
@@ -80,27 +72,12 @@ impl Space {
         match kind {
             SceneKind::Object => {
                 let (t0, t1) = box_hit(o, d, 1.0)?;
-                Some(MarchRay {
-                    o,
-                    d,
-                    t0: t0.max(0.0),
-                    t1,
-                })
+                Some(MarchRay { o, d, t0: t0.max(0.0), t1 })
             }
-            SceneKind::Unbounded => Some(MarchRay {
-                o,
-                d,
-                t0: UNBOUNDED_NEAR,
-                t1: UNBOUNDED_FAR,
-            }),
+            SceneKind::Unbounded => Some(MarchRay { o, d, t0: UNBOUNDED_NEAR, t1: UNBOUNDED_FAR }),
             SceneKind::Forward => {
                 let (o, d) = self.ndc.as_ref()?.project_ray(o, d)?;
-                Some(MarchRay {
-                    o,
-                    d,
-                    t0: 0.0,
-                    t1: 1.0,
-                })
+                Some(MarchRay { o, d, t0: 0.0, t1: 1.0 })
             }
         }
     }
@@ -153,14 +130,8 @@ mod tests {
             center: [0.5, -1.0, 2.0],
             rot: [[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]],
             scale: 0.4,
-            ndc: (kind == SceneKind::Forward).then_some(Ndc {
-                fx: 60.0,
-                fy: 60.0,
-                width: 64.0,
-                height: 48.0,
-                near: 1.0,
-                xy_extent: 1.25,
-            }),
+            ndc: (kind == SceneKind::Forward)
+                .then_some(Ndc { fx: 60.0, fy: 60.0, width: 64.0, height: 48.0, near: 1.0, xy_extent: 1.25 }),
         }
     }
 
@@ -172,9 +143,7 @@ mod tests {
             let sp = space(kind);
             let ow = sp.to_world([0.05, 0.02, 3.0]);
             let dw = sp.dir_to_world(normalize([0.1, -0.05, -1.0]));
-            let r = sp
-                .march_ray(kind, ow, dw)
-                .unwrap_or_else(|| panic!("{kind:?} ray"));
+            let r = sp.march_ray(kind, ow, dw).unwrap_or_else(|| panic!("{kind:?} ray"));
             for f in [0.1f32, 0.5, 0.9] {
                 let t = r.t0 + f * (r.t1.min(50.0) - r.t0);
                 let p = add(r.o, scale(r.d, t));
@@ -182,16 +151,10 @@ mod tests {
                 let g = sp.march_to_grid(kind, p);
                 let w2 = sp.grid_to_world(kind, g);
                 let tol = 1e-3 * crate::vec::norm(sub(w, ow)).max(1.0);
-                assert!(
-                    crate::vec::norm(sub(w, w2)) < tol,
-                    "{kind:?} t={t}: {w:?} vs {w2:?}"
-                );
+                assert!(crate::vec::norm(sub(w, w2)) < tol, "{kind:?} t={t}: {w:?} vs {w2:?}");
                 // and the world point lies on the world ray
                 let along = crate::vec::dot(sub(w, ow), dw);
-                assert!(
-                    crate::vec::norm(sub(add(ow, scale(dw, along)), w)) < tol,
-                    "{kind:?}: off the ray"
-                );
+                assert!(crate::vec::norm(sub(add(ow, scale(dw, along)), w)) < tol, "{kind:?}: off the ray");
             }
         }
     }

@@ -2,8 +2,8 @@
 //! hierarchies, skinning and morph targets, producing world-space geometry at a time t.
 
 use crate::math::{normal_matrix, normalize_quat, slerp};
-use crate::mesh::Geometry;
 use glam::{FloatExt, Mat4, Vec3};
+use crate::mesh::Geometry;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Interp {
@@ -70,9 +70,7 @@ impl Channel {
             Interp::Step => a.to_vec(),
             Interp::Linear => {
                 if self.path == Path::Rotation && self.stride == 4 {
-                    slerp([a[0], a[1], a[2], a[3]], [b[0], b[1], b[2], b[3]], u)
-                        .to_array()
-                        .to_vec()
+                    slerp([a[0], a[1], a[2], a[3]], [b[0], b[1], b[2], b[3]], u).to_array().to_vec()
                 } else {
                     a.iter().zip(b).map(|(x, y)| x.lerp(*y, u)).collect()
                 }
@@ -243,7 +241,11 @@ impl Rig {
                                 m += *jmk * (wt[k] / sum);
                             }
                         }
-                        let m = if sum > 0.0 { m } else { world[inst.node] };
+                        let m = if sum > 0.0 {
+                            m
+                        } else {
+                            world[inst.node]
+                        };
                         let n = nrm
                             .as_ref()
                             .map(|n| (normal_matrix(&m) * n[vi]).normalize_or(Vec3::Y))

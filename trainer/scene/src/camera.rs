@@ -2,9 +2,9 @@
 //! train and test views use.
 
 use crate::math::Rng;
-use crate::{CameraPath, SceneKind};
 use glam::{vec3, Vec3};
 use snerf_geometry::camera::{look_at, C2w};
+use crate::{CameraPath, SceneKind};
 use std::f32::consts::{PI, TAU};
 
 #[derive(Clone, Debug)]
@@ -24,11 +24,7 @@ pub enum Layout {
         front_only: bool,
     },
     /// Forward-facing grid looking down -z.
-    Forward {
-        centre: Vec3,
-        target: Vec3,
-        spread: Vec3,
-    },
+    Forward { centre: Vec3, target: Vec3, spread: Vec3 },
     /// On a circle around the centre, slightly above the ground.
     Ring {
         radius: f32,
@@ -192,7 +188,9 @@ pub fn poses(
             height,
             target,
         } => {
-            let at = |a: f32, r: f32, h: f32| look(vec3(a.sin() * r, h, a.cos() * r), target);
+            let at = |a: f32, r: f32, h: f32| {
+                look(vec3(a.sin() * r, h, a.cos() * r), target)
+            };
             let train = (0..n_train)
                 .map(|i| {
                     let a = (i as f32
@@ -287,8 +285,7 @@ mod tests {
             assert!((eye.length() - 4.0).abs() < 0.3);
             assert!(fwd.dot((-eye).normalize_or(Vec3::Y)) > 0.999);
             assert!(
-                (m.x_axis.truncate().cross(m.y_axis.truncate()) - m.z_axis.truncate()).length()
-                    < 1e-4,
+                (m.x_axis.truncate().cross(m.y_axis.truncate()) - m.z_axis.truncate()).length() < 1e-4,
                 "right-handed"
             );
         }

@@ -5,12 +5,12 @@
 use crate::animation::{
     Channel, Instance, Interp, NodeRest, Path as AnimPath, PrimData, Rig, Skin,
 };
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Look, Material};
 use crate::procedural::{Built, Content};
 use crate::texture::{Texture, Wrap};
 use crate::SceneKind;
 use anyhow::{anyhow, bail, Result};
-use glam::{vec3, Mat4, Vec3};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -616,10 +616,7 @@ fn load_checked(path: &Path, validation_note: &mut Option<String>) -> Result<Bui
     let mut info = serde_json::Map::new();
     info.insert("file".into(), file.clone().into());
     info.insert("normalize_scale".into(), (scale as f64).into());
-    info.insert(
-        "normalize_centre".into(),
-        serde_json::json!(centre.to_array()),
-    );
+    info.insert("normalize_centre".into(), serde_json::json!(centre.to_array()));
     info.insert("triangles".into(), ntris.into());
     info.insert("textures".into(), look.textures.len().into());
     if let Some(a) = &anim_name {

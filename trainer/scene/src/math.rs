@@ -18,11 +18,7 @@ pub fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 /// glTF nodes and procedural parts may be scaled to zero along one axis (a flat decal, a
 /// collapsed eyelid), where there is no inverse but the cofactors still give the right normal.
 pub fn normal_matrix(m: &Mat4) -> Mat3 {
-    let (a, b, c) = (
-        m.x_axis.truncate(),
-        m.y_axis.truncate(),
-        m.z_axis.truncate(),
-    );
+    let (a, b, c) = (m.x_axis.truncate(), m.y_axis.truncate(), m.z_axis.truncate());
     let cof = Mat3::from_cols(b.cross(c), c.cross(a), a.cross(b));
     if a.dot(cof.x_axis) < 0.0 {
         -cof
@@ -34,9 +30,7 @@ pub fn normal_matrix(m: &Mat4) -> Mat3 {
 /// A glTF quaternion (x, y, z, w) made unit; a zero or non-finite one (possible in keyframe
 /// data) becomes the identity instead of NaN.
 pub fn normalize_quat(q: [f32; 4]) -> Quat {
-    Vec4::from_array(q)
-        .try_normalize()
-        .map_or(Quat::IDENTITY, Quat::from_vec4)
+    Vec4::from_array(q).try_normalize().map_or(Quat::IDENTITY, Quat::from_vec4)
 }
 
 /// Spherical interpolation of two glTF keyframe rotations, unit even when the keys are not.

@@ -2,8 +2,8 @@
 //! turned into before rasterization.
 
 use crate::math::normal_matrix;
-use crate::texture::Texture;
 use glam::{vec3, Mat4, Vec3};
+use crate::texture::Texture;
 
 /// Indexed triangle mesh in world space. All per-vertex arrays have the same length.
 #[derive(Clone, Default)]
@@ -38,12 +38,8 @@ impl Geometry {
         let nm = normal_matrix(xf);
         self.positions
             .extend(other.positions.iter().map(|p| xf.transform_point3(*p)));
-        self.normals.extend(
-            other
-                .normals
-                .iter()
-                .map(|n| (nm * *n).normalize_or(Vec3::Y)),
-        );
+        self.normals
+            .extend(other.normals.iter().map(|n| (nm * *n).normalize_or(Vec3::Y)));
         self.uvs.extend_from_slice(&other.uvs);
         self.colors.extend_from_slice(&other.colors);
         self.tris.extend(

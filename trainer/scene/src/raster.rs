@@ -2,26 +2,18 @@
 //! perspective-correct attribute interpolation, mip-mapped texturing and simple
 //! view-independent Lambert lighting. Work is split into horizontal bands run with rayon.
 
+use glam::{Mat3, Mat4, Vec3};
+use snerf_geometry::camera::{position, C2w, Pinhole};
 use crate::mesh::{Background, Geometry, Look};
 use crate::texture::encode_srgb8;
-use glam::{Mat3, Mat4, Vec3};
 use rayon::prelude::*;
-use snerf_geometry::camera::{position, C2w, Pinhole};
 
 /// The pinhole camera of a dataset view: square pixels, principal point at the centre and
 /// the horizontal field of view `fov_x` (radians), which is what nerf_synthetic's
 /// `camera_angle_x` stores.
 pub fn camera(c2w: C2w, width: u32, height: u32, fov_x: f32) -> Pinhole {
     let f = focal(width, fov_x);
-    Pinhole {
-        c2w,
-        fx: f,
-        fy: f,
-        cx: width as f32 * 0.5,
-        cy: height as f32 * 0.5,
-        width,
-        height,
-    }
+    Pinhole { c2w, fx: f, fy: f, cx: width as f32 * 0.5, cy: height as f32 * 0.5, width, height }
 }
 
 /// Focal length in pixels of an image `width` pixels wide with horizontal field of view

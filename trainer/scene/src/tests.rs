@@ -2,14 +2,14 @@
 //! dynamic vs static scenes, glTF loading (an in-code model always; installed test models
 //! when present) and error cases.
 
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::{shapes, Content};
 use crate::raster::{c2w_matrix, camera, render, world_to_camera, Frame};
+use snerf_geometry::camera::C2w;
 use crate::texture::{Texture, Wrap};
 use crate::*;
-use glam::{vec3, Mat4, Vec3};
 use serde_json::Value;
-use snerf_geometry::camera::C2w;
 use std::path::{Path, PathBuf};
 
 fn tmpdir(tag: &str) -> PathBuf {
@@ -41,11 +41,7 @@ fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> C2w {
 }
 
 fn front_camera(w: u32, h: u32, fov_deg: f32) -> snerf_geometry::Pinhole {
-    let identity = [
-        [1.0, 0.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0, 0.0],
-        [0.0, 0.0, 1.0, 0.0],
-    ];
+    let identity = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
     camera(identity, w, h, fov_deg.to_radians())
 }
 
@@ -85,11 +81,7 @@ fn depth_and_colour_of_a_known_quad() {
     // Seen from behind, a one-sided light would make it dark; the shading normal is flipped
     // towards the camera, so the back reads as lit by the ambient + |back-facing| rule.
     let back = camera(
-        look_at(
-            vec3(0.0, 0.0, -6.0),
-            vec3(0.0, 0.0, -3.0),
-            vec3(0.0, 1.0, 0.0),
-        ),
+        look_at(vec3(0.0, 0.0, -6.0), vec3(0.0, 0.0, -3.0), vec3(0.0, 1.0, 0.0)),
         64,
         64,
         60f32.to_radians(),
@@ -365,37 +357,19 @@ fn dataset_layout_and_json() {
     let cap = root.join("cap");
     std::fs::create_dir_all(cap.join("train")).unwrap();
     std::fs::write(cap.join("train/IMG_precious.png"), "a photo").unwrap();
-    std::fs::write(
-        cap.join("transforms_train.json"),
-        r#"{"camera_angle_x":0.69,"frames":[]}"#,
-    )
-    .unwrap();
-    let e = write_dataset(&spec, &cap, &|_, _| {})
-        .unwrap_err()
-        .to_string();
+    std::fs::write(cap.join("transforms_train.json"), r#"{"camera_angle_x":0.69,"frames":[]}"#).unwrap();
+    let e = write_dataset(&spec, &cap, &|_, _| {}).unwrap_err().to_string();
     assert!(e.contains("cannot replace") && e.contains("cap"), "{e}");
-    assert_eq!(
-        std::fs::read_to_string(cap.join("train/IMG_precious.png")).unwrap(),
-        "a photo"
-    );
+    assert_eq!(std::fs::read_to_string(cap.join("train/IMG_precious.png")).unwrap(), "a photo");
     std::fs::write(out.join("train/IMG_precious.png"), "a photo").unwrap();
-    let e = write_dataset(&spec, &out, &|_, _| {})
-        .unwrap_err()
-        .to_string();
+    let e = write_dataset(&spec, &out, &|_, _| {}).unwrap_err().to_string();
     assert!(e.contains("IMG_precious.png"), "{e}");
     assert!(out.join("train/IMG_precious.png").exists());
     std::fs::remove_file(out.join("train/IMG_precious.png")).unwrap();
     // No test views: refused before anything is written (training needs held-out views).
-    let e = write_dataset(
-        &SceneSpec {
-            test_views: 0,
-            ..spec.clone()
-        },
-        &root.join("novalid"),
-        &|_, _| {},
-    )
-    .unwrap_err()
-    .to_string();
+    let e = write_dataset(&SceneSpec { test_views: 0, ..spec.clone() }, &root.join("novalid"), &|_, _| {})
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("test view"), "{e}");
     assert!(!root.join("novalid").exists());
     // A failing run leaves the previous dataset intact and no temporary directories.
@@ -1021,12 +995,7 @@ fn assimp_bad_files_give_errors() {
 fn webxr_profiles() -> PathBuf {
     let root = std::env::var("SNERF_WEBXR_DIR")
         .map(PathBuf::from)
-        .unwrap_or_else(|_| {
-            PathBuf::from(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/../../target/test-assets/webxr"
-            ))
-        });
+        .unwrap_or_else(|_| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../target/test-assets/webxr")));
     root.join("node_modules/@webxr-input-profiles/assets/dist/profiles")
 }
 
@@ -1036,10 +1005,7 @@ fn webxr_controller_glb() {
     let p = if p.exists() {
         p
     } else {
-        println!(
-            "note: {} not installed; skipping (bash .ci/run installs it)",
-            p.display()
-        );
+        println!("note: {} not installed; skipping (bash .ci/run installs it)", p.display());
         return;
     };
     let (b, f) = render_model(&p);

@@ -3,11 +3,11 @@
 
 use crate::camera::{layout_for, poses, times, Layout, View};
 use crate::math::Rng;
+use glam::vec3;
 use crate::procedural::{Built, Content};
 use crate::raster::{c2w_matrix, camera, focal, render};
 use crate::{build_scene, SceneSpec, Source};
 use anyhow::{bail, Context, Result};
-use glam::vec3;
 use rayon::prelude::*;
 use serde_json::{json, Value};
 use snerf_files::atomic::TempPath;
@@ -28,9 +28,7 @@ fn check_replaceable(dir: &Path) -> Result<()> {
 }
 
 fn file_name(p: &Path) -> String {
-    p.file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "dataset".into())
+    p.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_else(|| "dataset".into())
 }
 
 struct Job {
@@ -121,8 +119,7 @@ pub fn write(spec: &SceneSpec, out_dir: &Path, progress: &dyn Fn(usize, usize)) 
         if had_old {
             let _ = std::fs::rename(old.path(), out_dir);
         }
-        return Err(e)
-            .with_context(|| format!("cannot move the new dataset to {}", out_dir.display()));
+        return Err(e).with_context(|| format!("cannot move the new dataset to {}", out_dir.display()));
     }
     tmp.keep();
     drop(old); // removes the old dataset
@@ -238,3 +235,4 @@ fn write_into(
     }
     Ok(())
 }
+

@@ -63,24 +63,11 @@ pub struct PathGeometry {
 }
 
 impl PathGeometry {
-    pub fn new(
-        realistic: &Model,
-        pool: &WorkspacePool,
-        data: &Dataset,
-        frames: usize,
-    ) -> Result<PathGeometry> {
+    pub fn new(realistic: &Model, pool: &WorkspacePool, data: &Dataset, frames: usize) -> Result<PathGeometry> {
         anyhow::ensure!(frames >= 2, "a consistency path needs at least 2 frames");
         let turn = PATH_STEPS_PER_TURN.max(frames);
-        let mut cams: Vec<_> = orbit(&realistic.space, &data.train, turn)
-            .into_iter()
-            .take(frames)
-            .collect();
-        cams.extend(
-            orbit(&realistic.space, &data.train, 2 * STYLE_RING)
-                .into_iter()
-                .skip(1)
-                .step_by(2),
-        );
+        let mut cams: Vec<_> = orbit(&realistic.space, &data.train, turn).into_iter().take(frames).collect();
+        cams.extend(orbit(&realistic.space, &data.train, 2 * STYLE_RING).into_iter().skip(1).step_by(2));
         let mut intr = data.test.first().unwrap_or(&data.train[0]).intrinsics;
         intr.distortion = [0.0; 4];
         // Dynamic scenes: the path holds time still (mid-sequence), so reprojection is exact.
@@ -99,36 +86,18 @@ impl PathGeometry {
                     continue;
                 }
                 let (x, y) = (p % w, p / w);
-                if let Some(ray) =
-                    realistic
-                        .space
-                        .ray(c2w, &intr, x as f32 + 0.5, y as f32 + 0.5, time)
-                {
+                if let Some(ray) = realistic.space.ray(c2w, &intr, x as f32 + 0.5, y as f32 + 0.5, time) {
                     let wp = realistic.space.march_to_world(&ray, r.depth[p]);
                     if wp.iter().all(|v| v.is_finite()) {
                         *slot = Some(wp);
                     }
                 }
             }
-            images.push(Image {
-                width: w,
-                height: h,
-                data: r.rgb,
-            });
+            images.push(Image { width: w, height: h, data: r.rgb });
             points.push(pts);
             opacity.push(r.opacity);
         }
-        Ok(PathGeometry {
-            path_frames: frames,
-            cams,
-            intr,
-            time,
-            bg,
-            realistic: images,
-            points,
-            opacity,
-            silhouette,
-        })
+        Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, opacity, silhouette })
     }
 
     /// Whether the scene is a bounded object with a silhouette in its training views.
@@ -142,11 +111,7 @@ impl PathGeometry {
             .iter()
             .map(|c2w| {
                 let r = render_camera(model, pool, c2w, &self.intr, self.time, self.bg);
-                Image {
-                    width: r.width,
-                    height: r.height,
-                    data: r.rgb,
-                }
+                Image { width: r.width, height: r.height, data: r.rgb }
             })
             .collect()
     }
@@ -158,6 +123,7 @@ impl PathGeometry {
         snerf_geometry::camera::project(&self.cams[i], k.fx, k.fy, k.cx, k.cy, p)
     }
 
+
     /// Mean squared error between path frame j = i + gap and path frame i warped into it,
     /// over all pairs and all covered, non-occluded pixels. NaN if no pixel qualifies.
     pub fn warp_error(&self, frames: &[Image], gap: usize) -> f64 {
@@ -165,26 +131,14 @@ impl PathGeometry {
         let (mut sum, mut count) = (0.0f64, 0u64);
         for i in 0..frames.len().min(self.path_frames).saturating_sub(gap) {
             let j = i + gap;
-            let seen = Seen {
-                origin: [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]],
-                width: w,
-                height: h,
-                points: &self.points[i],
-            };
+            let seen = Seen { origin: [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]], width: w, height: h, points: &self.points[i] };
             for (p, pt) in self.points[j].iter().enumerate() {
                 let Some(x) = pt else { continue };
-                let Some((u, v, dist)) = self.project(i, *x) else {
-                    continue;
-                };
+                let Some((u, v, dist)) = self.project(i, *x) else { continue };
                 // frame i's colour at the point, from its pixels that show that surface
-                let Some(warped) = seen.colour(&frames[i], u, v, dist) else {
-                    continue;
-                };
+                let Some(warped) = seen.colour(&frames[i], u, v, dist) else { continue };
                 let target = &frames[j].data[p * 3..p * 3 + 3];
-                sum += (0..3)
-                    .map(|c| ((warped[c] - target[c]) as f64).powi(2))
-                    .sum::<f64>()
-                    / 3.0;
+                sum += (0..3).map(|c| ((warped[c] - target[c]) as f64).powi(2)).sum::<f64>() / 3.0;
                 count += 1;
             }
         }
@@ -214,11 +168,7 @@ impl PathGeometry {
                         data[p * 3 + c] = f.data[p * 3 + c] * a + self.bg[c] * (1.0 - a);
                     }
                 }
-                Image {
-                    width: f.width,
-                    height: f.height,
-                    data,
-                }
+                Image { width: f.width, height: f.height, data }
             })
             .collect()
     }
@@ -231,13 +181,7 @@ impl PathGeometry {
     /// The per-frame baseline: the realistic frames from `first` on, each stylized on its own
     /// (in the object's box, the realistic silhouette's, when `by_box`), at `res` as the loop
     /// paints its views; the frames before `first` stay realistic.
-    pub fn stylize_frames(
-        &self,
-        stylizer: &dyn Stylizer,
-        by_box: bool,
-        res: usize,
-        first: usize,
-    ) -> Result<Vec<Image>> {
+    pub fn stylize_frames(&self, stylizer: &dyn Stylizer, by_box: bool, res: usize, first: usize) -> Result<Vec<Image>> {
         let masks = self.masks();
         let mut out = self.realistic.clone();
         for (k, frame) in out.iter_mut().enumerate().skip(first) {
@@ -271,10 +215,7 @@ impl PathGeometry {
     /// style picture's samples (`style_metric::reference`).
     pub fn style_score(&self, frames: &[Image], style: &StyleReference) -> StyleScore {
         let masks = self.ring_masks();
-        style_metric::distance(
-            &StyleSamples::of(&with_masks(self.ring_part(frames), &masks)),
-            style,
-        )
+        style_metric::distance(&StyleSamples::of(&with_masks(self.ring_part(frames), &masks)), style)
     }
 
     /// The Gram style distance of the same frames and masks (`style_gram`), the frames
@@ -282,10 +223,7 @@ impl PathGeometry {
     /// the mask, and paint a per-frame stylizer puts into empty space must not count.
     pub fn style_gram(&self, frames: &[Image], metric: &GramMetric, style: &Grams) -> Result<f64> {
         let (ring, masks) = (self.ring_masked(frames), self.ring_masks());
-        Ok(style_gram::distance(
-            &metric.grams(&with_masks(&ring, &masks))?,
-            style,
-        ))
+        Ok(style_gram::distance(&metric.grams(&with_masks(&ring, &masks))?, style))
     }
 
     /// The style picture's samples and units at this path's pixel footprint.
@@ -296,48 +234,27 @@ impl PathGeometry {
     /// Fraction of the path's pixels that show the scene (for the report).
     pub fn coverage(&self) -> f64 {
         let path = &self.points[..self.path_frames];
-        let covered: usize = path
-            .iter()
-            .map(|f| f.iter().filter(|p| p.is_some()).count())
-            .sum();
+        let covered: usize = path.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
         covered as f64 / path.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
     }
 }
 
 /// Scene pixels per frame: opacity above `COVERED`.
 fn scene_masks(opacity: &[Vec<f32>]) -> Vec<Vec<bool>> {
-    opacity
-        .iter()
-        .map(|op| op.iter().map(|&a| a > COVERED).collect())
-        .collect()
+    opacity.iter().map(|op| op.iter().map(|&a| a > COVERED).collect()).collect()
 }
 
 /// Frames paired with their masks, as the style distances take them.
-fn with_masks<'a>(
-    frames: &'a [Image],
-    masks: &'a [Vec<bool>],
-) -> Vec<(&'a Image, Option<&'a [bool]>)> {
-    frames
-        .iter()
-        .zip(masks)
-        .map(|(f, m)| (f, Some(m.as_slice())))
-        .collect()
+fn with_masks<'a>(frames: &'a [Image], masks: &'a [Vec<bool>]) -> Vec<(&'a Image, Option<&'a [bool]>)> {
+    frames.iter().zip(masks).map(|(f, m)| (f, Some(m.as_slice()))).collect()
 }
 
 pub fn embedding_distance(a: &[f32], b: &[f32]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| ((x - y) as f64).powi(2))
-        .sum::<f64>()
-        .sqrt()
+    a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>().sqrt()
 }
 
 /// Mean style distance of up to 4 evenly spaced frames.
-pub fn style_distance_frames(
-    embedder: &StyleEmbedder,
-    frames: &[Image],
-    style_embedding: &[f32],
-) -> Result<f64> {
+pub fn style_distance_frames(embedder: &StyleEmbedder, frames: &[Image], style_embedding: &[f32]) -> Result<f64> {
     let n = frames.len().min(4);
     let mut sum = 0.0;
     for k in 0..n {
@@ -373,10 +290,7 @@ pub struct StyleScores {
 impl StyleMeters {
     /// Opens whichever networks are installed (none is required).
     pub fn open(opts: &StylizerOptions) -> StyleMeters {
-        StyleMeters {
-            embedder: StyleEmbedder::new(opts).ok(),
-            gram: GramMetric::open(opts).ok(),
-        }
+        StyleMeters { embedder: StyleEmbedder::new(opts).ok(), gram: GramMetric::open(opts).ok() }
     }
 
     pub fn targets(&self, path: &PathGeometry, style: &Image) -> Result<StyleTargets> {
@@ -384,21 +298,12 @@ impl StyleMeters {
         Ok(StyleTargets {
             embedding: self.embedder.as_ref().map(|e| e.embed(style)).transpose()?,
             samples: path.style_reference(style),
-            grams: self
-                .gram
-                .as_ref()
-                .map(|g| g.reference(style, w, h))
-                .transpose()?,
+            grams: self.gram.as_ref().map(|g| g.reference(style, w, h)).transpose()?,
         })
     }
 
     /// Every style distance of `frames` (renders along `path`) to the style picture.
-    pub fn score(
-        &self,
-        path: &PathGeometry,
-        frames: &[Image],
-        targets: &StyleTargets,
-    ) -> Result<StyleScores> {
+    pub fn score(&self, path: &PathGeometry, frames: &[Image], targets: &StyleTargets) -> Result<StyleScores> {
         Ok(StyleScores {
             embedding: self
                 .embedder
@@ -407,12 +312,7 @@ impl StyleMeters {
                 .map(|(e, s)| style_distance_frames(e, &path.ring_masked(frames), s))
                 .transpose()?,
             swd: path.style_score(frames, &targets.samples),
-            gram: self
-                .gram
-                .as_ref()
-                .zip(targets.grams.as_ref())
-                .map(|(g, s)| path.style_gram(frames, g, s))
-                .transpose()?,
+            gram: self.gram.as_ref().zip(targets.grams.as_ref()).map(|(g, s)| path.style_gram(frames, g, s)).transpose()?,
         })
     }
 }
@@ -432,13 +332,7 @@ pub struct MethodScores {
 }
 
 impl MethodScores {
-    pub fn of(
-        method: &str,
-        path: &PathGeometry,
-        frames: &[Image],
-        meters: &StyleMeters,
-        targets: &StyleTargets,
-    ) -> Result<MethodScores> {
+    pub fn of(method: &str, path: &PathGeometry, frames: &[Image], meters: &StyleMeters, targets: &StyleTargets) -> Result<MethodScores> {
         let style = meters.score(path, frames, targets)?;
         Ok(MethodScores {
             method: method.to_string(),
@@ -466,12 +360,8 @@ pub fn markdown_table(methods: &[MethodScores]) -> String {
             m.style_swd.color,
             m.style_swd.texture,
             100.0 * m.style_swd.missed,
-            m.style_gram
-                .map(|d| format!("{d:.4}"))
-                .unwrap_or_else(|| "n/a".into()),
-            m.style_distance
-                .map(|d| format!("{d:.3}"))
-                .unwrap_or_else(|| "n/a".into())
+            m.style_gram.map(|d| format!("{d:.4}")).unwrap_or_else(|| "n/a".into()),
+            m.style_distance.map(|d| format!("{d:.3}")).unwrap_or_else(|| "n/a".into())
         );
     }
     s
@@ -480,23 +370,10 @@ pub fn markdown_table(methods: &[MethodScores]) -> String {
 /// Tile images into rows (each resized to the first image's size).
 pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
     // tiles take the size of the largest image (a style picture may be tiny or huge)
-    let (tw, th) = rows
-        .iter()
-        .flatten()
-        .map(|i| (i.width, i.height))
-        .max_by_key(|&(w, h)| w * h)
-        .unwrap_or((1, 1));
-    let (tw, th) = if tw * th > 512 * 512 {
-        (tw * 256 / tw.max(th), th * 256 / tw.max(th))
-    } else {
-        (tw, th)
-    };
+    let (tw, th) = rows.iter().flatten().map(|i| (i.width, i.height)).max_by_key(|&(w, h)| w * h).unwrap_or((1, 1));
+    let (tw, th) = if tw * th > 512 * 512 { (tw * 256 / tw.max(th), th * 256 / tw.max(th)) } else { (tw, th) };
     let cols = rows.iter().map(|r| r.len()).max().unwrap_or(1).max(1);
-    let mut out = image::RgbImage::from_pixel(
-        (tw * cols) as u32,
-        (th * rows.len().max(1)) as u32,
-        image::Rgb([255, 255, 255]),
-    );
+    let mut out = image::RgbImage::from_pixel((tw * cols) as u32, (th * rows.len().max(1)) as u32, image::Rgb([255, 255, 255]));
     for (ri, row) in rows.iter().enumerate() {
         for (ci, img) in row.iter().enumerate() {
             let tile = if img.width == tw && img.height == th {
@@ -507,8 +384,9 @@ pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
             for y in 0..th {
                 for x in 0..tw {
                     let p = &tile.data[(y * tw + x) * 3..(y * tw + x) * 3 + 3];
-                    let px =
-                        image::Rgb([0, 1, 2].map(|c| (p[c].clamp(0.0, 1.0) * 255.0).round() as u8));
+                    let px = image::Rgb(
+                        [0, 1, 2].map(|c| (p[c].clamp(0.0, 1.0) * 255.0).round() as u8),
+                    );
                     out.put_pixel((ci * tw + x) as u32, (ri * th + y) as u32, px);
                 }
             }

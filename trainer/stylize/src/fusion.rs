@@ -62,11 +62,7 @@ impl ViewGeometry {
                 x.iter().all(|v| v.is_finite()).then_some(x)
             })
             .collect();
-        ViewGeometry {
-            c2w: *c2w,
-            intr: *intr,
-            points,
-        }
+        ViewGeometry { c2w: *c2w, intr: *intr, points }
     }
 
     fn origin(&self) -> Vec3 {
@@ -79,16 +75,12 @@ impl ViewGeometry {
         snerf_geometry::camera::project(&self.c2w, k.fx, k.fy, k.cx, k.cy, p)
     }
 
+
     /// The colour of `img` (this view's image) at world point `x` when this view sees it
     /// (`reproject::Seen`: only pixels that show the same surface), read by `read`.
     fn sample_visible(&self, img: &Image, x: Vec3, read: Read) -> Option<[f32; 3]> {
         let (u, v, dist) = self.project(x)?;
-        let seen = Seen {
-            origin: self.origin(),
-            width: self.intr.width as usize,
-            height: self.intr.height as usize,
-            points: &self.points,
-        };
+        let seen = Seen { origin: self.origin(), width: self.intr.width as usize, height: self.intr.height as usize, points: &self.points };
         match read {
             Read::Nearest => seen.nearest(img, u, v, dist),
             Read::Bilinear => seen.colour(img, u, v, dist),
@@ -112,10 +104,8 @@ pub enum Read {
 pub fn neighbours(geoms: &[ViewGeometry], k: usize) -> Vec<Vec<usize>> {
     (0..geoms.len())
         .map(|i| {
-            let mut d: Vec<(f32, usize)> = (0..geoms.len())
-                .filter(|&j| j != i)
-                .map(|j| (norm(sub(geoms[i].origin(), geoms[j].origin())), j))
-                .collect();
+            let mut d: Vec<(f32, usize)> =
+                (0..geoms.len()).filter(|&j| j != i).map(|j| (norm(sub(geoms[i].origin(), geoms[j].origin())), j)).collect();
             d.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             d.into_iter().take(k).map(|(_, j)| j).collect()
         })
@@ -161,10 +151,7 @@ fn per_scene_pixel<S: Default>(
         .collect();
     let scene: usize = results.iter().map(|r| r.1).sum();
     let replaced: usize = results.iter().map(|r| r.2).sum();
-    (
-        results.into_iter().map(|r| r.0).collect(),
-        replaced as f64 / scene.max(1) as f64,
-    )
+    (results.into_iter().map(|r| r.0).collect(), replaced as f64 / scene.max(1) as f64)
 }
 
 /// Fuse each view's target with its `k` nearest views' targets (see the module doc).
@@ -201,35 +188,18 @@ pub fn fuse_owner(targets: &[Image], geoms: &[ViewGeometry], read: Read) -> (Vec
     let origins: Vec<Vec3> = geoms.iter().map(|g| g.origin()).collect();
     per_scene_pixel(targets, geoms, |order: &mut Vec<(f32, usize)>, i, _, x| {
         order.clear();
-        order.extend(
-            origins
-                .iter()
-                .enumerate()
-                .map(|(j, o)| (norm(sub(*o, x)), j)),
-        );
+        order.extend(origins.iter().enumerate().map(|(j, o)| (norm(sub(*o, x)), j)));
         order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         // the nearest view that sees x, unless view i itself comes first
-        order
-            .iter()
-            .take_while(|&&(_, j)| j != i)
-            .find_map(|&(_, j)| geoms[j].sample_visible(&targets[j], x, read))
+        order.iter().take_while(|&&(_, j)| j != i).find_map(|&(_, j)| geoms[j].sample_visible(&targets[j], x, read))
     })
 }
 
 /// `render + step * (target - render)`, per pixel: a damped step from the current render
 /// toward the stylized target (step 1: the target itself).
 pub fn step_toward(render: &Image, target: &Image, step: f32) -> Image {
-    let data = render
-        .data
-        .iter()
-        .zip(&target.data)
-        .map(|(r, t)| r + step * (t - r))
-        .collect();
-    Image {
-        width: target.width,
-        height: target.height,
-        data,
-    }
+    let data = render.data.iter().zip(&target.data).map(|(r, t)| r + step * (t - r)).collect();
+    Image { width: target.width, height: target.height, data }
 }
 
 #[cfg(test)]
@@ -244,29 +214,15 @@ mod tests {
 
     fn cam_at(x: f32) -> [[f32; 4]; 3] {
         // looking down -z from (x, 0, 5)
-        [
-            [1.0, 0.0, 0.0, x],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 5.0],
-        ]
+        [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 5.0]]
     }
 
     /// Three cameras over a plane z = 0 (2.4 pixels apart at the plane, so reads fall
     /// between pixels); each sees the plane, and view `vi` paints surface point `p` with
     /// `colour(vi, p, pixel x)`.
-    fn views_of_a_plane(
-        colour: impl Fn(usize, Vec3, usize) -> [f32; 3],
-    ) -> (Vec<ViewGeometry>, Vec<Image>) {
+    fn views_of_a_plane(colour: impl Fn(usize, Vec3, usize) -> [f32; 3]) -> (Vec<ViewGeometry>, Vec<Image>) {
         let (w, h) = (32usize, 32usize);
-        let intr = Intrinsics {
-            width: w as u32,
-            height: h as u32,
-            fx: 40.0,
-            fy: 40.0,
-            cx: 16.0,
-            cy: 16.0,
-            distortion: [0.0; 4],
-        };
+        let intr = Intrinsics { width: w as u32, height: h as u32, fx: 40.0, fy: 40.0, cx: 16.0, cy: 16.0, distortion: [0.0; 4] };
         let mut geoms = Vec::new();
         let mut targets = Vec::new();
         for (vi, cx) in [-0.3f32, 0.0, 0.3].into_iter().enumerate() {
@@ -284,11 +240,7 @@ mod tests {
                 }
             }
             geoms.push(ViewGeometry { c2w, intr, points });
-            targets.push(Image {
-                width: w,
-                height: h,
-                data,
-            });
+            targets.push(Image { width: w, height: h, data });
         }
         (geoms, targets)
     }
@@ -296,13 +248,7 @@ mod tests {
     /// A colour that is a smooth function of the surface point, except an outlier stripe in
     /// the middle view.
     fn three_views_of_a_plane() -> (Vec<ViewGeometry>, Vec<Image>) {
-        views_of_a_plane(|vi, p, x| {
-            if vi == 1 && (12..20).contains(&x) {
-                [1.0, 0.0, 0.0]
-            } else {
-                [0.5 + 0.2 * p[0], 0.5 + 0.2 * p[1], 0.5]
-            }
-        })
+        views_of_a_plane(|vi, p, x| if vi == 1 && (12..20).contains(&x) { [1.0, 0.0, 0.0] } else { [0.5 + 0.2 * p[0], 0.5 + 0.2 * p[1], 0.5] })
     }
 
     #[test]
@@ -318,10 +264,7 @@ mod tests {
             let x = geoms[1].points[p].unwrap();
             let want = [0.5 + 0.2 * x[0], 0.5 + 0.2 * x[1], 0.5];
             for c in 0..3 {
-                assert!(
-                    (got[c] - want[c]).abs() < tol,
-                    "{read:?}: fused {got:?}, surface colour {want:?}"
-                );
+                assert!((got[c] - want[c]).abs() < tol, "{read:?}: fused {got:?}, surface colour {want:?}");
             }
             // nothing to fuse with: unchanged
             let (same, _) = fuse(&targets, &geoms, 0, read);
@@ -334,13 +277,7 @@ mod tests {
     /// keeps the texture's contrast and the bilinear read blurs it away round by round.
     #[test]
     fn consensus_with_nearest_reads_keeps_the_painted_contrast() {
-        let stripes = |_: usize, p: Vec3, _: usize| {
-            if (p[0] / 0.25).rem_euclid(2.0) < 1.0 {
-                [0.9, 0.8, 0.2]
-            } else {
-                [0.1, 0.2, 0.6]
-            }
-        };
+        let stripes = |_: usize, p: Vec3, _: usize| if (p[0] / 0.25).rem_euclid(2.0) < 1.0 { [0.9, 0.8, 0.2] } else { [0.1, 0.2, 0.6] };
         let (geoms, painted) = views_of_a_plane(stripes);
         let spread = |img: &Image| {
             let g: Vec<f32> = img.data.chunks_exact(3).map(|c| c[0]).collect();
@@ -356,20 +293,9 @@ mod tests {
             }
             kept.push(spread(&t[1]) / before);
         }
-        eprintln!(
-            "contrast kept after 5 fusions: nearest {:.3}, bilinear {:.3}",
-            kept[0], kept[1]
-        );
-        assert!(
-            kept[0] > 0.95,
-            "nearest reads kept {:.3} of the contrast",
-            kept[0]
-        );
-        assert!(
-            kept[1] < 0.85,
-            "bilinear reads kept {:.3} of the contrast",
-            kept[1]
-        );
+        eprintln!("contrast kept after 5 fusions: nearest {:.3}, bilinear {:.3}", kept[0], kept[1]);
+        assert!(kept[0] > 0.95, "nearest reads kept {:.3} of the contrast", kept[0]);
+        assert!(kept[1] < 0.85, "bilinear reads kept {:.3} of the contrast", kept[1]);
     }
 
     /// Every view's target at a surface point is what the nearest camera that sees the point
@@ -386,26 +312,13 @@ mod tests {
                 for (p, x) in g.points.iter().enumerate() {
                     let x = x.unwrap();
                     // the owner: the camera whose centre (cx, 0, 5) is nearest, all see the plane
-                    let owner = [-0.3f32, 0.0, 0.3]
-                        .iter()
-                        .enumerate()
-                        .min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs()))
-                        .unwrap()
-                        .0;
+                    let owner = [-0.3f32, 0.0, 0.3].iter().enumerate().min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs())).unwrap().0;
                     let got = &fused[i].data[p * 3..p * 3 + 3];
                     if owner == i {
-                        assert_eq!(
-                            got,
-                            &targets[i].data[p * 3..p * 3 + 3],
-                            "view {i} pixel {p} is its own"
-                        );
-                    } else if let Some(want) = geoms[owner].sample_visible(&targets[owner], x, read)
-                    {
+                        assert_eq!(got, &targets[i].data[p * 3..p * 3 + 3], "view {i} pixel {p} is its own");
+                    } else if let Some(want) = geoms[owner].sample_visible(&targets[owner], x, read) {
                         for c in 0..3 {
-                            assert!(
-                                (got[c] - want[c]).abs() < 1e-6,
-                                "view {i} pixel {p}: {got:?} vs owner {owner}'s {want:?}"
-                            );
+                            assert!((got[c] - want[c]).abs() < 1e-6, "view {i} pixel {p}: {got:?} vs owner {owner}'s {want:?}");
                         }
                     }
                 }

@@ -48,8 +48,7 @@ fn sorted_channels(imgs: &[Image], geoms: &[ViewGeometry]) -> [Vec<f32>; 3] {
             }
         }
     }
-    ch.par_iter_mut()
-        .for_each(|v| v.sort_by(|a, b| a.total_cmp(b)));
+    ch.par_iter_mut().for_each(|v| v.sort_by(|a, b| a.total_cmp(b)));
     ch
 }
 
@@ -59,15 +58,9 @@ impl Quantiles {
         let ch = sorted_channels(imgs, geoms);
         let n = ch[0].len();
         if n == 0 {
-            return Quantiles {
-                channels: Default::default(),
-            };
+            return Quantiles { channels: Default::default() };
         }
-        let channels = ch.map(|v| {
-            (0..=LEVELS)
-                .map(|k| v[((k as f64 / LEVELS as f64) * (n - 1) as f64).round() as usize])
-                .collect()
-        });
+        let channels = ch.map(|v| (0..=LEVELS).map(|k| v[((k as f64 / LEVELS as f64) * (n - 1) as f64).round() as usize]).collect());
         Quantiles { channels }
     }
 
@@ -132,28 +125,16 @@ fn path(out: &Path) -> PathBuf {
 
 pub fn save(out: &Path, q: &Quantiles) -> Result<()> {
     let p = path(out);
-    std::fs::create_dir_all(p.parent().expect("in consensus/"))
-        .with_context(|| format!("{}: cannot create", out.display()))?;
+    std::fs::create_dir_all(p.parent().expect("in consensus/")).with_context(|| format!("{}: cannot create", out.display()))?;
     snerf_files::write_json_atomic(&p, q)
 }
 
 pub fn load(out: &Path) -> Result<Quantiles> {
     let p = path(out);
-    let bytes = std::fs::read(&p)
-        .with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
-    let q: Quantiles = serde_json::from_slice(&bytes)
-        .with_context(|| format!("{}: not a palette file", p.display()))?;
-    let levels_ok = q
-        .channels
-        .iter()
-        .all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite()))
-        || q.channels.iter().all(Vec::is_empty);
-    anyhow::ensure!(
-        levels_ok,
-        "{}: not a palette file ({} levels expected)",
-        p.display(),
-        LEVELS + 1
-    );
+    let bytes = std::fs::read(&p).with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
+    let q: Quantiles = serde_json::from_slice(&bytes).with_context(|| format!("{}: not a palette file", p.display()))?;
+    let levels_ok = q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())) || q.channels.iter().all(Vec::is_empty);
+    anyhow::ensure!(levels_ok, "{}: not a palette file ({} levels expected)", p.display(), LEVELS + 1);
     Ok(q)
 }
 
@@ -165,44 +146,18 @@ mod tests {
     /// One view of `w` pixels in a row, every pixel a scene pixel but the last.
     fn view(data: Vec<f32>) -> (Image, ViewGeometry) {
         let w = data.len() / 3;
-        let intr = Intrinsics {
-            width: w as u32,
-            height: 1,
-            fx: 1.0,
-            fy: 1.0,
-            cx: 0.5,
-            cy: 0.5,
-            distortion: [0.0; 4],
-        };
-        let points = (0..w)
-            .map(|i| (i + 1 < w).then_some([i as f32, 0.0, 0.0]))
-            .collect();
-        (
-            Image {
-                width: w,
-                height: 1,
-                data,
-            },
-            ViewGeometry {
-                c2w: [
-                    [1.0, 0.0, 0.0, 0.0],
-                    [0.0, 1.0, 0.0, 0.0],
-                    [0.0, 0.0, 1.0, 0.0],
-                ],
-                intr,
-                points,
-            },
-        )
+        let intr = Intrinsics { width: w as u32, height: 1, fx: 1.0, fy: 1.0, cx: 0.5, cy: 0.5, distortion: [0.0; 4] };
+        let points = (0..w).map(|i| (i + 1 < w).then_some([i as f32, 0.0, 0.0])).collect();
+        (Image { width: w, height: 1, data }, ViewGeometry { c2w: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]], intr, points })
     }
 
     fn ramp(n: usize, squeeze: f32) -> Vec<f32> {
-        (0..n)
-            .flat_map(|i| {
-                let t = i as f32 / (n - 1) as f32;
-                let t = 0.5 + squeeze * (t - 0.5);
-                [0.1 + 0.8 * t, 0.2 + 0.5 * t * t, 0.7 - 0.6 * t]
-            })
-            .collect()
+        (0..n).flat_map(|i| {
+            let t = i as f32 / (n - 1) as f32;
+            let t = 0.5 + squeeze * (t - 0.5);
+            [0.1 + 0.8 * t, 0.2 + 0.5 * t * t, 0.7 - 0.6 * t]
+        })
+        .collect()
     }
 
     /// A distribution squeezed toward its middle (what the iterated median does to the
@@ -211,62 +166,27 @@ mod tests {
     #[test]
     fn a_narrowed_palette_is_stretched_back_and_equal_colours_stay_equal() {
         let (ref_img, ref_geom) = view(ramp(201, 1.0));
-        let reference = Quantiles::of(
-            std::slice::from_ref(&ref_img),
-            std::slice::from_ref(&ref_geom),
-        );
+        let reference = Quantiles::of(std::slice::from_ref(&ref_img), std::slice::from_ref(&ref_geom));
         let mut squeezed = ramp(201, 0.6);
         // two pixels of the same colour
         let same: Vec<f32> = squeezed[30..33].to_vec();
         squeezed[60..63].copy_from_slice(&same);
         let (img, geom) = view(squeezed.clone());
-        let mapped = map_onto(
-            std::slice::from_ref(&img),
-            std::slice::from_ref(&geom),
-            &reference,
-        )
-        .remove(0);
+        let mapped = map_onto(std::slice::from_ref(&img), std::slice::from_ref(&geom), &reference).remove(0);
         let lightness = |d: &[f32], i: usize| oklab([d[i * 3], d[i * 3 + 1], d[i * 3 + 2]])[0];
         let range = |d: &[f32]| {
             let l: Vec<f32> = (0..200).map(|i| lightness(d, i)).collect();
             l.iter().cloned().fold(f32::MIN, f32::max) - l.iter().cloned().fold(f32::MAX, f32::min)
         };
         let (want, before, after) = (range(&ref_img.data), range(&squeezed), range(&mapped.data));
-        assert!(
-            before < 0.7 * want,
-            "the test's squeeze: {before} vs {want}"
-        );
-        assert!(
-            (after - want).abs() < 0.02 * want,
-            "lightness range after the map {after}, reference {want}"
-        );
-        assert_eq!(
-            mapped.data[30..33],
-            mapped.data[60..63],
-            "one colour, one mapped colour"
-        );
-        assert_eq!(
-            mapped.data[600..603],
-            squeezed[600..603],
-            "the pixel without a surface is not mapped"
-        );
+        assert!(before < 0.7 * want, "the test's squeeze: {before} vs {want}");
+        assert!((after - want).abs() < 0.02 * want, "lightness range after the map {after}, reference {want}");
+        assert_eq!(mapped.data[30..33], mapped.data[60..63], "one colour, one mapped colour");
+        assert_eq!(mapped.data[600..603], squeezed[600..603], "the pixel without a surface is not mapped");
         let (ri, rg) = (ref_img.clone(), ref_geom);
-        let itself = map_onto(
-            std::slice::from_ref(&ri),
-            std::slice::from_ref(&rg),
-            &reference,
-        )
-        .remove(0);
-        let worst = itself
-            .data
-            .iter()
-            .zip(&ri.data)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
-        assert!(
-            worst < 0.01,
-            "a distribution mapped onto itself moved by {worst}"
-        );
+        let itself = map_onto(std::slice::from_ref(&ri), std::slice::from_ref(&rg), &reference).remove(0);
+        let worst = itself.data.iter().zip(&ri.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 0.01, "a distribution mapped onto itself moved by {worst}");
     }
 
     #[test]
@@ -287,24 +207,12 @@ mod tests {
         assert_eq!(load(&dir).unwrap(), q);
         // a first fusion that showed no surface: an empty palette, saved, read back, and a map
         // that leaves every colour alone (a later round may see surface the first did not)
-        let nothing = ViewGeometry {
-            c2w: geom.c2w,
-            intr: geom.intr,
-            points: vec![None; geom.points.len()],
-        };
+        let nothing = ViewGeometry { c2w: geom.c2w, intr: geom.intr, points: vec![None; geom.points.len()] };
         let empty = Quantiles::of(std::slice::from_ref(&img), &[nothing]);
         save(&dir, &empty).unwrap();
         let back = load(&dir).unwrap();
         assert_eq!(back, empty);
-        assert_eq!(
-            map_onto(
-                std::slice::from_ref(&img),
-                std::slice::from_ref(&geom),
-                &back
-            )[0]
-            .data,
-            img.data
-        );
+        assert_eq!(map_onto(std::slice::from_ref(&img), std::slice::from_ref(&geom), &back)[0].data, img.data);
         std::fs::write(path(&dir), b"{\"channels\": [[1.0], [2.0], [3.0]]}").unwrap();
         let e = format!("{:#}", load(&dir).unwrap_err());
         assert!(e.contains("palette.json: not a palette file"), "{e}");

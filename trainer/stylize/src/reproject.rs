@@ -37,8 +37,7 @@ pub struct Seen<'a> {
 
 impl Seen<'_> {
     fn shows(&self, q: usize, dist: f32) -> bool {
-        self.points[q]
-            .is_some_and(|s| (norm(sub(s, self.origin)) - dist).abs() <= OCCLUSION_TOL * dist)
+        self.points[q].is_some_and(|s| (norm(sub(s, self.origin)) - dist).abs() <= OCCLUSION_TOL * dist)
     }
 
     /// The pixel that continuous pixel coordinates (u, v) fall in, when the view sees the
@@ -70,16 +69,8 @@ impl Seen<'_> {
         let x0 = (x.floor().max(0.0) as usize).min(w - 1);
         let y0 = (y.floor().max(0.0) as usize).min(h - 1);
         let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-        let (fx, fy) = (
-            (x - x0 as f32).clamp(0.0, 1.0),
-            (y - y0 as f32).clamp(0.0, 1.0),
-        );
-        let taps = [
-            (x0, y0, (1.0 - fx) * (1.0 - fy)),
-            (x1, y0, fx * (1.0 - fy)),
-            (x0, y1, (1.0 - fx) * fy),
-            (x1, y1, fx * fy),
-        ];
+        let (fx, fy) = ((x - x0 as f32).clamp(0.0, 1.0), (y - y0 as f32).clamp(0.0, 1.0));
+        let taps = [(x0, y0, (1.0 - fx) * (1.0 - fy)), (x1, y0, fx * (1.0 - fy)), (x0, y1, (1.0 - fx) * fy), (x1, y1, fx * fy)];
         let (mut sum, mut wsum) = ([0.0f32; 3], 0.0f32);
         for (tx, ty, wt) in taps {
             let t = ty * w + tx;
@@ -105,11 +96,7 @@ mod tests {
     /// A 4×1 strip: two scene pixels (red, green) at distance 5 from the camera, then two
     /// background pixels (white).
     fn strip() -> (Image, [Option<Vec3>; 4]) {
-        let img = Image {
-            width: 4,
-            height: 1,
-            data: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0],
-        };
+        let img = Image { width: 4, height: 1, data: vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0] };
         let p = Some([0.0, 0.0, 0.0]);
         (img, [p, p, None, None])
     }
@@ -119,23 +106,11 @@ mod tests {
     #[test]
     fn background_taps_are_left_out() {
         let (img, points) = strip();
-        let seen = Seen {
-            origin: [0.0, 0.0, 5.0],
-            width: 4,
-            height: 1,
-            points: &points,
-        };
+        let seen = Seen { origin: [0.0, 0.0, 5.0], width: 4, height: 1, points: &points };
         let mid = seen.colour(&img, 1.0, 0.5, 5.0).unwrap();
-        assert!(
-            (mid[0] - 0.5).abs() < 1e-6 && (mid[1] - 0.5).abs() < 1e-6,
-            "{mid:?}"
-        );
+        assert!((mid[0] - 0.5).abs() < 1e-6 && (mid[1] - 0.5).abs() < 1e-6, "{mid:?}");
         let rim = seen.colour(&img, 1.9, 0.5, 5.0).unwrap();
-        assert_eq!(
-            rim,
-            [0.0, 1.0, 0.0],
-            "a rim read must not take the background's white"
-        );
+        assert_eq!(rim, [0.0, 1.0, 0.0], "a rim read must not take the background's white");
         assert!(seen.colour(&img, 2.6, 0.5, 5.0).is_none());
         // a point farther than the surface the pixel shows is occluded
         assert!(seen.colour(&img, 1.0, 0.5, 6.0).is_none());
@@ -146,12 +121,7 @@ mod tests {
     #[test]
     fn the_nearest_read_copies_a_pixel_under_the_same_visibility() {
         let (img, points) = strip();
-        let seen = Seen {
-            origin: [0.0, 0.0, 5.0],
-            width: 4,
-            height: 1,
-            points: &points,
-        };
+        let seen = Seen { origin: [0.0, 0.0, 5.0], width: 4, height: 1, points: &points };
         assert_eq!(seen.nearest(&img, 0.9, 0.5, 5.0), Some([1.0, 0.0, 0.0]));
         assert_eq!(seen.nearest(&img, 1.1, 0.5, 5.0), Some([0.0, 1.0, 0.0]));
         assert_eq!(seen.nearest(&img, 1.9, 0.5, 5.0), Some([0.0, 1.0, 0.0]));

@@ -368,9 +368,7 @@ impl StylizeOptions {
                 let total = n * rounds as u64;
                 let h: f64 = (1..=rounds).map(|t| 1.0 / t as f64).sum();
                 // cumulative shares, rounded, so the rounds add up to the total exactly
-                let upto = |t: usize| {
-                    ((1..=t).map(|k| 1.0 / k as f64).sum::<f64>() / h * total as f64).round() as u64
-                };
+                let upto = |t: usize| ((1..=t).map(|k| 1.0 / k as f64).sum::<f64>() / h * total as f64).round() as u64;
                 let t = round.clamp(1, rounds);
                 (upto(t) - upto(t - 1)).max(1)
             }
@@ -384,9 +382,7 @@ impl StylizeOptions {
             LrSchedule::Round => s as f64 / n as f64,
             LrSchedule::Run => {
                 let before: u64 = (1..round.max(1)).map(|t| self.steps_of_round(t)).sum();
-                let total: u64 = (1..=self.rounds.max(1))
-                    .map(|t| self.steps_of_round(t))
-                    .sum();
+                let total: u64 = (1..=self.rounds.max(1)).map(|t| self.steps_of_round(t)).sum();
                 (before + s) as f64 / total.max(1) as f64
             }
         }
@@ -477,14 +473,7 @@ fn differing_options(recorded: &StylizeOptions, asked: &StylizeOptions) -> Vec<S
     let null = serde_json::Value::Null;
     a.iter()
         .filter(|(k, v)| k.as_str() != "rounds" && b.get(*k) != Some(*v))
-        .map(|(k, v)| {
-            format!(
-                "{}: {} recorded, {} asked",
-                cli_name(k),
-                cli_value(k, v),
-                cli_value(k, b.get(k).unwrap_or(&null))
-            )
-        })
+        .map(|(k, v)| format!("{}: {} recorded, {} asked", cli_name(k), cli_value(k, v), cli_value(k, b.get(k).unwrap_or(&null))))
         .collect()
 }
 
@@ -518,34 +507,19 @@ pub fn run(
     out: &Path,
     progress: &mut dyn Progress,
 ) -> Result<StylizeState> {
-    anyhow::ensure!(
-        opts.rounds >= 1 && opts.steps_per_round >= 1,
-        "a stylization needs at least one round of at least one step"
-    );
-    anyhow::ensure!(
-        opts.target_step > 0.0 && opts.target_step <= 1.0,
-        "the target step must be in (0, 1], not {}",
-        opts.target_step
-    );
+    anyhow::ensure!(opts.rounds >= 1 && opts.steps_per_round >= 1, "a stylization needs at least one round of at least one step");
+    anyhow::ensure!(opts.target_step > 0.0 && opts.target_step <= 1.0, "the target step must be in (0, 1], not {}", opts.target_step);
     let _lock = snerf_files::DirLock::acquire(out)?;
     let _graceful = snerf_files::interrupt::Graceful::enter();
-    std::fs::create_dir_all(out.join("rounds"))
-        .with_context(|| format!("{}: cannot create", out.display()))?;
+    std::fs::create_dir_all(out.join("rounds")).with_context(|| format!("{}: cannot create", out.display()))?;
     let ck_path = RunDir::new(out).checkpoint();
     // Resume when the directory holds a run with the same options.
     let (mut state, mut trainer) = match std::fs::read(state_path(out)) {
         Ok(bytes) => {
-            let state: StylizeState = serde_json::from_slice(&bytes).with_context(|| {
-                format!(
-                    "{}: not a stylization state file",
-                    state_path(out).display()
-                )
-            })?;
+            let state: StylizeState = serde_json::from_slice(&bytes)
+                .with_context(|| format!("{}: not a stylization state file", state_path(out).display()))?;
             // More (or fewer) rounds extend (or end) the same run; anything else is another run.
-            let same = StylizeOptions {
-                rounds: opts.rounds,
-                ..state.options.clone()
-            } == *opts;
+            let same = StylizeOptions { rounds: opts.rounds, ..state.options.clone() } == *opts;
             if !same {
                 bail!(
                     "{}: holds a stylization run with other options ({}); choose another --out or \
@@ -554,22 +528,14 @@ pub fn run(
                     differing_options(&state.options, opts).join("; ")
                 );
             }
-            let ck = if state.rounds_done > 0 {
-                checkpoint::load(&ck_path)?
-            } else {
-                source.clone()
-            };
+            let ck = if state.rounds_done > 0 { checkpoint::load(&ck_path)? } else { source.clone() };
             let t = trainer_from(ck, data, opts)?;
             let mut state = state;
             state.options.rounds = opts.rounds;
             (state, t)
         }
         Err(_) => {
-            let state = StylizeState {
-                options: opts.clone(),
-                rounds_done: 0,
-                records: Vec::new(),
-            };
+            let state = StylizeState { options: opts.clone(), rounds_done: 0, records: Vec::new() };
             (state, trainer_from(source.clone(), data, opts)?)
         }
     };
@@ -585,35 +551,21 @@ pub fn run(
     let has_alpha = views_have_alpha(&data.train);
     let bg = eval_background(has_alpha);
     // Without a path (no per-round consistency) the embedding distance of held-out views.
-    let style_embedding = meters
-        .embedder
-        .as_ref()
-        .map(|e| e.embed(style))
-        .transpose()?;
+    let style_embedding = meters.embedder.as_ref().map(|e| e.embed(style)).transpose()?;
     // The geometry of the novel path comes from the realistic field, once.
     let path = if opts.consistency_frames > 1 {
-        Some(PathGeometry::new(
-            &realistic,
-            &realistic_pool,
-            data,
-            opts.consistency_frames,
-        )?)
+        Some(PathGeometry::new(&realistic, &realistic_pool, data, opts.consistency_frames)?)
     } else {
         None
     };
-    let style_targets = path
-        .as_ref()
-        .map(|p| meters.targets(p, style))
-        .transpose()?;
+    let style_targets = path.as_ref().map(|p| meters.targets(p, style)).transpose()?;
     // `Content::Realistic`: the stylizations of the realistic renders, made once per process
     // (the stylizers are deterministic, so a resumed run makes the same ones again); with
     // consensus targets, the last round's fused targets instead (saved, so a resumed run
     // reads them back). The flag says which: `opts.fusion` applies to fresh stylizations, a
     // consensus is fused by the median again.
     let mut fixed: Option<(Vec<Image>, bool)> = None;
-    let consensus_on = opts.targets == Targets::Consensus
-        && opts.content == Content::Realistic
-        && opts.fuse_views > 0;
+    let consensus_on = opts.targets == Targets::Consensus && opts.content == Content::Realistic && opts.fuse_views > 0;
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     // the last round's training targets (with `StepFrom::Targets` only, so Some means it)
     let mut previous: Option<Vec<Image>> = None;
@@ -622,32 +574,12 @@ pub fn run(
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
         let resumed = partial::load(out, round + 1, data, opts)?;
-        let (
-            stylized,
-            render_seconds,
-            stylize_seconds,
-            first_step,
-            trained_before,
-            mut loss_ema,
-            fused_fraction,
-        ) = match resumed {
+        let (stylized, render_seconds, stylize_seconds, first_step, trained_before, mut loss_ema, fused_fraction) = match resumed {
             Some(p) => {
-                let partial::Resumed {
-                    trainer: t,
-                    targets,
-                    saved: p,
-                } = p;
+                let partial::Resumed { trainer: t, targets, saved: p } = p;
                 trainer = t;
                 wall += p.round_wall;
-                (
-                    targets,
-                    p.render_seconds,
-                    p.stylize_seconds,
-                    p.steps_done,
-                    p.train_seconds,
-                    p.loss_ema,
-                    None,
-                )
+                (targets, p.render_seconds, p.stylize_seconds, p.steps_done, p.train_seconds, p.loss_ema, None)
             }
             None => {
                 // (1) render the training views from the current field
@@ -659,32 +591,14 @@ pub fn run(
                 let mut painted = Vec::new();
                 let mut geoms = Vec::with_capacity(views.len());
                 for (i, v) in views.iter().enumerate() {
-                    let r = render_camera(
-                        &trainer.model,
-                        &trainer.pool,
-                        &v.c2w,
-                        &v.intrinsics,
-                        v.time,
-                        bg,
-                    );
+                    let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
                     if opts.fuse_views > 0 {
-                        geoms.push(ViewGeometry::from_render(
-                            &trainer.model.space,
-                            &v.c2w,
-                            &v.intrinsics,
-                            v.time,
-                            &r.depth,
-                            &r.opacity,
-                        ));
+                        geoms.push(ViewGeometry::from_render(&trainer.model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity));
                     }
                     if has_alpha {
                         painted.push(unpremultiply(r.width, r.height, &r.rgb, &r.opacity, bg));
                     }
-                    renders.push(Image {
-                        width: r.width,
-                        height: r.height,
-                        data: r.rgb,
-                    });
+                    renders.push(Image { width: r.width, height: r.height, data: r.rgb });
                     progress.tick(i as u64 + 1, "");
                 }
                 let render_seconds = t0.elapsed().as_secs_f64();
@@ -692,44 +606,21 @@ pub fn run(
                 progress.phase(round + 1, opts.rounds, "stylize", views.len() as u64);
                 let t0 = Instant::now();
                 let (stylized, stylized_is_consensus) = match opts.content {
-                    Content::Render => (
-                        stylize_all(stylizer, &renders, &views, opts, round + 1, progress)?,
-                        false,
-                    ),
+                    Content::Render => (stylize_all(stylizer, &renders, &views, opts, round + 1, progress)?, false),
                     Content::Realistic => {
                         if fixed.is_none() && consensus_on && round > 0 {
                             // A resumed run continues the consensus of the last round begun.
-                            fixed = consensus::load(
-                                out,
-                                consensus::Kept::Consensus,
-                                round,
-                                views.len(),
-                            )?
-                            .map(|c| (c, true));
+                            fixed = consensus::load(out, consensus::Kept::Consensus, round, views.len())?.map(|c| (c, true));
                         }
                         if fixed.is_none() {
                             let content: Vec<Image> = views
                                 .iter()
                                 .map(|v| {
-                                    let r = render_camera(
-                                        &realistic,
-                                        &realistic_pool,
-                                        &v.c2w,
-                                        &v.intrinsics,
-                                        v.time,
-                                        bg,
-                                    );
-                                    Image {
-                                        width: r.width,
-                                        height: r.height,
-                                        data: r.rgb,
-                                    }
+                                    let r = render_camera(&realistic, &realistic_pool, &v.c2w, &v.intrinsics, v.time, bg);
+                                    Image { width: r.width, height: r.height, data: r.rgb }
                                 })
                                 .collect();
-                            fixed = Some((
-                                stylize_all(stylizer, &content, &views, opts, round + 1, progress)?,
-                                false,
-                            ));
+                            fixed = Some((stylize_all(stylizer, &content, &views, opts, round + 1, progress)?, false));
                         }
                         fixed.clone().expect("stylized above")
                     }
@@ -744,11 +635,7 @@ pub fn run(
                         if reference.is_none() {
                             reference = Some(palette::load(out)?);
                         }
-                        let kept = palette::map_onto(
-                            &stylized,
-                            &geoms,
-                            reference.as_ref().expect("loaded above"),
-                        );
+                        let kept = palette::map_onto(&stylized, &geoms, reference.as_ref().expect("loaded above"));
                         fusion::fuse(&kept, &geoms, opts.fuse_views, opts.fusion_read)
                     } else {
                         fusion::fuse(&stylized, &geoms, opts.fuse_views, opts.fusion_read)
@@ -775,49 +662,24 @@ pub fn run(
                     previous = consensus::load(out, consensus::Kept::Targets, round, views.len())?;
                 }
                 let targets: Vec<Image> = if let Some(prev) = &previous {
-                    consensus::quantize(
-                        prev.iter()
-                            .zip(&fused)
-                            .map(|(p, f)| fusion::step_toward(p, f, step))
-                            .collect(),
-                    )
+                    consensus::quantize(prev.iter().zip(&fused).map(|(p, f)| fusion::step_toward(p, f, step)).collect())
                 } else if step < 1.0 {
                     // A target is the colour of the surface alone (training lays a random
                     // background under it by the view's alpha), so the step starts from the
                     // field's own colour, not from its render over the eval background:
                     // otherwise every round would lay the background into the rims again.
                     let from = if has_alpha { &painted } else { &renders };
-                    from.iter()
-                        .zip(&fused)
-                        .map(|(r, f)| fusion::step_toward(r, f, step))
-                        .collect()
+                    from.iter().zip(&fused).map(|(r, f)| fusion::step_toward(r, f, step)).collect()
                 } else {
                     fused
                 };
                 let stylize_seconds = t0.elapsed().as_secs_f64();
-                write_round_sheet(
-                    &out.join("rounds").join(format!("round_{}.png", round + 1)),
-                    &renders,
-                    &stylized,
-                    &targets,
-                )?;
-                (
-                    targets,
-                    render_seconds,
-                    stylize_seconds,
-                    0,
-                    0.0,
-                    None,
-                    fused_fraction,
-                )
+                write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized, &targets)?;
+                (targets, render_seconds, stylize_seconds, 0, 0.0, None, fused_fraction)
             }
         };
         // (3) train on random rays across the stylized views
-        let targets: Vec<View> = views
-            .iter()
-            .zip(&stylized)
-            .map(|(v, s)| stylized_view(v, s))
-            .collect();
+        let targets: Vec<View> = views.iter().zip(&stylized).map(|(v, s)| stylized_view(v, s)).collect();
         trainer.set_views(targets)?;
         let steps = opts.steps_of_round(round + 1);
         progress.phase(round + 1, opts.rounds, "train", steps);
@@ -860,29 +722,18 @@ pub fn run(
         // measure (not counted as round time)
         wall += t_round.elapsed().as_secs_f64();
         progress.phase(round + 1, opts.rounds, "measure", 1);
-        let (style_distance, short_range, long_range, style_swd, style_gram) =
-            match (&path, &style_targets) {
-                (Some(p), Some(targets)) => {
-                    let frames = p.render(&trainer.model, &trainer.pool);
-                    let style = meters.score(p, &frames, targets)?;
-                    (
-                        style.embedding,
-                        Some(p.warp_error(&frames, 1)),
-                        Some(p.warp_error(&frames, 7)),
-                        Some(style.swd),
-                        style.gram,
-                    )
-                }
-                _ => {
-                    let style = meters.embedder.as_ref().zip(style_embedding.as_deref());
-                    let d = style
-                        .map(|(e, s)| {
-                            style_distance_of(&trainer.model, &trainer.pool, data, bg, e, s)
-                        })
-                        .transpose()?;
-                    (d, None, None, None, None)
-                }
-            };
+        let (style_distance, short_range, long_range, style_swd, style_gram) = match (&path, &style_targets) {
+            (Some(p), Some(targets)) => {
+                let frames = p.render(&trainer.model, &trainer.pool);
+                let style = meters.score(p, &frames, targets)?;
+                (style.embedding, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)), Some(style.swd), style.gram)
+            }
+            _ => {
+                let style = meters.embedder.as_ref().zip(style_embedding.as_deref());
+                let d = style.map(|(e, s)| style_distance_of(&trainer.model, &trainer.pool, data, bg, e, s)).transpose()?;
+                (d, None, None, None, None)
+            }
+        };
         let record = RoundRecord {
             round: round + 1,
             wall_seconds: wall,
@@ -926,11 +777,7 @@ fn unpremultiply(width: usize, height: usize, rgb: &[f32], opacity: &[f32], bg: 
             }
         }
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }
 
 /// Stylize each image on its own (round `round`, for messages and progress); with
@@ -945,16 +792,10 @@ fn stylize_all(
 ) -> Result<Vec<Image>> {
     let mut out = Vec::with_capacity(images.len());
     for (i, r) in images.iter().enumerate() {
-        let mask: Option<Vec<bool>> = (opts.region == Region::Object
-            && views_have_alpha(std::slice::from_ref(&views[i])))
-        .then(|| views[i].rgba.chunks_exact(4).map(|p| p[3] >= 128).collect());
-        let s =
-            stylize_region(stylizer, r, mask.as_deref(), opts.style_res).with_context(|| {
-                format!(
-                    "round {round}: stylizing training view {}",
-                    views[i].path.display()
-                )
-            })?;
+        let mask: Option<Vec<bool>> =
+            (opts.region == Region::Object && views_have_alpha(std::slice::from_ref(&views[i]))).then(|| views[i].rgba.chunks_exact(4).map(|p| p[3] >= 128).collect());
+        let s = stylize_region(stylizer, r, mask.as_deref(), opts.style_res)
+            .with_context(|| format!("round {round}: stylizing training view {}", views[i].path.display()))?;
         out.push(s);
         progress.tick(i as u64 + 1, "");
     }
@@ -965,28 +806,16 @@ fn stylize_all(
 /// box grown by 1/16 of the view's longer side, painted at the whole view's scale
 /// (`Stylizer::stylize_crop`); the view outside the box keeps its own pixels. An empty mask,
 /// or a box that fills the view, is the whole view.
-pub fn stylize_region(
-    stylizer: &dyn Stylizer,
-    img: &Image,
-    mask: Option<&[bool]>,
-    res: usize,
-) -> Result<Image> {
+pub fn stylize_region(stylizer: &dyn Stylizer, img: &Image, mask: Option<&[bool]>, res: usize) -> Result<Image> {
     let (w, h) = (img.width, img.height);
-    let Some(mask) = mask else {
-        return stylize_at(stylizer, img, res);
-    };
+    let Some(mask) = mask else { return stylize_at(stylizer, img, res) };
     let mut b = (w, h, 0, 0);
     for (p, _) in mask.iter().enumerate().filter(|(_, &m)| m) {
         let (x, y) = (p % w, p / w);
         b = (b.0.min(x), b.1.min(y), b.2.max(x + 1), b.3.max(y + 1));
     }
     let margin = w.max(h).div_ceil(16);
-    let (x0, y0, x1, y1) = (
-        b.0.saturating_sub(margin),
-        b.1.saturating_sub(margin),
-        (b.2 + margin).min(w),
-        (b.3 + margin).min(h),
-    );
+    let (x0, y0, x1, y1) = (b.0.saturating_sub(margin), b.1.saturating_sub(margin), (b.2 + margin).min(w), (b.3 + margin).min(h));
     if x1 <= x0 || y1 <= y0 || (x1 - x0 == w && y1 - y0 == h) {
         return stylize_at(stylizer, img, res);
     }
@@ -995,36 +824,22 @@ pub fn stylize_region(
     let long = w.max(h);
     let view_long = if res == 0 { long } else { res };
     let k = view_long as f32 / long as f32;
-    let scaled = (view_long != long).then(|| {
-        resize(
-            &part,
-            ((part.width as f32 * k).round() as usize).max(1),
-            ((part.height as f32 * k).round() as usize).max(1),
-        )
-    });
+    let scaled = (view_long != long)
+        .then(|| resize(&part, ((part.width as f32 * k).round() as usize).max(1), ((part.height as f32 * k).round() as usize).max(1)));
     let input = scaled.as_ref().unwrap_or(&part);
     let painted = check_output(stylizer, input, stylizer.stylize_crop(input, view_long)?)?;
-    let painted = if painted.width == part.width && painted.height == part.height {
-        painted
-    } else {
-        resize(&painted, part.width, part.height)
-    };
+    let painted = if painted.width == part.width && painted.height == part.height { painted } else { resize(&painted, part.width, part.height) };
     let mut out = img.clone();
     for y in y0..y1 {
         let row = (y - y0) * part.width * 3;
-        out.data[(y * w + x0) * 3..(y * w + x1) * 3]
-            .copy_from_slice(&painted.data[row..row + part.width * 3]);
+        out.data[(y * w + x0) * 3..(y * w + x1) * 3].copy_from_slice(&painted.data[row..row + part.width * 3]);
     }
     Ok(out)
 }
 
 /// A trainer on the source field with the rounds' settings; the optimizer starts afresh
 /// (its moments belong to the realistic targets).
-fn trainer_from(
-    ck: snerf_trainer::checkpoint::Checkpoint,
-    data: &Dataset,
-    opts: &StylizeOptions,
-) -> Result<Trainer> {
+fn trainer_from(ck: snerf_trainer::checkpoint::Checkpoint, data: &Dataset, opts: &StylizeOptions) -> Result<Trainer> {
     let mut cfg = ck.cfg.clone();
     cfg.freeze_geometry = opts.appearance_only;
     cfg.freeze_view = true;
@@ -1055,20 +870,14 @@ pub fn stylize_at(stylizer: &dyn Stylizer, img: &Image, res: usize) -> Result<Im
         return check_output(stylizer, img, stylizer.stylize(img)?);
     }
     let s = res as f32 / long as f32;
-    let (w, h) = (
-        ((img.width as f32 * s).round() as usize).max(1),
-        ((img.height as f32 * s).round() as usize).max(1),
-    );
+    let (w, h) = (((img.width as f32 * s).round() as usize).max(1), ((img.height as f32 * s).round() as usize).max(1));
     let up = resize(img, w, h);
     let out = check_output(stylizer, &up, stylizer.stylize(&up)?)?;
     Ok(resize(&out, img.width, img.height))
 }
 
 fn check_output(stylizer: &dyn Stylizer, input: &Image, out: Image) -> Result<Image> {
-    if out.width != input.width
-        || out.height != input.height
-        || out.data.len() != out.width * out.height * 3
-    {
+    if out.width != input.width || out.height != input.height || out.data.len() != out.width * out.height * 3 {
         bail!(
             "stylizer {} returned a {}x{} image for a {}x{} view",
             stylizer.name(),
@@ -1079,12 +888,7 @@ fn check_output(stylizer: &dyn Stylizer, input: &Image, out: Image) -> Result<Im
         );
     }
     if out.data.iter().any(|x| !x.is_finite()) {
-        bail!(
-            "stylizer {} returned NaN or Inf for a {}x{} view",
-            stylizer.name(),
-            input.width,
-            input.height
-        );
+        bail!("stylizer {} returned NaN or Inf for a {}x{} view", stylizer.name(), input.width, input.height);
     }
     Ok(out)
 }
@@ -1092,19 +896,9 @@ fn check_output(stylizer: &dyn Stylizer, input: &Image, out: Image) -> Result<Im
 /// Bilinear resize of an RGB float image.
 pub fn resize(img: &Image, w: usize, h: usize) -> Image {
     let buf: image::ImageBuffer<image::Rgb<f32>, Vec<f32>> =
-        image::ImageBuffer::from_raw(img.width as u32, img.height as u32, img.data.clone())
-            .expect("image size");
-    let out = image::imageops::resize(
-        &buf,
-        w as u32,
-        h as u32,
-        image::imageops::FilterType::Triangle,
-    );
-    Image {
-        width: w,
-        height: h,
-        data: out.into_raw(),
-    }
+        image::ImageBuffer::from_raw(img.width as u32, img.height as u32, img.data.clone()).expect("image size");
+    let out = image::imageops::resize(&buf, w as u32, h as u32, image::imageops::FilterType::Triangle);
+    Image { width: w, height: h, data: out.into_raw() }
 }
 
 /// The training view with its colours replaced by the stylized image; alpha is kept, so a
@@ -1128,32 +922,19 @@ pub fn style_distance_of(
     embedder: &StyleEmbedder,
     style_embedding: &[f32],
 ) -> Result<f64> {
-    let views = if data.test.is_empty() {
-        &data.train
-    } else {
-        &data.test
-    };
+    let views = if data.test.is_empty() { &data.train } else { &data.test };
     let picked = pick_views(views, 4);
     let mut sum = 0.0;
     for v in &picked {
         let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
-        let img = Image {
-            width: r.width,
-            height: r.height,
-            data: r.rgb,
-        };
+        let img = Image { width: r.width, height: r.height, data: r.rgb };
         sum += consistency::embedding_distance(&embedder.embed(&img)?, style_embedding);
     }
     Ok(sum / picked.len().max(1) as f64)
 }
 
 /// `rounds/round_N.png`: up to 4 views: render, the stylizer's output, the training target.
-fn write_round_sheet(
-    path: &Path,
-    renders: &[Image],
-    stylized: &[Image],
-    targets: &[Image],
-) -> Result<()> {
+fn write_round_sheet(path: &Path, renders: &[Image], stylized: &[Image], targets: &[Image]) -> Result<()> {
     let n = renders.len().min(4);
     let picked: Vec<usize> = (0..n).map(|i| i * renders.len() / n.max(1)).collect();
     let rows: Vec<Vec<&Image>> = vec![
@@ -1175,33 +956,18 @@ mod tests {
         let bg = [1.0, 1.0, 1.0];
         let surface = [0.3f32, 0.2, 0.1];
         let opacity = [1.0f32, 0.6, 0.1, 0.0];
-        let rgb: Vec<f32> = opacity
-            .iter()
-            .flat_map(|&a| (0..3).map(move |c| surface[c] * a + bg[c] * (1.0 - a)))
-            .collect();
+        let rgb: Vec<f32> = opacity.iter().flat_map(|&a| (0..3).map(move |c| surface[c] * a + bg[c] * (1.0 - a))).collect();
         let out = unpremultiply(4, 1, &rgb, &opacity, bg);
         assert_eq!((out.width, out.height), (4, 1));
         for p in 0..3 {
             for c in 0..3 {
-                assert!(
-                    (out.data[p * 3 + c] - surface[c]).abs() < 1e-5,
-                    "pixel {p}: {:?}",
-                    &out.data[p * 3..p * 3 + 3]
-                );
+                assert!((out.data[p * 3 + c] - surface[c]).abs() < 1e-5, "pixel {p}: {:?}", &out.data[p * 3..p * 3 + 3]);
             }
         }
         // no coverage: the render's colour is kept (training gives the pixel alpha 0)
         assert_eq!(&out.data[9..12], &rgb[9..12]);
         // a plain step from the composited render would have whitened the rim
-        let target = fusion::step_toward(
-            &Image {
-                width: 4,
-                height: 1,
-                data: rgb.clone(),
-            },
-            &Image::filled(4, 1, surface),
-            0.5,
-        );
+        let target = fusion::step_toward(&Image { width: 4, height: 1, data: rgb.clone() }, &Image::filled(4, 1, surface), 0.5);
         assert!(target.data[4] > surface[1] + 0.05);
     }
 
@@ -1215,48 +981,13 @@ mod tests {
         }))
         .unwrap();
         // the record predates --tv and --view-colour: it ran with the source's weight and MLP
-        assert_eq!(
-            (recorded.plane_tv, recorded.view_colour),
-            (None, ViewColour::Source)
-        );
-        let asked = StylizeOptions {
-            rounds: 7,
-            plane_tv: Some(0.0),
-            view_colour: ViewColour::Diffuse,
-            steps_per_round: 100,
-            ..recorded.clone()
-        };
+        assert_eq!((recorded.plane_tv, recorded.view_colour), (None, ViewColour::Source));
+        let asked = StylizeOptions { rounds: 7, plane_tv: Some(0.0), view_colour: ViewColour::Diffuse, steps_per_round: 100, ..recorded.clone() };
         let mut d = differing_options(&recorded, &asked);
         d.sort();
-        assert_eq!(
-            d,
-            [
-                "--steps-per-round: 300 recorded, 100 asked",
-                "--tv: source recorded, 0.0 asked",
-                "--view-colour: source recorded, diffuse asked"
-            ]
-        );
-        assert!(
-            differing_options(
-                &recorded,
-                &StylizeOptions {
-                    rounds: 9,
-                    ..recorded.clone()
-                }
-            )
-            .is_empty(),
-            "more rounds extend the same run"
-        );
+        assert_eq!(d, ["--steps-per-round: 300 recorded, 100 asked", "--tv: source recorded, 0.0 asked", "--view-colour: source recorded, diffuse asked"]);
+        assert!(differing_options(&recorded, &StylizeOptions { rounds: 9, ..recorded.clone() }).is_empty(), "more rounds extend the same run");
         // the record predates --seed too: it trained with the source run's
-        assert_eq!(
-            differing_options(
-                &recorded,
-                &StylizeOptions {
-                    seed: Some(3),
-                    ..recorded.clone()
-                }
-            ),
-            ["--seed: source recorded, 3 asked"]
-        );
+        assert_eq!(differing_options(&recorded, &StylizeOptions { seed: Some(3), ..recorded.clone() }), ["--seed: source recorded, 3 asked"]);
     }
 }

@@ -60,9 +60,7 @@ pub struct GramMetric {
 impl GramMetric {
     /// Loads the network from the installed style model (errors name the file).
     pub fn open(opts: &StylizerOptions) -> Result<GramMetric> {
-        Ok(GramMetric {
-            net: Arc::new(MobileNet::load(&model_path(ARBITRARY_PREDICT, opts)?)?),
-        })
+        Ok(GramMetric { net: Arc::new(MobileNet::load(&model_path(ARBITRARY_PREDICT, opts)?)?) })
     }
 
     pub fn with_net(net: Arc<MobileNet>) -> GramMetric {
@@ -103,10 +101,7 @@ impl GramMetric {
         let long = view_width.max(view_height);
         let s = long as f32 / style.width.max(style.height) as f32;
         let min = self.net.min_side();
-        let (w, h) = (
-            ((style.width as f32 * s).round() as usize).max(min),
-            ((style.height as f32 * s).round() as usize).max(min),
-        );
+        let (w, h) = (((style.width as f32 * s).round() as usize).max(min), ((style.height as f32 * s).round() as usize).max(min));
         self.grams(&[(&crate::snerf_loop::resize(style, w, h), None)])
     }
 }
@@ -114,17 +109,14 @@ impl GramMetric {
 /// Which feature positions of a tap count: those whose stride block of input pixels is all
 /// scene (`None` = all).
 fn tap_mask(f: &Planes, width: usize, height: usize, mask: Option<&[bool]>) -> Vec<bool> {
-    let Some(mask) = mask else {
-        return vec![true; f.h * f.w];
-    };
+    let Some(mask) = mask else { return vec![true; f.h * f.w] };
     let (sy, sx) = (height.div_ceil(f.h), width.div_ceil(f.w));
     let mut keep = vec![false; f.h * f.w];
     for y in 0..f.h {
         for x in 0..f.w {
             let (y0, x0) = (y * sy, x * sx);
             let (y1, x1) = ((y0 + sy).min(height), (x0 + sx).min(width));
-            keep[y * f.w + x] =
-                y0 < y1 && x0 < x1 && (y0..y1).all(|yy| (x0..x1).all(|xx| mask[yy * width + xx]));
+            keep[y * f.w + x] = y0 < y1 && x0 < x1 && (y0..y1).all(|yy| (x0..x1).all(|xx| mask[yy * width + xx]));
         }
     }
     keep
@@ -140,16 +132,10 @@ fn accumulate_gram(f: &Planes, keep: &[bool], sum: &mut [f64]) -> usize {
     // Gather the kept columns (c × k) once, then a plain f32 product per pair of channels,
     // summed in f64.
     let c = f.c;
-    let cols: Vec<Vec<f32>> = (0..c)
-        .map(|ch| kept.iter().map(|&p| f.data[ch * n + p]).collect())
-        .collect();
+    let cols: Vec<Vec<f32>> = (0..c).map(|ch| kept.iter().map(|&p| f.data[ch * n + p]).collect()).collect();
     for i in 0..c {
         for j in i..c {
-            let dot: f64 = cols[i]
-                .iter()
-                .zip(&cols[j])
-                .map(|(a, b)| (*a as f64) * (*b as f64))
-                .sum();
+            let dot: f64 = cols[i].iter().zip(&cols[j]).map(|(a, b)| (*a as f64) * (*b as f64)).sum();
             sum[i * c + j] += dot;
             if i != j {
                 sum[j * c + i] += dot;
@@ -168,11 +154,7 @@ pub fn distance(a: &Grams, b: &Grams) -> f64 {
         if a.positions[t] == 0 || b.positions[t] == 0 {
             continue;
         }
-        let diff: f64 = a.taps[t]
-            .iter()
-            .zip(&b.taps[t])
-            .map(|(x, y)| (x - y) * (x - y))
-            .sum();
+        let diff: f64 = a.taps[t].iter().zip(&b.taps[t]).map(|(x, y)| (x - y) * (x - y)).sum();
         let norm: f64 = b.taps[t].iter().map(|y| y * y).sum();
         sum += (diff / norm.max(1e-30)).sqrt();
         n += 1;

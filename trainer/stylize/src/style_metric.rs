@@ -186,20 +186,9 @@ struct Lab {
 
 impl Lab {
     fn new(img: &Image, mask: Option<&[bool]>) -> Lab {
-        let px = img
-            .data
-            .chunks_exact(3)
-            .map(|c| oklab([c[0], c[1], c[2]]))
-            .collect();
-        let mask = mask
-            .map(|m| m.to_vec())
-            .unwrap_or_else(|| vec![true; img.width * img.height]);
-        Lab {
-            w: img.width,
-            h: img.height,
-            px,
-            mask,
-        }
+        let px = img.data.chunks_exact(3).map(|c| oklab([c[0], c[1], c[2]])).collect();
+        let mask = mask.map(|m| m.to_vec()).unwrap_or_else(|| vec![true; img.width * img.height]);
+        Lab { w: img.width, h: img.height, px, mask }
     }
     fn half(&self) -> Lab {
         let (w, h) = (self.w / 2, self.h / 2);
@@ -207,12 +196,7 @@ impl Lab {
         let mut mask = Vec::with_capacity(w * h);
         for y in 0..h {
             for x in 0..w {
-                let idx = [
-                    (2 * y) * self.w + 2 * x,
-                    (2 * y) * self.w + 2 * x + 1,
-                    (2 * y + 1) * self.w + 2 * x,
-                    (2 * y + 1) * self.w + 2 * x + 1,
-                ];
+                let idx = [(2 * y) * self.w + 2 * x, (2 * y) * self.w + 2 * x + 1, (2 * y + 1) * self.w + 2 * x, (2 * y + 1) * self.w + 2 * x + 1];
                 let mut s = [0.0f32; 3];
                 for &i in &idx {
                     for c in 0..3 {
@@ -232,8 +216,7 @@ impl Lab {
         }
         for y in 0..=self.h - PATCH {
             for x in 0..=self.w - PATCH {
-                if !(0..PATCH).all(|dy| (0..PATCH).all(|dx| self.mask[(y + dy) * self.w + x + dx]))
-                {
+                if !(0..PATCH).all(|dy| (0..PATCH).all(|dx| self.mask[(y + dy) * self.w + x + dx])) {
                     continue;
                 }
                 let mut v = Vec::with_capacity(PATCH * PATCH * 3);
@@ -266,13 +249,7 @@ impl StyleSamples {
         let mut patches = vec![Vec::new(); SCALES];
         for (img, mask) in images {
             let mut lab = Lab::new(img, *mask);
-            let c: Vec<[f32; 3]> = lab
-                .px
-                .iter()
-                .zip(&lab.mask)
-                .filter(|(_, m)| **m)
-                .map(|(p, _)| *p)
-                .collect();
+            let c: Vec<[f32; 3]> = lab.px.iter().zip(&lab.mask).filter(|(_, m)| **m).map(|(p, _)| *p).collect();
             let n = c.len();
             colors.push((subsample(c, MAX_COLOR, 1), n));
             for (s, set) in patches.iter_mut().enumerate() {
@@ -284,11 +261,7 @@ impl StyleSamples {
         }
         StyleSamples {
             colors,
-            patches: patches
-                .into_iter()
-                .enumerate()
-                .map(|(s, p)| subsample(p, MAX_PATCHES, 2 + s as u64))
-                .collect(),
+            patches: patches.into_iter().enumerate().map(|(s, p)| subsample(p, MAX_PATCHES, 2 + s as u64)).collect(),
         }
     }
 
@@ -299,27 +272,18 @@ impl StyleSamples {
 
     /// Number of colour samples and of patches per scale (for reports and checks).
     pub fn counts(&self) -> (usize, Vec<usize>) {
-        (
-            self.colors.iter().map(|c| c.0.len()).sum(),
-            self.patches.iter().map(|p| p.len()).collect(),
-        )
+        (self.colors.iter().map(|c| c.0.len()).sum(), self.patches.iter().map(|p| p.len()).collect())
     }
 
     /// All colour samples, pooled.
     fn pooled(&self) -> Vec<[f32; 3]> {
-        self.colors
-            .iter()
-            .flat_map(|c| c.0.iter().copied())
-            .collect()
+        self.colors.iter().flat_map(|c| c.0.iter().copied()).collect()
     }
 }
 
 /// Sorted projections of `set` on `dir`, read at QUANTILES evenly spaced quantiles.
 fn quantiles<V: AsRef<[f32]>>(set: &[V], dir: &[f32]) -> Vec<f32> {
-    let mut proj: Vec<f32> = set
-        .iter()
-        .map(|v| v.as_ref().iter().zip(dir).map(|(a, b)| a * b).sum())
-        .collect();
+    let mut proj: Vec<f32> = set.iter().map(|v| v.as_ref().iter().zip(dir).map(|(a, b)| a * b).sum()).collect();
     proj.sort_by(|a, b| a.total_cmp(b));
     let n = proj.len();
     (0..QUANTILES)
@@ -341,12 +305,7 @@ fn sliced_w2<V: AsRef<[f32]>>(a: &[V], b: &[V], dirs: &[Vec<f32>]) -> f64 {
     let mut sum = 0.0f64;
     for d in dirs {
         let (qa, qb) = (quantiles(a, d), quantiles(b, d));
-        sum += qa
-            .iter()
-            .zip(&qb)
-            .map(|(x, y)| ((x - y) as f64).powi(2))
-            .sum::<f64>()
-            / QUANTILES as f64;
+        sum += qa.iter().zip(&qb).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>() / QUANTILES as f64;
     }
     (sum / dirs.len() as f64).sqrt()
 }
@@ -372,18 +331,9 @@ fn nearest(from: &[[f32; 3]], to: &[[f32; 3]]) -> Vec<f32> {
     if from.is_empty() || to.is_empty() {
         return Vec::new();
     }
-    let d2 = |a: &[f32; 3], b: &[f32; 3]| {
-        (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)
-    };
+    let d2 = |a: &[f32; 3], b: &[f32; 3]| (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2);
     // collected in order, so `mean` sums in order
-    from.par_iter()
-        .map(|a| {
-            to.iter()
-                .map(|b| d2(a, b))
-                .fold(f32::INFINITY, f32::min)
-                .sqrt()
-        })
-        .collect()
+    from.par_iter().map(|a| to.iter().map(|b| d2(a, b)).fold(f32::INFINITY, f32::min).sqrt()).collect()
 }
 
 /// Palette coverage of a scene seen in several frames: each frame's own, weighted by its
@@ -420,16 +370,8 @@ fn coverage(palette: &[[f32; 3]], scene: &StyleSamples) -> (f64, f64) {
 fn texture(a: &StyleSamples, b: &StyleSamples) -> f64 {
     let pdirs = directions(PATCH * PATCH * 3, PATCH_DIRS, 12);
     let enough = |s: &usize| a.patches[*s].len().min(b.patches[*s].len()) >= QUANTILES;
-    let scales: Vec<usize> = if (0..SCALES).any(|s| enough(&s)) {
-        (0..SCALES).filter(enough).collect()
-    } else {
-        (0..SCALES).collect()
-    };
-    let tex: Vec<f64> = scales
-        .into_iter()
-        .map(|s| sliced_w2(&a.patches[s], &b.patches[s], &pdirs))
-        .filter(|d| d.is_finite())
-        .collect();
+    let scales: Vec<usize> = if (0..SCALES).any(|s| enough(&s)) { (0..SCALES).filter(enough).collect() } else { (0..SCALES).collect() };
+    let tex: Vec<f64> = scales.into_iter().map(|s| sliced_w2(&a.patches[s], &b.patches[s], &pdirs)).filter(|d| d.is_finite()).collect();
     if tex.is_empty() {
         f64::NAN
     } else {
@@ -464,11 +406,7 @@ impl StyleReference {
         let color = 0.5 * (chamfer(&ca, &cb) + chamfer(&cb, &ca));
         StyleReference {
             samples: StyleSamples::of_image(img),
-            color_unit: if color.is_finite() {
-                color.max(MIN_COLOR_UNIT)
-            } else {
-                MIN_COLOR_UNIT
-            },
+            color_unit: if color.is_finite() { color.max(MIN_COLOR_UNIT) } else { MIN_COLOR_UNIT },
             texture_unit: texture(&a, &b).max(MIN_TEXTURE_UNIT),
         }
     }
@@ -479,15 +417,9 @@ fn halves(img: &Image) -> (Image, Image) {
     let crop = |x0: usize, y0: usize, w: usize, h: usize| {
         let mut data = Vec::with_capacity(w * h * 3);
         for y in y0..y0 + h {
-            data.extend_from_slice(
-                &img.data[(y * img.width + x0) * 3..(y * img.width + x0 + w) * 3],
-            );
+            data.extend_from_slice(&img.data[(y * img.width + x0) * 3..(y * img.width + x0 + w) * 3]);
         }
-        Image {
-            width: w,
-            height: h,
-            data,
-        }
+        Image { width: w, height: h, data }
     };
     if img.width >= img.height {
         let w = img.width / 2;
@@ -505,12 +437,7 @@ pub fn distance(scene: &StyleSamples, painting: &StyleReference) -> StyleScore {
     let (coverage, missed) = coverage(&painting.samples.pooled(), scene);
     let color = coverage / painting.color_unit;
     let texture = texture(scene, &painting.samples) / painting.texture_unit;
-    StyleScore {
-        total: color + texture,
-        color,
-        texture,
-        missed,
-    }
+    StyleScore { total: color + texture, color, texture, missed }
 }
 
 /// The style picture at the views' pixel footprint: resized so its longer side equals the
@@ -518,10 +445,7 @@ pub fn distance(scene: &StyleSamples, painting: &StyleReference) -> StyleScore {
 pub fn reference(style: &Image, view_width: usize, view_height: usize) -> StyleReference {
     let long = view_width.max(view_height);
     let s = long as f32 / style.width.max(style.height) as f32;
-    let (w, h) = (
-        ((style.width as f32 * s).round() as usize).max(PATCH * 4),
-        ((style.height as f32 * s).round() as usize).max(PATCH * 4),
-    );
+    let (w, h) = (((style.width as f32 * s).round() as usize).max(PATCH * 4), ((style.height as f32 * s).round() as usize).max(PATCH * 4));
     StyleReference::new(&crate::snerf_loop::resize(style, w, h))
 }
 
@@ -534,18 +458,10 @@ mod tests {
         for y in 0..h {
             for x in 0..w {
                 let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
-                data.extend_from_slice(&[
-                    tint[0] * (0.3 + 0.7 * u),
-                    tint[1] * (0.4 + 0.5 * v),
-                    tint[2] * (0.5 + 0.4 * u * v),
-                ]);
+                data.extend_from_slice(&[tint[0] * (0.3 + 0.7 * u), tint[1] * (0.4 + 0.5 * v), tint[2] * (0.5 + 0.4 * u * v)]);
             }
         }
-        Image {
-            width: w,
-            height: h,
-            data,
-        }
+        Image { width: w, height: h, data }
     }
 
     fn strokes(w: usize, h: usize) -> Image {
@@ -554,30 +470,15 @@ mod tests {
             for x in 0..w {
                 let (u, v) = (x as f32 * 0.7, y as f32 * 0.7);
                 let a = (u + (v * 0.5).sin() * 3.0).sin();
-                data.extend_from_slice(&[
-                    0.2 + 0.2 * a,
-                    0.3 + 0.25 * (v * 0.9 + a).cos(),
-                    0.6 + 0.3 * a,
-                ]);
+                data.extend_from_slice(&[0.2 + 0.2 * a, 0.3 + 0.25 * (v * 0.9 + a).cos(), 0.6 + 0.3 * a]);
             }
         }
-        Image {
-            width: w,
-            height: h,
-            data,
-        }
+        Image { width: w, height: h, data }
     }
 
     #[test]
     fn oklab_round_trips() {
-        for rgb in [
-            [0.0, 0.0, 0.0],
-            [1.0, 1.0, 1.0],
-            [0.9, 0.1, 0.2],
-            [0.05, 0.6, 0.3],
-            [0.3, 0.3, 0.95],
-            [0.02, 0.01, 0.0],
-        ] {
+        for rgb in [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.9, 0.1, 0.2], [0.05, 0.6, 0.3], [0.3, 0.3, 0.95], [0.02, 0.01, 0.0]] {
             let back = srgb_from_oklab(oklab(rgb));
             for c in 0..3 {
                 assert!((back[c] - rgb[c]).abs() < 1e-4, "{rgb:?} -> {back:?}");
@@ -588,10 +489,7 @@ mod tests {
     #[test]
     fn oklab_white_and_black() {
         let w = oklab([1.0, 1.0, 1.0]);
-        assert!(
-            (w[0] - 1.0).abs() < 1e-3 && w[1].abs() < 1e-3 && w[2].abs() < 1e-3,
-            "{w:?}"
-        );
+        assert!((w[0] - 1.0).abs() < 1e-3 && w[1].abs() < 1e-3 && w[2].abs() < 1e-3, "{w:?}");
         let k = oklab([0.0, 0.0, 0.0]);
         assert!(k.iter().all(|v| v.abs() < 1e-6), "{k:?}");
     }
@@ -600,28 +498,11 @@ mod tests {
     fn zero_for_the_painting_itself_and_deterministic() {
         let painting = gradient(64, 48, [1.0, 0.9, 0.8]);
         let r = StyleReference::new(&painting);
-        assert!(
-            r.color_unit > MIN_COLOR_UNIT && r.texture_unit > MIN_TEXTURE_UNIT,
-            "{r:?}"
-        );
-        assert_eq!(
-            distance(&StyleSamples::of_image(&painting), &r),
-            StyleScore {
-                total: 0.0,
-                color: 0.0,
-                texture: 0.0,
-                missed: 0.0
-            }
-        );
+        assert!(r.color_unit > MIN_COLOR_UNIT && r.texture_unit > MIN_TEXTURE_UNIT, "{r:?}");
+        assert_eq!(distance(&StyleSamples::of_image(&painting), &r), StyleScore { total: 0.0, color: 0.0, texture: 0.0, missed: 0.0 });
         let d = distance(&StyleSamples::of_image(&strokes(64, 48)), &r);
         assert!(d.color > 0.5 && d.texture > 0.5, "{d:?}");
-        assert_eq!(
-            d,
-            distance(
-                &StyleSamples::of_image(&strokes(64, 48)),
-                &StyleReference::new(&gradient(64, 48, [1.0, 0.9, 0.8]))
-            )
-        );
+        assert_eq!(d, distance(&StyleSamples::of_image(&strokes(64, 48)), &StyleReference::new(&gradient(64, 48, [1.0, 0.9, 0.8]))));
     }
 
     /// Palette coverage is directed: a scene holding every colour of the painting and more
@@ -646,34 +527,16 @@ mod tests {
         assert!(d.color > 0.5, "{d:?}");
         // the colours it misses are about the light ones it lost (those within a JND of a
         // kept dark one excepted)
-        let light_share = painting
-            .data
-            .chunks_exact(3)
-            .filter(|v| oklab([v[0], v[1], v[2]])[0] > 0.55)
-            .count() as f64
-            / (w * h) as f64;
-        assert!(
-            light_share > 0.2 && d.missed > 0.5 * light_share && d.missed <= light_share + 1e-9,
-            "{d:?}, light {light_share}"
-        );
+        let light_share = painting.data.chunks_exact(3).filter(|v| oklab([v[0], v[1], v[2]])[0] > 0.55).count() as f64 / (w * h) as f64;
+        assert!(light_share > 0.2 && d.missed > 0.5 * light_share && d.missed <= light_share + 1e-9, "{d:?}, light {light_share}");
         // one 8-bit level lighter is no colour missed; a fifth of the range lighter, most of them
-        let shifted = |by: f32| Image {
-            data: painting.data.iter().map(|v| (v + by).min(1.0)).collect(),
-            ..painting.clone()
-        };
-        assert_eq!(
-            distance(&StyleSamples::of_image(&shifted(1.0 / 255.0)), &r).missed,
-            0.0
-        );
+        let shifted = |by: f32| Image { data: painting.data.iter().map(|v| (v + by).min(1.0)).collect(), ..painting.clone() };
+        assert_eq!(distance(&StyleSamples::of_image(&shifted(1.0 / 255.0)), &r).missed, 0.0);
         let far = distance(&StyleSamples::of_image(&shifted(0.2)), &r);
         assert!(far.missed > 0.8, "{far:?}");
         // two views, each with one half of the palette, do not cover it between them
         let mut light = painting.clone();
-        for (v, o) in light
-            .data
-            .chunks_exact_mut(3)
-            .zip(painting.data.chunks_exact(3))
-        {
+        for (v, o) in light.data.chunks_exact_mut(3).zip(painting.data.chunks_exact(3)) {
             if oklab([o[0], o[1], o[2]])[0] <= 0.55 {
                 v.copy_from_slice(&[1.0, 1.0, 1.0]);
             }
@@ -682,13 +545,8 @@ mod tests {
         assert!(two.color > 0.5, "{two:?}");
         // a flat painting has no own variation: the units fall back to their floors
         let flat = StyleReference::new(&Image::filled(32, 32, [0.4, 0.5, 0.6]));
-        assert_eq!(
-            (flat.color_unit, flat.texture_unit),
-            (MIN_COLOR_UNIT, MIN_TEXTURE_UNIT)
-        );
-        assert!(distance(&StyleSamples::of_image(&painting), &flat)
-            .total
-            .is_finite());
+        assert_eq!((flat.color_unit, flat.texture_unit), (MIN_COLOR_UNIT, MIN_TEXTURE_UNIT));
+        assert!(distance(&StyleSamples::of_image(&painting), &flat).total.is_finite());
     }
 
     #[test]
@@ -714,10 +572,7 @@ mod tests {
         let a = StyleSamples::of(&[(&on_white, Some(&mask))]);
         let b = StyleSamples::of(&[(&on_black, Some(&mask))]);
         assert_eq!(distance(&a, &r), distance(&b, &r));
-        let (uw, ub) = (
-            distance(&StyleSamples::of_image(&on_white), &r),
-            distance(&StyleSamples::of_image(&on_black), &r),
-        );
+        let (uw, ub) = (distance(&StyleSamples::of_image(&on_white), &r), distance(&StyleSamples::of_image(&on_black), &r));
         assert!(uw.color == 0.0 && ub.color > 0.1, "{uw:?} vs {ub:?}");
     }
 
@@ -732,14 +587,8 @@ mod tests {
         let d = distance(&StyleSamples::of_image(&b), &r);
         assert!(d.color > 1.0, "{d:?}");
         // another texture (a smooth gradient) is far; the same strokes shifted in colour are not
-        let other = distance(
-            &StyleSamples::of_image(&gradient(64, 64, [1.0, 0.9, 0.8])),
-            &r,
-        );
-        assert!(
-            d.texture < 0.3 * other.texture,
-            "shifted {d:?}, other texture {other:?}"
-        );
+        let other = distance(&StyleSamples::of_image(&gradient(64, 64, [1.0, 0.9, 0.8])), &r);
+        assert!(d.texture < 0.3 * other.texture, "shifted {d:?}, other texture {other:?}");
     }
 
     /// A scale resting on fewer patches than quantiles does not enter the texture mean: two
@@ -750,10 +599,7 @@ mod tests {
     fn a_scale_with_a_handful_of_patches_does_not_weigh_like_a_full_one() {
         let a = StyleSamples::of_image(&strokes(64, 64));
         let (_, counts) = a.counts();
-        assert!(
-            counts[0] >= QUANTILES && counts[1] >= QUANTILES,
-            "{counts:?}"
-        );
+        assert!(counts[0] >= QUANTILES && counts[1] >= QUANTILES, "{counts:?}");
         let patch = |v: f32| vec![vec![v; PATCH * PATCH * 3]];
         let (mut x, mut y) = (a.clone(), a.clone());
         x.patches[2] = patch(1.0);

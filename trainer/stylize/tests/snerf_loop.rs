@@ -71,23 +71,10 @@ fn fixture(name: &str) -> Fixture {
     let style = style_png(&dir);
     let source = checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap();
     let style_img = stylizer::load_style_image(&style).unwrap();
-    Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    }
+    Fixture { dir, data, run, style, source, style_img }
 }
 
-fn options(
-    run: &Path,
-    data: &Path,
-    style: &Path,
-    rounds: usize,
-    appearance_only: bool,
-) -> StylizeOptions {
+fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only: bool) -> StylizeOptions {
     StylizeOptions {
         source_run: run.to_path_buf(),
         data: data.to_path_buf(),
@@ -132,188 +119,63 @@ fn fixed_content(mut o: StylizeOptions, steps: u64) -> StylizeOptions {
 
 #[test]
 fn rounds_resume_and_appearance_only_freezes_geometry() {
-    let Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    } = fixture("loop");
+    let Fixture { dir, data, run, style, source, style_img } = fixture("loop");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
 
     // one round, then ask for two: the second run resumes after round 1 (more rounds extend
     // a run; other changed options are refused)
     let out = dir.join("srun");
     let o1 = options(&run, &data.root, &style, 1, false);
-    let s1 = snerf_loop::run(
-        &o1,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let s1 = snerf_loop::run(&o1, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s1.rounds_done, 1);
     let mut other = o1.clone();
     other.steps_per_round = 41;
-    assert!(snerf_loop::run(
-        &other,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet
-    )
-    .is_err());
+    assert!(snerf_loop::run(&other, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).is_err());
     let o2 = options(&run, &data.root, &style, 2, false);
-    let s = snerf_loop::run(
-        &o2,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let s = snerf_loop::run(&o2, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s.rounds_done, 2);
     assert_eq!(s.records.len(), 2);
-    assert!(
-        s.records
-            .iter()
-            .all(|r| r.short_range.is_some_and(|x| x.is_finite())),
-        "{:?}",
-        s.records
-    );
-    assert!(
-        s.records.iter().all(|r| r
-            .style_swd
-            .is_some_and(|x| x.total.is_finite() && x.total > 0.0)),
-        "{:?}",
-        s.records
-    );
-    assert!(
-        s.records
-            .iter()
-            .all(|r| r.fused_fraction.is_some_and(|f| f > 0.3)),
-        "{:?}",
-        s.records
-    );
+    assert!(s.records.iter().all(|r| r.short_range.is_some_and(|x| x.is_finite())), "{:?}", s.records);
+    assert!(s.records.iter().all(|r| r.style_swd.is_some_and(|x| x.total.is_finite() && x.total > 0.0)), "{:?}", s.records);
+    assert!(s.records.iter().all(|r| r.fused_fraction.is_some_and(|f| f > 0.3)), "{:?}", s.records);
     assert!(out.join("rounds/round_2.png").exists());
     // a finished run re-run with the same options does nothing more
-    let again = snerf_loop::run(
-        &o2,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let again = snerf_loop::run(&o2, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(again.records.len(), 2);
     let geo = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
     let plane_end = source.model.field.layout.plane_end;
-    let moved = source.model.field.params[..plane_end]
-        .iter()
-        .zip(&geo.model.field.params[..plane_end])
-        .filter(|(a, b)| a != b)
-        .count();
-    assert!(
-        moved > 0,
-        "stylizing geometry (the default) must move the density planes"
-    );
+    let moved = source.model.field.params[..plane_end].iter().zip(&geo.model.field.params[..plane_end]).filter(|(a, b)| a != b).count();
+    assert!(moved > 0, "stylizing geometry (the default) must move the density planes");
     // without a plane TV weight of its own the run keeps the realistic run's (an object's: on)
     assert!(source.cfg.tv > 0.0);
     assert_eq!(geo.cfg.tv, source.cfg.tv);
     // and the realistic field's view MLP, frozen as it was
     let v = source.model.field.layout.view;
-    assert!(
-        source.model.field.params[v.w3..v.end]
-            .iter()
-            .any(|&w| w != 0.0),
-        "the realistic field learnt no view-dependent colour"
-    );
-    assert!(
-        geo.model.field.params[v.w1..v.end] == source.model.field.params[v.w1..v.end],
-        "the source view MLP moved"
-    );
+    assert!(source.model.field.params[v.w3..v.end].iter().any(|&w| w != 0.0), "the realistic field learnt no view-dependent colour");
+    assert!(geo.model.field.params[v.w1..v.end] == source.model.field.params[v.w1..v.end], "the source view MLP moved");
 
     // appearance only: planes, shared layer and the density output stay bit-identical
     let out = dir.join("appearance");
-    let oa = StylizeOptions {
-        plane_tv: Some(0.0),
-        view_colour: ViewColour::Diffuse,
-        ..options(&run, &data.root, &style, 1, true)
-    };
-    snerf_loop::run(
-        &oa,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let oa = StylizeOptions { plane_tv: Some(0.0), view_colour: ViewColour::Diffuse, ..options(&run, &data.root, &style, 1, true) };
+    snerf_loop::run(&oa, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let app = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
-    assert_eq!(
-        app.cfg.tv, 0.0,
-        "the run's own plane TV weight is the one it trains and saves with"
-    );
+    assert_eq!(app.cfg.tv, 0.0, "the run's own plane TV weight is the one it trains and saves with");
     // a diffuse stylized field: the view MLP's output layer is zero and stayed zero
-    assert!(
-        app.model.field.params[v.w3..v.end]
-            .iter()
-            .all(|&w| w == 0.0),
-        "a diffuse stylized field kept a view-dependent residual"
-    );
+    assert!(app.model.field.params[v.w3..v.end].iter().all(|&w| w == 0.0), "a diffuse stylized field kept a view-dependent residual");
     let l = &source.model.field.layout;
     let (a, b) = (&source.model.field.params, &app.model.field.params);
-    assert!(
-        a[..l.w2 + l.hidden] == b[..l.w2 + l.hidden],
-        "appearance-only moved the geometry"
-    );
+    assert!(a[..l.w2 + l.hidden] == b[..l.w2 + l.hidden], "appearance-only moved the geometry");
     assert_eq!(a[l.b2], b[l.b2], "appearance-only moved the density bias");
-    assert!(
-        a[l.w2 + l.hidden..l.b2] != b[l.w2 + l.hidden..l.b2],
-        "appearance-only did not learn colour"
-    );
+    assert!(a[l.w2 + l.hidden..l.b2] != b[l.w2 + l.hidden..l.b2], "appearance-only did not learn colour");
 }
 
 #[test]
 fn stylized_field_is_more_consistent_than_per_frame_stylization() {
-    let Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    } = fixture("consistency");
+    let Fixture { dir, data, run, style, source, style_img } = fixture("consistency");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
     let out = dir.join("srun");
     let o = options(&run, &data.root, &style, 2, false);
-    snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let stylized = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
     let pool = snerf_trainer::render::WorkspacePool::new(source.model.field.params.len());
     let path = PathGeometry::new(&source.model, &pool, &data, 12).unwrap();
@@ -325,96 +187,44 @@ fn stylized_field_is_more_consistent_than_per_frame_stylization() {
     let flicker: Vec<Image> = path
         .realistic
         .iter()
-        .map(|f| Image {
-            width: f.width,
-            height: f.height,
-            data: f
-                .data
-                .iter()
-                .map(|v| v + (rng.uniform() - 0.5) * 0.4)
-                .collect(),
-        })
+        .map(|f| Image { width: f.width, height: f.height, data: f.data.iter().map(|v| v + (rng.uniform() - 0.5) * 0.4).collect() })
         .collect();
     let flicker_err = path.warp_error(&flicker, 1);
     let snerf = path.render(&stylized.model, &pool);
     let sn = path.warp_error(&snerf, 1);
     let sn_long = path.warp_error(&snerf, 7);
     eprintln!("short-range: realistic {realistic_err:.5}, flickering {flicker_err:.5}, SNeRF {sn:.5} (long {sn_long:.5})");
-    assert!(
-        realistic_err.is_finite() && realistic_err < 0.01,
-        "warp of the realistic frames: {realistic_err}"
-    );
-    assert!(
-        flicker_err > 3.0 * realistic_err,
-        "the warp error does not see flicker: {flicker_err} vs {realistic_err}"
-    );
+    assert!(realistic_err.is_finite() && realistic_err < 0.01, "warp of the realistic frames: {realistic_err}");
+    assert!(flicker_err > 3.0 * realistic_err, "the warp error does not see flicker: {flicker_err} vs {realistic_err}");
     // A field renders consistent views whatever it learned: as consistent as the realistic
     // one, give or take. (The per-frame baseline needs a neural stylizer to be interesting:
     // `color` is one global colour map per frame and nearly consistent already; the
     // comparison with `arbitrary` and presets is `snerf consistency`, in BENCH.md.)
-    assert!(
-        sn.is_finite() && sn < 3.0 * realistic_err.max(1e-4) && sn < flicker_err,
-        "SNeRF {sn}"
-    );
+    assert!(sn.is_finite() && sn < 3.0 * realistic_err.max(1e-4) && sn < flicker_err, "SNeRF {sn}");
     assert!(sn_long.is_finite());
 
     // The style distances pool the ring around the whole orbit, not the path's arc: the
     // ring's camera centres surround the orbit's centre (the 12-frame path spans 55° and
     // lies to one side of it), and the style score reads the ring's frames alone.
     assert_eq!(path.cams.len(), 12 + STYLE_RING);
-    let centre = |cams: &[[[f32; 4]; 3]]| {
-        [0, 1, 2].map(|c| cams.iter().map(|m| m[c][3]).sum::<f32>() / cams.len() as f32)
-    };
-    let orbit_centre = centre(&snerf_trainer::camera_path::orbit(
-        &source.model.space,
-        &data.train,
-        72,
-    ));
-    let radius = {
-        let m = path.cams[0];
-        ((0..3)
-            .map(|c| (m[c][3] - orbit_centre[c]).powi(2))
-            .sum::<f32>())
-        .sqrt()
-    };
-    let off = |cams: &[[[f32; 4]; 3]]| {
-        let m = centre(cams);
-        ((0..3)
-            .map(|c| (m[c] - orbit_centre[c]).powi(2))
-            .sum::<f32>())
-        .sqrt()
-            / radius
-    };
-    assert!(
-        off(&path.cams[12..]) < 0.05,
-        "ring centroid {:.3} radii off the orbit's centre",
-        off(&path.cams[12..])
-    );
-    assert!(
-        off(&path.cams[..12]) > 0.5,
-        "path centroid {:.3} radii off",
-        off(&path.cams[..12])
-    );
+    let centre = |cams: &[[[f32; 4]; 3]]| [0, 1, 2].map(|c| cams.iter().map(|m| m[c][3]).sum::<f32>() / cams.len() as f32);
+    let orbit_centre = centre(&snerf_trainer::camera_path::orbit(&source.model.space, &data.train, 72));
+    let radius = { let m = path.cams[0]; ((0..3).map(|c| (m[c][3] - orbit_centre[c]).powi(2)).sum::<f32>()).sqrt() };
+    let off = |cams: &[[[f32; 4]; 3]]| { let m = centre(cams); ((0..3).map(|c| (m[c] - orbit_centre[c]).powi(2)).sum::<f32>()).sqrt() / radius };
+    assert!(off(&path.cams[12..]) < 0.05, "ring centroid {:.3} radii off the orbit's centre", off(&path.cams[12..]));
+    assert!(off(&path.cams[..12]) > 0.5, "path centroid {:.3} radii off", off(&path.cams[..12]));
     let reference = path.style_reference(&style_img);
     let base = path.style_score(&snerf, &reference);
     let mut other_path = snerf.clone();
     for f in &mut other_path[..12] {
         f.data.iter_mut().for_each(|v| *v = 1.0 - *v);
     }
-    assert_eq!(
-        path.style_score(&other_path, &reference),
-        base,
-        "the path's frames changed the style score"
-    );
+    assert_eq!(path.style_score(&other_path, &reference), base, "the path's frames changed the style score");
     let mut other_ring = snerf.clone();
     for f in &mut other_ring[12..] {
         f.data.iter_mut().for_each(|v| *v = 1.0 - *v);
     }
-    assert_ne!(
-        path.style_score(&other_ring, &reference),
-        base,
-        "the ring's frames did not count"
-    );
+    assert_ne!(path.style_score(&other_ring, &reference), base, "the ring's frames did not count");
 }
 
 /// Counts the images it is given and returns them brighter by a fixed amount (a stand-in for
@@ -433,11 +243,7 @@ impl stylizer::Stylizer for Counting {
         self.calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
         let mean = content.data.iter().map(|&v| v as f64).sum::<f64>() / content.data.len() as f64;
         self.means.lock().unwrap().push(mean);
-        Ok(Image {
-            width: content.width,
-            height: content.height,
-            data: content.data.iter().map(|v| (v + 0.2).min(1.0)).collect(),
-        })
+        Ok(Image { width: content.width, height: content.height, data: content.data.iter().map(|v| (v + 0.2).min(1.0)).collect() })
     }
 }
 
@@ -445,20 +251,10 @@ impl stylizer::Stylizer for Counting {
 /// `Content::Render` stylizes each round's render, so it sees the field drift.
 #[test]
 fn realistic_content_is_stylized_once_and_render_content_every_round() {
-    let Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    } = fixture("content");
+    let Fixture { dir, data, run, style, source, style_img } = fixture("content");
     let mut runs = Vec::new();
     for content in [snerf_loop::Content::Realistic, snerf_loop::Content::Render] {
-        let st = Counting {
-            calls: Default::default(),
-            means: Default::default(),
-        };
+        let st = Counting { calls: Default::default(), means: Default::default() };
         let mut o = options(&run, &data.root, &style, 3, false);
         o.steps_per_round = 20;
         o.consistency_frames = 0;
@@ -466,17 +262,7 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
         o.step_schedule = snerf_loop::StepSchedule::Harmonic;
         o.target_step = 1.0;
         o.lr_schedule = snerf_loop::LrSchedule::Run;
-        let s = snerf_loop::run(
-            &o,
-            &data,
-            &source,
-            &st,
-            &StyleMeters::default(),
-            &style_img,
-            &dir.join(format!("{content:?}")),
-            &mut Quiet,
-        )
-        .unwrap();
+        let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &dir.join(format!("{content:?}")), &mut Quiet).unwrap();
         assert_eq!(s.rounds_done, 3);
         let steps: Vec<f32> = s.records.iter().map(|r| r.target_step.unwrap()).collect();
         assert_eq!(steps, vec![1.0, 0.5, 1.0 / 3.0]);
@@ -484,37 +270,20 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
     }
     let views = 12;
     let (realistic_calls, _) = &runs[0];
-    assert_eq!(
-        *realistic_calls, views,
-        "realistic content: one stylization per view for the whole run"
-    );
+    assert_eq!(*realistic_calls, views, "realistic content: one stylization per view for the whole run");
     let (render_calls, means) = &runs[1];
-    assert_eq!(
-        *render_calls,
-        3 * views,
-        "render content: one stylization per view and round"
-    );
+    assert_eq!(*render_calls, 3 * views, "render content: one stylization per view and round");
     // the brightening stylizer pulled the field brighter, so round 3 stylized brighter renders
     let first: f64 = means[..views].iter().sum::<f64>() / views as f64;
     let last: f64 = means[2 * views..].iter().sum::<f64>() / views as f64;
-    assert!(
-        last > first + 0.01,
-        "render content did not see the field change: round 1 mean {first:.4}, round 3 {last:.4}"
-    );
+    assert!(last > first + 0.01, "render content did not see the field change: round 1 mean {first:.4}, round 3 {last:.4}");
 }
 
 /// `Targets::Consensus`: each round fuses the last round's fused targets; they are saved per
 /// round, so a resumed run continues the iteration without stylizing again.
 #[test]
 fn consensus_targets_carry_over_rounds_and_resumes() {
-    let Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    } = fixture("consensus");
+    let Fixture { dir, data, run, style, source, style_img } = fixture("consensus");
     let out = dir.join("srun");
     let mut o = fixed_content(options(&run, &data.root, &style, 1, false), 20);
     o.lr_schedule = snerf_loop::LrSchedule::Run;
@@ -525,126 +294,36 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
     o.fusion_read = snerf_stylize::fusion::Read::Nearest;
     // and keeping the first fusion's palette, saved with it
     o.palette = snerf_loop::Palette::Keep;
-    let st = Counting {
-        calls: Default::default(),
-        means: Default::default(),
-    };
-    snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        &st,
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
-    assert_eq!(
-        st.calls.into_inner(),
-        12,
-        "round 1 stylizes every view once"
-    );
-    let views_in = |round: usize| {
-        std::fs::read_dir(out.join(format!("consensus/round_{round}")))
-            .map(|d| d.count())
-            .unwrap_or(0)
-    };
+    let st = Counting { calls: Default::default(), means: Default::default() };
+    snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(st.calls.into_inner(), 12, "round 1 stylizes every view once");
+    let views_in = |round: usize| std::fs::read_dir(out.join(format!("consensus/round_{round}"))).map(|d| d.count()).unwrap_or(0);
     assert_eq!(views_in(1), 12);
-    assert!(
-        out.join("consensus/palette.json").exists(),
-        "the palette the rounds keep is saved with round 1"
-    );
+    assert!(out.join("consensus/palette.json").exists(), "the palette the rounds keep is saved with round 1");
     // Resume for three rounds in a new process: the consensus of round 1 is read back, and
     // its palette (not made again: without the file the run stops and names it).
     o.rounds = 3;
     let pal = out.join("consensus/palette.json");
     let saved = std::fs::read(&pal).unwrap();
     std::fs::remove_file(&pal).unwrap();
-    let e = snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        &Counting {
-            calls: Default::default(),
-            means: Default::default(),
-        },
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap_err();
-    assert!(
-        format!("{e:#}").contains("palette.json: cannot read"),
-        "{e:#}"
-    );
+    let e = snerf_loop::run(&o, &data, &source, &Counting { calls: Default::default(), means: Default::default() }, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap_err();
+    assert!(format!("{e:#}").contains("palette.json: cannot read"), "{e:#}");
     std::fs::write(&pal, &saved).unwrap();
-    let st = Counting {
-        calls: Default::default(),
-        means: Default::default(),
-    };
-    let s = snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        &st,
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let st = Counting { calls: Default::default(), means: Default::default() };
+    let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s.rounds_done, 3);
-    assert_eq!(
-        st.calls.into_inner(),
-        0,
-        "a resumed consensus run must not stylize again"
-    );
-    assert_eq!(
-        (views_in(1), views_in(2), views_in(3)),
-        (0, 12, 12),
-        "rounds kept: the last two"
-    );
+    assert_eq!(st.calls.into_inner(), 0, "a resumed consensus run must not stylize again");
+    assert_eq!((views_in(1), views_in(2), views_in(3)), (0, 12, 12), "rounds kept: the last two");
     // An uninterrupted run keeps the same palette (round 1's fusion does not depend on how
     // many rounds follow).
     let whole = dir.join("whole");
-    snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        &Counting {
-            calls: Default::default(),
-            means: Default::default(),
-        },
-        &StyleMeters::default(),
-        &style_img,
-        &whole,
-        &mut Quiet,
-    )
-    .unwrap();
-    assert!(
-        std::fs::read(whole.join("consensus/palette.json")).unwrap() == saved,
-        "round 1's palette differs between runs"
-    );
+    snerf_loop::run(&o, &data, &source, &Counting { calls: Default::default(), means: Default::default() }, &StyleMeters::default(), &style_img, &whole, &mut Quiet).unwrap();
+    assert!(std::fs::read(whole.join("consensus/palette.json")).unwrap() == saved, "round 1's palette differs between runs");
     // Without saved consensus (deleted) the resumed run falls back to stylizing once.
     std::fs::remove_dir_all(out.join("consensus")).unwrap();
     o.rounds = 4;
-    let st = Counting {
-        calls: Default::default(),
-        means: Default::default(),
-    };
-    snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        &st,
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let st = Counting { calls: Default::default(), means: Default::default() };
+    snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(st.calls.into_inner(), 12);
 }
 
@@ -654,100 +333,40 @@ fn consensus_targets_carry_over_rounds_and_resumes() {
 /// field rendered, also across a resume (the last round's targets are read back).
 #[test]
 fn targets_step_from_the_previous_targets_across_resumes() {
-    let Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    } = fixture("step_from");
+    let Fixture { dir, data, run, style, source, style_img } = fixture("step_from");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
     let out = dir.join("srun");
     let mut o = fixed_content(options(&run, &data.root, &style, 2, false), 10);
     o.fuse_views = 0;
     o.step_from = snerf_loop::StepFrom::Targets;
-    snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     let read = |round: usize| -> Vec<Vec<f32>> {
-        (0..12)
-            .map(|i| {
-                stylizer::image_from_png(
-                    &out.join(format!("targets/round_{round}/view_{i:03}.png")),
-                )
-                .unwrap()
-                .data
-            })
-            .collect()
+        (0..12).map(|i| stylizer::image_from_png(&out.join(format!("targets/round_{round}/view_{i:03}.png"))).unwrap().data).collect()
     };
     let (t1, t2) = (read(1), read(2));
-    assert_eq!(
-        t1, t2,
-        "round 2's target moved away from the (unchanged) stylization"
-    );
+    assert_eq!(t1, t2, "round 2's target moved away from the (unchanged) stylization");
     // resumed in a new process for a third round: steps from round 2's saved targets
     o.rounds = 3;
-    let s = snerf_loop::run(
-        &o,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &out,
-        &mut Quiet,
-    )
-    .unwrap();
+    let s = snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
     assert_eq!(s.rounds_done, 3);
     assert_eq!(read(3), t2);
-    assert!(
-        !out.join("targets/round_1").exists(),
-        "rounds kept: the last two"
-    );
+    assert!(!out.join("targets/round_1").exists(), "rounds kept: the last two");
     // stepping from the render instead, round 2's target is half the field's render
     let other = dir.join("from_render");
     let mut r = o.clone();
     r.rounds = 2;
     r.step_from = snerf_loop::StepFrom::Render;
-    snerf_loop::run(
-        &r,
-        &data,
-        &source,
-        st.as_ref(),
-        &StyleMeters::default(),
-        &style_img,
-        &other,
-        &mut Quiet,
-    )
-    .unwrap();
-    assert!(
-        !other.join("targets").exists(),
-        "only StepFrom::Targets keeps targets"
-    );
+    snerf_loop::run(&r, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &other, &mut Quiet).unwrap();
+    assert!(!other.join("targets").exists(), "only StepFrom::Targets keeps targets");
 }
 
 #[test]
 fn step_and_learning_rate_schedules() {
     let mut o = options(Path::new("r"), Path::new("d"), Path::new("s"), 4, false);
     o.target_step = 0.8;
-    assert_eq!(
-        (1..=4).map(|t| o.step_of_round(t)).collect::<Vec<_>>(),
-        vec![0.8; 4]
-    );
+    assert_eq!((1..=4).map(|t| o.step_of_round(t)).collect::<Vec<_>>(), vec![0.8; 4]);
     o.step_schedule = snerf_loop::StepSchedule::Harmonic;
-    assert_eq!(
-        (1..=4).map(|t| o.step_of_round(t)).collect::<Vec<_>>(),
-        vec![0.8, 0.4, 0.8 / 3.0, 0.2]
-    );
+    assert_eq!((1..=4).map(|t| o.step_of_round(t)).collect::<Vec<_>>(), vec![0.8, 0.4, 0.8 / 3.0, 0.2]);
     // per round: the decay starts again every round
     let n = o.steps_per_round;
     assert_eq!(o.lr_progress(1, 0), 0.0);
@@ -755,35 +374,20 @@ fn step_and_learning_rate_schedules() {
     assert_eq!(o.lr_progress(3, n / 2), 0.5);
     // over the run: one decay, continuous across rounds, ending at 1
     o.lr_schedule = snerf_loop::LrSchedule::Run;
-    let all: Vec<f64> = (1..=4)
-        .flat_map(|t| (0..n).map(move |s| (t, s)))
-        .map(|(t, s)| o.lr_progress(t, s))
-        .collect();
+    let all: Vec<f64> = (1..=4).flat_map(|t| (0..n).map(move |s| (t, s))).map(|(t, s)| o.lr_progress(t, s)).collect();
     assert_eq!(all[0], 0.0);
-    assert!(
-        all.windows(2).all(|w| w[1] > w[0]),
-        "the run's learning-rate progress must rise step by step"
-    );
+    assert!(all.windows(2).all(|w| w[1] > w[0]), "the run's learning-rate progress must rise step by step");
     assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
     assert_eq!(o.lr_progress(3, 0), 0.5);
     // harmonic round steps: the same total, most in round 1, and the run's decay still ends at 1
-    assert_eq!(
-        (1..=4).map(|t| o.steps_of_round(t)).collect::<Vec<_>>(),
-        vec![n; 4]
-    );
+    assert_eq!((1..=4).map(|t| o.steps_of_round(t)).collect::<Vec<_>>(), vec![n; 4]);
     o.round_steps = snerf_loop::RoundSteps::Harmonic;
     let steps: Vec<u64> = (1..=4).map(|t| o.steps_of_round(t)).collect();
     assert_eq!(steps.iter().sum::<u64>(), 4 * n, "{steps:?}");
-    assert!(
-        steps.windows(2).all(|w| w[0] > w[1]) && steps[3] >= 1,
-        "{steps:?}"
-    );
+    assert!(steps.windows(2).all(|w| w[0] > w[1]) && steps[3] >= 1, "{steps:?}");
     // 1 : 1/2 : 1/3 : 1/4 of 160 steps (sum 25/12): 77, 38, 26, 19 after rounding the running sums
     assert_eq!(steps, vec![77, 38, 26, 19]);
-    let all: Vec<f64> = (1..=4)
-        .flat_map(|t| (0..steps[t - 1]).map(move |s| (t, s)))
-        .map(|(t, s)| o.lr_progress(t, s))
-        .collect();
+    let all: Vec<f64> = (1..=4).flat_map(|t| (0..steps[t - 1]).map(move |s| (t, s))).map(|(t, s)| o.lr_progress(t, s)).collect();
     assert!(all.windows(2).all(|w| w[1] > w[0]));
     assert!((all[all.len() - 1] - (4 * n - 1) as f64 / (4 * n) as f64).abs() < 1e-12);
 }
@@ -794,79 +398,35 @@ fn step_and_learning_rate_schedules() {
 /// of one `snerf stylize` command ended rounds apart on the convergence bar (BENCH.md §5k).
 #[test]
 fn training_is_bit_reproducible_whatever_the_threads_do() {
-    let threads = rayon::ThreadPoolBuilder::new()
-        .num_threads(4)
-        .build()
-        .unwrap();
+    let threads = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
     let dir = tmp("repro");
     let field = |name: &str| {
         threads.install(|| {
             let (_, run) = trained_run(&dir.join(name));
-            checkpoint::load(&run.join(checkpoint::FILE_NAME))
-                .unwrap()
-                .model
-                .field
-                .params
+            checkpoint::load(&run.join(checkpoint::FILE_NAME)).unwrap().model.field.params
         })
     };
     let (a, b) = (field("a"), field("b"));
-    let differ = a
-        .iter()
-        .zip(&b)
-        .filter(|(x, y)| x.to_bits() != y.to_bits())
-        .count();
-    assert_eq!(
-        differ,
-        0,
-        "{differ} of {} parameters differ between two identical trainings",
-        a.len()
-    );
+    let differ = a.iter().zip(&b).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} of {} parameters differ between two identical trainings", a.len());
 }
 
 /// `--seed` changes the rays the rounds train on, and only that: the same seed trains the
 /// same field to the bit, another seed another field, and the run records the seed it used.
 #[test]
 fn a_seed_of_its_own_changes_the_rays_and_is_recorded() {
-    let Fixture {
-        dir,
-        data,
-        run,
-        style,
-        source,
-        style_img,
-    } = fixture("seed");
+    let Fixture { dir, data, run, style, source, style_img } = fixture("seed");
     let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
     let field = |name: &str, seed: Option<u64>| {
-        let o = StylizeOptions {
-            seed,
-            ..fixed_content(options(&run, &data.root, &style, 1, false), 30)
-        };
+        let o = StylizeOptions { seed, ..fixed_content(options(&run, &data.root, &style, 1, false), 30) };
         let out = dir.join(name);
-        let s = snerf_loop::run(
-            &o,
-            &data,
-            &source,
-            st.as_ref(),
-            &StyleMeters::default(),
-            &style_img,
-            &out,
-            &mut Quiet,
-        )
-        .unwrap();
+        let s = snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
         assert_eq!(s.options.seed, seed);
         let ck = checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap();
-        assert_eq!(
-            ck.cfg.seed,
-            seed.unwrap_or(source.cfg.seed),
-            "the checkpoint trains on with the seed it used"
-        );
+        assert_eq!(ck.cfg.seed, seed.unwrap_or(source.cfg.seed), "the checkpoint trains on with the seed it used");
         ck.model.field.params
     };
-    let (own, seven, seven_again) = (
-        field("own", None),
-        field("seven", Some(7)),
-        field("seven-again", Some(7)),
-    );
+    let (own, seven, seven_again) = (field("own", None), field("seven", Some(7)), field("seven-again", Some(7)));
     assert_ne!(source.cfg.seed, 7);
     assert!(seven == seven_again, "one seed, two fields");
     assert!(own != seven, "another seed trained the same field");

@@ -13,35 +13,21 @@ fn close(a: f32, b: f32) -> bool {
 fn grayscale_png_becomes_rgb() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("gray.png");
-    ImageBuffer::from_fn(40, 30, |x, _| Luma([(x * 6) as u8]))
-        .save(&path)
-        .unwrap();
+    ImageBuffer::from_fn(40, 30, |x, _| Luma([(x * 6) as u8])).save(&path).unwrap();
     let img = load_style_image(&path).unwrap();
     assert_eq!((img.width, img.height), (40, 30));
     let p = img.pixel(10, 5);
-    assert!(
-        close(p[0], 60.0 / 255.0) && p[0] == p[1] && p[1] == p[2],
-        "{p:?}"
-    );
+    assert!(close(p[0], 60.0 / 255.0) && p[0] == p[1] && p[1] == p[2], "{p:?}");
 }
 
 #[test]
 fn sixteen_bit_png_keeps_precision() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("deep.png");
-    ImageBuffer::from_fn(20, 20, |x, y| {
-        Rgb([(x * 3000) as u16, 65535, (y * 1000) as u16])
-    })
-    .save(&path)
-    .unwrap();
+    ImageBuffer::from_fn(20, 20, |x, y| Rgb([(x * 3000) as u16, 65535, (y * 1000) as u16])).save(&path).unwrap();
     let img = load_style_image(&path).unwrap();
     let p = img.pixel(7, 9);
-    assert!(
-        (p[0] - 21000.0 / 65535.0).abs() < 1e-5
-            && (p[1] - 1.0).abs() < 1e-6
-            && (p[2] - 9000.0 / 65535.0).abs() < 1e-5,
-        "{p:?}"
-    );
+    assert!((p[0] - 21000.0 / 65535.0).abs() < 1e-5 && (p[1] - 1.0).abs() < 1e-6 && (p[2] - 9000.0 / 65535.0).abs() < 1e-5, "{p:?}");
 }
 
 #[test]
@@ -57,17 +43,10 @@ fn rgba_png_is_composited_on_white() {
     .save(&path)
     .unwrap();
     let img = load_style_image(&path).unwrap();
-    assert_eq!(
-        img.pixel(3, 3),
-        [1.0, 1.0, 1.0],
-        "transparent pixels read as white"
-    );
+    assert_eq!(img.pixel(3, 3), [1.0, 1.0, 1.0], "transparent pixels read as white");
     assert_eq!(img.pixel(20, 3), [1.0, 0.0, 0.0]);
     let half = img.pixel(16, 3);
-    assert!(
-        close(half[0], 127.0 / 255.0) && close(half[2], 1.0),
-        "{half:?}"
-    );
+    assert!(close(half[0], 127.0 / 255.0) && close(half[2], 1.0), "{half:?}");
 }
 
 #[test]
@@ -90,10 +69,7 @@ fn paletted_png_is_expanded() {
 
 fn expect_error(path: &Path, needle: &str) {
     let err = format!("{:#}", load_style_image(path).unwrap_err());
-    assert!(
-        err.contains(&path.display().to_string()),
-        "error does not name the file: {err}"
-    );
+    assert!(err.contains(&path.display().to_string()), "error does not name the file: {err}");
     assert!(err.contains(needle), "error lacks {needle:?}: {err}");
 }
 
@@ -101,9 +77,7 @@ fn expect_error(path: &Path, needle: &str) {
 fn tiny_png_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("tiny.png");
-    ImageBuffer::from_fn(8, 8, |_, _| Rgb([10u8, 20, 30]))
-        .save(&path)
-        .unwrap();
+    ImageBuffer::from_fn(8, 8, |_, _| Rgb([10u8, 20, 30])).save(&path).unwrap();
     expect_error(&path, "8x8");
 }
 
@@ -111,9 +85,7 @@ fn tiny_png_is_refused() {
 fn corrupt_truncated_text_and_missing_files_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let good = dir.path().join("good.png");
-    ImageBuffer::from_fn(64, 64, |x, y| Rgb([x as u8 * 3, y as u8 * 3, 77u8]))
-        .save(&good)
-        .unwrap();
+    ImageBuffer::from_fn(64, 64, |x, y| Rgb([x as u8 * 3, y as u8 * 3, 77u8])).save(&good).unwrap();
     let bytes = std::fs::read(&good).unwrap();
 
     let truncated = dir.path().join("truncated.png");
@@ -140,9 +112,7 @@ fn huge_header_is_refused_before_decoding() {
     // A valid header claiming 9000x20: refused by size without decoding pixel data.
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("wide.png");
-    ImageBuffer::from_fn(9000, 20, |_, _| Luma([0u8]))
-        .save(&path)
-        .unwrap();
+    ImageBuffer::from_fn(9000, 20, |_, _| Luma([0u8])).save(&path).unwrap();
     expect_error(&path, "8192");
 }
 
@@ -150,44 +120,23 @@ fn huge_header_is_refused_before_decoding() {
 fn large_style_images_are_downscaled() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("big.png");
-    ImageBuffer::from_fn(2000, 1000, |x, _| Rgb([(x % 256) as u8, 0u8, 0u8]))
-        .save(&path)
-        .unwrap();
+    ImageBuffer::from_fn(2000, 1000, |x, _| Rgb([(x % 256) as u8, 0u8, 0u8])).save(&path).unwrap();
     let img = load_style_image(&path).unwrap();
-    assert_eq!(
-        (img.width, img.height),
-        (MAX_STYLE_SIDE, MAX_STYLE_SIDE / 2)
-    );
+    assert_eq!((img.width, img.height), (MAX_STYLE_SIDE, MAX_STYLE_SIDE / 2));
 }
 
 #[test]
 fn save_png_roundtrips_and_replaces_atomically() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.png");
-    let img = Image {
-        width: 3,
-        height: 2,
-        data: vec![
-            0.0, 0.5, 1.0, 0.25, 0.75, 0.1, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.2, 0.4, 0.6, 0.8, 0.9,
-            0.3,
-        ],
-    };
+    let img = Image { width: 3, height: 2, data: vec![0.0, 0.5, 1.0, 0.25, 0.75, 0.1, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.2, 0.4, 0.6, 0.8, 0.9, 0.3] };
     save_png(&path, &img).unwrap();
     save_png(&path, &img).unwrap(); // overwrite in place
     let back = image_from_png(&path).unwrap();
     assert!(img.data.iter().zip(&back.data).all(|(a, b)| close(*a, *b)));
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .map(|e| e.unwrap().file_name())
-        .collect();
-    assert_eq!(
-        leftovers.len(),
-        1,
-        "temporary files left behind: {leftovers:?}"
-    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(leftovers.len(), 1, "temporary files left behind: {leftovers:?}");
     // Writing into a missing directory fails and names the path.
-    let err = save_png(&dir.path().join("no/such/dir/out.png"), &img)
-        .unwrap_err()
-        .to_string();
+    let err = save_png(&dir.path().join("no/such/dir/out.png"), &img).unwrap_err().to_string();
     assert!(err.contains("out.png"), "{err}");
 }

@@ -6,33 +6,19 @@ mod stylizer_support;
 use std::path::Path;
 use std::process::Command;
 
-use snerf_stylize::stylizer::{
-    models_dir, onnxruntime_script, MagentaNets, PresetNet, StylizerOptions,
-};
+use snerf_stylize::stylizer::{models_dir, onnxruntime_script, MagentaNets, PresetNet, StylizerOptions};
 use stylizer_support::{content_image, models_or_skip, style_image};
 
 fn onnxruntime_available() -> bool {
-    Command::new("python3")
-        .args(["-c", "import onnxruntime, numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false)
+    Command::new("python3").args(["-c", "import onnxruntime, numpy"]).output().map(|o| o.status.success()).unwrap_or(false)
 }
 
 fn write_f32(path: &Path, v: &[f32]) {
-    std::fs::write(
-        path,
-        v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
-    )
-    .unwrap();
+    std::fs::write(path, v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>()).unwrap();
 }
 
 fn read_f32(path: &Path) -> Vec<f32> {
-    std::fs::read(path)
-        .unwrap()
-        .chunks_exact(4)
-        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect()
+    std::fs::read(path).unwrap().chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect()
 }
 
 fn mean_abs_diff(a: &[f32], b: &[f32]) -> f32 {
@@ -42,17 +28,12 @@ fn mean_abs_diff(a: &[f32], b: &[f32]) -> f32 {
 
 fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0.0, f32::max)
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max)
 }
 
 #[test]
 fn tract_matches_onnxruntime() {
-    let Some(opts) = models_or_skip("tract_matches_onnxruntime") else {
-        return;
-    };
+    let Some(opts) = models_or_skip("tract_matches_onnxruntime") else { return };
     if !onnxruntime_available() {
         eprintln!("SKIP tract_matches_onnxruntime: python3 cannot import onnxruntime (run scripts/setup-models.sh)");
         return;
@@ -65,13 +46,10 @@ fn tract_matches_onnxruntime() {
     let preset_in: Vec<f32> = snerf_stylize::stylizer::resize(&content_image(pw, ph), pw, ph)
         .data
         .chunks_exact(3)
-        .fold(
-            vec![Vec::new(), Vec::new(), Vec::new()],
-            |mut planes, px| {
-                (0..3).for_each(|c| planes[c].push(px[c]));
-                planes
-            },
-        )
+        .fold(vec![Vec::new(), Vec::new(), Vec::new()], |mut planes, px| {
+            (0..3).for_each(|c| planes[c].push(px[c]));
+            planes
+        })
         .concat();
     let mut weights = vec![0.0f32; 26];
     weights[4] = 0.7;
@@ -81,10 +59,7 @@ fn tract_matches_onnxruntime() {
     let nets = MagentaNets::open(&opts).unwrap();
     let emb = nets.predict_raw(&style.data, 256).unwrap();
     let out = nets.transform_raw(&content.data, 384, 384, &emb).unwrap();
-    let preset = PresetNet::open(&opts)
-        .unwrap()
-        .run_raw(&preset_in, ph, pw, &weights)
-        .unwrap();
+    let preset = PresetNet::open(&opts).unwrap().run_raw(&preset_in, ph, pw, &weights).unwrap();
 
     // onnxruntime on the same inputs
     write_f32(&d.join("style.f32"), &style.data);
@@ -105,12 +80,7 @@ fn tract_matches_onnxruntime() {
         .arg(d.join("request.json"))
         .output()
         .unwrap();
-    assert!(
-        run.status.success(),
-        "onnxruntime reference failed: {}{}",
-        String::from_utf8_lossy(&run.stdout),
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert!(run.status.success(), "onnxruntime reference failed: {}{}", String::from_utf8_lossy(&run.stdout), String::from_utf8_lossy(&run.stderr));
 
     let emb_ort = read_f32(&d.join("emb_ort.f32"));
     let out_ort = read_f32(&d.join("out_ort.f32"));
@@ -136,21 +106,9 @@ fn tract_matches_onnxruntime() {
     // onnxruntime's own results for this model differ by 1.6% (relative L2) between its
     // ORT_DISABLE_ALL and ORT_ENABLE_ALL graph optimisation levels (measured), from fusing
     // the quantization pairs differently; tract lands within that spread.
-    assert!(
-        emb_rel < 0.03,
-        "style embedding differs: relative L2 {emb_rel}"
-    );
-    assert!(
-        max_abs_diff(&out, &out_ort) < 0.1,
-        "transform output differs"
-    );
-    assert!(
-        mean_abs_diff(&out, &out_ort) < 2e-3,
-        "transform output differs on average"
-    );
-    assert!(
-        max_abs_diff(&preset, &preset_ort) < 1e-4,
-        "multistyle26 output differs"
-    );
+    assert!(emb_rel < 0.03, "style embedding differs: relative L2 {emb_rel}");
+    assert!(max_abs_diff(&out, &out_ort) < 0.1, "transform output differs");
+    assert!(mean_abs_diff(&out, &out_ort) < 2e-3, "transform output differs on average");
+    assert!(max_abs_diff(&preset, &preset_ort) < 1e-4, "multistyle26 output differs");
     let _ = StylizerOptions::default();
 }

@@ -71,11 +71,7 @@ impl Conn {
     /// A new server-initiated unidirectional stream (waits for stream credit).
     pub async fn open_uni(&self) -> Result<Send, String> {
         match self {
-            Conn::Quic(c) => c
-                .open_uni()
-                .await
-                .map(Send::Quic)
-                .map_err(|e| e.to_string()),
+            Conn::Quic(c) => c.open_uni().await.map(Send::Quic).map_err(|e| e.to_string()),
             Conn::Web(w) => {
                 let opening = w.open_uni().await.map_err(|e| e.to_string())?;
                 opening.await.map(Send::Web).map_err(|e| e.to_string())

@@ -19,14 +19,14 @@
 
 pub mod bench;
 mod cache;
-pub mod client;
 mod conn;
+pub mod client;
 pub mod live;
 mod pending;
 pub mod plan;
+pub mod thumbs;
 pub mod proto;
 pub mod server;
-pub mod thumbs;
 pub mod tls;
 pub mod url;
 pub mod web;

@@ -38,11 +38,7 @@ struct Shared {
 
 impl Shared {
     fn send_pose(&self) {
-        if let Some(p) = *self
-            .pose
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-        {
+        if let Some(p) = *self.pose.lock().unwrap_or_else(std::sync::PoisonError::into_inner) {
             let seq = self.seq.fetch_add(1, Ordering::Relaxed) + 1;
             let _ = self
                 .conn
@@ -220,11 +216,7 @@ impl LiveAsset {
     /// Run `f` on the partial asset once header, MLP and every grid have arrived (missing
     /// blocks render empty); None before that.
     pub fn with_asset<R>(&self, f: impl FnOnce(&Asset) -> R) -> Option<R> {
-        let st = self
-            .shared
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let st = self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if !st.collector.renderable {
             return None;
         }
@@ -233,14 +225,7 @@ impl LiveAsset {
 
     /// Atlas block indices that arrived since the last call.
     pub fn take_new_blocks(&self) -> Vec<u32> {
-        std::mem::take(
-            &mut self
-                .shared
-                .state
-                .lock()
-                .unwrap_or_else(std::sync::PoisonError::into_inner)
-                .new_blocks,
-        )
+        std::mem::take(&mut self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner).new_blocks)
     }
 
     /// Tell the server where the viewer is (world space); sent as a datagram at once and
@@ -262,21 +247,12 @@ impl LiveAsset {
         if p.validate().is_err() {
             return;
         }
-        *self
-            .shared
-            .pose
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(p);
+        *self.shared.pose.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(p);
         self.shared.send_pose();
     }
 
     pub fn is_complete(&self) -> bool {
-        self.shared
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .collector
-            .is_complete()
+        self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner).collector.is_complete()
     }
 
     /// Whether the background connection has ended (complete, failed or closed).
@@ -285,30 +261,17 @@ impl LiveAsset {
     }
 
     pub fn error(&self) -> Option<String> {
-        self.shared
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .error
-            .clone()
+        self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner).error.clone()
     }
 
     /// Connect start -> header, grids and MLP present.
     pub fn time_to_renderable(&self) -> Option<Duration> {
-        self.shared
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .ttr
+        self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner).ttr
     }
 
     /// Connect start -> every chunk present.
     pub fn time_to_complete(&self) -> Option<Duration> {
-        self.shared
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .complete_at
+        self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner).complete_at
     }
 
     /// Time since connect started.
@@ -323,11 +286,7 @@ impl LiveAsset {
 
     /// Which atlas blocks are present now.
     pub fn present_blocks(&self) -> Vec<bool> {
-        let st = self
-            .shared
-            .state
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let st = self.shared.state.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         st.collector
             .asm
             .as_ref()

@@ -77,11 +77,7 @@ impl PendingTable {
 
     /// Pending connections now.
     pub fn len(&self) -> usize {
-        self.inner
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .order
-            .len()
+        self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner).order.len()
     }
 
     pub fn max_total(&self) -> usize {
@@ -92,10 +88,7 @@ impl PendingTable {
     /// source if that source is at its cap, and the oldest of all if the table is full.
     pub fn admit(self: &Arc<Self>, ip: IpAddr) -> Pending {
         let source = source_key(ip);
-        let mut t = self
-            .inner
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut t = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if t.per_source.get(&source).copied().unwrap_or(0) >= self.max_per_source {
             let i = t.order.iter().position(|e| e.source == source);
             self.evict(
@@ -145,10 +138,7 @@ impl PendingTable {
     }
 
     fn remove(&self, id: u64) {
-        let mut t = self
-            .inner
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut t = self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some(i) = t.order.iter().position(|e| e.id == id) {
             Self::take(&mut t, i);
         }

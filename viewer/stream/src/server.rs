@@ -461,10 +461,7 @@ impl Shared {
 
     /// Run `f` on the asset cache and publish its size in the stats.
     fn cached<R>(&self, f: impl FnOnce(&mut AssetCache<ServedAsset>) -> R) -> R {
-        let mut c = self
-            .cache
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut c = self.cache.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         let r = f(&mut c);
         self.stats.cache_bytes.store(c.bytes(), Ordering::Relaxed);
         self.stats
@@ -646,12 +643,7 @@ fn banner(path: &Path, h: &ServerHandle) -> String {
     if let Some(w) = h.web() {
         // The token rides in the fragment, which the browser never sends to the server.
         match h.token_file() {
-            Some(_) => {
-                b += &format!(
-                    "  web viewer:          {}#token=TOKEN (the token from the file)\n",
-                    w.url()
-                )
-            }
+            Some(_) => b += &format!("  web viewer:          {}#token=TOKEN (the token from the file)\n", w.url()),
             None => {
                 let url = format!("{}#token={}", w.url(), h.token());
                 b += &format!("  web viewer:          {}\n", url);
@@ -940,19 +932,18 @@ async fn read_hello(
     };
     // Control messages go before any data stream.
     let _ = send.quic().set_priority(i32::MAX);
-    let first = match tokio::time::timeout_at(deadline, read_frame(recv.quic(), limits.max_message))
-        .await
-    {
-        Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
-        Ok(Err(e)) => return Err(frame_close(conn, e)),
-        Ok(Ok(None)) => {
-            return Err(Close(
-                code::PROTOCOL,
-                "control stream closed before Hello".into(),
-            ))
-        }
-        Ok(Ok(Some(b))) => b,
-    };
+    let first =
+        match tokio::time::timeout_at(deadline, read_frame(recv.quic(), limits.max_message)).await {
+            Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
+            Ok(Err(e)) => return Err(frame_close(conn, e)),
+            Ok(Ok(None)) => {
+                return Err(Close(
+                    code::PROTOCOL,
+                    "control stream closed before Hello".into(),
+                ))
+            }
+            Ok(Ok(Some(b))) => b,
+        };
     let msg = decode_client_msg(&first).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))?;
     match msg {
         ClientMsg::List { .. } => Err(Close(code::PROTOCOL, "List before Hello".into())),
@@ -1312,10 +1303,7 @@ async fn stream_asset(
         }
         if limits.log_sends {
             if let Ok(mut log) = shared.stats.send_log.lock() {
-                log.push(SentBatch {
-                    pose: pose_now,
-                    chunks: batch.clone(),
-                });
+                log.push(SentBatch { pose: pose_now, chunks: batch.clone() });
             }
         }
         let mut s = open_stream(&conn, limits.stall_timeout).await?;

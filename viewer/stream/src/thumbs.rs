@@ -36,15 +36,8 @@ impl Thumbs {
                 return t.clone();
             }
         }
-        let t = if meta.len() <= MAX_FILE {
-            render(path)
-        } else {
-            None
-        };
-        self.cache
-            .lock()
-            .ok()?
-            .insert(path.to_path_buf(), (stamp, t.clone()));
+        let t = if meta.len() <= MAX_FILE { render(path) } else { None };
+        self.cache.lock().ok()?.insert(path.to_path_buf(), (stamp, t.clone()));
         t
     }
 }
@@ -54,21 +47,8 @@ pub fn render(path: &Path) -> Option<Thumb> {
     let bytes = std::fs::read(path).ok()?;
     let asset = snerf_asset::Asset::from_bytes(&bytes).ok()?;
     let cam = snerf_asset::orbit(&asset.header, 1, 0, THUMB_W, THUMB_H, 40.0);
-    let t0 = asset
-        .header
-        .frames
-        .as_ref()
-        .and_then(|f| f.first())
-        .map_or(0.0, |k| k.time);
+    let t0 = asset.header.frames.as_ref().and_then(|f| f.first()).map_or(0.0, |k| k.time);
     let frame = snerf_asset::render(&asset, &cam, t0);
-    let rgb: Vec<u8> = frame
-        .rgb
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-        .collect();
-    Some(Thumb {
-        width: THUMB_W,
-        height: THUMB_H,
-        rgb: base64::engine::general_purpose::STANDARD.encode(rgb),
-    })
+    let rgb: Vec<u8> = frame.rgb.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
+    Some(Thumb { width: THUMB_W, height: THUMB_H, rgb: base64::engine::general_purpose::STANDARD.encode(rgb) })
 }

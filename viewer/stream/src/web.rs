@@ -68,10 +68,7 @@ impl WebInfo {
     /// SHA-256 of the generated WebTransport certificate in use now: `cert_hash` until the
     /// first rotation (see `Limits::web_cert_rotate`). None with `--cert/--key`.
     pub fn current_cert_hash(&self) -> Option<String> {
-        self.live_hash
-            .read()
-            .map(|h| h.clone())
-            .unwrap_or_else(|_| self.cert_hash.clone())
+        self.live_hash.read().map(|h| h.clone()).unwrap_or_else(|_| self.cert_hash.clone())
     }
 
     /// `http://ADDR/`, or `https://…` with `--cert/--key` (the token goes in the fragment:
@@ -90,8 +87,7 @@ impl WebInfo {
 /// `text` as a QR code drawn with Unicode half blocks (two modules per character cell, dark
 /// on light, with the quiet zone), or None when it does not fit a QR code.
 pub fn qr_text(text: &str) -> Option<String> {
-    let code =
-        qrcode::QrCode::with_error_correction_level(text.as_bytes(), qrcode::EcLevel::L).ok()?;
+    let code = qrcode::QrCode::with_error_correction_level(text.as_bytes(), qrcode::EcLevel::L).ok()?;
     Some(
         code.render::<qrcode::render::unicode::Dense1x2>()
             .dark_color(qrcode::render::unicode::Dense1x2::Light)
@@ -123,13 +119,13 @@ fn web_tls(
     addr: SocketAddr,
 ) -> Result<(rustls::ServerConfig, Option<String>)> {
     use rustls::pki_types::{CertificateDer, PrivateKeyDer};
-    let (certs, key, hash): (Vec<CertificateDer<'static>>, PrivateKeyDer<'static>, _) = if user_cert
-    {
-        (id.certs.clone(), id.key.clone_key(), None)
-    } else {
-        let (cert, key, hash) = generated_cert(addr)?;
-        (vec![cert], key, Some(hash))
-    };
+    let (certs, key, hash): (Vec<CertificateDer<'static>>, PrivateKeyDer<'static>, _) =
+        if user_cert {
+            (id.certs.clone(), id.key.clone_key(), None)
+        } else {
+            let (cert, key, hash) = generated_cert(addr)?;
+            (vec![cert], key, Some(hash))
+        };
     tls_config(certs, key).map(|c| (c, hash))
 }
 
@@ -137,11 +133,7 @@ fn web_tls(
 /// on this machine or at `addr` uses; and its SHA-256.
 fn generated_cert(
     addr: SocketAddr,
-) -> Result<(
-    rustls::pki_types::CertificateDer<'static>,
-    rustls::pki_types::PrivateKeyDer<'static>,
-    String,
-)> {
+) -> Result<(rustls::pki_types::CertificateDer<'static>, rustls::pki_types::PrivateKeyDer<'static>, String)> {
     use rustls::pki_types::{CertificateDer, PrivateKeyDer, PrivatePkcs8KeyDer};
     let mut names = vec!["localhost".to_string(), "127.0.0.1".into(), "::1".into()];
     if !addr.ip().is_unspecified() {
@@ -155,9 +147,7 @@ fn generated_cert(
         .map_err(|e| anyhow!("cannot generate the WebTransport certificate: {}", e))?;
     let der = g.certificate_chain().as_slice()[0].der().to_vec();
     let hash = crate::tls::fingerprint(&der);
-    let key = PrivateKeyDer::Pkcs8(PrivatePkcs8KeyDer::from(
-        g.private_key().secret_der().to_vec(),
-    ));
+    let key = PrivateKeyDer::Pkcs8(PrivatePkcs8KeyDer::from(g.private_key().secret_der().to_vec()));
     Ok((CertificateDer::from(der), key, hash))
 }
 
@@ -204,8 +194,7 @@ pub(crate) fn bind(
                 continue;
             }
             Err(e) => {
-                return Err(e)
-                    .with_context(|| format!("cannot listen on TCP {} (web page)", tcp_addr))
+                return Err(e).with_context(|| format!("cannot listen on TCP {} (web page)", tcp_addr))
             }
         };
         tcp.set_nonblocking(true)?;
@@ -247,12 +236,7 @@ fn wt_transport(limits: &crate::server::Limits) -> Result<quinn::TransportConfig
 pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Receiver<bool>) {
     let info = Arc::new(parts.info);
     let wt = Arc::new(parts.wt);
-    let http = tokio::spawn(http_loop(
-        parts.http,
-        parts.page_tls,
-        info.clone(),
-        stop.clone(),
-    ));
+    let http = tokio::spawn(http_loop(parts.http, parts.page_tls, info.clone(), stop.clone()));
     let rotate = info
         .cert_hash
         .is_some()
@@ -274,22 +258,15 @@ async fn rotate_loop(
     wt: Arc<wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>>,
     info: Arc<WebInfo>,
 ) {
-    let every = shared
-        .limits
-        .web_cert_rotate
-        .max(Duration::from_millis(100));
+    let every = shared.limits.web_cert_rotate.max(Duration::from_millis(100));
     loop {
         tokio::time::sleep(every).await;
         let next = generated_cert(info.addr).and_then(|(c, k, hash)| {
             let cfg = wtransport::ServerConfig::builder()
                 .with_bind_default(0)
-                .with_custom_tls_and_transport(
-                    tls_config(vec![c], k)?,
-                    wt_transport(&shared.limits)?,
-                )
+                .with_custom_tls_and_transport(tls_config(vec![c], k)?, wt_transport(&shared.limits)?)
                 .build();
-            wt.reload_config(cfg, false)
-                .context("reloading the WebTransport certificate")?;
+            wt.reload_config(cfg, false).context("reloading the WebTransport certificate")?;
             Ok(hash)
         });
         match next {
@@ -338,10 +315,7 @@ async fn wt_loop(
         let pending = shared.pending.admit(incoming.remote_address().ip());
         conns.spawn(session(shared.clone(), incoming, pending, port));
     }
-    endpoint.close(
-        wtransport::VarInt::from_u32(code::SHUTDOWN),
-        b"server shutting down",
-    );
+    endpoint.close(wtransport::VarInt::from_u32(code::SHUTDOWN), b"server shutting down");
     conns.abort_all();
     while conns.join_next().await.is_some() {}
     endpoint.wait_idle().await;
@@ -351,9 +325,7 @@ async fn wt_loop(
 /// `http(s)://` + the authority it connected to, and that authority must name this port.
 pub fn origin_allowed(origin: Option<&str>, authority: &str, port: u16) -> bool {
     let Some(origin) = origin else { return false };
-    let Some(auth_port) = authority
-        .rsplit_once(':')
-        .and_then(|(_, p)| p.parse::<u16>().ok())
+    let Some(auth_port) = authority.rsplit_once(':').and_then(|(_, p)| p.parse::<u16>().ok())
     else {
         return false;
     };
@@ -380,11 +352,7 @@ async fn session(
         }
     };
     if request.path() != SESSION_PATH {
-        log(
-            &shared,
-            who,
-            "WebTransport request for an unknown path: 404",
-        );
+        log(&shared, who, "WebTransport request for an unknown path: 404");
         request.not_found().await;
         return;
     }
@@ -451,10 +419,7 @@ async fn http_loop(
 }
 
 /// One request per connection (`Connection: close`): GET or HEAD of a few fixed paths.
-async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(
-    mut s: S,
-    info: &WebInfo,
-) -> std::io::Result<()> {
+async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) -> std::io::Result<()> {
     let mut buf = Vec::with_capacity(2048);
     let mut chunk = [0u8; 2048];
     let head_end = loop {
@@ -491,21 +456,9 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(
          connect-src 'self' https://{host}; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
     );
     let (status, ctype, body): (u16, &str, Vec<u8>) = match path {
-        "/" | "/index.html" => (
-            200,
-            "text/html; charset=utf-8",
-            INDEX_HTML.as_bytes().to_vec(),
-        ),
-        "/app.js" => (
-            200,
-            "text/javascript; charset=utf-8",
-            APP_JS.as_bytes().to_vec(),
-        ),
-        "/xr.js" => (
-            200,
-            "text/javascript; charset=utf-8",
-            XR_JS.as_bytes().to_vec(),
-        ),
+        "/" | "/index.html" => (200, "text/html; charset=utf-8", INDEX_HTML.as_bytes().to_vec()),
+        "/app.js" => (200, "text/javascript; charset=utf-8", APP_JS.as_bytes().to_vec()),
+        "/xr.js" => (200, "text/javascript; charset=utf-8", XR_JS.as_bytes().to_vec()),
         "/app.css" => (200, "text/css; charset=utf-8", APP_CSS.as_bytes().to_vec()),
         "/config.json" => {
             let cfg = serde_json::json!({
@@ -516,11 +469,7 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(
             });
             (200, "application/json", cfg.to_string().into_bytes())
         }
-        "/present.wgsl" => (
-            200,
-            "text/plain; charset=utf-8",
-            snerf_geometry::march::PRESENT_WGSL.as_bytes().to_vec(),
-        ),
+        "/present.wgsl" => (200, "text/plain; charset=utf-8", snerf_geometry::march::PRESENT_WGSL.as_bytes().to_vec()),
         "/march.wgsl" => match shader_query(query) {
             Some((kind, dynamic, block)) => (
                 200,
@@ -603,52 +552,20 @@ mod tests {
         let q = qr_text(&url).unwrap();
         // Version 6 or so: a few dozen lines, each as wide as the code plus quiet zone.
         let lines: Vec<&str> = q.lines().collect();
-        assert!(
-            lines.len() > 15 && lines.len() < 40,
-            "{} lines",
-            lines.len()
-        );
-        assert!(lines
-            .iter()
-            .all(|l| l.chars().count() == lines[0].chars().count()));
+        assert!(lines.len() > 15 && lines.len() < 40, "{} lines", lines.len());
+        assert!(lines.iter().all(|l| l.chars().count() == lines[0].chars().count()));
     }
 
     #[test]
     fn origins_and_hosts() {
-        assert!(origin_allowed(
-            Some("http://127.0.0.1:8443"),
-            "127.0.0.1:8443",
-            8443
-        ));
-        assert!(origin_allowed(
-            Some("http://localhost:8443"),
-            "localhost:8443",
-            8443
-        ));
-        assert!(!origin_allowed(
-            Some("http://evil.example"),
-            "127.0.0.1:8443",
-            8443
-        ));
-        assert!(!origin_allowed(
-            Some("http://127.0.0.1:9000"),
-            "127.0.0.1:8443",
-            8443
-        ));
-        assert!(!origin_allowed(
-            Some("http://127.0.0.1:9000"),
-            "127.0.0.1:9000",
-            8443
-        ));
+        assert!(origin_allowed(Some("http://127.0.0.1:8443"), "127.0.0.1:8443", 8443));
+        assert!(origin_allowed(Some("http://localhost:8443"), "localhost:8443", 8443));
+        assert!(!origin_allowed(Some("http://evil.example"), "127.0.0.1:8443", 8443));
+        assert!(!origin_allowed(Some("http://127.0.0.1:9000"), "127.0.0.1:8443", 8443));
+        assert!(!origin_allowed(Some("http://127.0.0.1:9000"), "127.0.0.1:9000", 8443));
         assert!(!origin_allowed(None, "127.0.0.1:8443", 8443));
-        assert!(
-            host_ok("127.0.0.1:80", 80) && host_ok("[::1]:80", 80) && host_ok("LOCALHOST:80", 80)
-        );
-        assert!(
-            !host_ok("evil.example:80", 80)
-                && !host_ok("127.0.0.1:81", 80)
-                && !host_ok("127.0.0.1", 80)
-        );
+        assert!(host_ok("127.0.0.1:80", 80) && host_ok("[::1]:80", 80) && host_ok("LOCALHOST:80", 80));
+        assert!(!host_ok("evil.example:80", 80) && !host_ok("127.0.0.1:81", 80) && !host_ok("127.0.0.1", 80));
         assert_eq!(shader_query("kind=2&dynamic=1&block=8"), Some((2, true, 8)));
         assert_eq!(shader_query("kind=3&dynamic=1&block=8"), None);
         assert_eq!(shader_query("kind=0&dynamic=0"), None);

@@ -340,9 +340,7 @@ fn hostile_control_messages_close_only_that_connection() {
         // Datagrams are best effort and read by their own task: give it time to see some
         // (under load the session could otherwise close first), then check the session lives.
         let t0 = std::time::Instant::now();
-        while server.stats().bad_datagrams.load(Ordering::Relaxed) == 0
-            && t0.elapsed().as_secs() < 20
-        {
+        while server.stats().bad_datagrams.load(Ordering::Relaxed) == 0 && t0.elapsed().as_secs() < 20 {
             if t0.elapsed().as_millis() % 500 < 20 {
                 for _ in 0..20 {
                     let mut b = vec![0u8; r.below(60) as usize];
@@ -799,13 +797,9 @@ fn list_is_answered_after_the_transfer_completes() {
         let st = server.stats();
         let t0 = Instant::now();
         while !(st.streams_started.load(Ordering::Relaxed) > 0
-            && st.streams_completed.load(Ordering::Relaxed)
-                == st.streams_started.load(Ordering::Relaxed))
+            && st.streams_completed.load(Ordering::Relaxed) == st.streams_started.load(Ordering::Relaxed))
         {
-            assert!(
-                t0.elapsed() < Duration::from_secs(30),
-                "the transfer never completed"
-            );
+            assert!(t0.elapsed() < Duration::from_secs(30), "the transfer never completed");
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
         tokio::time::sleep(Duration::from_millis(300)).await;

@@ -44,10 +44,7 @@ fn browser() -> Option<(PathBuf, PathBuf, PathBuf)> {
             if std::env::var("SNERF_REQUIRE_BROWSER").as_deref() == Ok("1") {
                 panic!("SNERF_REQUIRE_BROWSER=1 but {} (.ci/run installs it)", why);
             }
-            eprintln!(
-                "skipping the web viewer test: {} (.ci/run installs chromium and playwright-core)",
-                why
-            );
+            eprintln!("skipping the web viewer test: {} (.ci/run installs chromium and playwright-core)", why);
             None
         }
     }
@@ -82,8 +79,7 @@ fn page(b: &(PathBuf, PathBuf, PathBuf), args: &[&str]) -> serde_json::Value {
     }
     assert!(out.status.success(), "page.mjs failed: {}", stderr);
     let stdout = String::from_utf8_lossy(&out.stdout);
-    serde_json::from_str(stdout.trim())
-        .unwrap_or_else(|e| panic!("page report {:?}: {} (stderr: {})", stdout, e, stderr))
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("page report {:?}: {} (stderr: {})", stdout, e, stderr))
 }
 
 fn cam_json(c: &snerf_asset::Camera) -> String {
@@ -98,18 +94,12 @@ fn fragment(pairs: &[(&str, &str)]) -> String {
     let enc = |s: &str| -> String {
         s.bytes()
             .map(|b| match b {
-                b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' => {
-                    (b as char).to_string()
-                }
+                b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' => (b as char).to_string(),
                 _ => format!("%{:02X}", b),
             })
             .collect()
     };
-    pairs
-        .iter()
-        .map(|(k, v)| format!("{}={}", k, enc(v)))
-        .collect::<Vec<_>>()
-        .join("&")
+    pairs.iter().map(|(k, v)| format!("{}={}", k, enc(v))).collect::<Vec<_>>().join("&")
 }
 
 /// Mean absolute difference per channel between the page's RGBA floats and a CPU frame.
@@ -137,10 +127,7 @@ fn base64_decode(s: &str) -> Vec<u8> {
     let b: Vec<u8> = s.bytes().filter(|&c| c != b'=').collect();
     let mut out = Vec::with_capacity(b.len() * 3 / 4);
     for ch in b.chunks(4) {
-        let n = ch
-            .iter()
-            .enumerate()
-            .fold(0u32, |a, (i, &c)| a | val(c) << (18 - 6 * i));
+        let n = ch.iter().enumerate().fold(0u32, |a, (i, &c)| a | val(c) << (18 - 6 * i));
         out.extend_from_slice(&n.to_be_bytes()[1..ch.len()]);
     }
     out
@@ -162,35 +149,20 @@ fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
     let url = format!(
         "{}#{}",
         web.url(),
-        fragment(&[
-            ("token", h.token()),
-            ("asset", "scene"),
-            ("cam", &cam_json(&cam))
-        ])
+        fragment(&[("token", h.token()), ("asset", "scene"), ("cam", &cam_json(&cam))])
     );
     let r = page(&b, &[&url, "done"]);
-    assert_eq!(
-        r["error"],
-        serde_json::Value::Null,
-        "page error: {}",
-        r["error"]
-    );
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
     assert_eq!(r["state"], "done");
     // The listing: names, sizes, kinds.
     let listing = r["listing"].as_array().unwrap();
-    let names: Vec<&str> = listing
-        .iter()
-        .map(|e| e["name"].as_str().unwrap())
-        .collect();
+    let names: Vec<&str> = listing.iter().map(|e| e["name"].as_str().unwrap()).collect();
     assert_eq!(names, ["moving", "scene"]);
     assert_eq!(listing[1]["size"], bytes.len() as u64);
     assert_eq!(listing[1]["kind"], "object");
     // Each entry has its start view as a thumbnail, the CPU reference's picture.
     let t = &listing[1]["thumb"];
-    assert_eq!(
-        (t["width"].as_u64(), t["height"].as_u64()),
-        (Some(64), Some(48))
-    );
+    assert_eq!((t["width"].as_u64(), t["height"].as_u64()), (Some(64), Some(48)));
     let want = snerf_stream::thumbs::render(&dir.join("scene.snerf")).unwrap();
     assert_eq!(t["rgb"].as_str(), Some(want.rgb.as_str()));
     assert!(listing[0]["thumb"].is_object());
@@ -202,34 +174,17 @@ fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
     let cpu = snerf_asset::render(&Asset::from_bytes(&bytes).unwrap(), &cam, 0.0);
     let fr = &r["lastRender"];
     assert_eq!(fr["complete"], true);
-    assert_eq!(
-        (fr["width"].as_u64(), fr["height"].as_u64()),
-        (Some(64), Some(48))
-    );
+    assert_eq!((fr["width"].as_u64(), fr["height"].as_u64()), (Some(64), Some(48)));
     let d = mean_abs_diff(fr["rgba"].as_array().unwrap(), &cpu);
-    eprintln!(
-        "web vs CPU reference: mean |diff| per channel {:?} (adapter {})",
-        d, r["adapter"]
-    );
-    assert!(
-        d.iter().all(|&x| x <= 2.0 / 255.0),
-        "mean |diff| {:?} > 2/255",
-        d
-    );
+    eprintln!("web vs CPU reference: mean |diff| per channel {:?} (adapter {})", d, r["adapter"]);
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
     // What the canvas presents (shaders/present.wgsl, as in the native window) is that frame.
     let png = base64_decode(r["canvasPng"].as_str().expect("canvas screenshot"));
     let shot = image::load_from_memory(&png).unwrap().to_rgb8();
     if let Some(d) = std::env::var_os("SNERF_PAGE_DUMP") {
         shot.save(Path::new(&d).join("canvas.png")).unwrap();
-        let cpu8: Vec<u8> = cpu
-            .rgb
-            .iter()
-            .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
-            .collect();
-        image::RgbImage::from_raw(64, 48, cpu8)
-            .unwrap()
-            .save(Path::new(&d).join("cpu.png"))
-            .unwrap();
+        let cpu8: Vec<u8> = cpu.rgb.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();
+        image::RgbImage::from_raw(64, 48, cpu8).unwrap().save(Path::new(&d).join("cpu.png")).unwrap();
     }
     assert_eq!(shot.dimensions(), (64, 48));
     let mut dc = [0f64; 3];
@@ -238,15 +193,8 @@ fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
             dc[c] += (p[c] as f64 / 255.0 - cpu.rgb[3 * i + c] as f64).abs() / (64.0 * 48.0);
         }
     }
-    eprintln!(
-        "presented canvas vs CPU reference: mean |diff| per channel {:?}",
-        dc
-    );
-    assert!(
-        dc.iter().all(|&x| x <= 2.0 / 255.0),
-        "canvas mean |diff| {:?} > 2/255",
-        dc
-    );
+    eprintln!("presented canvas vs CPU reference: mean |diff| per channel {:?}", dc);
+    assert!(dc.iter().all(|&x| x <= 2.0 / 255.0), "canvas mean |diff| {:?} > 2/255", dc);
     // The image is not trivially empty (the comparison means something).
     let lit = cpu.rgb.iter().filter(|&&v| v > 0.05).count();
     assert!(lit > cpu.rgb.len() / 10, "the test image is almost black");
@@ -264,11 +212,7 @@ fn wrong_token_missing_token_and_another_origin_get_nothing() {
     let web = h.web().unwrap().clone();
     // Wrong token: the server closes the session (unauthorized) before sending anything.
     let wrong = "0".repeat(64);
-    let url = format!(
-        "{}#{}",
-        web.url(),
-        fragment(&[("token", &wrong), ("asset", "scene")])
-    );
+    let url = format!("{}#{}", web.url(), fragment(&[("token", &wrong), ("asset", "scene")]));
     let r = page(&b, &[&url, "done"]);
     assert_eq!(r["state"], "error");
     assert_eq!(r["listing"], serde_json::Value::Null);
@@ -278,11 +222,7 @@ fn wrong_token_missing_token_and_another_origin_get_nothing() {
     // No token: the page does not even connect.
     let r = page(&b, &[&format!("{}#asset=scene", web.url()), "done"]);
     assert_eq!(r["state"], "error");
-    assert!(
-        r["error"].as_str().unwrap().contains("token"),
-        "{}",
-        r["error"]
-    );
+    assert!(r["error"].as_str().unwrap().contains("token"), "{}", r["error"]);
     // A page of another origin: the CONNECT is refused (403).
     let before = h.stats().unauthorized.load(Ordering::Relaxed);
     let wt = format!("https://127.0.0.1:{}/snerf/1", web.addr.port());
@@ -303,14 +243,7 @@ fn kind_asset(kind: snerf_asset::Kind, res: u32, block: u32, radius: f32, seed: 
     let mut h = Header::new(kind, res, block);
     h.background = [0.2, 0.3, 0.4];
     if kind == Kind::Forward {
-        h.space.ndc = Some(Ndc {
-            fx: 60.0,
-            fy: 60.0,
-            width: 100.0,
-            height: 80.0,
-            near: 1.0,
-            xy_extent: 1.3,
-        });
+        h.space.ndc = Some(Ndc { fx: 60.0, fy: 60.0, width: 100.0, height: 80.0, near: 1.0, xy_extent: 1.3 });
     }
     let g = h.grid_dim();
     let bb = h.block_bytes();
@@ -339,58 +272,23 @@ fn kind_asset(kind: snerf_asset::Kind, res: u32, block: u32, radius: f32, seed: 
 
 /// Stream `name` into the page with the orbit's first camera at `time`; check the page's
 /// frame against the CPU reference. Returns the page's report.
-fn check_render(
-    b: &(PathBuf, PathBuf, PathBuf),
-    h: &ServerHandle,
-    asset: &Asset,
-    name: &str,
-    time: f32,
-) -> serde_json::Value {
+fn check_render(b: &(PathBuf, PathBuf, PathBuf), h: &ServerHandle, asset: &Asset, name: &str, time: f32) -> serde_json::Value {
     let cam = snerf_asset::orbit(&asset.header, 1, 0, 48, 32, 40.0);
     let url = format!(
         "{}#{}",
         h.web().unwrap().url(),
-        fragment(&[
-            ("token", h.token()),
-            ("asset", name),
-            ("cam", &cam_json(&cam)),
-            ("time", &time.to_string())
-        ])
+        fragment(&[("token", h.token()), ("asset", name), ("cam", &cam_json(&cam)), ("time", &time.to_string())])
     );
     let r = page(b, &[&url, "done"]);
-    assert_eq!(
-        r["error"],
-        serde_json::Value::Null,
-        "{}: page error: {}",
-        name,
-        r["error"]
-    );
+    assert_eq!(r["error"], serde_json::Value::Null, "{}: page error: {}", name, r["error"]);
     let cpu = snerf_asset::render(asset, &cam, time);
     // The picture has content (a match of two blank images would mean nothing).
     let bg = &asset.header.background;
-    let shown = cpu
-        .rgb
-        .chunks(3)
-        .filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02))
-        .count();
-    assert!(
-        shown * 10 > cpu.rgb.len() / 3,
-        "{}: only {} pixels differ from the background",
-        name,
-        shown
-    );
+    let shown = cpu.rgb.chunks(3).filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02)).count();
+    assert!(shown * 10 > cpu.rgb.len() / 3, "{}: only {} pixels differ from the background", name, shown);
     let d = mean_abs_diff(r["lastRender"]["rgba"].as_array().unwrap(), &cpu);
-    eprintln!(
-        "{} at t={}: web vs CPU reference mean |diff| {:?}",
-        name, time, d
-    );
-    assert!(
-        d.iter().all(|&x| x <= 2.0 / 255.0),
-        "{} at t={}: mean |diff| {:?} > 2/255",
-        name,
-        time,
-        d
-    );
+    eprintln!("{} at t={}: web vs CPU reference mean |diff| {:?}", name, time, d);
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{} at t={}: mean |diff| {:?} > 2/255", name, time, d);
     r
 }
 
@@ -399,35 +297,14 @@ fn a_4d_asset_at_two_times_an_unbounded_and_a_forward_scene_render_like_the_cpu_
     let Some(b) = browser() else { return };
     let dir = TempDir::new("web-kinds");
     let state = TempDir::new("web-kinds-state");
-    let moving = Asset::from_bytes(&write_asset(
-        &dynamic_asset(16, 8, 0.9, 3, 21),
-        dir.path(),
-        "moving",
-    ))
-    .unwrap();
-    let outdoor = Asset::from_bytes(&write_asset(
-        &kind_asset(snerf_asset::Kind::Unbounded, 32, 8, 0.9, 4),
-        dir.path(),
-        "outdoor",
-    ))
-    .unwrap();
-    let front = Asset::from_bytes(&write_asset(
-        &kind_asset(snerf_asset::Kind::Forward, 32, 8, 0.9, 6),
-        dir.path(),
-        "front",
-    ))
-    .unwrap();
+    let moving = Asset::from_bytes(&write_asset(&dynamic_asset(16, 8, 0.9, 3, 21), dir.path(), "moving")).unwrap();
+    let outdoor = Asset::from_bytes(&write_asset(&kind_asset(snerf_asset::Kind::Unbounded, 32, 8, 0.9, 4), dir.path(), "outdoor")).unwrap();
+    let front = Asset::from_bytes(&write_asset(&kind_asset(snerf_asset::Kind::Forward, 32, 8, 0.9, 6), dir.path(), "front")).unwrap();
     let h = start(dir.path(), state.path());
     // Between keyframes 0 and 1 (blended), and between 1 and 2: different images.
     let cam = snerf_asset::orbit(&moving.header, 1, 0, 48, 32, 40.0);
-    let (a, c) = (
-        snerf_asset::render(&moving, &cam, 0.5),
-        snerf_asset::render(&moving, &cam, 1.75),
-    );
-    assert!(
-        a.rgb.iter().zip(&c.rgb).any(|(x, y)| (x - y).abs() > 0.05),
-        "the two times look the same"
-    );
+    let (a, c) = (snerf_asset::render(&moving, &cam, 0.5), snerf_asset::render(&moving, &cam, 1.75));
+    assert!(a.rgb.iter().zip(&c.rgb).any(|(x, y)| (x - y).abs() > 0.05), "the two times look the same");
     check_render(&b, &h, &moving, "moving", 0.5);
     check_render(&b, &h, &moving, "moving", 1.75);
     // As the baker's time codebook writes them: frame 3's cells point at frame 1's blocks.
@@ -436,12 +313,7 @@ fn a_4d_asset_at_two_times_an_unbounded_and_a_forward_scene_render_like_the_cpu_
     let cycle = Asset::from_bytes(&write_asset(&cyc, dir.path(), "cycle")).unwrap();
     check_render(&b, &h, &cycle, "cycle", 2.5);
     let r = check_render(&b, &h, &outdoor, "outdoor", 0.0);
-    let kinds: Vec<&str> = r["listing"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["kind"].as_str().unwrap())
-        .collect();
+    let kinds: Vec<&str> = r["listing"].as_array().unwrap().iter().map(|e| e["kind"].as_str().unwrap()).collect();
     assert_eq!(kinds, ["object", "forward", "object", "unbounded"]);
     check_render(&b, &h, &front, "front", 0.0);
     h.shutdown();
@@ -466,10 +338,7 @@ fn first_frame_comes_before_the_whole_asset_under_a_small_send_budget() {
     let r = check_render(&b, &h, &asset, "big", 0.0);
     let total = asset.header.atlas_blocks as u64;
     let first = &r["firstFrame"];
-    eprintln!(
-        "first frame after {} ms with {} of {} blocks",
-        r["firstFrameMs"], first["blocks"], total
-    );
+    eprintln!("first frame after {} ms with {} of {} blocks", r["firstFrameMs"], first["blocks"], total);
     assert_eq!(first["complete"], false, "{}", first);
     assert!(first["blocks"].as_u64().unwrap() < total, "{}", first);
     assert!(r["frames"].as_u64().unwrap() >= 2);
@@ -477,15 +346,9 @@ fn first_frame_comes_before_the_whole_asset_under_a_small_send_budget() {
 }
 
 /// One HTTP/1.1 request over `s`; the whole response as text.
-async fn get<S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin>(
-    mut s: S,
-    host: &str,
-    path: &str,
-) -> String {
+async fn get<S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin>(mut s: S, host: &str, path: &str) -> String {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: {host}\r\n\r\n").as_bytes())
-        .await
-        .unwrap();
+    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: {host}\r\n\r\n").as_bytes()).await.unwrap();
     let mut out = Vec::new();
     let _ = s.read_to_end(&mut out).await;
     String::from_utf8_lossy(&out).into_owned()
@@ -501,40 +364,23 @@ fn the_page_routes_serve_the_composed_shader_with_strict_headers_and_check_the_h
     assert!(!web.https && web.url().starts_with("http://127.0.0.1:"));
     let host = format!("127.0.0.1:{}", web.addr.port());
     let rt = runtime();
-    let tcp = || {
-        rt.block_on(tokio::net::TcpStream::connect(web.addr))
-            .unwrap()
-    };
+    let tcp = || rt.block_on(tokio::net::TcpStream::connect(web.addr)).unwrap();
     let page = rt.block_on(get(tcp(), &host, "/"));
     assert!(page.starts_with("HTTP/1.1 200"), "{page}");
-    assert!(
-        page.contains("Content-Security-Policy: default-src 'none'; script-src 'self';"),
-        "{page}"
-    );
+    assert!(page.contains("Content-Security-Policy: default-src 'none'; script-src 'self';"), "{page}");
     assert!(page.contains("src=\"/app.js\""), "{page}");
     // The shader the page runs is the one the native viewer composes.
     let wgsl = rt.block_on(get(tcp(), &host, "/march.wgsl?kind=2&dynamic=1&block=8"));
     let body = wgsl.split_once("\r\n\r\n").unwrap().1;
     assert_eq!(body, snerf_geometry::march::march_shader(2, true, 8, false));
-    assert!(rt
-        .block_on(get(tcp(), &host, "/march.wgsl?kind=7&dynamic=1&block=8"))
-        .starts_with("HTTP/1.1 400"));
+    assert!(rt.block_on(get(tcp(), &host, "/march.wgsl?kind=7&dynamic=1&block=8")).starts_with("HTTP/1.1 400"));
     let cfg = rt.block_on(get(tcp(), &host, "/config.json"));
-    let cfg: serde_json::Value =
-        serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
+    let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
     assert_eq!(cfg["webtransport"], format!("https://{host}/snerf/1"));
     assert_eq!(cfg["cert_hash"].as_str().unwrap().len(), 64);
     // Another name for this address (DNS rebinding) and unknown paths are refused.
-    assert!(rt
-        .block_on(get(
-            tcp(),
-            &format!("evil.example:{}", web.addr.port()),
-            "/"
-        ))
-        .starts_with("HTTP/1.1 421"));
-    assert!(rt
-        .block_on(get(tcp(), &host, "/../../etc/passwd"))
-        .starts_with("HTTP/1.1 404"));
+    assert!(rt.block_on(get(tcp(), &format!("evil.example:{}", web.addr.port()), "/")).starts_with("HTTP/1.1 421"));
+    assert!(rt.block_on(get(tcp(), &host, "/../../etc/passwd")).starts_with("HTTP/1.1 404"));
     h.shutdown();
 }
 
@@ -560,34 +406,19 @@ fn with_cert_and_key_the_page_is_served_over_https_with_that_certificate() {
         .with_protocol_versions(&[&rustls::version::TLS13])
         .unwrap()
         .dangerous()
-        .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(
-            pin,
-        )))
+        .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(pin)))
         .with_no_client_auth();
     cfg.alpn_protocols = vec![b"http/1.1".to_vec()];
     let rt = runtime();
     let page = rt.block_on(async {
         let tcp = tokio::net::TcpStream::connect(web.addr).await.unwrap();
         let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
-        let tls = tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg))
-            .connect(name, tcp)
-            .await
-            .unwrap();
+        let tls = tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg)).connect(name, tcp).await.unwrap();
         get(tls, &format!("localhost:{}", web.addr.port()), "/").await
     });
-    assert!(
-        page.starts_with("HTTP/1.1 200") && page.contains("src=\"/app.js\""),
-        "{page}"
-    );
+    assert!(page.starts_with("HTTP/1.1 200") && page.contains("src=\"/app.js\""), "{page}");
     // Plain HTTP gets no page from a TLS port.
-    let plain = rt.block_on(async {
-        get(
-            tokio::net::TcpStream::connect(web.addr).await.unwrap(),
-            "localhost",
-            "/",
-        )
-        .await
-    });
+    let plain = rt.block_on(async { get(tokio::net::TcpStream::connect(web.addr).await.unwrap(), "localhost", "/").await });
     assert!(!plain.contains("HTTP/1.1 200"), "{plain}");
     h.shutdown();
 }
@@ -635,12 +466,7 @@ fn place_dir(place: &serde_json::Value, d: [f64; 3]) -> [f64; 3] {
 /// Every eye of a snapshot: its marched image against the CPU reference at the eye's camera,
 /// and what the WebGL layer shows against the marched image. Returns the eye cameras.
 fn check_eyes(snap: &serde_json::Value, asset: &Asset, what: &str) -> Vec<snerf_asset::Camera> {
-    assert_eq!(
-        snap["error"],
-        serde_json::Value::Null,
-        "{what}: {}",
-        snap["error"]
-    );
+    assert_eq!(snap["error"], serde_json::Value::Null, "{what}: {}", snap["error"]);
     let eyes = snap["eyes"].as_array().unwrap();
     assert_eq!(eyes.len(), 2, "{what}: both eyes are drawn");
     let mut cams = Vec::new();
@@ -653,65 +479,31 @@ fn check_eyes(snap: &serde_json::Value, asset: &Asset, what: &str) -> Vec<snerf_
             p[k] = x.as_f64().unwrap() as f32;
         }
         let native = snerf_asset::Camera::from_projection(&p, cam.c2w, cam.width, cam.height);
-        for (a, b) in [
-            (cam.fx, native.fx),
-            (cam.fy, native.fy),
-            (cam.cx, native.cx),
-            (cam.cy, native.cy),
-        ] {
-            assert!(
-                (a - b).abs() < 1e-3,
-                "{what} eye {i}: intrinsics {a} vs native {b}"
-            );
+        for (a, b) in [(cam.fx, native.fx), (cam.fy, native.fy), (cam.cx, native.cx), (cam.cy, native.cy)] {
+            assert!((a - b).abs() < 1e-3, "{what} eye {i}: intrinsics {a} vs native {b}");
         }
         let cpu = snerf_asset::render(asset, &cam, snap["time"].as_f64().unwrap_or(0.0) as f32);
         let rgba: Vec<serde_json::Value> = e["rgba"].as_array().unwrap().clone();
         let d = mean_abs_diff(&rgba, &cpu);
-        eprintln!(
-            "{what} eye {i} ({}x{}): marched vs CPU reference mean |diff| {:?}",
-            cam.width, cam.height, d
-        );
-        assert!(
-            d.iter().all(|&x| x <= 2.0 / 255.0),
-            "{what} eye {i}: mean |diff| {:?} > 2/255",
-            d
-        );
+        eprintln!("{what} eye {i} ({}x{}): marched vs CPU reference mean |diff| {:?}", cam.width, cam.height, d);
+        assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{what} eye {i}: mean |diff| {:?} > 2/255", d);
         // The layer's pixels (GL rows bottom up) against the marched image.
-        let gl: Vec<f64> = e["gl"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap() / 255.0)
-            .collect();
-        let vp: Vec<u64> = e["viewport"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_u64().unwrap())
-            .collect();
-        assert_eq!(
-            (vp[2], vp[3]),
-            (cam.width as u64, cam.height as u64),
-            "{what} eye {i}: render scale 1 under capture"
-        );
+        let gl: Vec<f64> = e["gl"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() / 255.0).collect();
+        let vp: Vec<u64> = e["viewport"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
+        assert_eq!((vp[2], vp[3]), (cam.width as u64, cam.height as u64), "{what} eye {i}: render scale 1 under capture");
         let (w, h) = (vp[2] as usize, vp[3] as usize);
         let mut dg = 0f64;
         for y in 0..h {
             for x in 0..w {
                 let src = 4 * ((h - 1 - y) * w + x);
                 for c in 0..3 {
-                    dg += (gl[4 * (y * w + x) + c]
-                        - rgba[src + c].as_f64().unwrap().clamp(0.0, 1.0))
-                    .abs();
+                    dg += (gl[4 * (y * w + x) + c] - rgba[src + c].as_f64().unwrap().clamp(0.0, 1.0)).abs();
                 }
             }
         }
         dg /= (w * h * 3) as f64;
         eprintln!("{what} eye {i}: XR layer vs marched mean |diff| {dg}");
-        assert!(
-            dg <= 2.0 / 255.0,
-            "{what} eye {i}: the XR layer shows something else ({dg})"
-        );
+        assert!(dg <= 2.0 / 255.0, "{what} eye {i}: the XR layer shows something else ({dg})");
         cams.push(cam);
     }
     cams
@@ -723,11 +515,7 @@ fn iwer(b: &(PathBuf, PathBuf, PathBuf)) -> Option<PathBuf> {
     if iwer.exists() {
         return Some(iwer);
     }
-    assert!(
-        std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"),
-        "no iwer at {} (.ci/run installs it)",
-        iwer.display()
-    );
+    assert!(std::env::var("SNERF_REQUIRE_BROWSER").as_deref() != Ok("1"), "no iwer at {} (.ci/run installs it)", iwer.display());
     eprintln!("skipping the immersive test: no iwer at {}", iwer.display());
     None
 }
@@ -735,14 +523,7 @@ fn iwer(b: &(PathBuf, PathBuf, PathBuf)) -> Option<PathBuf> {
 /// Run tests/web/xr.mjs on `url` with extra arguments; its JSON report.
 fn xr_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, extra: &[&str]) -> serde_json::Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/xr.mjs");
-    let out = Command::new(&b.0)
-        .arg(&script)
-        .arg(b.2.join("../.."))
-        .arg(url)
-        .args(extra)
-        .env("SNERF_CHROMIUM", &b.1)
-        .output()
-        .unwrap();
+    let out = Command::new(&b.0).arg(&script).arg(b.2.join("../..")).arg(url).args(extra).env("SNERF_CHROMIUM", &b.1).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     if std::env::var_os("SNERF_PAGE_LOG").is_some() {
         eprintln!("{stderr}");
@@ -752,8 +533,7 @@ fn xr_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, extra: &[&str]) -> serde_
 }
 
 #[test]
-fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_and_follows_the_headset(
-) {
+fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_and_follows_the_headset() {
     let Some(b) = browser() else { return };
     if iwer(&b).is_none() {
         return;
@@ -763,76 +543,41 @@ fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_
     let asset = static_asset(32, 8, 0.8, 11);
     write_asset(&asset, dir.path(), "scene");
     let h = start(dir.path(), state.path());
-    let url = format!(
-        "{}#{}",
-        h.web().unwrap().url(),
-        fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1")])
-    );
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1")]));
     let r = xr_page(&b, &url, &[]);
     let before = &r["before"];
     let cams0 = check_eyes(before, &asset, "before");
-    eprintln!(
-        "first immersive frame {} ms after Enter VR",
-        before["firstFrameMs"]
-    );
+    eprintln!("first immersive frame {} ms after Enter VR", before["firstFrameMs"]);
     // The object is in view (the comparison means something).
     let cpu = snerf_asset::render(&asset, &cams0[0], 0.0);
     let bg = asset.header.background;
-    let shown = cpu
-        .rgb
-        .chunks(3)
-        .filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02))
-        .count();
-    assert!(
-        shown * 20 > cpu.rgb.len() / 3,
-        "the object is not in front of the user ({shown} pixels)"
-    );
+    let shown = cpu.rgb.chunks(3).filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02)).count();
+    assert!(shown * 20 > cpu.rgb.len() / 3, "the object is not in front of the user ({shown} pixels)");
     let place = &before["place"];
     let k = place["k"].as_f64().unwrap();
     // The eyes are an IPD apart (iwer's 63 mm), in world units.
     let sep = dist3(eye_pos(&cams0[0]), eye_pos(&cams0[1]));
-    assert!(
-        (sep / k - 0.063).abs() < 1e-3,
-        "eye separation {} m",
-        sep / k
-    );
+    assert!((sep / k - 0.063).abs() < 1e-3, "eye separation {} m", sep / k);
     // An object floats at arm's length: its centre 0.6 m ahead of and 0.3 m below the head.
     let centre = vec3(&serde_json::json!(asset.header.space.center));
     let mid = [0, 1, 2].map(|i| (eye_pos(&cams0[0])[i] + eye_pos(&cams0[1])[i]) / 2.0);
     let want = (0.6f64.powi(2) + 0.3f64.powi(2)).sqrt();
-    assert!(
-        (dist3(centre, mid) / k - want).abs() < 1e-3,
-        "object at {} m",
-        dist3(centre, mid) / k
-    );
+    assert!((dist3(centre, mid) / k - want).abs() < 1e-3, "object at {} m", dist3(centre, mid) / k);
     // Moving the headset 30 cm right and 20 cm back moves both eyes by that, as placed.
     let cams1 = check_eyes(&r["moved"], &asset, "moved");
     let d = place_dir(place, [0.3, 0.0, 0.2]).map(|x| x * k);
     for (a, b_) in cams0.iter().zip(&cams1) {
         let moved = [0, 1, 2].map(|i| eye_pos(b_)[i] - eye_pos(a)[i]);
-        assert!(
-            dist3(moved, d) / k < 1e-3,
-            "eye moved {:?}, expected {:?}",
-            moved,
-            d
-        );
+        assert!(dist3(moved, d) / k < 1e-3, "eye moved {:?}, expected {:?}", moved, d);
     }
     // Turning the head 90 degrees left: both eyes look along local-floor -x.
     let cams2 = check_eyes(&r["turned"], &asset, "turned");
     let left = place_dir(place, [-1.0, 0.0, 0.0]);
     for c in &cams2 {
         let fwd = [0, 1, 2].map(|i| -c.c2w[i][2] as f64);
-        assert!(
-            dist3(fwd, left) < 1e-3,
-            "forward {:?}, expected {:?}",
-            fwd,
-            left
-        );
+        assert!(dist3(fwd, left) < 1e-3, "forward {:?}, expected {:?}", fwd, left);
     }
-    assert!(
-        r["turned"]["posesSent"].as_u64().unwrap() > before["posesSent"].as_u64().unwrap(),
-        "head poses go to the server"
-    );
+    assert!(r["turned"]["posesSent"].as_u64().unwrap() > before["posesSent"].as_u64().unwrap(), "head poses go to the server");
     // The left thumbstick pushed forward walks the user where the head looks (-x).
     let p0 = vec3(&r["turned"]["rig"]["p"]);
     let p1 = vec3(&r["walked"]["rig"]["p"]);
@@ -841,39 +586,18 @@ fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_
     assert!(len > 0.05 && -step[0] / len > 0.999, "walked {:?}", step);
     let cams3 = check_eyes(&r["walked"], &asset, "walked");
     let moved = [0, 1, 2].map(|i| eye_pos(&cams3[0])[i] - eye_pos(&cams2[0])[i]);
-    assert!(
-        dist3(moved, place_dir(place, step).map(|x| x * k)) / k < 1e-3,
-        "the eyes follow the walk"
-    );
+    assert!(dist3(moved, place_dir(place, step).map(|x| x * k)) / k < 1e-3, "the eyes follow the walk");
     // The right thumbstick snaps the turn by 30 degrees, once per push, about the head.
-    let (y0, y1) = (
-        r["walked"]["rig"]["yaw"].as_f64().unwrap(),
-        r["snapped"]["rig"]["yaw"].as_f64().unwrap(),
-    );
-    assert!(
-        (y1 - y0 + std::f64::consts::FRAC_PI_6).abs() < 1e-6,
-        "snap turn {} -> {}",
-        y0,
-        y1
-    );
+    let (y0, y1) = (r["walked"]["rig"]["yaw"].as_f64().unwrap(), r["snapped"]["rig"]["yaw"].as_f64().unwrap());
+    assert!((y1 - y0 + std::f64::consts::FRAC_PI_6).abs() < 1e-6, "snap turn {} -> {}", y0, y1);
     let cams4 = check_eyes(&r["snapped"], &asset, "snapped");
-    let mid = |c: &[snerf_asset::Camera]| {
-        [0, 1, 2].map(|i| (eye_pos(&c[0])[i] + eye_pos(&c[1])[i]) / 2.0)
-    };
-    assert!(
-        dist3(mid(&cams3), mid(&cams4)) / k < 1e-3,
-        "the head stays put through a snap turn"
-    );
+    let mid = |c: &[snerf_asset::Camera]| [0, 1, 2].map(|i| (eye_pos(&c[0])[i] + eye_pos(&c[1])[i]) / 2.0);
+    assert!(dist3(mid(&cams3), mid(&cams4)) / k < 1e-3, "the head stays put through a snap turn");
     // Grip held while the hand rises 20 cm: the scene rises with it (the eyes sink in it).
     let cams5 = check_eyes(&r["gripped"], &asset, "gripped");
     let moved = [0, 1, 2].map(|i| mid(&cams5)[i] - mid(&cams4)[i]);
     let want = place_dir(place, [0.0, -0.2, 0.0]).map(|x| x * k);
-    assert!(
-        dist3(moved, want) / k < 0.01,
-        "grip drag moved the eyes {:?}, expected {:?}",
-        moved,
-        want
-    );
+    assert!(dist3(moved, want) / k < 0.01, "grip drag moved the eyes {:?}, expected {:?}", moved, want);
     assert!(h.stats().pose_updates.load(Ordering::Relaxed) > 0);
     h.shutdown();
 }
@@ -883,13 +607,7 @@ fn immersive_mode_on_an_emulated_quest_3_draws_both_eyes_like_the_cpu_reference_
 /// viewer, all the same size.
 fn inside_asset() -> Asset {
     let mut asset = kind_asset(snerf_asset::Kind::Unbounded, 96, 8, 0.5, 12);
-    asset.header.view = Some(snerf_geometry::camera::Orbit::Around {
-        center: [0.0; 3],
-        up: [0.0, 1.0, 0.0],
-        start: [0.0, 0.0, 1.0],
-        radius: 0.3,
-        elevation: 0.0,
-    });
+    asset.header.view = Some(snerf_geometry::camera::Orbit::Around { center: [0.0; 3], up: [0.0, 1.0, 0.0], start: [0.0, 0.0, 1.0], radius: 0.3, elevation: 0.0 });
     asset
 }
 
@@ -901,9 +619,7 @@ fn in_cone(blk: &snerf_stream::plan::BlkEntry, p: &snerf_stream::Pose) -> bool {
     if ld <= blk.radius as f64 {
         return true;
     }
-    let ang = ((d[0] * f[0] + d[1] * f[1] + d[2] * f[2]) / (ld * lf))
-        .clamp(-1.0, 1.0)
-        .acos();
+    let ang = ((d[0] * f[0] + d[1] * f[1] + d[2] * f[2]) / (ld * lf)).clamp(-1.0, 1.0).acos();
     ang - (blk.radius as f64 / ld).min(1.0).asin() <= (p.fov_deg as f64 / 2.0).to_radians() + 1e-4
 }
 
@@ -914,87 +630,33 @@ fn the_blocks_in_view_arrive_first() {
     let state = TempDir::new("web-inview-state");
     let asset = inside_asset();
     let bytes = write_asset(&asset, dir.path(), "around");
-    let limits = Limits {
-        send_budget: 64 * 1024,
-        max_streams: 1,
-        batch_bytes: 16 * 1024,
-        log_sends: true,
-        ..Limits::default()
-    };
+    let limits = Limits { send_budget: 64 * 1024, max_streams: 1, batch_bytes: 16 * 1024, log_sends: true, ..Limits::default() };
     let h = start_with(dir.path(), state.path(), limits);
     // Inside the scene looking down -z: the page sends this pose in its hello.
-    let cam = snerf_asset::Camera::from_fov(
-        [
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.3],
-        ],
-        48,
-        48,
-        60.0,
-    );
-    let url = format!(
-        "{}#{}",
-        h.web().unwrap().url(),
-        fragment(&[
-            ("token", h.token()),
-            ("asset", "around"),
-            ("cam", &cam_json(&cam))
-        ])
-    );
+    let cam = snerf_asset::Camera::from_fov([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.3]], 48, 48, 60.0);
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "around"), ("cam", &cam_json(&cam))]));
     let r = page(&b, &[&url, "done"]);
     assert_eq!(r["error"], serde_json::Value::Null, "{}", r["error"]);
     let served = snerf_stream::plan::ServedAsset::from_bytes("around", dir.path(), bytes).unwrap();
     let log = h.stats().send_log.lock().unwrap().clone();
-    let pose = log[0]
-        .pose
-        .expect("the first batch was ordered for the hello's pose");
-    assert!(
-        pose.forward[2] < -0.99 && (pose.fov_deg - 60.0).abs() < 0.5,
-        "{:?}",
-        pose
-    );
-    let needed: std::collections::HashSet<u32> = served
-        .blks
-        .iter()
-        .filter(|b| in_cone(b, &pose))
-        .map(|b| b.chunk)
-        .collect();
-    assert!(
-        needed.len() >= 4 && needed.len() * 3 < served.blks.len(),
-        "{} of {} blocks in view",
-        needed.len(),
-        served.blks.len()
-    );
+    let pose = log[0].pose.expect("the first batch was ordered for the hello's pose");
+    assert!(pose.forward[2] < -0.99 && (pose.fov_deg - 60.0).abs() < 0.5, "{:?}", pose);
+    let needed: std::collections::HashSet<u32> = served.blks.iter().filter(|b| in_cone(b, &pose)).map(|b| b.chunk).collect();
+    assert!(needed.len() >= 4 && needed.len() * 3 < served.blks.len(), "{} of {} blocks in view", needed.len(), served.blks.len());
     // What the page received (chunk indices), stream by stream in the order it accepted the
     // streams, in order within each: the first |needed| are exactly those in view. (The page
     // reads streams concurrently, so where two are in flight their records may be applied
     // interleaved: the order blocks were applied can swap a batch's last block with the
     // next batch's first.)
-    let applied: Vec<u32> = r["arrivals"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_u64().unwrap() as u32)
-        .collect();
-    let streams: Vec<u64> = r["arrivalStreams"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_u64().unwrap())
-        .collect();
+    let applied: Vec<u32> = r["arrivals"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap() as u32).collect();
+    let streams: Vec<u64> = r["arrivalStreams"].as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect();
     assert_eq!(applied.len(), served.blks.len());
     assert_eq!(streams.len(), applied.len());
-    let mut by_stream: Vec<(u64, u32)> = streams
-        .iter()
-        .copied()
-        .zip(applied.iter().copied())
-        .collect();
+    let mut by_stream: Vec<(u64, u32)> = streams.iter().copied().zip(applied.iter().copied()).collect();
     by_stream.sort_by_key(|a| a.0); // stable: keeps the order within a stream
     let arrivals: Vec<u32> = by_stream.iter().map(|a| a.1).collect();
     let first: std::collections::HashSet<u32> = arrivals[..needed.len()].iter().copied().collect();
-    let first_applied: std::collections::HashSet<u32> =
-        applied[..needed.len()].iter().copied().collect();
+    let first_applied: std::collections::HashSet<u32> = applied[..needed.len()].iter().copied().collect();
     eprintln!(
         "{} of {} blocks in view; the first {} received: {} of them in view ({} of the first applied)",
         needed.len(),
@@ -1007,15 +669,10 @@ fn the_blocks_in_view_arrive_first() {
         // Which side reordered: the server's send order, and the poses its batches were
         // ordered for (a later pose than the hello's would reorder what is left).
         let sent: Vec<u32> = log.iter().flat_map(|b| b.chunks.iter().copied()).collect();
-        let sent_first: std::collections::HashSet<u32> =
-            sent.iter().take(needed.len()).copied().collect();
+        let sent_first: std::collections::HashSet<u32> = sent.iter().take(needed.len()).copied().collect();
         let mut poses: Vec<String> = log.iter().map(|b| format!("{:?}", b.pose)).collect();
         poses.dedup();
-        eprintln!(
-            "server sent {} in view among its first {}; batch poses: {poses:?}",
-            sent_first.intersection(&needed).count(),
-            needed.len()
-        );
+        eprintln!("server sent {} in view among its first {}; batch poses: {poses:?}", sent_first.intersection(&needed).count(), needed.len());
     }
     assert_eq!(first, needed);
     h.shutdown();
@@ -1043,28 +700,16 @@ fn the_head_pose_reorders_what_the_server_sends_next() {
         ..Limits::default()
     };
     let h = start_with(dir.path(), state.path(), limits);
-    let url = format!(
-        "{}#{}",
-        h.web().unwrap().url(),
-        fragment(&[("token", h.token()), ("asset", "around")])
-    );
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "around")]));
     let r = xr_page(&b, &url, &["192", "96", "early"]);
     eprintln!("{}", r);
     assert_eq!(r["end"]["state"], "done", "{}", r);
     assert_eq!(r["end"]["xr"]["error"], serde_json::Value::Null);
     let served = snerf_stream::plan::ServedAsset::from_bytes("around", dir.path(), bytes).unwrap();
-    let chunk_block: std::collections::HashMap<u32, usize> = served
-        .blks
-        .iter()
-        .enumerate()
-        .map(|(i, b)| (b.chunk, i))
-        .collect();
+    let chunk_block: std::collections::HashMap<u32, usize> = served.blks.iter().enumerate().map(|(i, b)| (b.chunk, i)).collect();
     let in_cone = |p: &snerf_stream::Pose, c: u32| in_cone(&served.blks[chunk_block[&c]], p);
     let log = h.stats().send_log.lock().unwrap().clone();
-    let with_pose: Vec<_> = log
-        .iter()
-        .filter_map(|b| b.pose.map(|p| (p, b.chunks.clone())))
-        .collect();
+    let with_pose: Vec<_> = log.iter().filter_map(|b| b.pose.map(|p| (p, b.chunks.clone()))).collect();
     assert!(!with_pose.is_empty(), "no batch was ordered for a pose");
     let mut seen: Vec<[f32; 3]> = Vec::new();
     for (p, _) in &with_pose {
@@ -1072,83 +717,31 @@ fn the_head_pose_reorders_what_the_server_sends_next() {
             seen.push(p.forward);
         }
     }
-    eprintln!(
-        "forwards the batches were ordered for: {:?}; {} pose updates, {} bad datagrams",
-        seen,
-        h.stats().pose_updates.load(Ordering::Relaxed),
-        h.stats().bad_datagrams.load(Ordering::Relaxed)
-    );
+    eprintln!("forwards the batches were ordered for: {:?}; {} pose updates, {} bad datagrams", seen, h.stats().pose_updates.load(Ordering::Relaxed), h.stats().bad_datagrams.load(Ordering::Relaxed));
     // The first batch ordered for the turned-around head: the last forward, reversed from
     // the one before it (the flat page's pose comes first, then the XR head's).
     assert!(seen.len() >= 2, "the head pose never changed the order");
     let (fa, fb) = (seen[seen.len() - 2], seen[seen.len() - 1]);
     let d: f32 = (0..3).map(|i| fa[i] * fb[i]).sum();
-    assert!(
-        d < -0.9,
-        "the last two forwards {:?} -> {:?} are not a turn around",
-        fa,
-        fb
-    );
+    assert!(d < -0.9, "the last two forwards {:?} -> {:?} are not a turn around", fa, fb);
     let turned = with_pose.iter().position(|(p, _)| p.forward == fb).unwrap();
     let pose = with_pose[turned].0;
     // Every block still unsent at the turn that the new view needs...
-    let sent_before: std::collections::HashSet<u32> = log
-        .iter()
-        .take_while(|b| b.pose.is_none_or(|p| p.forward != pose.forward))
-        .flat_map(|b| b.chunks.clone())
-        .collect();
-    let needed: Vec<u32> = served
-        .blks
-        .iter()
-        .map(|b| b.chunk)
-        .filter(|c| !sent_before.contains(c) && in_cone(&pose, *c))
-        .collect();
-    let all_in = served
-        .blks
-        .iter()
-        .filter(|b| in_cone(&pose, b.chunk))
-        .count();
-    eprintln!(
-        "turned pose {:?}: {} blocks in its cone of {}, {} sent before",
-        pose,
-        all_in,
-        served.blks.len(),
-        sent_before.len()
-    );
-    let after: Vec<u32> = with_pose[turned..]
-        .iter()
-        .flat_map(|(_, c)| c.clone())
-        .collect();
-    eprintln!(
-        "{} batches before the turn, {} blocks the turned view needs, {} sent after",
-        turned,
-        needed.len(),
-        after.len()
-    );
-    assert!(
-        needed.len() >= 4,
-        "the turned view needs too few unsent blocks ({}) to tell",
-        needed.len()
-    );
+    let sent_before: std::collections::HashSet<u32> = log.iter().take_while(|b| b.pose.is_none_or(|p| p.forward != pose.forward)).flat_map(|b| b.chunks.clone()).collect();
+    let needed: Vec<u32> = served.blks.iter().map(|b| b.chunk).filter(|c| !sent_before.contains(c) && in_cone(&pose, *c)).collect();
+    let all_in = served.blks.iter().filter(|b| in_cone(&pose, b.chunk)).count();
+    eprintln!("turned pose {:?}: {} blocks in its cone of {}, {} sent before", pose, all_in, served.blks.len(), sent_before.len());
+    let after: Vec<u32> = with_pose[turned..].iter().flat_map(|(_, c)| c.clone()).collect();
+    eprintln!("{} batches before the turn, {} blocks the turned view needs, {} sent after", turned, needed.len(), after.len());
+    assert!(needed.len() >= 4, "the turned view needs too few unsent blocks ({}) to tell", needed.len());
     // ...is sent next, before any block it does not need.
     let next: std::collections::HashSet<u32> = after.iter().take(needed.len()).copied().collect();
     let hits = needed.iter().filter(|c| next.contains(c)).count();
-    assert_eq!(
-        hits,
-        needed.len(),
-        "of the next {} blocks sent, only {} are in the turned view",
-        needed.len(),
-        hits
-    );
+    assert_eq!(hits, needed.len(), "of the next {} blocks sent, only {} are in the turned view", needed.len(), hits);
     // And the turn mattered: most of those blocks were not in the view before the turn.
     let first = with_pose[turned - 1].0;
     let also_before = needed.iter().filter(|&&c| in_cone(&first, c)).count();
-    assert!(
-        also_before * 2 < needed.len(),
-        "{} of {} were in view before the turn too",
-        also_before,
-        needed.len()
-    );
+    assert!(also_before * 2 < needed.len(), "{} of {} were in view before the turn too", also_before, needed.len());
     h.shutdown();
 }
 
@@ -1160,58 +753,28 @@ fn traversal_names_and_malformed_messages_are_refused_while_another_page_downloa
     let asset = static_asset(64, 8, 0.95, 9);
     let bytes = write_asset(&asset, dir.path(), "scene");
     // Paced so the download is still running while the probes come and go.
-    let limits = Limits {
-        max_rate: Some(1.0e6),
-        ..Limits::default()
-    };
+    let limits = Limits { max_rate: Some(1.0e6), ..Limits::default() };
     let h = start_with(dir.path(), state.path(), limits);
     let web = h.web().unwrap().url();
-    let download = format!(
-        "{}#{}",
-        web,
-        fragment(&[("token", h.token()), ("asset", "scene")])
-    );
+    let download = format!("{}#{}", web, fragment(&[("token", h.token()), ("asset", "scene")]));
     let probe = format!("{}#{}", web, fragment(&[("token", h.token())]));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/refuse.mjs");
-    let out = Command::new(&b.0)
-        .arg(&script)
-        .arg(b.2.join("../.."))
-        .args([&download, &probe, h.token()])
-        .env("SNERF_CHROMIUM", &b.1)
-        .output()
-        .unwrap();
+    let out = Command::new(&b.0).arg(&script).arg(b.2.join("../..")).args([&download, &probe, h.token()]).env("SNERF_CHROMIUM", &b.1).output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "refuse.mjs failed: {stderr}");
-    let r: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
     for p in r["probes"].as_array().unwrap() {
         eprintln!("{}: {}", p["name"], p["closed"]);
         assert_eq!(p["connected"], true, "{p}");
-        assert_eq!(
-            (p["dataStreams"].as_u64(), p["dataBytes"].as_u64()),
-            (Some(0), Some(0)),
-            "{p}: data was sent"
-        );
-        assert!(
-            !p["control"].as_str().unwrap().contains("welcome"),
-            "{p}: welcomed"
-        );
-        assert!(
-            p["closed"].as_str().unwrap() != "still open",
-            "{p}: the session stayed open"
-        );
+        assert_eq!((p["dataStreams"].as_u64(), p["dataBytes"].as_u64()), (Some(0), Some(0)), "{p}: data was sent");
+        assert!(!p["control"].as_str().unwrap().contains("welcome"), "{p}: welcomed");
+        assert!(p["closed"].as_str().unwrap() != "still open", "{p}: the session stayed open");
     }
     // The other page's download finished, byte for byte, and got every byte the server sent.
     let d = &r["download"];
     assert_eq!(d["state"], "done", "{d}");
-    assert_eq!(
-        d["sha256"],
-        snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str()
-    );
-    assert_eq!(
-        h.stats().bytes_sent.load(Ordering::Relaxed),
-        d["bytes"].as_u64().unwrap()
-    );
+    assert_eq!(d["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
+    assert_eq!(h.stats().bytes_sent.load(Ordering::Relaxed), d["bytes"].as_u64().unwrap());
     assert!(h.stats().bad_datagrams.load(Ordering::Relaxed) <= 1);
     assert!(h.stats().protocol_errors.load(Ordering::Relaxed) >= 3);
     assert!(h.stats().unauthorized.load(Ordering::Relaxed) >= 1);
@@ -1225,14 +788,7 @@ fn the_generated_certificate_is_rotated_and_pages_keep_connecting() {
     let state = TempDir::new("web-rotate-state");
     let asset = static_asset(16, 8, 0.9, 5);
     let bytes = write_asset(&asset, dir.path(), "scene");
-    let h = start_with(
-        dir.path(),
-        state.path(),
-        Limits {
-            web_cert_rotate: std::time::Duration::from_millis(3000),
-            ..Limits::default()
-        },
-    );
+    let h = start_with(dir.path(), state.path(), Limits { web_cert_rotate: std::time::Duration::from_millis(3000), ..Limits::default() });
     // Rotation every 3 s. A rotation between the page's read of /config.json and its handshake
     // fails that handshake; the page then reads the new hash and tries again (up to 3 times),
     // which is what this test exercises whenever a rotation lands in that window.
@@ -1248,30 +804,14 @@ fn the_generated_certificate_is_rotated_and_pages_keep_connecting() {
     // /config.json hands out the new hash, and a page connects with it.
     let host = format!("127.0.0.1:{}", web.addr.port());
     let rt = runtime();
-    let cfg = rt.block_on(get(
-        rt.block_on(tokio::net::TcpStream::connect(web.addr))
-            .unwrap(),
-        &host,
-        "/config.json",
-    ));
-    let cfg: serde_json::Value =
-        serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
+    let cfg = rt.block_on(get(rt.block_on(tokio::net::TcpStream::connect(web.addr)).unwrap(), &host, "/config.json"));
+    let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
     assert_ne!(cfg["cert_hash"].as_str().unwrap(), first);
-    let url = format!(
-        "{}#{}",
-        web.url(),
-        fragment(&[("token", h.token()), ("asset", "scene")])
-    );
+    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene")]));
     let r = page(&b, &[&url, "done"]);
-    eprintln!(
-        "handshakes retried after a rotation: {}",
-        r["rotationRetries"]
-    );
+    eprintln!("handshakes retried after a rotation: {}", r["rotationRetries"]);
     assert_eq!(r["error"], serde_json::Value::Null, "{}", r["error"]);
-    assert_eq!(
-        r["sha256"],
-        snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str()
-    );
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
     h.shutdown();
 }
 
@@ -1283,20 +823,9 @@ fn a_page_resumes_when_the_server_restarts_mid_stream() {
     let asset = static_asset(64, 8, 0.95, 9);
     let bytes = write_asset(&asset, dir.path(), "scene");
     // Paced, so the server can be stopped with part of the asset sent.
-    let a = start_with(
-        dir.path(),
-        state.path(),
-        Limits {
-            max_rate: Some(3.0e5),
-            ..Limits::default()
-        },
-    );
+    let a = start_with(dir.path(), state.path(), Limits { max_rate: Some(3.0e5), ..Limits::default() });
     let web = a.web().unwrap().clone();
-    let url = format!(
-        "{}#{}",
-        web.url(),
-        fragment(&[("token", a.token()), ("asset", "scene")])
-    );
+    let url = format!("{}#{}", web.url(), fragment(&[("token", a.token()), ("asset", "scene")]));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/page.mjs");
     let child = Command::new(&b.0)
         .arg(&script)
@@ -1323,34 +852,20 @@ fn a_page_resumes_when_the_server_restarts_mid_stream() {
     let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "page.mjs failed: {stderr}");
-    let r: serde_json::Value =
-        serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
+    let r: serde_json::Value = serde_json::from_str(String::from_utf8_lossy(&out.stdout).trim()).unwrap();
     assert_eq!(r["error"], serde_json::Value::Null, "{}", r["error"]);
-    assert_eq!(
-        r["sha256"],
-        snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str()
-    );
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
     assert!(r["resumes"].as_u64().unwrap() >= 1, "{}", r["resumes"]);
     assert_eq!(r["lastResume"]["resumed"], true);
     // The second server sends exactly the chunks the page did not hold when it resumed. (What
     // the first server wrote is not what the page holds: records still in flight, or not yet
     // read off their stream by a busy page, die with the first session.)
     let sent_b = bsrv.stats().bytes_sent.load(Ordering::Relaxed);
-    let (held, sending) = (
-        r["lastResume"]["held"].as_u64().unwrap(),
-        r["lastResume"]["sending_chunks"].as_u64().unwrap(),
-    );
+    let (held, sending) = (r["lastResume"]["held"].as_u64().unwrap(), r["lastResume"]["sending_chunks"].as_u64().unwrap());
     let chunks = r["asset"]["chunks"].as_u64().unwrap();
     eprintln!("first server sent {sent_a} bytes, the second {sent_b}, of {}; the page held {held} of {chunks} chunks and was sent {sending}", bytes.len());
     assert!(held >= 1, "the page held nothing when it resumed");
-    assert_eq!(
-        held + sending,
-        chunks,
-        "the second server did not send only the rest"
-    );
-    assert!(
-        sent_b < bytes.len() as u64,
-        "the second server sent {sent_b} bytes: the whole asset"
-    );
+    assert_eq!(held + sending, chunks, "the second server did not send only the rest");
+    assert!(sent_b < bytes.len() as u64, "the second server sent {sent_b} bytes: the whole asset");
     bsrv.shutdown();
 }

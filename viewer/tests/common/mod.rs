@@ -354,9 +354,7 @@ impl Drop for Xvfb {
         if let Some(c) = self.0.as_mut() {
             // SIGTERM first: Xvfb then removes its lock file and socket. Killed outright it
             // leaves both behind, and every later run has one display number fewer to use.
-            let _ = Command::new("kill")
-                .args(["-TERM", &c.id().to_string()])
-                .status();
+            let _ = Command::new("kill").args(["-TERM", &c.id().to_string()]).status();
             let t0 = Instant::now();
             while t0.elapsed() < Duration::from_secs(3) {
                 if let Ok(Some(_)) = c.try_wait() {
@@ -408,10 +406,7 @@ pub fn display() -> Option<Xvfb> {
         // display taken after all) means the next number.
         let mut exited = false;
         while t0.elapsed() < Duration::from_secs(30) {
-            if x.0
-                .as_mut()
-                .is_some_and(|c| matches!(c.try_wait(), Ok(Some(_))))
-            {
+            if x.0.as_mut().is_some_and(|c| matches!(c.try_wait(), Ok(Some(_)))) {
                 exited = true;
                 break;
             }

@@ -21,11 +21,7 @@ pub fn sphere_voxel(h: &Header, v: [usize; 3], frame: usize) -> [u8; 8] {
     let cell = v.map(|i| i / BLOCK as usize);
     let changing = cell[0] >= 2 && frame > 0;
     let tint = if changing { 0.3 * frame as f32 } else { 0.0 };
-    let rgb = [
-        0.2 + 0.2 * cell[0] as f32,
-        0.1 + 0.25 * cell[1] as f32,
-        (0.15 * cell[2] as f32 + tint).min(1.0),
-    ];
+    let rgb = [0.2 + 0.2 * cell[0] as f32, 0.1 + 0.25 * cell[1] as f32, (0.15 * cell[2] as f32 + tint).min(1.0)];
     encode_voxel(logit, rgb, [0.1, 0.2, 0.3, 0.4], &h.density)
 }
 
@@ -47,11 +43,7 @@ pub fn sphere_header(dynamic: bool) -> Header {
     h.background = [0.0, 0.0, 0.0];
     if dynamic {
         h.time_range = Some([0.0, 2.0]);
-        h.frames = Some(vec![
-            Keyframe { time: 0.0 },
-            Keyframe { time: 1.0 },
-            Keyframe { time: 2.0 },
-        ]);
+        h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }, Keyframe { time: 2.0 }]);
     }
     h
 }

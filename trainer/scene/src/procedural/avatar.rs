@@ -4,11 +4,11 @@
 
 use super::{rgb, Built, Content};
 use crate::math::{fbm, smoothstep};
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
 use crate::SceneKind;
-use glam::{vec3, Mat4, Vec3};
 use std::f32::consts::{FRAC_PI_2, TAU};
 
 /// Expression at time t: (mouth open, eye closure, brow raise), each in [0, 1].

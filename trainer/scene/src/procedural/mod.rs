@@ -6,9 +6,9 @@ pub mod outdoor;
 pub mod room;
 pub mod shapes;
 
+use glam::Vec3;
 use crate::mesh::{Geometry, Look};
 use crate::SceneKind;
-use glam::Vec3;
 
 /// Geometry for one time t in [0, 1].
 pub type Animate = Box<dyn Fn(f32) -> anyhow::Result<Geometry> + Send + Sync>;

@@ -3,11 +3,11 @@
 
 use super::{rgb, Built};
 use crate::math::fbm;
+use glam::{vec3, Mat4};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
 use crate::SceneKind;
-use glam::{vec3, Mat4};
 
 pub fn build() -> Built {
     let mut look = Look::new(Background::Transparent);
@@ -78,18 +78,15 @@ pub fn build() -> Built {
     let mut g = Geometry::default();
     g.append(
         &shapes::sphere(48, 24, m_sphere),
-        &(Mat4::from_translation(vec3(-0.4, 0.35, 0.25))
-            * Mat4::from_scale(vec3(0.55, 0.55, 0.55))),
+        &(Mat4::from_translation(vec3(-0.4, 0.35, 0.25)) * Mat4::from_scale(vec3(0.55, 0.55, 0.55))),
     );
     g.append(
         &shapes::cuboid(vec3(0.35, 0.35, 0.35), m_box, 1.0),
-        &(Mat4::from_translation(vec3(0.45, -0.55, 0.3))
-            * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), 0.5)),
+        &(Mat4::from_translation(vec3(0.45, -0.55, 0.3)) * Mat4::from_axis_angle(vec3(0.0, 1.0, 0.0), 0.5)),
     );
     g.append(
         &shapes::torus(0.5, 0.14, 64, 16, m_torus, [1.0, 1.0]),
-        &(Mat4::from_translation(vec3(0.3, 0.35, -0.3))
-            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.3).normalize(), 0.7)),
+        &(Mat4::from_translation(vec3(0.3, 0.35, -0.3)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.3).normalize(), 0.7)),
     );
     g.append(
         &shapes::cylinder(0.3, 0.8, 40, m_cyl, true, [2.0, 1.0]),

@@ -4,11 +4,11 @@
 
 use super::{rgb, Built};
 use crate::math::{fbm, smoothstep, Rng};
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
 use crate::SceneKind;
-use glam::{vec3, Mat4, Vec3};
 
 pub const GROUND_Y: f32 = -1.0;
 
@@ -127,8 +127,7 @@ pub fn build(seed: u64) -> Built {
     );
     g.append(
         &shapes::torus(0.62, 0.06, 64, 12, m_bronze, [1.0, 1.0]),
-        &(Mat4::from_translation(vec3(0.0, 0.45, 0.0))
-            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.5).normalize(), 0.9)),
+        &(Mat4::from_translation(vec3(0.0, 0.45, 0.0)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.5).normalize(), 0.9)),
     );
 
     let mut rng = Rng::new(seed ^ 0x0u64.wrapping_add(4242));
@@ -172,10 +171,7 @@ pub fn build(seed: u64) -> Built {
         look,
         g,
         SceneKind::Unbounded,
-        [
-            vec3(-4.0, GROUND_Y - 0.1, -4.0),
-            vec3(4.0, GROUND_Y + 3.9, 4.0),
-        ],
+        [vec3(-4.0, GROUND_Y - 0.1, -4.0), vec3(4.0, GROUND_Y + 3.9, 4.0)],
         60f32.to_radians(),
     )
 }

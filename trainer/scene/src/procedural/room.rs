@@ -4,11 +4,11 @@
 
 use super::{rgb, Built};
 use crate::math::fbm;
+use glam::{vec3, Mat4, Vec3};
 use crate::mesh::{Background, Geometry, Look, Material};
 use crate::procedural::shapes;
 use crate::texture::{Texture, Wrap};
 use crate::SceneKind;
-use glam::{vec3, Mat4, Vec3};
 use std::f32::consts::FRAC_PI_2;
 
 fn black_sky(_: Vec3) -> [f32; 3] {
@@ -113,23 +113,19 @@ pub fn build() -> Built {
     );
     g.append(
         &shapes::grid(hx, hz, 6, 9, m_ceiling, 0.5),
-        &(Mat4::from_translation(vec3(cx, y1, cz))
-            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), std::f32::consts::PI)),
+        &(Mat4::from_translation(vec3(cx, y1, cz)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), std::f32::consts::PI)),
     );
     g.append(
         &shapes::grid(hx, hy, 6, 4, m_wall, 0.5),
-        &(Mat4::from_translation(vec3(cx, cy, z0))
-            * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(cx, cy, z0)) * Mat4::from_axis_angle(vec3(1.0, 0.0, 0.0), FRAC_PI_2)),
     );
     g.append(
         &shapes::grid(hy, hz, 4, 9, m_side, 0.4),
-        &(Mat4::from_translation(vec3(x0, cy, cz))
-            * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), -FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(x0, cy, cz)) * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), -FRAC_PI_2)),
     );
     g.append(
         &shapes::grid(hy, hz, 4, 9, m_side, 0.4),
-        &(Mat4::from_translation(vec3(x1, cy, cz))
-            * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), FRAC_PI_2)),
+        &(Mat4::from_translation(vec3(x1, cy, cz)) * Mat4::from_axis_angle(vec3(0.0, 0.0, 1.0), FRAC_PI_2)),
     );
 
     // Picture on the back wall.
@@ -156,8 +152,7 @@ pub fn build() -> Built {
     }
     g.append(
         &shapes::sphere(24, 12, m_vase),
-        &(Mat4::from_translation(vec3(tx + 0.4, ty + 0.3, tz))
-            * Mat4::from_scale(vec3(0.18, 0.26, 0.18))),
+        &(Mat4::from_translation(vec3(tx + 0.4, ty + 0.3, tz)) * Mat4::from_scale(vec3(0.18, 0.26, 0.18))),
     );
     g.append(
         &shapes::cuboid(vec3(0.2, 0.05, 0.14), m_book, 1.0),

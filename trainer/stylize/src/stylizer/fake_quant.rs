@@ -66,13 +66,11 @@ impl EvalOp for FakeQuantI8 {
         {
             let mut view = output.try_as_plain_ram_mut()?;
             let ys = view.as_slice_mut::<f32>()?;
-            ys.par_chunks_mut(CHUNK)
-                .zip(xs.par_chunks(CHUNK))
-                .for_each(|(ys, xs)| {
-                    for (y, x) in ys.iter_mut().zip(xs) {
-                        *y = self.apply(*x);
-                    }
-                });
+            ys.par_chunks_mut(CHUNK).zip(xs.par_chunks(CHUNK)).for_each(|(ys, xs)| {
+                for (y, x) in ys.iter_mut().zip(xs) {
+                    *y = self.apply(*x);
+                }
+            });
         }
         Ok(tvec!(output.into_tvalue()))
     }
@@ -100,27 +98,16 @@ pub fn fuse_fake_quant(mut model: TypedModel) -> TractResult<(TypedModel, usize)
     let mut fused = 0;
     for id in candidates {
         let node = model.node(id);
-        let Some((q_scale, q_zero)) = quantize_i8(node) else {
-            continue;
-        };
+        let Some((q_scale, q_zero)) = quantize_i8(node) else { continue };
         if model.outlet_fact(node.inputs[0])?.datum_type != f32::datum_type() {
             continue;
         }
-        let Some(succ) = model.single_succ(id)? else {
-            continue;
-        };
-        let Some(dq) = succ.op_as::<DequantizeLinearF32>() else {
-            continue;
-        };
+        let Some(succ) = model.single_succ(id)? else { continue };
+        let Some(dq) = succ.op_as::<DequantizeLinearF32>() else { continue };
         if model.outputs.contains(&OutletId::new(id, 0)) {
             continue;
         }
-        let op = FakeQuantI8 {
-            q_scale,
-            q_zero,
-            dq_scale: dq.scale,
-            dq_zero: dq.zero_point,
-        };
+        let op = FakeQuantI8 { q_scale, q_zero, dq_scale: dq.scale, dq_zero: dq.zero_point };
         let patch = TypedModelPatch::fuse_with_next(&model, node, op)?;
         patch.apply(&mut model)?;
         fused += 1;

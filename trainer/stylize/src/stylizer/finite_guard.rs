@@ -23,14 +23,8 @@ impl Stylizer for FiniteGuard {
     fn stylize(&self, content: &Image) -> Result<Image> {
         let out = self.inner.stylize(content)?;
         let size = content.size_text();
-        if (out.width, out.height) != (content.width, content.height)
-            || out.data.len() != out.width * out.height * 3
-        {
-            bail!(
-                "stylizer {} returned a {} image for a {size} view",
-                self.name(),
-                out.size_text()
-            );
+        if (out.width, out.height) != (content.width, content.height) || out.data.len() != out.width * out.height * 3 {
+            bail!("stylizer {} returned a {} image for a {size} view", self.name(), out.size_text());
         }
         if let Some(bad) = out.data.iter().find(|v| !v.is_finite()) {
             let what = if bad.is_nan() { "NaN" } else { "Inf" };

@@ -43,11 +43,7 @@ pub fn load_style_image(path: &Path) -> Result<Image> {
         );
     }
     let img = decode(path, &bytes)?;
-    Ok(if img.width.max(img.height) > MAX_STYLE_SIDE {
-        fit_longer_side(&img, MAX_STYLE_SIDE)
-    } else {
-        img
-    })
+    Ok(if img.width.max(img.height) > MAX_STYLE_SIDE { fit_longer_side(&img, MAX_STYLE_SIDE) } else { img })
 }
 
 /// Loads any PNG (or JPEG) as an RGB `Image`, alpha composited over white.
@@ -60,11 +56,7 @@ pub fn image_from_png(path: &Path) -> Result<Image> {
 /// then renamed over `path`, so a crash never leaves a half-written file where a good one
 /// was.
 pub fn save_png(path: &Path, img: &Image) -> Result<()> {
-    let bytes: Vec<u8> = img
-        .data
-        .iter()
-        .map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8)
-        .collect();
+    let bytes: Vec<u8> = img.data.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8).collect();
     let buf = image::RgbImage::from_raw(img.width as u32, img.height as u32, bytes)
         .context("image data length does not match its size")?;
     let mut encoded = Vec::new();
@@ -85,31 +77,20 @@ fn reader(bytes: &[u8]) -> std::io::Result<ImageReader<Cursor<&[u8]>>> {
 fn probe_dimensions(path: &Path, bytes: &[u8]) -> Result<(usize, usize)> {
     let r = reader(bytes).with_context(|| format!("cannot read image {}", path.display()))?;
     if r.format().is_none() {
-        bail!(
-            "{} is not a PNG, JPEG or WebP image (unrecognised file header)",
-            path.display()
-        );
+        bail!("{} is not a PNG, JPEG or WebP image (unrecognised file header)", path.display());
     }
-    let (w, h) = r.into_dimensions().with_context(|| {
-        format!(
-            "image {} is corrupt (cannot read its header)",
-            path.display()
-        )
-    })?;
+    let (w, h) = r
+        .into_dimensions()
+        .with_context(|| format!("image {} is corrupt (cannot read its header)", path.display()))?;
     Ok((w as usize, h as usize))
 }
 
 fn decode(path: &Path, bytes: &[u8]) -> Result<Image> {
     let r = reader(bytes).with_context(|| format!("cannot read image {}", path.display()))?;
     if r.format().is_none() {
-        bail!(
-            "{} is not a PNG, JPEG or WebP image (unrecognised file header)",
-            path.display()
-        );
+        bail!("{} is not a PNG, JPEG or WebP image (unrecognised file header)", path.display());
     }
-    let dynamic = r
-        .decode()
-        .with_context(|| format!("image {} is corrupt or truncated", path.display()))?;
+    let dynamic = r.decode().with_context(|| format!("image {} is corrupt or truncated", path.display()))?;
     Ok(to_rgb_on_white(&dynamic))
 }
 
@@ -124,9 +105,5 @@ fn to_rgb_on_white(img: &DynamicImage) -> Image {
             data.push((px[c] * a + (1.0 - a)).clamp(0.0, 1.0));
         }
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }

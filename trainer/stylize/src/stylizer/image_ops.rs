@@ -20,11 +20,7 @@ pub fn resize(img: &Image, width: usize, height: usize) -> Image {
     for v in &mut data {
         *v = v.clamp(0.0, 1.0);
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }
 
 /// Index into `0..n` after mirror reflection without repeating the edge (numpy's
@@ -55,11 +51,7 @@ pub fn reflect_pad(img: &Image, width: usize, height: usize) -> Image {
             data.extend_from_slice(&img.data[i..i + 3]);
         }
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }
 
 /// The `width x height` rectangle whose top-left corner is at (`x0`, `y0`).
@@ -70,11 +62,7 @@ pub fn crop(img: &Image, x0: usize, y0: usize, width: usize, height: usize) -> I
         let start = (y * img.width + x0) * 3;
         data.extend_from_slice(&img.data[start..start + width * 3]);
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }
 
 /// The largest centred square, resized to `side x side` (how the Magenta style network
@@ -118,27 +106,14 @@ pub fn from_chw(chw: &[f32], width: usize, height: usize) -> Image {
     for i in 0..n {
         data.extend_from_slice(&[chw[i], chw[n + i], chw[2 * n + i]]);
     }
-    Image {
-        width,
-        height,
-        data,
-    }
+    Image { width, height, data }
 }
 
 /// `(1 - t) * a + t * b`, per pixel; used for strength < 1 by the pixel-space stylizers.
 pub fn blend(a: &Image, b: &Image, t: f32) -> Image {
     assert_eq!((a.width, a.height), (b.width, b.height));
-    let data = a
-        .data
-        .iter()
-        .zip(&b.data)
-        .map(|(x, y)| x + t * (y - x))
-        .collect();
-    Image {
-        width: a.width,
-        height: a.height,
-        data,
-    }
+    let data = a.data.iter().zip(&b.data).map(|(x, y)| x + t * (y - x)).collect();
+    Image { width: a.width, height: a.height, data }
 }
 
 /// Clamps every value into [0, 1] (network outputs may overshoot slightly).
@@ -161,11 +136,7 @@ mod tests {
 
     #[test]
     fn chw_roundtrip() {
-        let img = Image {
-            width: 2,
-            height: 1,
-            data: vec![1., 2., 3., 4., 5., 6.],
-        };
+        let img = Image { width: 2, height: 1, data: vec![1., 2., 3., 4., 5., 6.] };
         let chw = to_chw(&img);
         assert_eq!(chw, vec![1., 4., 2., 5., 3., 6.]);
         assert_eq!(from_chw(&chw, 2, 1), img);

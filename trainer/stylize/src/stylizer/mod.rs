@@ -31,12 +31,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-pub use arbitrary::{
-    style_distance, ArbitraryStylizer, LargeViews, MagentaNets, StyleEmbedder, EMBEDDING_LEN,
-};
-pub use bench::{
-    bench_arbitrary, bench_onnxruntime, onnxruntime_script, synthetic_image, BenchResult,
-};
+pub use arbitrary::{style_distance, ArbitraryStylizer, LargeViews, MagentaNets, StyleEmbedder, EMBEDDING_LEN};
+pub use bench::{bench_arbitrary, bench_onnxruntime, onnxruntime_script, synthetic_image, BenchResult};
 pub use color::{color_transfer, mean_and_covariance, ColorStylizer};
 pub use fake_quant::{fuse_fake_quant, FakeQuantI8};
 pub use finite_guard::FiniteGuard;
@@ -65,11 +61,7 @@ impl Image {
         for _ in 0..width * height {
             data.extend_from_slice(&rgb);
         }
-        Image {
-            width,
-            height,
-            data,
-        }
+        Image { width, height, data }
     }
 
     /// Wraps `data`, checking that its length is `width * height * 3`.
@@ -81,11 +73,7 @@ impl Image {
                 width * height * 3
             );
         }
-        Ok(Image {
-            width,
-            height,
-            data,
-        })
+        Ok(Image { width, height, data })
     }
 
     /// The RGB value at column `x`, row `y`.
@@ -97,12 +85,8 @@ impl Image {
     /// Mean absolute per-channel difference to another image of the same size.
     pub fn mean_abs_diff(&self, other: &Image) -> f32 {
         assert_eq!((self.width, self.height), (other.width, other.height));
-        let sum: f64 = self
-            .data
-            .iter()
-            .zip(&other.data)
-            .map(|(a, b)| (a - b).abs() as f64)
-            .sum();
+        let sum: f64 =
+            self.data.iter().zip(&other.data).map(|(a, b)| (a - b).abs() as f64).sum();
         (sum / self.data.len().max(1) as f64) as f32
     }
 
@@ -164,10 +148,7 @@ impl StylizerOptions {
     /// Rejects a strength outside [0, 1] and zero sizes before any model is loaded.
     pub fn validate(&self) -> Result<()> {
         if !(0.0..=1.0).contains(&self.strength) {
-            bail!(
-                "style strength must be between 0 and 1, got {}",
-                self.strength
-            );
+            bail!("style strength must be between 0 and 1, got {}", self.strength);
         }
         if self.style_size < 16 || self.content_size < 16 {
             bail!(
@@ -187,11 +168,7 @@ onnx:FILE[?range=-1,1], gatys, color";
 /// Builds the stylizer named by `spec` for the style image `style` (needed by every spec
 /// except `preset:N` and `onnx:FILE`, which ignore it). The result refuses to return
 /// NaN/Inf pixels.
-pub fn from_spec(
-    spec: &str,
-    style: Option<&Path>,
-    opts: &StylizerOptions,
-) -> Result<Box<dyn Stylizer>> {
+pub fn from_spec(spec: &str, style: Option<&Path>, opts: &StylizerOptions) -> Result<Box<dyn Stylizer>> {
     opts.validate()?;
     let spec = spec.trim();
     let need_style = |what: &str| -> Result<Image> {
@@ -201,9 +178,10 @@ pub fn from_spec(
     let inner: Box<dyn Stylizer> = if spec.is_empty() || spec == "arbitrary" {
         Box::new(ArbitraryStylizer::new(&need_style("arbitrary")?, opts)?)
     } else if let Some(n) = spec.strip_prefix("preset:") {
-        let index: usize = n.trim().parse().with_context(|| {
-            format!("stylizer {spec}: the preset must be a number 0..{NUM_PRESETS}")
-        })?;
+        let index: usize = n
+            .trim()
+            .parse()
+            .with_context(|| format!("stylizer {spec}: the preset must be a number 0..{NUM_PRESETS}"))?;
         Box::new(PresetStylizer::new(index, opts)?)
     } else if let Some(rest) = spec.strip_prefix("onnx:") {
         let (file, range) = onnx_file::parse_file_and_range(rest)?;

@@ -53,9 +53,7 @@ pub fn models_dir(opts: &StylizerOptions) -> PathBuf {
         .filter(|d| !d.is_empty())
         .map(PathBuf::from)
         .unwrap_or_else(|| {
-            let home = std::env::var_os("HOME")
-                .map(PathBuf::from)
-                .unwrap_or_else(|| ".".into());
+            let home = std::env::var_os("HOME").map(PathBuf::from).unwrap_or_else(|| ".".into());
             home.join(".cache")
         });
     cache.join("snerf").join("models")
@@ -75,12 +73,7 @@ pub fn model_path(model: ModelFile, opts: &StylizerOptions) -> Result<PathBuf> {
 
 /// Checks that `path` exists and has SHA-256 `sha256` (once per process per path).
 pub fn verify_model_file(path: &Path, sha256: &str) -> Result<()> {
-    if VERIFIED
-        .lock()
-        .unwrap()
-        .as_ref()
-        .is_some_and(|s| s.contains(path))
-    {
+    if VERIFIED.lock().unwrap().as_ref().is_some_and(|s| s.contains(path)) {
         return Ok(());
     }
     if !path.exists() {
@@ -90,8 +83,7 @@ pub fn verify_model_file(path: &Path, sha256: &str) -> Result<()> {
             path.display()
         );
     }
-    let bytes = std::fs::read(path)
-        .with_context(|| format!("cannot read model file {}", path.display()))?;
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read model file {}", path.display()))?;
     let got = hex(&Sha256::digest(&bytes));
     if got != sha256 {
         bail!(
@@ -100,11 +92,7 @@ pub fn verify_model_file(path: &Path, sha256: &str) -> Result<()> {
             path.display()
         );
     }
-    VERIFIED
-        .lock()
-        .unwrap()
-        .get_or_insert_with(HashSet::new)
-        .insert(path.to_path_buf());
+    VERIFIED.lock().unwrap().get_or_insert_with(HashSet::new).insert(path.to_path_buf());
     Ok(())
 }
 

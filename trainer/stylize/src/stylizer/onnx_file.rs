@@ -88,14 +88,10 @@ impl OnnxFileStylizer {
     pub fn new(path: &Path, range: ValueRange, opts: &StylizerOptions) -> Result<OnnxFileStylizer> {
         opts.validate()?;
         if !path.is_file() {
-            bail!(
-                "ONNX model {} does not exist or is not a file",
-                path.display()
-            );
+            bail!("ONNX model {} does not exist or is not a file", path.display());
         }
         let model = load_onnx(path)?;
-        let input =
-            inspect_input(&model).map_err(|e| anyhow!("ONNX model {}: {e}", path.display()))?;
+        let input = inspect_input(&model).map_err(|e| anyhow!("ONNX model {}: {e}", path.display()))?;
         if model.output_outlets()?.is_empty() {
             bail!("ONNX model {} has no outputs", path.display());
         }
@@ -122,16 +118,12 @@ impl OnnxFileStylizer {
             Layout::Nhwc => vec![1, h, w, 3],
         };
         let out = self.plans.run(&[(shape, &data)])?;
-        out.into_iter()
-            .next()
-            .ok_or_else(|| anyhow!("ONNX model {} returned no output", self.path.display()))
+        out.into_iter().next().ok_or_else(|| anyhow!("ONNX model {} returned no output", self.path.display()))
     }
 
     /// Reads the model output back as an image, in the input's layout where it fits.
     fn output_image(&self, shape: &[usize], mut values: Vec<f32>) -> Result<Image> {
-        let bad = || {
-            anyhow!("ONNX model {}: output shape {shape:?} is not one RGB image ([1,3,H,W] or [1,H,W,3])", self.path.display())
-        };
+        let bad = || anyhow!("ONNX model {}: output shape {shape:?} is not one RGB image ([1,3,H,W] or [1,H,W,3])", self.path.display());
         if shape.len() != 4 || shape[0] != 1 {
             return Err(bad());
         }
@@ -146,11 +138,7 @@ impl OnnxFileStylizer {
         }
         Ok(match layout {
             Layout::Nchw => from_chw(&values, shape[3], shape[2]),
-            Layout::Nhwc => Image {
-                width: shape[2],
-                height: shape[1],
-                data: values,
-            },
+            Layout::Nhwc => Image { width: shape[2], height: shape[1], data: values },
         })
     }
 }
@@ -165,32 +153,19 @@ impl Stylizer for OnnxFileStylizer {
         let (input, (vw, vh)) = match self.input.fixed {
             Some((h, w)) => (resize(content, w, h), (w, h)),
             None => {
-                let (pw, ph) = (
-                    content.width.div_ceil(PAD_MULTIPLE) * PAD_MULTIPLE,
-                    content.height.div_ceil(PAD_MULTIPLE) * PAD_MULTIPLE,
-                );
-                (
-                    reflect_pad(content, pw, ph),
-                    (content.width, content.height),
-                )
+                let (pw, ph) = (content.width.div_ceil(PAD_MULTIPLE) * PAD_MULTIPLE, content.height.div_ceil(PAD_MULTIPLE) * PAD_MULTIPLE);
+                (reflect_pad(content, pw, ph), (content.width, content.height))
             }
         };
         let (shape, values) = self.run_image(&input)?;
         let out = self.output_image(&shape, values)?;
         // Models may change resolution (e.g. 2x); crop the view's share proportionally.
         let cw = (vw * out.width).div_ceil(input.width).min(out.width).max(1);
-        let ch = (vh * out.height)
-            .div_ceil(input.height)
-            .min(out.height)
-            .max(1);
+        let ch = (vh * out.height).div_ceil(input.height).min(out.height).max(1);
         let mut out = resize(&crop(&out, 0, 0, cw, ch), content.width, content.height);
         // NaN survives clamp (f32::clamp keeps NaN), so the finite guard still sees it.
         clamp01(&mut out);
-        Ok(if self.strength >= 1.0 {
-            out
-        } else {
-            blend(content, &out, self.strength)
-        })
+        Ok(if self.strength >= 1.0 { out } else { blend(content, &out, self.strength) })
     }
 }
 
@@ -198,10 +173,7 @@ impl Stylizer for OnnxFileStylizer {
 fn inspect_input(model: &InferenceModel) -> Result<InputSpec> {
     let outlets = model.input_outlets()?;
     let describe = |o: &OutletId| -> String {
-        let fact = model
-            .outlet_fact(*o)
-            .map(|f| f.format_dt_shape())
-            .unwrap_or_default();
+        let fact = model.outlet_fact(*o).map(|f| f.format_dt_shape()).unwrap_or_default();
         format!("{} {fact}", model.node(o.node).name)
     };
     if outlets.len() != 1 {
@@ -221,22 +193,15 @@ fn inspect_input(model: &InferenceModel) -> Result<InputSpec> {
     }
     let rank = fact.shape.rank().concretize();
     if rank != Some(4) {
-        let r = rank
-            .map(|r| r.to_string())
-            .unwrap_or_else(|| "unknown".into());
+        let r = rank.map(|r| r.to_string()).unwrap_or_else(|| "unknown".into());
         bail!("input {name} has rank {r}; onnx: needs a rank-4 image input, NCHW [1,3,H,W] or NHWC [1,H,W,3]");
     }
     let dim = |i: usize| -> Option<usize> {
-        fact.shape
-            .dim(i)
-            .and_then(|d| d.concretize())
-            .and_then(|d| d.to_usize().ok())
+        fact.shape.dim(i).and_then(|d| d.concretize()).and_then(|d| d.to_usize().ok())
     };
     if let Some(n) = dim(0) {
         if n != 1 {
-            bail!(
-                "input {name} has batch size {n}; onnx: needs batch size 1 (or a symbolic batch)"
-            );
+            bail!("input {name} has batch size {n}; onnx: needs batch size 1 (or a symbolic batch)");
         }
     }
     let layout = match (dim(1), dim(3)) {

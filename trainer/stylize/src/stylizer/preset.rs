@@ -25,31 +25,18 @@ pub struct PresetNet {
 
 impl PresetNet {
     pub fn open(opts: &StylizerOptions) -> Result<PresetNet> {
-        Ok(PresetNet {
-            plans: ShapePlans::open(&model_path(MULTISTYLE26, opts)?)?,
-        })
+        Ok(PresetNet { plans: ShapePlans::open(&model_path(MULTISTYLE26, opts)?)? })
     }
 
     /// Runs on a CHW image of `h x w` (each a multiple of 4) with 26 style weights.
     pub fn run_raw(&self, chw: &[f32], h: usize, w: usize, weights: &[f32]) -> Result<Vec<f32>> {
         if weights.len() != NUM_PRESETS {
-            bail!(
-                "multistyle26 needs {NUM_PRESETS} style weights, got {}",
-                weights.len()
-            );
+            bail!("multistyle26 needs {NUM_PRESETS} style weights, got {}", weights.len());
         }
-        let out = self
-            .plans
-            .run(&[(vec![1, 3, h, w], chw), (vec![NUM_PRESETS], weights)])?;
-        let (shape, values) = out
-            .into_iter()
-            .next()
-            .context("multistyle26 returned nothing")?;
+        let out = self.plans.run(&[(vec![1, 3, h, w], chw), (vec![NUM_PRESETS], weights)])?;
+        let (shape, values) = out.into_iter().next().context("multistyle26 returned nothing")?;
         if shape != [1, 3, h, w] {
-            bail!(
-                "{} returned shape {shape:?} for a {w}x{h} input",
-                self.plans.path().display()
-            );
+            bail!("{} returned shape {shape:?} for a {w}x{h} input", self.plans.path().display());
         }
         Ok(values)
     }
@@ -87,17 +74,10 @@ pub struct PresetStylizer {
 impl PresetStylizer {
     pub fn new(index: usize, opts: &StylizerOptions) -> Result<PresetStylizer> {
         if index >= NUM_PRESETS {
-            bail!(
-                "stylizer preset:{index}: the preset must be 0..{NUM_PRESETS} (0 to {})",
-                NUM_PRESETS - 1
-            );
+            bail!("stylizer preset:{index}: the preset must be 0..{NUM_PRESETS} (0 to {})", NUM_PRESETS - 1);
         }
         opts.validate()?;
-        Ok(PresetStylizer {
-            net: Arc::new(PresetNet::open(opts)?),
-            index,
-            strength: opts.strength,
-        })
+        Ok(PresetStylizer { net: Arc::new(PresetNet::open(opts)?), index, strength: opts.strength })
     }
 }
 
@@ -110,10 +90,6 @@ impl Stylizer for PresetStylizer {
         let mut weights = vec![0.0; NUM_PRESETS];
         weights[self.index] = 1.0;
         let out = self.net.stylize_weights(content, &weights)?;
-        Ok(if self.strength >= 1.0 {
-            out
-        } else {
-            blend(content, &out, self.strength)
-        })
+        Ok(if self.strength >= 1.0 { out } else { blend(content, &out, self.strength) })
     }
 }

@@ -25,9 +25,7 @@ pub type Plan = Arc<TypedRunnableModel>;
 pub fn ensure_executor() -> usize {
     static THREADS: OnceLock<usize> = OnceLock::new();
     *THREADS.get_or_init(|| {
-        let n = std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1);
+        let n = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
         if n > 1 {
             set_default_executor(Executor::multithread(n));
         }
@@ -37,19 +35,13 @@ pub fn ensure_executor() -> usize {
 
 /// Parses an ONNX file; the error names the file and says what is wrong with it.
 pub fn load_onnx(path: &Path) -> Result<InferenceModel> {
-    let bytes = std::fs::read(path)
-        .with_context(|| format!("cannot read ONNX model {}", path.display()))?;
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read ONNX model {}", path.display()))?;
     if bytes.is_empty() {
         bail!("ONNX model {} is empty", path.display());
     }
     tract_onnx::onnx()
         .model_for_read(&mut std::io::Cursor::new(bytes))
-        .map_err(|e| {
-            anyhow!(
-                "{} is not a valid ONNX model (corrupt, truncated or another format): {e}",
-                path.display()
-            )
-        })
+        .map_err(|e| anyhow!("{} is not a valid ONNX model (corrupt, truncated or another format): {e}", path.display()))
 }
 
 /// One ONNX model and the optimized plans built for the shapes it has been run at.
@@ -62,20 +54,12 @@ pub struct ShapePlans {
 impl ShapePlans {
     pub fn open(path: &Path) -> Result<ShapePlans> {
         ensure_executor();
-        Ok(ShapePlans {
-            base: load_onnx(path)?,
-            path: path.to_path_buf(),
-            plans: Mutex::new(HashMap::new()),
-        })
+        Ok(ShapePlans { base: load_onnx(path)?, path: path.to_path_buf(), plans: Mutex::new(HashMap::new()) })
     }
 
     pub fn from_model(base: InferenceModel, path: &Path) -> ShapePlans {
         ensure_executor();
-        ShapePlans {
-            base,
-            path: path.to_path_buf(),
-            plans: Mutex::new(HashMap::new()),
-        }
+        ShapePlans { base, path: path.to_path_buf(), plans: Mutex::new(HashMap::new()) }
     }
 
     pub fn path(&self) -> &Path {
@@ -95,23 +79,13 @@ impl ShapePlans {
         for (i, shape) in shapes.iter().enumerate() {
             model = model
                 .with_input_fact(i, f32::fact(shape.as_slice()).into())
-                .map_err(|e| {
-                    anyhow!(
-                        "{}: cannot set input {i} to shape {shape:?}: {e}",
-                        self.path.display()
-                    )
-                })?;
+                .map_err(|e| anyhow!("{}: cannot set input {i} to shape {shape:?}: {e}", self.path.display()))?;
         }
         let plan = model
             .into_optimized()
             .and_then(|m| Ok(fuse_fake_quant(m)?.0))
             .and_then(|m| m.into_runnable())
-            .map_err(|e| {
-                anyhow!(
-                    "{}: cannot prepare the model for inputs {shapes:?}: {e:#}",
-                    self.path.display()
-                )
-            })?;
+            .map_err(|e| anyhow!("{}: cannot prepare the model for inputs {shapes:?}: {e:#}", self.path.display()))?;
         plans.insert(shapes.to_vec(), plan.clone());
         Ok((plan, Some(t0.elapsed().as_secs_f64())))
     }
@@ -124,10 +98,7 @@ impl ShapePlans {
     }
 }
 
-pub fn run_plan(
-    plan: &Plan,
-    inputs: &[(Vec<usize>, &[f32])],
-) -> Result<Vec<(Vec<usize>, Vec<f32>)>> {
+pub fn run_plan(plan: &Plan, inputs: &[(Vec<usize>, &[f32])]) -> Result<Vec<(Vec<usize>, Vec<f32>)>> {
     let mut values: TVec<TValue> = tvec![];
     for (shape, data) in inputs {
         values.push(Tensor::from_shape::<f32>(shape, data)?.into_tvalue());
@@ -136,9 +107,7 @@ pub fn run_plan(
     outputs
         .iter()
         .map(|t| {
-            let view = t
-                .to_plain_array_view::<f32>()
-                .map_err(|e| anyhow!("output is not f32: {e}"))?;
+            let view = t.to_plain_array_view::<f32>().map_err(|e| anyhow!("output is not f32: {e}"))?;
             Ok((t.shape().to_vec(), view.iter().copied().collect()))
         })
         .collect()

@@ -37,25 +37,14 @@ const MIN_COLUMNS_PER_TASK: usize = 256;
 /// Every element addressed by the views for the given sizes must be valid; the elements of
 /// C addressed by different columns must not overlap (no aliasing between columns), and C
 /// must not alias A or B.
-pub unsafe fn gemm(
-    m: usize,
-    k: usize,
-    n: usize,
-    alpha: f32,
-    a: View,
-    b: View,
-    beta: f32,
-    c: ViewMut,
-) {
+pub unsafe fn gemm(m: usize, k: usize, n: usize, alpha: f32, a: View, b: View, beta: f32, c: ViewMut) {
     if m == 0 || n == 0 {
         return;
     }
     let threads = rayon::current_num_threads().max(1);
     let tasks = (n / MIN_COLUMNS_PER_TASK).clamp(1, threads);
     if tasks == 1 {
-        matrixmultiply::sgemm(
-            m, k, n, alpha, a.ptr, a.rs, a.cs, b.ptr, b.rs, b.cs, beta, c.ptr, c.rs, c.cs,
-        );
+        matrixmultiply::sgemm(m, k, n, alpha, a.ptr, a.rs, a.cs, b.ptr, b.rs, b.cs, beta, c.ptr, c.rs, c.cs);
         return;
     }
     let chunk = n.div_ceil(tasks);
@@ -105,22 +94,10 @@ mod tests {
                 k,
                 n,
                 1.0,
-                View {
-                    ptr: a.as_ptr(),
-                    rs: k as isize,
-                    cs: 1,
-                },
-                View {
-                    ptr: b.as_ptr(),
-                    rs: n as isize,
-                    cs: 1,
-                },
+                View { ptr: a.as_ptr(), rs: k as isize, cs: 1 },
+                View { ptr: b.as_ptr(), rs: n as isize, cs: 1 },
                 1.0,
-                ViewMut {
-                    ptr: c.as_mut_ptr(),
-                    rs: n as isize,
-                    cs: 1,
-                },
+                ViewMut { ptr: c.as_mut_ptr(), rs: n as isize, cs: 1 },
             );
         }
         for i in 0..m {

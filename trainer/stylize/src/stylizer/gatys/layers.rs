@@ -31,12 +31,7 @@ pub struct Planes {
 
 impl Planes {
     pub fn zeros(c: usize, h: usize, w: usize) -> Planes {
-        Planes {
-            c,
-            h,
-            w,
-            data: vec![0.0; c * h * w],
-        }
+        Planes { c, h, w, data: vec![0.0; c * h * w] }
     }
 }
 
@@ -79,22 +74,10 @@ impl Conv3x3 {
                     self.cin,
                     n,
                     1.0,
-                    View {
-                        ptr: self.weight.as_ptr().add(tap),
-                        rs: (self.cin * 9) as isize,
-                        cs: 9,
-                    },
-                    View {
-                        ptr: xp.as_ptr().add(ky * (w + 2) + kx),
-                        rs: s,
-                        cs: 1,
-                    },
+                    View { ptr: self.weight.as_ptr().add(tap), rs: (self.cin * 9) as isize, cs: 9 },
+                    View { ptr: xp.as_ptr().add(ky * (w + 2) + kx), rs: s, cs: 1 },
                     if tap == 0 { 0.0 } else { 1.0 },
-                    ViewMut {
-                        ptr: acc.as_mut_ptr(),
-                        rs: n as isize,
-                        cs: 1,
-                    },
+                    ViewMut { ptr: acc.as_mut_ptr(), rs: n as isize, cs: 1 },
                 );
             }
         }
@@ -142,22 +125,10 @@ impl Conv3x3 {
                     self.cout,
                     n,
                     1.0,
-                    View {
-                        ptr: self.weight.as_ptr().add(tap),
-                        rs: 9,
-                        cs: (self.cin * 9) as isize,
-                    },
-                    View {
-                        ptr: g.as_ptr(),
-                        rs: n as isize,
-                        cs: 1,
-                    },
+                    View { ptr: self.weight.as_ptr().add(tap), rs: 9, cs: (self.cin * 9) as isize },
+                    View { ptr: g.as_ptr(), rs: n as isize, cs: 1 },
                     1.0,
-                    ViewMut {
-                        ptr: gxp.as_mut_ptr().add(ky * (w + 2) + kx),
-                        rs: s as isize,
-                        cs: 1,
-                    },
+                    ViewMut { ptr: gxp.as_mut_ptr().add(ky * (w + 2) + kx), rs: s as isize, cs: 1 },
                 );
             }
         }

@@ -78,62 +78,36 @@ pub struct MobileNet {
 
 fn tensor_values(t: &pb::TensorProto) -> Result<Vec<f32>> {
     let raw = &t.raw_data;
-    let dt = DataType::try_from(t.data_type)
-        .map_err(|_| anyhow::anyhow!("unknown data type {}", t.data_type))?;
+    let dt = DataType::try_from(t.data_type).map_err(|_| anyhow::anyhow!("unknown data type {}", t.data_type))?;
     let v: Vec<f32> = match dt {
-        DataType::Float if !raw.is_empty() => raw
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect(),
+        DataType::Float if !raw.is_empty() => raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
         DataType::Float => t.float_data.clone(),
         DataType::Int8 if !raw.is_empty() => raw.iter().map(|&b| b as i8 as f32).collect(),
         DataType::Uint8 if !raw.is_empty() => raw.iter().map(|&b| b as f32).collect(),
-        DataType::Int8 | DataType::Uint8 | DataType::Int32 if raw.is_empty() => {
-            t.int32_data.iter().map(|&x| x as f32).collect()
-        }
-        DataType::Int32 => raw
-            .chunks_exact(4)
-            .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32)
-            .collect(),
-        DataType::Int64 if !raw.is_empty() => raw
-            .chunks_exact(8)
-            .map(|b| i64::from_le_bytes(b.try_into().unwrap()) as f32)
-            .collect(),
+        DataType::Int8 | DataType::Uint8 | DataType::Int32 if raw.is_empty() => t.int32_data.iter().map(|&x| x as f32).collect(),
+        DataType::Int32 => raw.chunks_exact(4).map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32).collect(),
+        DataType::Int64 if !raw.is_empty() => raw.chunks_exact(8).map(|b| i64::from_le_bytes(b.try_into().unwrap()) as f32).collect(),
         DataType::Int64 => t.int64_data.iter().map(|&x| x as f32).collect(),
-        other => bail!(
-            "tensor {:?} has type {:?}, which the MobileNet reader does not handle",
-            t.name,
-            other
-        ),
+        other => bail!("tensor {:?} has type {:?}, which the MobileNet reader does not handle", t.name, other),
     };
     Ok(v)
 }
 
 /// `(x - zero) * scale`, per channel along axis 0 when `scale` has more than one element.
 fn dequantize(q: &[f32], scale: &[f32], zero: &[f32]) -> Vec<f32> {
-    let per = if scale.len() > 1 {
-        q.len() / scale.len()
-    } else {
-        q.len().max(1)
-    };
+    let per = if scale.len() > 1 { q.len() / scale.len() } else { q.len().max(1) };
     q.iter()
         .enumerate()
         .map(|(i, &x)| {
             let c = if scale.len() > 1 { i / per } else { 0 };
-            let z = zero
-                .get(if zero.len() > 1 { c } else { 0 })
-                .copied()
-                .unwrap_or(0.0);
+            let z = zero.get(if zero.len() > 1 { c } else { 0 }).copied().unwrap_or(0.0);
             (x - z) * scale[c]
         })
         .collect()
 }
 
 fn attr_ints(n: &pb::NodeProto, name: &str) -> Option<Vec<i64>> {
-    n.attribute
-        .iter()
-        .find(|a| a.name == name)
-        .map(|a| a.ints.clone())
+    n.attribute.iter().find(|a| a.name == name).map(|a| a.ints.clone())
 }
 
 fn attr_int(n: &pb::NodeProto, name: &str) -> Option<i64> {
@@ -142,36 +116,22 @@ fn attr_int(n: &pb::NodeProto, name: &str) -> Option<i64> {
 
 /// Strips the suffixes the quantizer appended, so taps can be named as in the float graph.
 fn base_name(s: &str) -> &str {
-    s.strip_suffix("_prequant")
-        .or_else(|| s.strip_suffix("_dequant"))
-        .unwrap_or(s)
+    s.strip_suffix("_prequant").or_else(|| s.strip_suffix("_dequant")).unwrap_or(s)
 }
 
 impl MobileNet {
     /// Reads the network from the ONNX file; errors name the file and the problem.
     pub fn load(path: &Path) -> Result<MobileNet> {
-        let bytes =
-            std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-        Self::from_onnx(&bytes).with_context(|| {
-            format!(
-                "{} is not the Magenta MobileNetV2 style network",
-                path.display()
-            )
-        })
+        let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        Self::from_onnx(&bytes).with_context(|| format!("{} is not the Magenta MobileNetV2 style network", path.display()))
     }
 
     pub fn from_onnx(bytes: &[u8]) -> Result<MobileNet> {
         let model = pb::ModelProto::decode(bytes).context("not an ONNX protobuf")?;
         let graph = model.graph.context("the ONNX file has no graph")?;
-        let init: HashMap<&str, &pb::TensorProto> = graph
-            .initializer
-            .iter()
-            .map(|t| (t.name.as_str(), t))
-            .collect();
+        let init: HashMap<&str, &pb::TensorProto> = graph.initializer.iter().map(|t| (t.name.as_str(), t)).collect();
         let value = |name: &str| -> Result<Vec<f32>> {
-            let t = init
-                .get(name)
-                .with_context(|| format!("no constant {name:?}"))?;
+            let t = init.get(name).with_context(|| format!("no constant {name:?}"))?;
             tensor_values(t)
         };
         let input = graph.input.first().context("the graph has no input")?;
@@ -192,116 +152,56 @@ impl MobileNet {
                     } else if n.op_type == "DequantizeLinear" {
                         let q = value(inp(0))?;
                         let scale = value(inp(1))?;
-                        let zero = if inp(2).is_empty() {
-                            vec![0.0]
-                        } else {
-                            value(inp(2))?
-                        };
+                        let zero = if inp(2).is_empty() { vec![0.0] } else { value(inp(2))? };
                         consts.insert(out, dequantize(&q, &scale, &zero));
                     }
                 }
                 "Conv" => {
-                    let x = *act
-                        .get(inp(0))
-                        .with_context(|| format!("Conv {:?} reads an unknown tensor", n.name))?;
-                    let w = consts.get(inp(1)).with_context(|| {
-                        format!("Conv {:?}: weights are not a dequantized constant", n.name)
-                    })?;
+                    let x = *act.get(inp(0)).with_context(|| format!("Conv {:?} reads an unknown tensor", n.name))?;
+                    let w = consts.get(inp(1)).with_context(|| format!("Conv {:?}: weights are not a dequantized constant", n.name))?;
                     let groups = attr_int(n, "group").unwrap_or(1) as usize;
-                    let k = attr_ints(n, "kernel_shape")
-                        .and_then(|v| v.first().copied())
-                        .unwrap_or(1) as usize;
-                    let stride = attr_ints(n, "strides")
-                        .and_then(|v| v.first().copied())
-                        .unwrap_or(1) as usize;
+                    let k = attr_ints(n, "kernel_shape").and_then(|v| v.first().copied()).unwrap_or(1) as usize;
+                    let stride = attr_ints(n, "strides").and_then(|v| v.first().copied()).unwrap_or(1) as usize;
                     let p = attr_ints(n, "pads").unwrap_or(vec![0; 4]);
-                    if p.len() != 4
-                        || attr_ints(n, "dilations").is_some_and(|d| d.iter().any(|&v| v != 1))
-                    {
-                        bail!(
-                            "Conv {:?}: only 2-D convolutions without dilation are supported",
-                            n.name
-                        );
+                    if p.len() != 4 || attr_ints(n, "dilations").is_some_and(|d| d.iter().any(|&v| v != 1)) {
+                        bail!("Conv {:?}: only 2-D convolutions without dilation are supported", n.name);
                     }
                     let cin = Self::channels(&ops, x)?;
-                    let cout = if groups > 1 {
-                        groups
-                    } else {
-                        w.len() / (k * k) / cin.max(1)
-                    };
+                    let cout = if groups > 1 { groups } else { w.len() / (k * k) / cin.max(1) };
                     if w.len() != cout * (cin / groups) * k * k || (groups != 1 && groups != cin) {
-                        bail!(
-                            "Conv {:?}: {} weights do not fit {cout}x{cin}/{groups}x{k}x{k}",
-                            n.name,
-                            w.len()
-                        );
+                        bail!("Conv {:?}: {} weights do not fit {cout}x{cin}/{groups}x{k}x{k}", n.name, w.len());
                     }
                     let bias = match n.input.get(2) {
-                        Some(b) if !b.is_empty() => {
-                            consts.get(b.as_str()).cloned().unwrap_or(vec![0.0; cout])
-                        }
+                        Some(b) if !b.is_empty() => consts.get(b.as_str()).cloned().unwrap_or(vec![0.0; cout]),
                         _ => vec![0.0; cout],
                     };
-                    let bias = if bias.len() == cout {
-                        bias
-                    } else {
-                        vec![bias.first().copied().unwrap_or(0.0); cout]
-                    };
+                    let bias = if bias.len() == cout { bias } else { vec![bias.first().copied().unwrap_or(0.0); cout] };
                     let pad = [p[0] as usize, p[1] as usize, p[2] as usize, p[3] as usize];
-                    ops.push(Op::Conv {
-                        input: x,
-                        conv: Conv {
-                            cin,
-                            cout,
-                            groups,
-                            k,
-                            stride,
-                            pad,
-                            weight: w.clone(),
-                            bias,
-                            clip: None,
-                        },
-                    });
+                    ops.push(Op::Conv { input: x, conv: Conv { cin, cout, groups, k, stride, pad, weight: w.clone(), bias, clip: None } });
                     names.push(out.clone());
                     act.insert(out, ops.len());
                 }
                 "Clip" => {
-                    let x = *act
-                        .get(inp(0))
-                        .with_context(|| format!("Clip {:?} reads an unknown tensor", n.name))?;
-                    let lo = value(inp(1))
-                        .ok()
-                        .and_then(|v| v.first().copied())
-                        .unwrap_or(f32::NEG_INFINITY);
-                    let hi = value(inp(2))
-                        .ok()
-                        .and_then(|v| v.first().copied())
-                        .unwrap_or(f32::INFINITY);
+                    let x = *act.get(inp(0)).with_context(|| format!("Clip {:?} reads an unknown tensor", n.name))?;
+                    let lo = value(inp(1)).ok().and_then(|v| v.first().copied()).unwrap_or(f32::NEG_INFINITY);
+                    let hi = value(inp(2)).ok().and_then(|v| v.first().copied()).unwrap_or(f32::INFINITY);
                     let last = ops.len();
                     match ops.get_mut(x.wrapping_sub(1)) {
-                        Some(Op::Conv { conv, .. }) if conv.clip.is_none() && x == last => {
-                            conv.clip = Some((lo, hi))
-                        }
+                        Some(Op::Conv { conv, .. }) if conv.clip.is_none() && x == last => conv.clip = Some((lo, hi)),
                         _ => bail!("Clip {:?} does not follow a convolution", n.name),
                     }
                     // The activation keeps its convolution's name (the taps are named so).
                     act.insert(out, x);
                 }
                 "Add" => {
-                    let a = *act
-                        .get(inp(0))
-                        .with_context(|| format!("Add {:?} reads an unknown tensor", n.name))?;
-                    let b = *act
-                        .get(inp(1))
-                        .with_context(|| format!("Add {:?} reads an unknown tensor", n.name))?;
+                    let a = *act.get(inp(0)).with_context(|| format!("Add {:?} reads an unknown tensor", n.name))?;
+                    let b = *act.get(inp(1)).with_context(|| format!("Add {:?} reads an unknown tensor", n.name))?;
                     ops.push(Op::Add { a, b });
                     names.push(out.clone());
                     act.insert(out, ops.len());
                 }
                 "GlobalAveragePool" => {
-                    let x = *act.get(inp(0)).with_context(|| {
-                        format!("GlobalAveragePool {:?} reads an unknown tensor", n.name)
-                    })?;
+                    let x = *act.get(inp(0)).with_context(|| format!("GlobalAveragePool {:?} reads an unknown tensor", n.name))?;
                     ops.push(Op::Mean { input: x });
                     names.push(out.clone());
                     act.insert(out, ops.len());
@@ -319,14 +219,8 @@ impl MobileNet {
             })
             .collect::<Result<Vec<_>>>()?;
         let output = graph.output.first().context("the graph has no output")?;
-        let output_act = *act
-            .get(&output.name)
-            .context("the graph's output is not computed by the ops read")?;
-        Ok(MobileNet {
-            ops,
-            tap_acts,
-            output_act,
-        })
+        let output_act = *act.get(&output.name).context("the graph's output is not computed by the ops read")?;
+        Ok(MobileNet { ops, tap_acts, output_act })
     }
 
     /// Channels of activation `a` (the input image has 3).
@@ -349,25 +243,13 @@ impl MobileNet {
                 Op::Conv { input, conv } => conv.forward(&acts[*input]),
                 Op::Add { a, b } => {
                     let mut y = acts[*a].clone();
-                    y.data
-                        .iter_mut()
-                        .zip(&acts[*b].data)
-                        .for_each(|(y, b)| *y += b);
+                    y.data.iter_mut().zip(&acts[*b].data).for_each(|(y, b)| *y += b);
                     y
                 }
                 Op::Mean { input } => {
                     let x = &acts[*input];
                     let n = (x.h * x.w).max(1) as f32;
-                    Planes {
-                        c: x.c,
-                        h: 1,
-                        w: 1,
-                        data: x
-                            .data
-                            .chunks(x.h * x.w)
-                            .map(|c| c.iter().sum::<f32>() / n)
-                            .collect(),
-                    }
+                    Planes { c: x.c, h: 1, w: 1, data: x.data.chunks(x.h * x.w).map(|c| c.iter().sum::<f32>() / n).collect() }
                 }
             };
             acts.push(y);
@@ -402,11 +284,7 @@ impl FeatureNet for MobileNet {
 
     fn forward(&self, rgb: &Planes) -> Trace {
         let end = *self.tap_acts.iter().max().unwrap();
-        Trace {
-            acts: self.run(rgb, end),
-            aux: Vec::new(),
-            taps: self.tap_acts.clone(),
-        }
+        Trace { acts: self.run(rgb, end), aux: Vec::new(), taps: self.tap_acts.clone() }
     }
 
     fn backward(&self, trace: &Trace, tap_grads: &[Option<Planes>]) -> Planes {
@@ -422,9 +300,7 @@ impl FeatureNet for MobileNet {
             }
         }
         for i in (0..n - 1).rev() {
-            let Some(gy) = grads[i + 1].take() else {
-                continue;
-            };
+            let Some(gy) = grads[i + 1].take() else { continue };
             match &self.ops[i] {
                 Op::Conv { input, conv } => {
                     let gx = conv.backward(&trace.acts[*input], &trace.acts[i + 1], gy);
@@ -440,18 +316,14 @@ impl FeatureNet for MobileNet {
                     let mut gx = Planes::zeros(x.c, x.h, x.w);
                     for c in 0..x.c {
                         let v = gy.data[c] / hw as f32;
-                        gx.data[c * hw..(c + 1) * hw]
-                            .iter_mut()
-                            .for_each(|g| *g = v);
+                        gx.data[c * hw..(c + 1) * hw].iter_mut().for_each(|g| *g = v);
                     }
                     add(&mut grads[*input], gx);
                 }
             }
         }
         let x = &trace.acts[0];
-        grads[0]
-            .take()
-            .unwrap_or_else(|| Planes::zeros(x.c, x.h, x.w))
+        grads[0].take().unwrap_or_else(|| Planes::zeros(x.c, x.h, x.w))
     }
 }
 
@@ -460,11 +332,7 @@ fn valid_columns(ow: usize, w: usize, stride: usize, shift: isize) -> (usize, us
     let (s, w) = (stride as isize, w as isize);
     // ox * s + shift >= 0  <=>  ox >= ceil(-shift / s);  ox * s + shift <= w - 1.
     let a = if shift >= 0 { 0 } else { (-shift + s - 1) / s };
-    let b = if w - 1 - shift < 0 {
-        0
-    } else {
-        (w - 1 - shift) / s + 1
-    };
+    let b = if w - 1 - shift < 0 { 0 } else { (w - 1 - shift) / s + 1 };
     (a.max(0) as usize, (b.min(ow as isize).max(a)) as usize)
 }
 
@@ -493,33 +361,16 @@ impl Conv {
                     self.cin,
                     on,
                     1.0,
-                    View {
-                        ptr: self.weight.as_ptr(),
-                        rs: self.cin as isize,
-                        cs: 1,
-                    },
-                    View {
-                        ptr: x.data.as_ptr(),
-                        rs: on as isize,
-                        cs: 1,
-                    },
+                    View { ptr: self.weight.as_ptr(), rs: self.cin as isize, cs: 1 },
+                    View { ptr: x.data.as_ptr(), rs: on as isize, cs: 1 },
                     0.0,
-                    ViewMut {
-                        ptr: y.data.as_mut_ptr(),
-                        rs: on as isize,
-                        cs: 1,
-                    },
+                    ViewMut { ptr: y.data.as_mut_ptr(), rs: on as isize, cs: 1 },
                 );
             }
         } else {
             let cpg = self.cin / self.groups; // input channels per group
             let opg = self.cout / self.groups; // output channels per group
-            let (k, s, pt, pl) = (
-                self.k,
-                self.stride,
-                self.pad[0] as isize,
-                self.pad[1] as isize,
-            );
+            let (k, s, pt, pl) = (self.k, self.stride, self.pad[0] as isize, self.pad[1] as isize);
             y.data.par_chunks_mut(on).enumerate().for_each(|(co, yc)| {
                 let g = co / opg;
                 for ci in 0..cpg {
@@ -538,9 +389,7 @@ impl Conv {
                                 let (a, b) = valid_columns(ow, x.w, s, kx as isize - pl);
                                 if s == 1 {
                                     let off = (a as isize + kx as isize - pl) as usize;
-                                    for (yv, xv) in
-                                        yr[a..b].iter_mut().zip(&row[off..off + (b - a)])
-                                    {
+                                    for (yv, xv) in yr[a..b].iter_mut().zip(&row[off..off + (b - a)]) {
                                         *yv += wv * xv;
                                     }
                                 } else {
@@ -555,14 +404,11 @@ impl Conv {
             });
         }
         let (lo, hi) = self.clip.unwrap_or((f32::NEG_INFINITY, f32::INFINITY));
-        y.data
-            .par_chunks_mut(on)
-            .zip(&self.bias)
-            .for_each(|(yc, b)| {
-                for v in yc {
-                    *v = (*v + b).clamp(lo, hi);
-                }
-            });
+        y.data.par_chunks_mut(on).zip(&self.bias).for_each(|(yc, b)| {
+            for v in yc {
+                *v = (*v + b).clamp(lo, hi);
+            }
+        });
         y
     }
 
@@ -588,73 +434,51 @@ impl Conv {
                     self.cout,
                     on,
                     1.0,
-                    View {
-                        ptr: self.weight.as_ptr(),
-                        rs: 1,
-                        cs: self.cin as isize,
-                    },
-                    View {
-                        ptr: gy.data.as_ptr(),
-                        rs: on as isize,
-                        cs: 1,
-                    },
+                    View { ptr: self.weight.as_ptr(), rs: 1, cs: self.cin as isize },
+                    View { ptr: gy.data.as_ptr(), rs: on as isize, cs: 1 },
                     0.0,
-                    ViewMut {
-                        ptr: gx.data.as_mut_ptr(),
-                        rs: on as isize,
-                        cs: 1,
-                    },
+                    ViewMut { ptr: gx.data.as_mut_ptr(), rs: on as isize, cs: 1 },
                 );
             }
             return gx;
         }
         let cpg = self.cin / self.groups;
         let opg = self.cout / self.groups;
-        let (k, s, pt, pl) = (
-            self.k,
-            self.stride,
-            self.pad[0] as isize,
-            self.pad[1] as isize,
-        );
+        let (k, s, pt, pl) = (self.k, self.stride, self.pad[0] as isize, self.pad[1] as isize);
         let hw = x.h * x.w;
         // One task per input channel: it gathers from every output channel that reads it.
-        gx.data
-            .par_chunks_mut(hw)
-            .enumerate()
-            .for_each(|(cin_idx, gxc)| {
-                let g = cin_idx / cpg;
-                let ci = cin_idx % cpg;
-                for co in g * opg..(g + 1) * opg {
-                    let gyc = &gy.data[co * on..][..on];
-                    let wk = &self.weight[(co * cpg + ci) * k * k..][..k * k];
-                    for ky in 0..k {
-                        for kx in 0..k {
-                            let wv = wk[ky * k + kx];
-                            for oy in 0..oh {
-                                let iy = (oy * s) as isize + ky as isize - pt;
-                                if iy < 0 || iy >= x.h as isize {
-                                    continue;
+        gx.data.par_chunks_mut(hw).enumerate().for_each(|(cin_idx, gxc)| {
+            let g = cin_idx / cpg;
+            let ci = cin_idx % cpg;
+            for co in g * opg..(g + 1) * opg {
+                let gyc = &gy.data[co * on..][..on];
+                let wk = &self.weight[(co * cpg + ci) * k * k..][..k * k];
+                for ky in 0..k {
+                    for kx in 0..k {
+                        let wv = wk[ky * k + kx];
+                        for oy in 0..oh {
+                            let iy = (oy * s) as isize + ky as isize - pt;
+                            if iy < 0 || iy >= x.h as isize {
+                                continue;
+                            }
+                            let grow = &gyc[oy * ow..][..ow];
+                            let xrow = &mut gxc[iy as usize * x.w..][..x.w];
+                            let (a, b) = valid_columns(ow, x.w, s, kx as isize - pl);
+                            if s == 1 {
+                                let off = (a as isize + kx as isize - pl) as usize;
+                                for (xv, gv) in xrow[off..off + (b - a)].iter_mut().zip(&grow[a..b]) {
+                                    *xv += wv * gv;
                                 }
-                                let grow = &gyc[oy * ow..][..ow];
-                                let xrow = &mut gxc[iy as usize * x.w..][..x.w];
-                                let (a, b) = valid_columns(ow, x.w, s, kx as isize - pl);
-                                if s == 1 {
-                                    let off = (a as isize + kx as isize - pl) as usize;
-                                    for (xv, gv) in
-                                        xrow[off..off + (b - a)].iter_mut().zip(&grow[a..b])
-                                    {
-                                        *xv += wv * gv;
-                                    }
-                                } else {
-                                    for ox in a..b {
-                                        xrow[ox * s + kx - pl as usize] += wv * grow[ox];
-                                    }
+                            } else {
+                                for ox in a..b {
+                                    xrow[ox * s + kx - pl as usize] += wv * grow[ox];
                                 }
                             }
                         }
                     }
                 }
-            });
+            }
+        });
         gx
     }
 }

@@ -61,12 +61,7 @@ pub const LEARNING_RATE: f32 = 0.02;
 
 /// HWC image -> planar `[3, h, w]`.
 pub fn planes_from_image(img: &Image) -> Planes {
-    Planes {
-        c: 3,
-        h: img.height,
-        w: img.width,
-        data: super::image_ops::to_chw(img),
-    }
+    Planes { c: 3, h: img.height, w: img.width, data: super::image_ops::to_chw(img) }
 }
 
 /// Planar `[3, h, w]` -> HWC image.
@@ -76,12 +71,7 @@ pub fn image_from_planes(p: &Planes) -> Image {
 
 /// Adam on the pixels of `start`, projected to [0, 1] after each step. Returns the result
 /// and the loss before each step.
-pub fn optimize(
-    objective: &Objective,
-    start: &Planes,
-    steps: usize,
-    lr: f32,
-) -> (Planes, Vec<f64>) {
+pub fn optimize(objective: &Objective, start: &Planes, steps: usize, lr: f32) -> (Planes, Vec<f64>) {
     optimize_shifted(&[(0, 0, objective)], start, steps, lr)
 }
 
@@ -111,12 +101,7 @@ pub fn crop(p: &Planes, dy: usize, dx: usize) -> Planes {
 /// different kernel taps, so its input gradient carries a checkerboard that Adam turns into
 /// a pixel-level grid the network itself is nearly blind to. Shifting the sampling grid by
 /// one pixel from step to step averages that parity out.
-pub fn optimize_shifted(
-    objectives: &[(usize, usize, &Objective)],
-    start: &Planes,
-    steps: usize,
-    lr: f32,
-) -> (Planes, Vec<f64>) {
+pub fn optimize_shifted(objectives: &[(usize, usize, &Objective)], start: &Planes, steps: usize, lr: f32) -> (Planes, Vec<f64>) {
     let (b1, b2, eps) = (0.9f32, 0.999f32, 1e-8f32);
     let mut x = start.clone();
     let mut m = vec![0.0f32; x.data.len()];
@@ -132,11 +117,7 @@ pub fn optimize_shifted(
             for y in 0..h {
                 for xx in 0..w {
                     let i = (c * h + y) * w + xx;
-                    let g = if y >= dy && xx >= dx {
-                        gc.data[(c * gc.h + y - dy) * gc.w + xx - dx]
-                    } else {
-                        0.0
-                    };
+                    let g = if y >= dy && xx >= dx { gc.data[(c * gc.h + y - dy) * gc.w + xx - dx] } else { 0.0 };
                     m[i] = b1 * m[i] + (1.0 - b1) * g;
                     v[i] = b2 * v[i] + (1.0 - b2) * g * g;
                     let update = lr * (m[i] / c1) / ((v[i] / c2).sqrt() + eps);
@@ -163,37 +144,21 @@ impl GatysStylizer {
     pub fn from_options(style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
         match &opts.gatys_weights {
             Some(w) => Self::from_file(w, style, opts),
-            None => Self::with_net(
-                Arc::new(MobileNet::load(&model_path(ARBITRARY_PREDICT, opts)?)?),
-                style,
-                opts,
-            ),
+            None => Self::with_net(Arc::new(MobileNet::load(&model_path(ARBITRARY_PREDICT, opts)?)?), style, opts),
         }
     }
 
     /// Loads the VGG-16 weights file (errors name it and the problem) and prepares the style.
-    pub fn from_file(
-        weights: &Path,
-        style: &Image,
-        opts: &StylizerOptions,
-    ) -> Result<GatysStylizer> {
+    pub fn from_file(weights: &Path, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
         Self::new(VggWeights::load(weights)?, style, opts)
     }
 
     /// VGG-16 features with these weights.
-    pub fn new(
-        weights: VggWeights,
-        style: &Image,
-        opts: &StylizerOptions,
-    ) -> Result<GatysStylizer> {
+    pub fn new(weights: VggWeights, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
         Self::with_net(Arc::new(Vgg::new(weights)), style, opts)
     }
 
-    pub fn with_net(
-        net: Arc<dyn FeatureNet>,
-        style: &Image,
-        opts: &StylizerOptions,
-    ) -> Result<GatysStylizer> {
+    pub fn with_net(net: Arc<dyn FeatureNet>, style: &Image, opts: &StylizerOptions) -> Result<GatysStylizer> {
         opts.validate()?;
         if opts.gatys_steps == 0 {
             bail!("stylizer gatys needs at least one optimisation step");
@@ -201,13 +166,7 @@ impl GatysStylizer {
         let style = fit_longer_side(style, opts.style_size);
         check_size(&style, "style image", net.min_side())?;
         let grams = style_grams(net.as_ref(), &planes_from_image(&style));
-        Ok(GatysStylizer {
-            net,
-            grams,
-            strength: opts.strength,
-            steps: opts.gatys_steps,
-            content_size: opts.content_size,
-        })
+        Ok(GatysStylizer { net, grams, strength: opts.strength, steps: opts.gatys_steps, content_size: opts.content_size })
     }
 
     /// The feature network's name (`mobilenet_v2` or `vgg16`).
@@ -232,27 +191,11 @@ impl GatysStylizer {
         // One objective per sampling offset, each with the content target of its own crop.
         let objectives: Vec<(usize, usize, Objective)> = JITTER
             .iter()
-            .map(|&(dy, dx)| {
-                (
-                    dy,
-                    dx,
-                    Objective::new(
-                        self.net.as_ref(),
-                        &crop(&start, dy, dx),
-                        &self.grams,
-                        CONTENT_WEIGHT,
-                        style_weight,
-                    ),
-                )
-            })
+            .map(|&(dy, dx)| (dy, dx, Objective::new(self.net.as_ref(), &crop(&start, dy, dx), &self.grams, CONTENT_WEIGHT, style_weight)))
             .collect();
-        let refs: Vec<(usize, usize, &Objective)> =
-            objectives.iter().map(|(dy, dx, o)| (*dy, *dx, o)).collect();
+        let refs: Vec<(usize, usize, &Objective)> = objectives.iter().map(|(dy, dx, o)| (*dy, *dx, o)).collect();
         let (out, losses) = optimize_shifted(&refs, &start, self.steps, LEARNING_RATE);
-        Ok((
-            resize(&image_from_planes(&out), content.width, content.height),
-            losses,
-        ))
+        Ok((resize(&image_from_planes(&out), content.width, content.height), losses))
     }
 }
 
@@ -269,10 +212,7 @@ impl Stylizer for GatysStylizer {
 /// The networks downsample before their last tap, so smaller images leave it empty.
 fn check_size(img: &Image, what: &str, min: usize) -> Result<()> {
     if img.width < min || img.height < min {
-        bail!(
-            "stylizer gatys: the {what} is {}, it needs at least {min}x{min} pixels",
-            img.size_text()
-        );
+        bail!("stylizer gatys: the {what} is {}, it needs at least {min}x{min} pixels", img.size_text());
     }
     Ok(())
 }
@@ -285,22 +225,8 @@ pub fn step_time(weights: VggWeights, size: usize, steps: usize) -> f64 {
 
 /// Seconds per optimisation step of any feature network (see `step_time`).
 pub fn net_step_time(vgg: &dyn FeatureNet, size: usize, steps: usize) -> f64 {
-    let img = Planes {
-        c: 3,
-        h: size,
-        w: size,
-        data: (0..3 * size * size)
-            .map(|i| (i % 97) as f32 / 97.0)
-            .collect(),
-    };
-    let style = Planes {
-        c: 3,
-        h: size,
-        w: size,
-        data: (0..3 * size * size)
-            .map(|i| (i % 31) as f32 / 31.0)
-            .collect(),
-    };
+    let img = Planes { c: 3, h: size, w: size, data: (0..3 * size * size).map(|i| (i % 97) as f32 / 97.0).collect() };
+    let style = Planes { c: 3, h: size, w: size, data: (0..3 * size * size).map(|i| (i % 31) as f32 / 31.0).collect() };
     let grams = style_grams(vgg, &style);
     let obj = Objective::new(vgg, &img, &grams, CONTENT_WEIGHT, STYLE_WEIGHT);
     let _ = obj.loss_and_grad(&img);

@@ -24,22 +24,10 @@ pub fn gram(f: &Planes) -> Vec<f32> {
             n,
             c,
             1.0 / n.max(1) as f32,
-            View {
-                ptr: f.data.as_ptr(),
-                rs: n as isize,
-                cs: 1,
-            },
-            View {
-                ptr: f.data.as_ptr(),
-                rs: 1,
-                cs: n as isize,
-            },
+            View { ptr: f.data.as_ptr(), rs: n as isize, cs: 1 },
+            View { ptr: f.data.as_ptr(), rs: 1, cs: n as isize },
             0.0,
-            ViewMut {
-                ptr: g.as_mut_ptr(),
-                rs: c as isize,
-                cs: 1,
-            },
+            ViewMut { ptr: g.as_mut_ptr(), rs: c as isize, cs: 1 },
         );
     }
     g
@@ -65,22 +53,10 @@ pub fn style_grams(net: &dyn FeatureNet, style_rgb: &Planes) -> Vec<Vec<f32>> {
 }
 
 impl<'a> Objective<'a> {
-    pub fn new(
-        net: &'a dyn FeatureNet,
-        content_rgb: &Planes,
-        style_grams: &'a [Vec<f32>],
-        content_weight: f64,
-        style_weight: f64,
-    ) -> Objective<'a> {
+    pub fn new(net: &'a dyn FeatureNet, content_rgb: &Planes, style_grams: &'a [Vec<f32>], content_weight: f64, style_weight: f64) -> Objective<'a> {
         assert_eq!(style_grams.len(), net.taps(), "one style Gram per tap");
         let trace = net.forward(content_rgb);
-        Objective {
-            net,
-            content_target: trace.tap(net.content_tap()).clone(),
-            style_grams,
-            content_weight,
-            style_weight,
-        }
+        Objective { net, content_target: trace.tap(net.content_tap()).clone(), style_grams, content_weight, style_weight }
     }
 
     /// Loss only.
@@ -109,12 +85,7 @@ impl<'a> Objective<'a> {
         total += self.content_weight * sq_norm(&diff) / p_norm;
         if want_grad && self.content_weight != 0.0 {
             let k = (2.0 * self.content_weight / p_norm) as f32;
-            tap_grads[content_tap] = Some(Planes {
-                c: f.c,
-                h: f.h,
-                w: f.w,
-                data: diff.iter().map(|d| d * k).collect(),
-            });
+            tap_grads[content_tap] = Some(Planes { c: f.c, h: f.h, w: f.w, data: diff.iter().map(|d| d * k).collect() });
         }
 
         // Style: (w_s / taps) |G - A|^2 / |A|^2 with G = F F^T / n
@@ -141,30 +112,14 @@ impl<'a> Objective<'a> {
                         c,
                         n,
                         alpha,
-                        View {
-                            ptr: gd.as_ptr(),
-                            rs: c as isize,
-                            cs: 1,
-                        },
-                        View {
-                            ptr: f.data.as_ptr(),
-                            rs: n as isize,
-                            cs: 1,
-                        },
+                        View { ptr: gd.as_ptr(), rs: c as isize, cs: 1 },
+                        View { ptr: f.data.as_ptr(), rs: n as isize, cs: 1 },
                         0.0,
-                        ViewMut {
-                            ptr: df.data.as_mut_ptr(),
-                            rs: n as isize,
-                            cs: 1,
-                        },
+                        ViewMut { ptr: df.data.as_mut_ptr(), rs: n as isize, cs: 1 },
                     );
                 }
                 match &mut tap_grads[t] {
-                    Some(existing) => existing
-                        .data
-                        .iter_mut()
-                        .zip(&df.data)
-                        .for_each(|(e, d)| *e += d),
+                    Some(existing) => existing.data.iter_mut().zip(&df.data).for_each(|(e, d)| *e += d),
                     slot => *slot = Some(df),
                 }
             }

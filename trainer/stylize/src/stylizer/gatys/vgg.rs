@@ -49,6 +49,7 @@ impl Vgg {
     pub fn new(weights: VggWeights) -> Vgg {
         Vgg { weights }
     }
+
 }
 
 impl FeatureNet for Vgg {
@@ -92,11 +93,7 @@ impl FeatureNet for Vgg {
             acts.push(out);
             pool_args.push(arg);
         }
-        Trace {
-            acts,
-            aux: pool_args,
-            taps: TAP_OPS.iter().map(|o| o + 1).collect(),
-        }
+        Trace { acts, aux: pool_args, taps: TAP_OPS.iter().map(|o| o + 1).collect() }
     }
 
     /// Gradient w.r.t. the un-normalised input image, given gradients w.r.t. the taps

@@ -14,9 +14,8 @@ use super::layers::Conv3x3;
 /// torchvision `features` indices of the convolutions used (conv1_1 .. conv4_1).
 pub const CONV_INDICES: [usize; 8] = [0, 2, 5, 7, 10, 12, 14, 17];
 /// Layer names, for messages.
-pub const CONV_NAMES: [&str; 8] = [
-    "conv1_1", "conv1_2", "conv2_1", "conv2_2", "conv3_1", "conv3_2", "conv3_3", "conv4_1",
-];
+pub const CONV_NAMES: [&str; 8] =
+    ["conv1_1", "conv1_2", "conv2_1", "conv2_2", "conv3_1", "conv3_2", "conv3_3", "conv4_1"];
 /// Output channels of the real VGG-16 per block (conv1_x, conv2_x, conv3_x, conv4_1).
 pub const VGG16_WIDTHS: [usize; 4] = [64, 128, 256, 512];
 
@@ -32,15 +31,13 @@ const BLOCK_OF: [usize; 8] = [0, 0, 1, 1, 2, 2, 2, 3];
 impl VggWeights {
     /// Reads and checks a safetensors file; errors name the file and the problem.
     pub fn load(path: &Path) -> Result<VggWeights> {
-        let bytes = std::fs::read(path)
-            .with_context(|| format!("cannot read VGG weights {}", path.display()))?;
+        let bytes = std::fs::read(path).with_context(|| format!("cannot read VGG weights {}", path.display()))?;
         Self::from_bytes(&bytes).with_context(|| format!("VGG weights {}", path.display()))
     }
 
     pub fn from_bytes(bytes: &[u8]) -> Result<VggWeights> {
-        let st = SafeTensors::deserialize(bytes).map_err(|e| {
-            anyhow::anyhow!("not a valid safetensors file (truncated or corrupt?): {e}")
-        })?;
+        let st = SafeTensors::deserialize(bytes)
+            .map_err(|e| anyhow::anyhow!("not a valid safetensors file (truncated or corrupt?): {e}"))?;
         let mut convs = Vec::with_capacity(8);
         let mut cin = 3usize;
         for (k, name) in CONV_INDICES.iter().zip(CONV_NAMES) {
@@ -50,10 +47,7 @@ impl VggWeights {
                 bail!("{wkey} ({name}) has shape {wshape:?}, expected [cout, cin, 3, 3]");
             }
             if wshape[1] != cin {
-                bail!(
-                    "{wkey} ({name}) has {} input channels, but the previous layer gives {cin}",
-                    wshape[1]
-                );
+                bail!("{wkey} ({name}) has {} input channels, but the previous layer gives {cin}", wshape[1]);
             }
             let cout = wshape[0];
             if cout == 0 {
@@ -65,12 +59,7 @@ impl VggWeights {
             if weight.iter().chain(&bias).any(|v| !v.is_finite()) {
                 bail!("{wkey} or {bkey} ({name}) contains NaN or Inf");
             }
-            convs.push(Conv3x3 {
-                cout,
-                cin,
-                weight,
-                bias,
-            });
+            convs.push(Conv3x3 { cout, cin, weight, bias });
             cin = cout;
         }
         Ok(VggWeights { convs })
@@ -95,12 +84,7 @@ impl VggWeights {
             let a = (6.0 / (cin * 9) as f32).sqrt();
             let weight = (0..cout * cin * 9).map(|_| uniform() * a).collect();
             let bias = (0..cout).map(|_| uniform() * 0.05).collect();
-            convs.push(Conv3x3 {
-                cout,
-                cin,
-                weight,
-                bias,
-            });
+            convs.push(Conv3x3 { cout, cin, weight, bias });
             cin = cout;
         }
         VggWeights { convs }
@@ -110,24 +94,13 @@ impl VggWeights {
     pub fn to_safetensors(&self) -> Result<Vec<u8>> {
         let mut owned: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
         for (conv, k) in self.convs.iter().zip(CONV_INDICES) {
-            owned.push((
-                format!("features.{k}.weight"),
-                vec![conv.cout, conv.cin, 3, 3],
-                f32_bytes(&conv.weight),
-            ));
-            owned.push((
-                format!("features.{k}.bias"),
-                vec![conv.cout],
-                f32_bytes(&conv.bias),
-            ));
+            owned.push((format!("features.{k}.weight"), vec![conv.cout, conv.cin, 3, 3], f32_bytes(&conv.weight)));
+            owned.push((format!("features.{k}.bias"), vec![conv.cout], f32_bytes(&conv.bias)));
         }
         let views: Vec<(String, safetensors::tensor::TensorView)> = owned
             .iter()
             .map(|(name, shape, data)| {
-                Ok((
-                    name.clone(),
-                    safetensors::tensor::TensorView::new(Dtype::F32, shape.clone(), data)?,
-                ))
+                Ok((name.clone(), safetensors::tensor::TensorView::new(Dtype::F32, shape.clone(), data)?))
             })
             .collect::<Result<_, safetensors::SafeTensorError>>()?;
         Ok(safetensors::serialize(views, &None)?)
@@ -158,21 +131,10 @@ fn find_tensor(st: &SafeTensors, suffix: &str) -> Result<(String, Vec<f32>, Vec<
     let view = st.tensor(&key)?;
     let data = view.data();
     let values: Vec<f32> = match view.dtype() {
-        Dtype::F32 => data
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect(),
-        Dtype::F16 => data
-            .chunks_exact(2)
-            .map(|b| f16_to_f32(u16::from_le_bytes([b[0], b[1]])))
-            .collect(),
-        Dtype::BF16 => data
-            .chunks_exact(2)
-            .map(|b| f32::from_bits((u16::from_le_bytes([b[0], b[1]]) as u32) << 16))
-            .collect(),
-        other => {
-            bail!("{key} has dtype {other:?}; save the weights as float32 (or float16/bfloat16)")
-        }
+        Dtype::F32 => data.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+        Dtype::F16 => data.chunks_exact(2).map(|b| f16_to_f32(u16::from_le_bytes([b[0], b[1]]))).collect(),
+        Dtype::BF16 => data.chunks_exact(2).map(|b| f32::from_bits((u16::from_le_bytes([b[0], b[1]]) as u32) << 16)).collect(),
+        other => bail!("{key} has dtype {other:?}; save the weights as float32 (or float16/bfloat16)"),
     };
     Ok((key, values, view.shape().to_vec()))
 }
