@@ -141,7 +141,10 @@ pub fn run(
             );
         }
         on_step(t, &s, progress(t, opts));
-        if t.train_seconds >= next_eval {
+        // A fresh run is also measured after its first step, so the curve always starts
+        // where training started: a run shorter than the first scheduled evaluation still
+        // shows what it gained.
+        if t.train_seconds >= next_eval || t.curve.is_empty() {
             measure(t, &s);
             next_eval = next_eval_after(t.train_seconds);
         }

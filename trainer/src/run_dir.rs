@@ -177,6 +177,10 @@ mod tests {
         let opts = RunOptions { dir: d.join("run"), steps: Some(3), seconds: None, curve_pixels: 64, checkpoint_every: 1e9 };
         let mut t = run::open(&data, cfg, &opts.dir, false).unwrap();
         run::run(&mut t, &data, &opts, &mut |_, _, _| {}).unwrap();
+        // Three steps end long before the first scheduled evaluation, yet the curve has
+        // both ends: after the first step and at the last.
+        let steps: Vec<u64> = t.curve.iter().map(|c| c.step).collect();
+        assert_eq!(steps, [1, 3], "curve points");
 
         let dir = RunDir::new(&opts.dir);
         for f in [dir.checkpoint(), dir.config(), dir.metrics()] {
