@@ -150,10 +150,23 @@ pub fn pair_scores(c: &Value) -> Result<Value> {
             "long_range": ratio(last, first, "long_range")?,
             "style": ratio(last, first, "style")?,
         },
+        // what the style's change over the rounds is made of, and what the Gram distance on
+        // ImageNet features says of it (readouts: the bar is on the weight-free total)
+        "style_parts_last_over_first": {
+            "colour": part_ratio(last, first, &["style_swd", "color"]),
+            "texture": part_ratio(last, first, &["style_swd", "texture"]),
+            "gram": part_ratio(last, first, &["style_gram"]),
+        },
         "separation": ratio(real, per_frame, "style")?,
         // share of the painting's colours a view has nothing within a JND of (a readout)
         "palette_missed": { "per_frame": per_frame["style_swd"]["missed"].as_f64(), "snerf": snerf["style_swd"]["missed"].as_f64() },
     }))
+}
+
+/// `a ÷ b` of the number at `path` in both, if both have it (older records may not).
+fn part_ratio(a: &Value, b: &Value, path: &[&str]) -> Option<f64> {
+    let get = |v: &Value| path.iter().fold(v, |v, k| &v[*k]).as_f64();
+    Some(get(a)? / get(b)?).filter(|r| r.is_finite())
 }
 
 /// Mean, min and max of `xs`.
@@ -236,6 +249,20 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
             "Painting colours a view misses by more than a just-noticeable difference, % (mean (min…max)): per-frame {}, SNeRF {}.\n",
             fmt(pf_missed),
             fmt(sn_missed)
+        ));
+    }
+    let parts = |k: &str| -> Vec<f64> { pairs.iter().filter_map(|p| p["scores"]["style_parts_last_over_first"][k].as_f64()).collect() };
+    let (colour, texture, gram) = (parts("colour"), parts("texture"), parts("gram"));
+    if !colour.is_empty() {
+        let rises = |xs: &[f64]| xs.iter().filter(|&&x| x > 1.0).count();
+        md.push_str(&format!(
+            "Last ÷ first round by the style's parts, mean (min…max), pairs above 1: colour {} {}, texture {} {}; Gram distance on ImageNet features {} {} (readouts, not bars).\n",
+            fmt(colour.clone()),
+            rises(&colour),
+            fmt(texture.clone()),
+            rises(&texture),
+            fmt(gram.clone()),
+            rises(&gram),
         ));
     }
     md.push_str(&format!(
@@ -386,7 +413,7 @@ mod tests {
     }
 
     fn consistency(real: f64, pf: (f64, f64, f64), sn: (f64, f64, f64), r1: (f64, f64, f64), r5: (f64, f64, f64)) -> Value {
-        let m = |s: f64, l: f64, st: f64| json!({ "short_range": s, "long_range": l, "style_swd": { "total": st } });
+        let m = |s: f64, l: f64, st: f64| json!({ "short_range": s, "long_range": l, "style_swd": { "total": st, "color": 0.6 * st, "texture": 0.4 * st }, "style_gram": 2.0 * st });
         json!({
             "methods": [m(0.001, 0.002, real), m(pf.0, pf.1, pf.2), m(sn.0, sn.1, sn.2)],
             "rounds": [m(r1.0, r1.1, r1.2), m(0.0, 0.0, 0.0), m(r5.0, r5.1, r5.2)],
@@ -402,6 +429,9 @@ mod tests {
         assert!((s["snerf_over_per_frame"]["style"].as_f64().unwrap() - 0.9).abs() < 1e-12);
         assert!((s["last_over_first_round"]["long_range"].as_f64().unwrap() - 0.8).abs() < 1e-12);
         assert!((s["separation"].as_f64().unwrap() - 2.0).abs() < 1e-12);
+        for k in ["colour", "texture", "gram"] {
+            assert!((s["style_parts_last_over_first"][k].as_f64().unwrap() - 0.27 / 0.28).abs() < 1e-12, "{k}");
+        }
         let good = json!({ "model": "a", "style": "x", "scores": s });
         let b = bars(std::slice::from_ref(&good));
         assert_eq!((b["ratios"]["met"].as_bool(), b["convergence"]["met"].as_bool(), b["separation"]["met"].as_bool()), (Some(true), Some(true), Some(true)));
@@ -418,6 +448,7 @@ mod tests {
         assert_eq!(b["ratios"]["met"], true);
         let md = table(&pairs, &b);
         assert!(md.contains("| a × x | 0.200 / 0.250 / 0.90 |"), "{md}");
+        assert!(md.contains("colour 0.982 (0.964…1.000) 1, texture 0.982 (0.964…1.000) 1; Gram"), "{md}");
         assert_eq!(failed_pairs(&pairs).as_deref(), Some("1 of 3 pairs failed (first: c × x: boom)"));
         assert_eq!(failed_pairs(&pairs[..2]), None);
         assert!(md.contains("c × x | failed: boom"), "{md}");
