@@ -83,6 +83,15 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     let png = image::open(frames.join("frame_000.png")).unwrap().to_rgb8();
     let asset = snerf_asset::Asset::read(&file).unwrap();
     let cam = snerf_asset::orbit(&asset.header, 1, 0, 24, 16, 40.0);
+    // Its diffuse twin (what a diffuse stylized field bakes to: version 2, no view MLP, 4
+    // bytes a voxel), which the page must expand as the reader does.
+    let mut diffuse = asset.clone();
+    diffuse.header.diffuse = true;
+    diffuse.mlp = snerf_asset::ViewMlp::zeros();
+    for v in diffuse.atlas.chunks_exact_mut(8) {
+        v[4..].fill(0);
+    }
+    diffuse.write(assets.join("b.snerf")).unwrap();
     // The server, its web viewer on a free port.
     let mut child = snerf()
         .args(["--json", "serve"])
@@ -102,12 +111,15 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     let token = ready["token"].as_str().unwrap();
     let camj = serde_json::json!({"c2w": cam.c2w, "fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "width": cam.width, "height": cam.height}).to_string();
     let enc: String = camj.bytes().map(|b| if b.is_ascii_alphanumeric() || b"-_.".contains(&b) { (b as char).to_string() } else { format!("%{b:02X}") }).collect();
-    let url = format!("{web}#token={token}&asset=a&cam={enc}");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/stream/tests/web/page.mjs");
-    let out = Command::new("node").arg(&script).arg(&pw).arg(&url).arg("done").env("SNERF_CHROMIUM", &chromium).output().unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "page.mjs: {stderr}");
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let page = |name: &str| -> serde_json::Value {
+        let url = format!("{web}#token={token}&asset={name}&cam={enc}");
+        let out = Command::new("node").arg(&script).arg(&pw).arg(&url).arg("done").env("SNERF_CHROMIUM", &chromium).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "page.mjs ({name}): {stderr}");
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let r = page("a");
     assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
     assert_eq!(r["sha256"].as_str().unwrap().len(), 64);
     assert_eq!(r["sha256"], r["asset"]["sha256"]);
@@ -148,6 +160,26 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     }
     eprintln!("silhouette pixels the rule changes: {changed}; page vs 4 rays {to_four:.4}, vs one ray {to_one:.4}");
     assert!(changed > 0 && to_four < 0.1 * to_one, "the page does not draw silhouette pixels as the mean of 4 rays ({to_four} vs {to_one} over {changed} pixels)");
+
+    // The diffuse twin draws what the CPU reference draws of it.
+    let r = page("b");
+    assert_eq!(r["error"], serde_json::Value::Null, "page error (diffuse asset): {}", r["error"]);
+    let rgba = r["lastRender"]["rgba"].as_array().unwrap();
+    let reference = snerf_asset::render(&snerf_asset::Asset::read(assets.join("b.snerf")).unwrap(), &cam, 0.0);
+    assert!(reference.opacity.iter().any(|&o| o > 0.5), "the camera sees the object");
+    let mut diff = 0.0f64;
+    for p in 0..24 * 16 {
+        for c in 0..3 {
+            diff += (rgba[4 * p + c].as_f64().unwrap() - reference.rgb[p * 3 + c] as f64).abs() * 255.0;
+        }
+    }
+    let diff = diff / (24.0 * 16.0 * 3.0);
+    let apart = four.rgb.iter().zip(&reference.rgb).map(|(a, b)| (a - b).abs() as f64 * 255.0).sum::<f64>() / (24.0 * 16.0 * 3.0);
+    eprintln!("diffuse asset: page vs CPU reference mean |diff| {diff:.3} (of 255); the full asset's image is {apart:.3} away");
+    assert!(diff <= 2.0, "diffuse asset: mean |diff| {diff} > 2/255");
+    // closer to the diffuse reference than the full asset's own image is (the page drew the
+    // diffuse file, and drew it without the view MLP)
+    assert!(diff < 0.5 * apart, "diffuse asset: the page is {diff} from the diffuse reference, the full image {apart}");
     drop(server);
     let _ = std::fs::remove_dir_all(&d);
 }

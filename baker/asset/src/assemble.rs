@@ -12,6 +12,7 @@ use crate::chunk::{
 };
 use crate::header::Header;
 use crate::mlp::{ViewMlp, MLP_FLOATS};
+use crate::quantize::CHANNELS;
 
 pub struct Assembler {
     asset: Asset,
@@ -38,11 +39,11 @@ impl Assembler {
     /// Start from the first bytes of a stream: the 16-byte preamble and the HEAD chunk,
     /// optionally followed by further whole chunks (all of which are pushed).
     pub fn new(bytes: &[u8]) -> Result<Assembler> {
-        check_preamble(bytes)?;
+        let version = check_preamble(bytes)?;
         let head = parse_chunk_at(bytes, PREAMBLE_LEN, 0)?;
         ensure!(head.tag == TAG_HEAD, "chunk 0 is {}, expected HEAD", tag_name(&head.tag));
         let header = parse_head(&bytes[head.payload.clone()])?;
-        let mut asm = Assembler::with_header(header, false)?;
+        let mut asm = Assembler::with_header(header, version, false)?;
         for c in ChunkIter::new(bytes, head.range.end, 1) {
             let c = c?;
             asm.push(c.tag, &bytes[c.payload])?;
@@ -52,7 +53,7 @@ impl Assembler {
 
     /// Strict whole-file decode (used by `Asset::from_bytes`).
     pub(crate) fn from_file_bytes(bytes: &[u8]) -> Result<Assembler> {
-        check_preamble(bytes)?;
+        let version = check_preamble(bytes)?;
         let mut iter = ChunkIter::new(bytes, PREAMBLE_LEN, 0);
         let head = match iter.next() {
             None => bail!("file has no chunks after the preamble (truncated?)"),
@@ -64,7 +65,7 @@ impl Assembler {
         // claims? Every block and grid entry needs its bytes on disk.
         let remaining = (bytes.len() - head.range.end) as u64;
         let g = header.grid_dim() as u64;
-        let atlas = header.atlas_blocks as u64 * header.block_bytes() as u64;
+        let atlas = header.atlas_blocks as u64 * header.file_block_bytes() as u64;
         let grids = header.num_frames() as u64 * 4 * g * g * g;
         ensure!(
             atlas + grids <= remaining,
@@ -75,7 +76,7 @@ impl Assembler {
             atlas + grids,
             remaining
         );
-        let mut asm = Assembler::with_header(header, true)?;
+        let mut asm = Assembler::with_header(header, version, true)?;
         for c in iter {
             let c = c?;
             ensure!(asm.end.is_none(), "chunk {} ({}) follows the END chunk", c.index, tag_name(&c.tag));
@@ -85,14 +86,21 @@ impl Assembler {
         Ok(asm)
     }
 
-    fn with_header(header: Header, strict: bool) -> Result<Assembler> {
+    fn with_header(header: Header, version: u32, strict: bool) -> Result<Assembler> {
         header.validate()?;
+        ensure!(
+            !header.diffuse || version >= 2,
+            "the header says diffuse, which a version {} file cannot be (needs version 2)",
+            version
+        );
         let n = header.atlas_blocks as usize;
         let frames = header.num_frames();
         let atlas = vec![0u8; n * header.block_bytes()];
+        // a diffuse asset's view MLP is zero and has no chunk: it is there from the start
+        let have_mlp = header.diffuse;
         let asset =
             Asset { mlp: ViewMlp::zeros(), grids: vec![Vec::new(); frames], atlas, present: vec![false; n], header };
-        Ok(Assembler { asset, have_mlp: false, have_grid: vec![false; frames], missing: n, seen: 1, end: None, strict })
+        Ok(Assembler { asset, have_mlp, have_grid: vec![false; frames], missing: n, seen: 1, end: None, strict })
     }
 
     /// Accept one whole encoded chunk (checks its framing and CRC).
@@ -126,6 +134,7 @@ impl Assembler {
     }
 
     fn push_mlp(&mut self, p: &[u8]) -> Result<()> {
+        ensure!(!self.asset.header.diffuse, "a diffuse asset has no view MLP");
         ensure!(!self.have_mlp, "duplicate VMLP");
         ensure!(
             p.len() == MLP_FLOATS * 4,
@@ -173,22 +182,32 @@ impl Assembler {
         let n = self.asset.header.atlas_blocks as u64;
         ensure!(count >= 1, "BLKS with count 0");
         ensure!(first + count <= n, "BLKS blocks {}..{} out of range (atlas has {})", first, first + count, n);
-        let bb = self.asset.block_bytes() as u64;
+        let fb = self.asset.header.file_block_bytes() as u64;
         ensure!(
-            (p.len() - 8) as u64 == count * bb,
+            (p.len() - 8) as u64 == count * fb,
             "BLKS has {} data bytes, expected {} ({} blocks of {})",
             p.len() - 8,
-            count * bb,
+            count * fb,
             count,
-            bb
+            fb
         );
-        let (first, count, bb) = (first as usize, count as usize, bb as usize);
+        let (first, count, bb) = (first as usize, count as usize, self.asset.block_bytes());
         if self.strict {
             if let Some(i) = (first..first + count).find(|&i| self.asset.present[i]) {
                 bail!("duplicate block {}", i);
             }
         }
-        self.asset.atlas[first * bb..(first + count) * bb].copy_from_slice(&p[8..]);
+        let dst = &mut self.asset.atlas[first * bb..(first + count) * bb];
+        let fc = self.asset.header.file_channels();
+        if fc == CHANNELS {
+            dst.copy_from_slice(&p[8..]);
+        } else {
+            // density and diffuse RGB from the file, zero features
+            for (v, f) in dst.chunks_exact_mut(CHANNELS).zip(p[8..].chunks_exact(fc)) {
+                v[..fc].copy_from_slice(f);
+                v[fc..].fill(0);
+            }
+        }
         for i in first..first + count {
             if !self.asset.present[i] {
                 self.asset.present[i] = true;

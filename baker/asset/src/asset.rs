@@ -6,7 +6,8 @@ use std::path::Path;
 
 use crate::assemble::Assembler;
 use crate::atomic::write_atomic;
-use crate::chunk::{encode_chunk, preamble, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
+use crate::chunk::{encode_chunk, preamble_of, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
+use crate::quantize::CHANNELS;
 use crate::header::Header;
 use crate::mlp::ViewMlp;
 
@@ -101,11 +102,13 @@ impl Asset {
     }
 
     /// Encode: preamble, HEAD, VMLP, one GRID per frame, one BLKS per block, END. Blocks not
-    /// present and grids not arrived are left out (such a file reads back as incomplete).
+    /// present and grids not arrived are left out (such a file reads back as incomplete). A
+    /// diffuse asset is version 2, without VMLP and with 4 bytes a voxel.
     pub fn to_bytes(&self) -> Vec<u8> {
         let mut out =
             Vec::with_capacity(64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>());
-        out.extend_from_slice(&preamble());
+        let diffuse = self.header.diffuse;
+        out.extend_from_slice(&preamble_of(if diffuse { 2 } else { 1 }));
         let mut n = 0u32;
         let mut put = |out: &mut Vec<u8>, tag, payload: &[u8]| {
             out.extend_from_slice(&encode_chunk(tag, payload));
@@ -113,8 +116,10 @@ impl Asset {
         };
         let head = serde_json::to_vec(&self.header).expect("header serializes");
         put(&mut out, TAG_HEAD, &head);
-        let mlp: Vec<u8> = self.mlp.to_flat().iter().flat_map(|x| x.to_le_bytes()).collect();
-        put(&mut out, TAG_VMLP, &mlp);
+        if !diffuse {
+            let mlp: Vec<u8> = self.mlp.to_flat().iter().flat_map(|x| x.to_le_bytes()).collect();
+            put(&mut out, TAG_VMLP, &mlp);
+        }
         for (f, grid) in self.grids.iter().enumerate() {
             if grid.is_empty() {
                 continue;
@@ -126,15 +131,21 @@ impl Asset {
             }
             put(&mut out, TAG_GRID, &p);
         }
-        let bb = self.block_bytes();
+        let (bb, fc) = (self.block_bytes(), self.header.file_channels());
         for (i, block) in self.atlas.chunks_exact(bb).enumerate() {
             if !self.present.get(i).copied().unwrap_or(false) {
                 continue;
             }
-            let mut p = Vec::with_capacity(8 + bb);
+            let mut p = Vec::with_capacity(8 + self.header.file_block_bytes());
             p.extend_from_slice(&(i as u32).to_le_bytes());
             p.extend_from_slice(&1u32.to_le_bytes());
-            p.extend_from_slice(block);
+            if fc == CHANNELS {
+                p.extend_from_slice(block);
+            } else {
+                for v in block.chunks_exact(CHANNELS) {
+                    p.extend_from_slice(&v[..fc]);
+                }
+            }
             put(&mut out, TAG_BLKS, &p);
         }
         let count = n;
@@ -155,6 +166,14 @@ impl Asset {
         let h = &self.header;
         h.validate()?;
         self.mlp.validate()?;
+        if h.diffuse {
+            // what the file leaves out must be what a reader puts back
+            ensure!(self.mlp == ViewMlp::zeros(), "a diffuse asset's view MLP must be zero (its file has none)");
+            let fc = h.file_channels();
+            if let Some(v) = self.atlas.chunks_exact(CHANNELS).position(|v| v[fc..].iter().any(|&b| b != 0)) {
+                anyhow::bail!("a diffuse asset's voxel {} has specular features (its file stores none)", v);
+            }
+        }
         let bb = self.block_bytes();
         ensure!(
             self.atlas.len() as u64 == h.atlas_blocks as u64 * bb as u64,

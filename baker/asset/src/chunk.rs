@@ -6,7 +6,10 @@ use anyhow::{bail, ensure, Result};
 use std::ops::Range;
 
 pub const MAGIC: [u8; 8] = *b"SNERFAST";
-pub const VERSION: u32 = 1;
+/// The newest version this reader knows. Version 2 is version 1 plus `diffuse` assets
+/// (FORMAT.md); a writer uses the lowest version that holds its asset, so readers from
+/// before version 2 still read every asset that is not diffuse.
+pub const VERSION: u32 = 2;
 pub const PREAMBLE_LEN: usize = 16;
 /// tag (4) + length (4) + CRC-32 (4).
 pub const CHUNK_HEADER_LEN: usize = 12;
@@ -21,17 +24,22 @@ pub const TAG_GRID: [u8; 4] = *b"GRID";
 pub const TAG_BLKS: [u8; 4] = *b"BLKS";
 pub const TAG_END: [u8; 4] = *b"END ";
 
-/// The preamble every file starts with.
+/// The preamble of a version 1 file (every asset that is not diffuse).
 pub fn preamble() -> [u8; PREAMBLE_LEN] {
+    preamble_of(1)
+}
+
+/// The preamble of a file of `version`.
+pub fn preamble_of(version: u32) -> [u8; PREAMBLE_LEN] {
     let mut p = [0u8; PREAMBLE_LEN];
     p[..8].copy_from_slice(&MAGIC);
-    p[8..12].copy_from_slice(&VERSION.to_le_bytes());
-    // bytes 12..16: flags, 0 in version 1
+    p[8..12].copy_from_slice(&version.to_le_bytes());
+    // bytes 12..16: flags, 0 in versions 1 and 2
     p
 }
 
-/// Check the preamble at the start of `bytes`.
-pub fn check_preamble(bytes: &[u8]) -> Result<()> {
+/// Check the preamble at the start of `bytes`; the file's version.
+pub fn check_preamble(bytes: &[u8]) -> Result<u32> {
     ensure!(
         bytes.len() >= PREAMBLE_LEN,
         "file too short for the preamble ({} bytes, need {})",
@@ -40,10 +48,15 @@ pub fn check_preamble(bytes: &[u8]) -> Result<()> {
     );
     ensure!(bytes[..8] == MAGIC, "not a snerf asset (bad magic {})", tag_name(&bytes[..8]));
     let version = le_u32(&bytes[8..12]);
-    ensure!(version == VERSION, "unsupported asset version {} (this reader knows version {})", version, VERSION);
+    ensure!(
+        (1..=VERSION).contains(&version),
+        "unsupported asset version {} (this reader knows versions 1 to {})",
+        version,
+        VERSION
+    );
     let flags = le_u32(&bytes[12..16]);
-    ensure!(flags == 0, "unsupported asset flags {:#x} (version 1 defines none)", flags);
-    Ok(())
+    ensure!(flags == 0, "unsupported asset flags {:#x} (version {} defines none)", flags, version);
+    Ok(version)
 }
 
 /// One chunk inside a buffer; its CRC has been checked.
@@ -71,7 +84,7 @@ pub fn encode_chunk(tag: [u8; 4], payload: &[u8]) -> Vec<u8> {
 /// Split a whole file into checked chunks (preamble first). Fails on the first framing or
 /// checksum problem; does not interpret chunk contents (see `Asset::from_bytes`).
 pub fn chunks(bytes: &[u8]) -> Result<Vec<ChunkRef>> {
-    check_preamble(bytes)?;
+    let _version = check_preamble(bytes)?;
     ChunkIter::new(bytes, PREAMBLE_LEN, 0).collect()
 }
 

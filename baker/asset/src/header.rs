@@ -21,6 +21,8 @@ pub const MAX_ATLAS_BYTES: u64 = 4 << 30;
 pub const MIN_STEP: f32 = 1.0e-4;
 /// |logit| bound so that exp(logit) stays finite in f32 (exp(88.7) overflows).
 pub const MAX_ABS_LOGIT: f32 = 80.0;
+/// Channels of a voxel in a `diffuse` file: density code and diffuse RGB.
+pub const DIFFUSE_CHANNELS: usize = 4;
 
 /// How march-space points map onto the grid (`snerf_geometry::space` has the formulas).
 pub use snerf_geometry::SceneKind as Kind;
@@ -104,6 +106,17 @@ pub struct Header {
     /// silhouette rule (`silhouette::draws_pixel_means`). Absent: every camera applies it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub train_pixel: Option<f32>,
+    /// The scene's colour does not depend on the viewing direction (a diffuse stylized
+    /// field: its view MLP's output layer is zero). The file then leaves out what could not
+    /// change a pixel: the VMLP chunk (readers use a zero MLP) and the four specular
+    /// features of every voxel (stored as 4 bytes, read back as 8 with zero features).
+    /// Needs file version 2; absent (false) in every other asset.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub diffuse: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 fn one_ray() -> u32 {
@@ -147,6 +160,7 @@ impl Header {
             floor: None,
             pixel_rays: 1,
             train_pixel: None,
+            diffuse: false,
         }
     }
 
@@ -191,11 +205,31 @@ impl Header {
         (self.res / self.block.max(1)) as usize
     }
 
-    /// Bytes of one stored block: (block+2)^3 voxels x 8 channels.
+    /// Bytes of one block in memory: (block+2)^3 voxels x 8 channels.
     pub fn block_bytes(&self) -> usize {
+        self.voxels_per_block().saturating_mul(crate::quantize::CHANNELS)
+    }
+
+    /// Bytes of one block in the file: 8 per voxel, or 4 (density and diffuse RGB) in a
+    /// `diffuse` asset.
+    pub fn file_block_bytes(&self) -> usize {
+        self.voxels_per_block().saturating_mul(self.file_channels())
+    }
+
+    /// Channels a voxel has in the file (8, or 4 in a `diffuse` asset).
+    pub fn file_channels(&self) -> usize {
+        if self.diffuse {
+            DIFFUSE_CHANNELS
+        } else {
+            crate::quantize::CHANNELS
+        }
+    }
+
+    /// (block+2)^3, the apron included.
+    fn voxels_per_block(&self) -> usize {
         // Saturating: callers may ask before `validate` has bounded `block`.
         let e = (self.block as usize).saturating_add(2);
-        e.saturating_mul(e).saturating_mul(e).saturating_mul(8)
+        e.saturating_mul(e).saturating_mul(e)
     }
 
     /// Keyframe time of frame `i` (0 for static assets).

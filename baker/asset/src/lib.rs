@@ -3,7 +3,8 @@
 //! A baked scene is a sparse voxel grid over grid space [-1,1]^3: a coarse indirection grid
 //! (one u32 per cell and keyframe) points into an atlas of 8-bit blocks (density code,
 //! diffuse RGB, 4 specular features, each block with a 1-voxel apron), plus the tiny view
-//! MLP that turns composited diffuse + features + direction into specular colour.
+//! MLP that turns composited diffuse + features + direction into specular colour. A diffuse
+//! asset (the MLP's output layer zero) leaves the MLP and the features out of its file.
 //!
 //! Data flow:
 //! - baker: `AssetBuilder` (header + blocks per cell/frame) -> `Asset` -> `Asset::write`

@@ -71,7 +71,7 @@ impl Asset {
         let g = self.grid_dim() as u64;
         let cells = g * g * g;
         let grid_chunk = (CHUNK_HEADER_LEN as u64) + 4 + 4 * cells;
-        let block_chunk = (CHUNK_HEADER_LEN as u64) + 8 + self.block_bytes() as u64;
+        let block_chunk = (CHUNK_HEADER_LEN as u64) + 8 + h.file_block_bytes() as u64;
         let head_len = serde_json::to_vec(h).map(|v| v.len()).unwrap_or(0) as u64;
         let mut seen = vec![false; h.atlas_blocks as usize];
         let mut occupied = Vec::new();
@@ -96,7 +96,7 @@ impl Asset {
         }
         let present_blocks = self.present.iter().filter(|&&p| p).count() as u64;
         let head = PREAMBLE_LEN as u64 + CHUNK_HEADER_LEN as u64 + head_len;
-        let mlp = CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64;
+        let mlp = if h.diffuse { 0 } else { CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64 };
         let grids_bytes = self.grids.iter().filter(|g| !g.is_empty()).count() as u64 * grid_chunk;
         let blocks_bytes = present_blocks * block_chunk;
         let mean_occupied = occupied.iter().sum::<u64>() as f64 / occupied.len().max(1) as f64;

@@ -205,9 +205,9 @@ fn structural_errors() {
 #[test]
 fn bad_preamble() {
     let mut bytes = tiny().to_bytes();
-    bytes[8] = 2;
+    bytes[8] = 3;
     let e = err_of(&bytes);
-    assert!(e.contains("version 2"), "{}", e);
+    assert!(e.contains("version 3"), "{}", e);
     let mut bytes = tiny().to_bytes();
     bytes[0] = b'X';
     assert!(err_of(&bytes).contains("magic"));

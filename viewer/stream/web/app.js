@@ -231,8 +231,15 @@ class Renderer {
   }
   setGrid(frameIndex, entries) { this.grids[frameIndex] = entries; this.gridDirty = true; }
   // `data`: `count` blocks of (block+2)^3 voxels x 8 bytes: one rg32uint texel per voxel.
+  // A diffuse asset's file stores 4 (density, RGB): the features, which its zero view MLP
+  // would not use, are zero here.
   setBlocks(first, count, data) {
     const e = this.edge, bb = e * e * e * 8;
+    if (this.h.diffuse) {
+      const full = new Uint8Array(count * bb);
+      for (let v = 0; v < count * e * e * e; v++) full.set(data.subarray(4 * v, 4 * v + 4), 8 * v);
+      data = full;
+    }
     for (let k = 0; k < count; k++) {
       const b = first + k;
       this.device.queue.writeTexture({ texture: this.atlas, origin: this.origin(b) }, data.subarray(k * bb, (k + 1) * bb), { bytesPerRow: e * 8, rowsPerImage: e }, [e, e, e]);
@@ -624,6 +631,8 @@ async function stream(name, gpu) {
       report.marks.shader = performance.now();
       r = new Renderer(gpu.device, h, code, gpu.presentWgsl, gpu.wg);
       report.marks.pipeline = performance.now();
+      // a diffuse asset has no VMLP chunk: its view MLP is zero
+      if (h.diffuse) { r.setMlp(new Uint8Array(883 * 4)); r.mlp = true; }
       sendPose();
       offerXR();
       if (dyn) {
