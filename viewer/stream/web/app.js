@@ -236,9 +236,11 @@ class Renderer {
   setBlocks(first, count, data) {
     const e = this.edge, bb = e * e * e * 8;
     if (this.h.diffuse) {
-      const full = new Uint8Array(count * bb);
-      for (let v = 0; v < count * e * e * e; v++) full.set(data.subarray(4 * v, 4 * v + 4), 8 * v);
-      data = full;
+      // one u32 a voxel in, two out (the second zero); slice() aligns the payload for the view
+      const src = new Uint32Array(data.slice(0, count * bb / 2).buffer);
+      const full = new Uint32Array(2 * src.length);
+      for (let v = 0; v < src.length; v++) full[2 * v] = src[v];
+      data = new Uint8Array(full.buffer);
     }
     for (let k = 0; k < count; k++) {
       const b = first + k;
