@@ -170,7 +170,7 @@ fn demo_writes_pictures_and_a_summary() {
     assert_eq!(info["summary"]["frames"].as_u64(), Some(1), "{info}");
     // the stylized field is diffuse, so its asset leaves out the view MLP and the features
     assert!(snerf_asset::Asset::read(&asset).unwrap().header.diffuse, "the stylized asset is not diffuse");
-    assert_eq!(info["summary"]["bytes"]["mlp"].as_u64(), Some(0), "{info}");
+    assert_eq!((info["summary"]["diffuse"].as_bool(), info["summary"]["bytes"]["mlp"].as_u64()), (Some(true), Some(0)), "{info}");
     // a file that is not an asset: a clear error naming it
     fails(snerf().args(["inspect"]).arg(out.join("summary.json")).output().unwrap(), &["summary.json"]);
     // the sheet has the training curve beside the held-out views (no empty band), and the

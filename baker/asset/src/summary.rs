@@ -28,6 +28,8 @@ pub struct Summary {
     pub block: u32,
     pub frames: usize,
     pub atlas_blocks: u32,
+    /// Colour independent of the view: no view MLP and 4 bytes a voxel in the file.
+    pub diffuse: bool,
     /// Non-empty indirection cells per frame, and as a fraction of all g^3 cells.
     pub occupied_cells: Vec<u64>,
     pub occupied_fraction: Vec<f64>,
@@ -122,6 +124,7 @@ impl Asset {
             block: h.block,
             frames: self.num_frames(),
             atlas_blocks: h.atlas_blocks,
+            diffuse: h.diffuse,
             occupied_fraction: occupied.iter().map(|&o| o as f64 / cells.max(1) as f64).collect(),
             occupied_cells: occupied,
             bytes: PartBytes { header: head, mlp, grids: grids_bytes, blocks: blocks_bytes, total: file_bytes },

@@ -59,6 +59,7 @@ fn a_diffuse_file_is_version_2_without_mlp_or_features_and_reads_back_exactly() 
     assert_eq!(back, d);
     // the summary counts what the file holds
     let s = back.summary(fd.len() as u64);
+    assert!(s.diffuse && !a.summary(fa.len() as u64).diffuse);
     assert_eq!(s.bytes.mlp, 0);
     assert_eq!(s.bytes.header + s.bytes.grids + s.bytes.blocks + 12 + 4, fd.len() as u64, "{:?}", s.bytes);
 }
