@@ -226,7 +226,8 @@ fn march_forward(asset: &Asset, slot: &TimeSlot, r: &MarchRay, n: &crate::header
 /// Final pixel colour: diffuse + opacity·specular + T·background, clamped to [0,1].
 fn shade(asset: &Asset, acc: &Accum, dw: V3) -> PixelResult {
     let bg = asset.header.background;
-    let spec = if acc.acc > 0.0 { asset.mlp.forward(&ViewMlp::input(&acc.vals, dw)) } else { [0.0; 3] };
+    // a diffuse asset's MLP is zero (validated): its specular term is 0 without running it
+    let spec = if acc.acc > 0.0 && !asset.header.diffuse { asset.mlp.forward(&ViewMlp::input(&acc.vals, dw)) } else { [0.0; 3] };
     let rgb = [0, 1, 2].map(|c| (acc.vals[c] + acc.acc * spec[c] + acc.trans * bg[c]).max(0.0).min(1.0));
     let depth = if acc.acc > 1e-6 { acc.depth / acc.acc } else { 0.0 };
     PixelResult { rgb, depth, opacity: acc.acc, samples: acc.samples }
