@@ -86,11 +86,7 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     // Its diffuse twin (what a diffuse stylized field bakes to: version 2, no view MLP, 4
     // bytes a voxel), which the page must expand as the reader does.
     let mut diffuse = asset.clone();
-    diffuse.header.diffuse = true;
-    diffuse.mlp = snerf_asset::ViewMlp::zeros();
-    for v in diffuse.atlas.chunks_exact_mut(8) {
-        v[4..].fill(0);
-    }
+    diffuse.make_diffuse();
     diffuse.write(assets.join("b.snerf")).unwrap();
     // The server, its web viewer on a free port.
     let mut child = snerf()

@@ -320,17 +320,14 @@ pub fn bake(
         header.frames = Some(field_times.iter().map(|&u| Keyframe { time: lo + u * (hi - lo) }).collect());
     }
     let view = &model.field.layout.view;
-    let mut mlp = ViewMlp::from_flat(&model.field.params[view.w1..view.end])?;
-    if mlp.w3.iter().chain(&mlp.b3).all(|&w| w == 0.0) {
+    let mlp = ViewMlp::from_flat(&model.field.params[view.w1..view.end])?;
+    let diffuse = mlp.output_is_zero();
+    let mut asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
+    if diffuse {
         // A zero output layer (a diffuse stylized field) adds nothing whatever the features
         // and the direction: the asset is diffuse and its file leaves both out.
-        header.diffuse = true;
-        mlp = ViewMlp::zeros();
-        for v in atlas.chunks_exact_mut(8) {
-            v[snerf_asset::header::DIFFUSE_CHANNELS..].fill(0);
-        }
+        asset.make_diffuse();
     }
-    let asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
     asset.validate()?;
     report.seconds_total = t_all.elapsed().as_secs_f64();
     Ok((asset, report))

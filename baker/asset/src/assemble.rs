@@ -89,9 +89,10 @@ impl Assembler {
     fn with_header(header: Header, version: u32, strict: bool) -> Result<Assembler> {
         header.validate()?;
         ensure!(
-            !header.diffuse || version >= 2,
-            "the header says diffuse, which a version {} file cannot be (needs version 2)",
-            version
+            version >= header.file_version(),
+            "the header says diffuse, which a version {} file cannot be (needs version {})",
+            version,
+            header.file_version()
         );
         let n = header.atlas_blocks as usize;
         let frames = header.num_frames();

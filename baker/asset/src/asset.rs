@@ -74,6 +74,18 @@ impl Asset {
         Ok(a)
     }
 
+    /// Makes the asset diffuse (FORMAT.md, version 2): a zero view MLP, zero specular
+    /// features, and the header key that lets the file leave both out. Changes no pixel
+    /// exactly when the MLP's output layer was zero (`ViewMlp::output_is_zero`).
+    pub fn make_diffuse(&mut self) {
+        self.header.diffuse = true;
+        self.mlp = ViewMlp::zeros();
+        let fc = self.header.file_channels();
+        for v in self.atlas.chunks_exact_mut(CHANNELS) {
+            v[fc..].fill(0);
+        }
+    }
+
     /// Stored bytes of block `i` (None if out of range or not yet arrived).
     pub fn block(&self, i: u32) -> Option<&[u8]> {
         if !*self.present.get(i as usize)? {
@@ -108,7 +120,7 @@ impl Asset {
         let mut out =
             Vec::with_capacity(64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>());
         let diffuse = self.header.diffuse;
-        out.extend_from_slice(&preamble_of(if diffuse { 2 } else { 1 }));
+        out.extend_from_slice(&preamble_of(self.header.file_version()));
         let mut n = 0u32;
         let mut put = |out: &mut Vec<u8>, tag, payload: &[u8]| {
             out.extend_from_slice(&encode_chunk(tag, payload));

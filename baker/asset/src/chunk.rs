@@ -84,7 +84,7 @@ pub fn encode_chunk(tag: [u8; 4], payload: &[u8]) -> Vec<u8> {
 /// Split a whole file into checked chunks (preamble first). Fails on the first framing or
 /// checksum problem; does not interpret chunk contents (see `Asset::from_bytes`).
 pub fn chunks(bytes: &[u8]) -> Result<Vec<ChunkRef>> {
-    let _version = check_preamble(bytes)?;
+    check_preamble(bytes)?;
     ChunkIter::new(bytes, PREAMBLE_LEN, 0).collect()
 }
 

@@ -216,6 +216,16 @@ impl Header {
         self.voxels_per_block().saturating_mul(self.file_channels())
     }
 
+    /// The lowest file version that holds this asset: 2 for a `diffuse` one, else 1 (so
+    /// readers from before version 2 read every other asset).
+    pub fn file_version(&self) -> u32 {
+        if self.diffuse {
+            2
+        } else {
+            1
+        }
+    }
+
     /// Channels a voxel has in the file (8, or 4 in a `diffuse` asset).
     pub fn file_channels(&self) -> usize {
         if self.diffuse {

@@ -61,6 +61,12 @@ impl ViewMlp {
         [&self.w1, &self.b1, &self.w2, &self.b2, &self.w3, &self.b3].iter().flat_map(|v| v.iter().copied()).collect()
     }
 
+    /// Whether the output layer is zero, so the MLP adds 0 whatever its input (what a
+    /// diffuse asset's MLP must be).
+    pub fn output_is_zero(&self) -> bool {
+        self.w3.iter().chain(&self.b3).all(|&w| w == 0.0)
+    }
+
     /// Sizes and finiteness (public fields can be set to anything by a caller).
     pub fn validate(&self) -> Result<()> {
         ViewMlp::from_flat(&self.to_flat()).map(|_| ())

@@ -33,11 +33,7 @@ fn full() -> Asset {
 /// The same scene as a diffuse asset: zero MLP, zero features.
 fn diffuse_of(a: &Asset) -> Asset {
     let mut d = a.clone();
-    d.header.diffuse = true;
-    d.mlp = ViewMlp::zeros();
-    for v in d.atlas.chunks_exact_mut(8) {
-        v[4..].fill(0);
-    }
+    d.make_diffuse();
     d
 }
 
