@@ -1,7 +1,8 @@
 // Atlas access by texel loads + manual trilinear (the default): exactly render.rs's
 // `interpolate` — the 8 corner codes weighted in f32 in the same order, divided by 255.
 // One rg32uint 3D texture: a voxel's 8 channel bytes, little-endian, in .x (channels
-// 0..3) and .y (channels 4..7), so one load fetches a whole voxel.
+// 0..3) and .y (channels 4..7), so one load fetches a whole voxel. A diffuse asset's is
+// r32uint (channels 0..3 alone; its features are zero and never read).
 
 @group(0) @binding(5) var atlas: texture_3d<u32>;
 
@@ -25,7 +26,9 @@ fn atlas_interp(origin: vec3<u32>, l: vec3<f32>) -> Vals {
         let wt = wx * wy * wz;
         let t = textureLoad(atlas, base + vec3<i32>(vec3<u32>(dx, dy, dz)), 0);
         s0 += wt * codes(t.x);
-        s1 += wt * codes(t.y);
+        if (!DIFFUSE) {
+            s1 += wt * codes(t.y);
+        }
     }
     var o: Vals;
     o.a = s0 / 255.0;

@@ -6,6 +6,8 @@
 // The viewer prepends the variant constants (only the variant a scene needs is built):
 //   const KIND: u32        0 object, 1 forward (NDC), 2 unbounded (MERF contraction)
 //   const DYNAMIC: bool    blend two keyframes (4D assets)
+//   const DIFFUSE: bool    a diffuse asset: zero features and view MLP, neither computed;
+//                          the atlas holds density and RGB only (one u32 a voxel)
 //   const BLOCK: u32       voxels per block edge (without apron)
 //   const WG: u32          workgroup edge
 // and one atlas access snippet (atlas_load.wgsl or atlas_filter.wgsl) that defines
@@ -101,7 +103,9 @@ fn accum_add(v: Vals, delta: f32, t: f32) -> bool {
     let alpha = one_minus_exp_neg(sd);
     let w = acc_trans * alpha;
     acc_rgb += w * v.a.yzw;
-    acc_feat += w * v.b;
+    if (!DIFFUSE) {
+        acc_feat += w * v.b;
+    }
     acc_w += w;
     acc_depth += w * t;
     acc_optical += sd;
@@ -489,9 +493,9 @@ fn render_at(x: u32, y: u32, sx: f32, sy: f32) -> Px {
     } else {
         march_unbounded(o, d);
     }
-    // render.rs `shade`
+    // render.rs `shade` (a diffuse asset's view MLP is zero: render.rs skips it too)
     var spec = vec3<f32>(0.0);
-    if (acc_w > 0.0) {
+    if (!DIFFUSE && acc_w > 0.0) {
         spec = view_mlp(dw);
     }
     let diffuse = acc_rgb;

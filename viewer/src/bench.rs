@@ -51,6 +51,24 @@ pub struct StereoBench {
     pub speedup: f64,
 }
 
+/// A diffuse asset drawn by its own shader variant (no features, no view MLP, a 4-byte
+/// atlas texel) against the full variant drawing the same asset as if it were not diffuse
+/// (8-byte texels, the zero MLP run): the same pixels, interleaved frame by frame.
+#[derive(Clone, Debug, Serialize)]
+pub struct DiffuseBench {
+    pub diffuse_median_ms: f64,
+    pub full_median_ms: f64,
+    /// diffuse_median_ms / full_median_ms (< 1: the diffuse variant is faster).
+    pub ratio: f64,
+    /// Process CPU seconds per frame of each (lavapipe: the shader's work).
+    pub diffuse_process_cpu_s: Option<f64>,
+    pub full_process_cpu_s: Option<f64>,
+    pub diffuse_atlas_bytes: u64,
+    pub full_atlas_bytes: u64,
+    /// Largest difference between the two variants' pixels.
+    pub max_abs_diff: f32,
+}
+
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchView {
     pub adapter: String,
@@ -73,6 +91,8 @@ pub struct BenchView {
     pub gpu_process_cpu_s: Option<f64>,
     pub cpu_process_cpu_s: Option<f64>,
     pub stereo: Option<StereoBench>,
+    /// Only for a diffuse asset.
+    pub diffuse: Option<DiffuseBench>,
 }
 
 impl fmt::Display for BenchView {
@@ -111,6 +131,21 @@ impl fmt::Display for BenchView {
                 "\nstereo 2x({}x{}): GPU median {:.2} ms/frame, CPU reference {:.2} ms/frame, speedup {:.2}x",
                 s.eye_width, s.eye_height, s.gpu_median_ms, s.cpu_median_ms, s.speedup
             )?;
+        }
+        if let Some(d) = &self.diffuse {
+            write!(
+                f,
+                "\ndiffuse variant: GPU median {:.2} ms/frame against {:.2} ms for the full variant on the same asset ({:.3}x); atlas texture {:.1} MB against {:.1} MB; max pixel difference {:.1e}",
+                d.diffuse_median_ms,
+                d.full_median_ms,
+                d.ratio,
+                d.diffuse_atlas_bytes as f64 / 1e6,
+                d.full_atlas_bytes as f64 / 1e6,
+                d.max_abs_diff
+            )?;
+            if let (Some(a), Some(b)) = (d.diffuse_process_cpu_s, d.full_process_cpu_s) {
+                write!(f, " (process CPU time per frame {:.3} s against {:.3} s)", a, b)?;
+            }
         }
         Ok(())
     }
@@ -271,6 +306,11 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
     } else {
         None
     };
+    let diffuse = if asset.header.diffuse {
+        Some(bench_diffuse(asset, &cams, time, o)?)
+    } else {
+        None
+    };
     Ok(BenchView {
         adapter: r.adapter_info(),
         width: o.width,
@@ -286,5 +326,52 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
         gpu_process_cpu_s: gpu_cs.map(|x| x / cpu_n as f64),
         cpu_process_cpu_s: cpu_cs.map(|x| x / cpu_n as f64),
         stereo,
+        diffuse,
+    })
+}
+
+/// `DiffuseBench` over `cams`: each camera drawn by the diffuse variant and then by the full
+/// one, after a warm-up frame of each.
+fn bench_diffuse(asset: &Asset, cams: &[Camera], time: f32, o: &BenchOptions) -> Result<DiffuseBench> {
+    let mut twin = asset.clone();
+    twin.header.diffuse = false;
+    let mut rd = GpuRenderer::with_options(asset, o.gpu.clone())?;
+    let mut rf = GpuRenderer::with_options(&twin, o.gpu.clone())?;
+    let view = |c: &Camera| [View { cam: *c, time, x0: 0 }];
+    let mut max_abs_diff = 0.0f32;
+    if let Some(c) = cams.first() {
+        let (a, b) = (rd.render(c, time)?, rf.render(c, time)?);
+        for (x, y) in a.rgb.iter().zip(&b.rgb) {
+            max_abs_diff = max_abs_diff.max((x - y).abs());
+        }
+    }
+    let (mut td, mut tf) = (Vec::new(), Vec::new());
+    let (mut cd, mut cf) = (Some(0.0), Some(0.0));
+    let add = |acc: &mut Option<f64>, a: Option<f64>, b: Option<f64>| {
+        *acc = match (*acc, a, b) {
+            (Some(x), Some(a), Some(b)) => Some(x + (b - a)),
+            _ => None,
+        }
+    };
+    for c in cams {
+        let c0 = process_cpu_seconds();
+        td.push(ms(rd.render_wait(o.width, o.height, &view(c))?));
+        let c1 = process_cpu_seconds();
+        tf.push(ms(rf.render_wait(o.width, o.height, &view(c))?));
+        let c2 = process_cpu_seconds();
+        add(&mut cd, c0, c1);
+        add(&mut cf, c1, c2);
+    }
+    let n = cams.len().max(1) as f64;
+    let (dm, fm) = (median(&mut td), median(&mut tf));
+    Ok(DiffuseBench {
+        diffuse_median_ms: dm,
+        full_median_ms: fm,
+        ratio: dm / fm,
+        diffuse_process_cpu_s: cd.map(|x| x / n),
+        full_process_cpu_s: cf.map(|x| x / n),
+        diffuse_atlas_bytes: rd.atlas_texture_bytes(),
+        full_atlas_bytes: rf.atlas_texture_bytes(),
+        max_abs_diff,
     })
 }

@@ -1,5 +1,6 @@
-//! The wgpu renderer: uploads an asset (atlas -> two 3D textures of blocks, indirection
-//! grids -> a storage buffer, view MLP -> a storage buffer), builds the one shader variant
+//! The wgpu renderer: uploads an asset (atlas -> one 3D texture of blocks, or two with
+//! hardware filtering; indirection grids -> a storage buffer, view MLP -> a uniform buffer),
+//! builds the one shader variant
 //! the scene needs, and ray-marches one or more views into a float output buffer that is
 //! either read back (headless, tests) or presented (window).
 
@@ -404,7 +405,8 @@ pub struct GpuRenderer {
     opts: GpuOptions,
     header: Header,
     layout: AtlasLayout,
-    /// Default: one rg32uint texture (8 bytes per voxel); hardware filter: two rgba8unorm.
+    /// Default: one rg32uint texture (8 bytes per voxel; r32uint, 4 bytes, for a diffuse
+    /// asset); hardware filter: two rgba8unorm.
     tex: Vec<wgpu::Texture>,
     sampler: Option<wgpu::Sampler>,
     grid_buf: wgpu::Buffer,
@@ -466,6 +468,9 @@ impl GpuRenderer {
         let texels = layout.texels();
         let fmt = if opts.hardware_filter {
             wgpu::TextureFormat::Rgba8Unorm
+        } else if h.diffuse {
+            // density and RGB only: the features of a diffuse asset are zero and never read
+            wgpu::TextureFormat::R32Uint
         } else {
             wgpu::TextureFormat::Rg32Uint
         };
@@ -559,14 +564,24 @@ impl GpuRenderer {
         Ok(())
     }
 
+    /// Bytes of GPU texture memory the atlas takes.
+    pub fn atlas_texture_bytes(&self) -> u64 {
+        let t = self.layout.texels();
+        let voxel: usize = self.texel_split().iter().map(|r| r.len()).sum();
+        t.iter().map(|&n| n as u64).product::<u64>() * voxel as u64
+    }
+
     /// Bytes per texel and channel range per texture: one rg32uint texture holds all 8
-    /// channel bytes of a voxel; two rgba8unorm textures hold 4 each.
+    /// channel bytes of a voxel (a diffuse asset's r32uint the first 4); two rgba8unorm
+    /// textures hold 4 each.
     #[allow(clippy::single_range_in_vec_init)]
     fn texel_split(&self) -> Vec<std::ops::Range<usize>> {
-        if self.tex.len() == 1 {
-            vec![0..8]
-        } else {
+        if self.tex.len() == 2 {
             vec![0..4, 4..8]
+        } else if self.header.diffuse {
+            vec![0..4]
+        } else {
+            vec![0..8]
         }
     }
 
@@ -1118,17 +1133,23 @@ pub(crate) fn read_buffer<T: bytemuck::Pod>(
     Ok(data)
 }
 
-/// The march shader source of one variant (kind, static/dynamic, atlas access), composed by
+/// The march shader variant an asset needs (`shader_variant`) and its source, composed by
 /// `snerf_geometry::march::march_shader`, as `snerf serve` composes it for the web page.
 pub fn shader_source(h: &Header, hardware_filter: bool) -> String {
     // The march constants come from snerf-geometry, so the shader cannot drift from the
     // CPU reference and the trainer.
-    snerf_geometry::march::march_shader(
-        h.kind.shader_index(),
-        h.num_frames() > 1,
-        h.block,
+    snerf_geometry::march::march_shader(shader_variant(h, hardware_filter))
+}
+
+/// Kind, keyframes, diffuse or not, block edge and atlas access of an asset's shader.
+pub fn shader_variant(h: &Header, hardware_filter: bool) -> snerf_geometry::march::ShaderVariant {
+    snerf_geometry::march::ShaderVariant {
+        kind: h.kind.shader_index(),
+        dynamic: h.num_frames() > 1,
+        diffuse: h.diffuse,
+        block: h.block,
         hardware_filter,
-    )
+    }
 }
 
 fn build_pipeline(

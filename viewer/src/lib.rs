@@ -21,12 +21,12 @@ pub mod headless;
 pub mod stream_source;
 pub mod window;
 
-pub use bench::{bench_view, bench_view_with, BenchOptions, BenchView, StereoBench};
+pub use bench::{bench_view, bench_view_with, BenchOptions, BenchView, DiffuseBench, StereoBench};
 pub use camera::{
     camera_from_c2w, initial_camera, load_poses, stereo_pair, Controller, PoseSample,
 };
 pub use gpu::{
-    gpu_available, shader_source, AtlasLayout, DeviceLostError, GpuContext, GpuOptions,
+    gpu_available, shader_source, shader_variant, AtlasLayout, DeviceLostError, GpuContext, GpuOptions,
     GpuRenderer, LimitError, NoAdapterError, View,
 };
 pub use headless::{render_frames, render_frames_or_cpu, render_frames_with, RenderedBy};

@@ -371,22 +371,30 @@ fn all_variants_build_and_match() {
                     }
                 }
             }
-            let a = b.finish().unwrap();
-            for hw in [false, true] {
+            let full = b.finish().unwrap();
+            let mut diffuse = full.clone();
+            diffuse.make_diffuse();
+            for (a, hw) in [(&full, false), (&full, true), (&diffuse, false), (&diffuse, true)] {
                 let mut r = GpuRenderer::with_options(
-                    &a,
+                    a,
                     GpuOptions {
                         hardware_filter: hw,
                         ..Default::default()
                     },
                 )
                 .unwrap();
+                let diffuse = a.header.diffuse;
+                if !hw {
+                    // a diffuse asset's atlas texture holds density and RGB alone: half the bytes
+                    let voxels = r.atlas_layout().texels().iter().map(|&n| n as u64).product::<u64>();
+                    assert_eq!(r.atlas_texture_bytes(), voxels * if diffuse { 4 } else { 8 });
+                }
                 for (i, c) in cams(&a.header, 2, 48, 36).iter().enumerate() {
                     let t = 0.7 * i as f32;
-                    let dd = diff(&r.render(c, t).unwrap(), &snerf_asset::render(&a, c, t));
+                    let dd = diff(&r.render(c, t).unwrap(), &snerf_asset::render(a, c, t));
                     println!(
-                        "{:?} dynamic {} hw {} cam {}: mean {:.2e} max {:.2e}",
-                        kind, dynamic, hw, i, dd.mean, dd.max
+                        "{:?} dynamic {} diffuse {} hw {} cam {}: mean {:.2e} max {:.2e}",
+                        kind, dynamic, diffuse, hw, i, dd.mean, dd.max
                     );
                     let bar = if hw { 4.0 / 255.0 } else { 1.0 / 255.0 };
                     assert!(

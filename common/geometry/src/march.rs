@@ -51,20 +51,38 @@ pub const PRESENT_WGSL: &str = include_str!("../../../shaders/present.wgsl");
 /// Workgroup edge of the march shader (WORKGROUP x WORKGROUP pixels per workgroup).
 pub const WORKGROUP: u32 = 8;
 
+/// Which march shader a scene needs. Only that variant is compiled, so a scene pays for
+/// nothing it does not have (no keyframe blend in a static scene, no view MLP in a diffuse
+/// one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ShaderVariant {
+    /// The scene kind's shader index: 0 object, 1 forward (NDC), 2 unbounded.
+    pub kind: u32,
+    /// Two keyframes blended (4D assets).
+    pub dynamic: bool,
+    /// A diffuse asset (FORMAT.md, version 2): its view MLP and features are zero, so the
+    /// shader neither composites features nor runs the MLP, and the atlas holds 4 bytes a
+    /// voxel (density code and RGB) instead of 8.
+    pub diffuse: bool,
+    /// Voxels per block edge (without the apron).
+    pub block: u32,
+    /// `atlas_filter.wgsl` (hardware trilinear) instead of `atlas_load.wgsl`.
+    pub hardware_filter: bool,
+}
+
 /// The march shader of one variant, composed exactly once for every client: the native
 /// viewer builds its pipeline from it and `snerf serve` hands the same text to the web page.
-/// `kind` is the scene kind's shader index (0 object, 1 forward, 2 unbounded), `block` the
-/// asset's block edge; `hardware_filter` picks `atlas_filter.wgsl` over `atlas_load.wgsl`.
-pub fn march_shader(kind: u32, dynamic: bool, block: u32, hardware_filter: bool) -> String {
+pub fn march_shader(v: ShaderVariant) -> String {
     format!(
-        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}",
-        kind,
-        dynamic,
-        block,
+        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst DIFFUSE: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}",
+        v.kind,
+        v.dynamic,
+        v.diffuse,
+        v.block,
         WORKGROUP,
         wgsl_prelude(),
         MARCH_WGSL,
-        if hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL }
+        if v.hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL }
     )
 }
 

@@ -38,6 +38,7 @@ use crate::conn::Conn;
 use crate::pending::Pending;
 use crate::proto::code;
 use crate::server::{handle, log, transport, Shared};
+use snerf_geometry::march::{march_shader, ShaderVariant};
 
 /// The page and its script, embedded at build time (no build step: plain ES modules).
 pub const INDEX_HTML: &str = include_str!("../web/index.html");
@@ -471,11 +472,7 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) 
         }
         "/present.wgsl" => (200, "text/plain; charset=utf-8", snerf_geometry::march::PRESENT_WGSL.as_bytes().to_vec()),
         "/march.wgsl" => match shader_query(query) {
-            Some((kind, dynamic, block)) => (
-                200,
-                "text/plain; charset=utf-8",
-                snerf_geometry::march::march_shader(kind, dynamic, block, false).into_bytes(),
-            ),
+            Some(variant) => (200, "text/plain; charset=utf-8", march_shader(variant).into_bytes()),
             None => (400, "text/plain", b"bad shader variant".to_vec()),
         },
         _ => (404, "text/plain", b"not found".to_vec()),
@@ -484,19 +481,25 @@ async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) 
     respond(&mut s, status, ctype, body, Some(&csp)).await
 }
 
-/// `kind=K&dynamic=0|1&block=B` with K in 0..=2 and B in 4..=64.
-fn shader_query(q: &str) -> Option<(u32, bool, u32)> {
-    let (mut kind, mut dynamic, mut block) = (None, None, None);
+/// `kind=K&dynamic=0|1&diffuse=0|1&block=B` with K in 0..=2 and B in 4..=64: the variant
+/// the page's asset needs (the web page always reads the atlas by texel loads).
+fn shader_query(q: &str) -> Option<ShaderVariant> {
+    let (mut kind, mut dynamic, mut diffuse, mut block) = (None, None, None, None);
+    let flag = |v: &str| match v {
+        "0" => Some(false),
+        "1" => Some(true),
+        _ => None,
+    };
     for kv in q.split('&') {
         match kv.split_once('=')? {
             ("kind", v) => kind = v.parse::<u32>().ok().filter(|k| *k <= 2),
-            ("dynamic", "0") => dynamic = Some(false),
-            ("dynamic", "1") => dynamic = Some(true),
+            ("dynamic", v) => dynamic = Some(flag(v)?),
+            ("diffuse", v) => diffuse = Some(flag(v)?),
             ("block", v) => block = v.parse::<u32>().ok().filter(|b| (4..=64).contains(b)),
             _ => return None,
         }
     }
-    Some((kind?, dynamic?, block?))
+    Some(ShaderVariant { kind: kind?, dynamic: dynamic?, diffuse: diffuse?, block: block?, hardware_filter: false })
 }
 
 /// `Host` must be an IP literal or `localhost`, with this port.
@@ -566,9 +569,13 @@ mod tests {
         assert!(!origin_allowed(None, "127.0.0.1:8443", 8443));
         assert!(host_ok("127.0.0.1:80", 80) && host_ok("[::1]:80", 80) && host_ok("LOCALHOST:80", 80));
         assert!(!host_ok("evil.example:80", 80) && !host_ok("127.0.0.1:81", 80) && !host_ok("127.0.0.1", 80));
-        assert_eq!(shader_query("kind=2&dynamic=1&block=8"), Some((2, true, 8)));
-        assert_eq!(shader_query("kind=3&dynamic=1&block=8"), None);
+        let v = |kind, dynamic, diffuse, block| Some(ShaderVariant { kind, dynamic, diffuse, block, hardware_filter: false });
+        assert_eq!(shader_query("kind=2&dynamic=1&diffuse=0&block=8"), v(2, true, false, 8));
+        assert_eq!(shader_query("diffuse=1&kind=0&dynamic=0&block=16"), v(0, false, true, 16));
+        assert_eq!(shader_query("kind=3&dynamic=1&diffuse=0&block=8"), None);
+        assert_eq!(shader_query("kind=0&dynamic=0&diffuse=2&block=8"), None);
+        assert_eq!(shader_query("kind=0&dynamic=0&block=8"), None);
         assert_eq!(shader_query("kind=0&dynamic=0"), None);
-        assert_eq!(shader_query("kind=0&dynamic=0&block=8&x=1"), None);
+        assert_eq!(shader_query("kind=0&dynamic=0&diffuse=0&block=8&x=1"), None);
     }
 }

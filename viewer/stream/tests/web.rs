@@ -370,10 +370,11 @@ fn the_page_routes_serve_the_composed_shader_with_strict_headers_and_check_the_h
     assert!(page.contains("Content-Security-Policy: default-src 'none'; script-src 'self';"), "{page}");
     assert!(page.contains("src=\"/app.js\""), "{page}");
     // The shader the page runs is the one the native viewer composes.
-    let wgsl = rt.block_on(get(tcp(), &host, "/march.wgsl?kind=2&dynamic=1&block=8"));
+    let wgsl = rt.block_on(get(tcp(), &host, "/march.wgsl?kind=2&dynamic=1&diffuse=1&block=8"));
     let body = wgsl.split_once("\r\n\r\n").unwrap().1;
-    assert_eq!(body, snerf_geometry::march::march_shader(2, true, 8, false));
-    assert!(rt.block_on(get(tcp(), &host, "/march.wgsl?kind=7&dynamic=1&block=8")).starts_with("HTTP/1.1 400"));
+    let variant = snerf_geometry::march::ShaderVariant { kind: 2, dynamic: true, diffuse: true, block: 8, hardware_filter: false };
+    assert_eq!(body, snerf_geometry::march::march_shader(variant));
+    assert!(rt.block_on(get(tcp(), &host, "/march.wgsl?kind=7&dynamic=1&diffuse=0&block=8")).starts_with("HTTP/1.1 400"));
     let cfg = rt.block_on(get(tcp(), &host, "/config.json"));
     let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
     assert_eq!(cfg["webtransport"], format!("https://{host}/snerf/1"));

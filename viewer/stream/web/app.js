@@ -204,7 +204,9 @@ class Renderer {
     this.edge = h.block + 2;
     this.layout = planAtlas(h.atlas_blocks, this.edge, device.limits.maxTextureDimension3D);
     const t = this.texels();
-    this.atlas = device.createTexture({ size: t, dimension: '3d', format: 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
+    // a diffuse asset's voxel is density and RGB alone (its features are zero): one u32
+    this.voxelBytes = h.diffuse ? 4 : 8;
+    this.atlas = device.createTexture({ size: t, dimension: '3d', format: h.diffuse ? 'r32uint' : 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
     this.gridBuf = device.createBuffer({ size: Math.max(4, this.g3 * this.frames * 4), usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_DST });
     this.mlpBuf = device.createBuffer({ size: 900 * 4, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
     this.pipeline = device.createComputePipeline({ layout: 'auto', compute: { module: device.createShaderModule({ code: shader }), entryPoint: 'main' } });
@@ -230,21 +232,13 @@ class Renderer {
     this.device.queue.writeBuffer(this.mlpBuf, 0, v);
   }
   setGrid(frameIndex, entries) { this.grids[frameIndex] = entries; this.gridDirty = true; }
-  // `data`: `count` blocks of (block+2)^3 voxels x 8 bytes: one rg32uint texel per voxel.
-  // A diffuse asset's file stores 4 (density, RGB): the features, which its zero view MLP
-  // would not use, are zero here.
+  // `data`: `count` blocks of (block+2)^3 voxels, one texel each: 8 bytes (rg32uint), or 4
+  // (r32uint) in a diffuse asset, whose file stores density and RGB alone.
   setBlocks(first, count, data) {
-    const e = this.edge, bb = e * e * e * 8;
-    if (this.h.diffuse) {
-      // one u32 a voxel in, two out (the second zero); slice() aligns the payload for the view
-      const src = new Uint32Array(data.slice(0, count * bb / 2).buffer);
-      const full = new Uint32Array(2 * src.length);
-      for (let v = 0; v < src.length; v++) full[2 * v] = src[v];
-      data = new Uint8Array(full.buffer);
-    }
+    const e = this.edge, n = this.voxelBytes, bb = e * e * e * n;
     for (let k = 0; k < count; k++) {
       const b = first + k;
-      this.device.queue.writeTexture({ texture: this.atlas, origin: this.origin(b) }, data.subarray(k * bb, (k + 1) * bb), { bytesPerRow: e * 8, rowsPerImage: e }, [e, e, e]);
+      this.device.queue.writeTexture({ texture: this.atlas, origin: this.origin(b) }, data.subarray(k * bb, (k + 1) * bb), { bytesPerRow: e * n, rowsPerImage: e }, [e, e, e]);
       this.present[b] = 1;
     }
     this.gridDirty = true;
@@ -627,7 +621,7 @@ async function stream(name, gpu) {
       view.baseRadius = orbit.radius;
       const kind = { object: 0, forward: 1, unbounded: 2 }[h.kind];
       const dyn = h.frames && h.frames.length > 1 ? 1 : 0;
-      const res = await fetch(`/march.wgsl?kind=${kind}&dynamic=${dyn}&block=${h.block}`);
+      const res = await fetch(`/march.wgsl?kind=${kind}&dynamic=${dyn}&diffuse=${h.diffuse ? 1 : 0}&block=${h.block}`);
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
       const code = await res.text();
       report.marks.shader = performance.now();
