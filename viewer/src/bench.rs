@@ -174,6 +174,14 @@ pub fn process_cpu_seconds() -> Option<f64> {
     Some(ticks / 100.0)
 }
 
+/// Adds the CPU seconds between readings `a` and `b` to `acc` (None once any reading is).
+fn add_cpu(acc: &mut Option<f64>, a: Option<f64>, b: Option<f64>) {
+    *acc = match (*acc, a, b) {
+        (Some(x), Some(a), Some(b)) => Some(x + (b - a)),
+        _ => None,
+    }
+}
+
 fn ms(d: std::time::Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
@@ -230,12 +238,6 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
     let mut gpu_same = Vec::with_capacity(cpu_n);
     let mut cpu = Vec::with_capacity(cpu_n);
     let (mut gpu_cs, mut cpu_cs) = (Some(0.0), Some(0.0));
-    let add = |acc: &mut Option<f64>, a: Option<f64>, b: Option<f64>| {
-        *acc = match (*acc, a, b) {
-            (Some(x), Some(a), Some(b)) => Some(x + (b - a)),
-            _ => None,
-        }
-    };
     for c in cams.iter().take(cpu_n) {
         let c0 = process_cpu_seconds();
         gpu_same.push(ms(r.render_wait(o.width, o.height, &view(c))?));
@@ -244,8 +246,8 @@ pub fn bench_view_with(asset: &Asset, o: &BenchOptions) -> Result<BenchView> {
         std::hint::black_box(snerf_asset::render(asset, c, time));
         cpu.push(ms(t0.elapsed()));
         let c2 = process_cpu_seconds();
-        add(&mut gpu_cs, c0, c1);
-        add(&mut cpu_cs, c1, c2);
+        add_cpu(&mut gpu_cs, c0, c1);
+        add_cpu(&mut cpu_cs, c1, c2);
     }
     let mut readback = Vec::new();
     for c in cams.iter().take(3) {
@@ -347,20 +349,14 @@ fn bench_diffuse(asset: &Asset, cams: &[Camera], time: f32, o: &BenchOptions) ->
     }
     let (mut td, mut tf) = (Vec::new(), Vec::new());
     let (mut cd, mut cf) = (Some(0.0), Some(0.0));
-    let add = |acc: &mut Option<f64>, a: Option<f64>, b: Option<f64>| {
-        *acc = match (*acc, a, b) {
-            (Some(x), Some(a), Some(b)) => Some(x + (b - a)),
-            _ => None,
-        }
-    };
     for c in cams {
         let c0 = process_cpu_seconds();
         td.push(ms(rd.render_wait(o.width, o.height, &view(c))?));
         let c1 = process_cpu_seconds();
         tf.push(ms(rf.render_wait(o.width, o.height, &view(c))?));
         let c2 = process_cpu_seconds();
-        add(&mut cd, c0, c1);
-        add(&mut cf, c1, c2);
+        add_cpu(&mut cd, c0, c1);
+        add_cpu(&mut cf, c1, c2);
     }
     let n = cams.len().max(1) as f64;
     let (dm, fm) = (median(&mut td), median(&mut tf));
