@@ -406,7 +406,8 @@ pub struct GpuRenderer {
     header: Header,
     layout: AtlasLayout,
     /// Default: one rg32uint texture (8 bytes per voxel; r32uint, 4 bytes, for a diffuse
-    /// asset); hardware filter: two rgba8unorm.
+    /// asset); hardware filter: two rgba8unorm (the second a 1-texel stand-in for a diffuse
+    /// asset).
     tex: Vec<wgpu::Texture>,
     sampler: Option<wgpu::Sampler>,
     grid_buf: wgpu::Buffer,
@@ -476,13 +477,13 @@ impl GpuRenderer {
         };
         let (tex, sampler, grid_buf, mlp_buf, pipeline) =
             ctx.scoped("uploading the asset", || {
-                let mk_tex = |label| {
+                let mk_sized = |label, size: [u32; 3]| {
                     device.create_texture(&wgpu::TextureDescriptor {
                         label: Some(label),
                         size: wgpu::Extent3d {
-                            width: texels[0],
-                            height: texels[1],
-                            depth_or_array_layers: texels[2],
+                            width: size[0],
+                            height: size[1],
+                            depth_or_array_layers: size[2],
                         },
                         mip_level_count: 1,
                         sample_count: 1,
@@ -492,7 +493,11 @@ impl GpuRenderer {
                         view_formats: &[],
                     })
                 };
-                let tex = if opts.hardware_filter {
+                let mk_tex = |label| mk_sized(label, texels);
+                let tex = if opts.hardware_filter && h.diffuse {
+                    // the shader binds a features texture but never reads it (DIFFUSE)
+                    vec![mk_tex("atlas channels 0-3"), mk_sized("no features (diffuse)", [1, 1, 1])]
+                } else if opts.hardware_filter {
                     vec![mk_tex("atlas channels 0-3"), mk_tex("atlas channels 4-7")]
                 } else {
                     vec![mk_tex("atlas voxels")]
@@ -571,17 +576,15 @@ impl GpuRenderer {
         t.iter().map(|&n| n as u64).product::<u64>() * voxel as u64
     }
 
-    /// Bytes per texel and channel range per texture: one rg32uint texture holds all 8
-    /// channel bytes of a voxel (a diffuse asset's r32uint the first 4); two rgba8unorm
-    /// textures hold 4 each.
+    /// Bytes per texel and channel range of each texture that holds the atlas: one
+    /// rg32uint texture holds all 8 channel bytes of a voxel (a diffuse asset's r32uint the
+    /// first 4); two rgba8unorm textures hold 4 each (a diffuse asset's first alone).
     #[allow(clippy::single_range_in_vec_init)]
     fn texel_split(&self) -> Vec<std::ops::Range<usize>> {
-        if self.tex.len() == 2 {
-            vec![0..4, 4..8]
-        } else if self.header.diffuse {
-            vec![0..4]
-        } else {
-            vec![0..8]
+        match (self.opts.hardware_filter, self.header.diffuse) {
+            (true, false) => vec![0..4, 4..8],
+            (_, true) => vec![0..4],
+            (false, false) => vec![0..8],
         }
     }
 

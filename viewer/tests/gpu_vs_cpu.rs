@@ -384,11 +384,9 @@ fn all_variants_build_and_match() {
                 )
                 .unwrap();
                 let diffuse = a.header.diffuse;
-                if !hw {
-                    // a diffuse asset's atlas texture holds density and RGB alone: half the bytes
-                    let voxels = r.atlas_layout().texels().iter().map(|&n| n as u64).product::<u64>();
-                    assert_eq!(r.atlas_texture_bytes(), voxels * if diffuse { 4 } else { 8 });
-                }
+                // a diffuse asset's atlas texture holds density and RGB alone: half the bytes
+                let voxels = r.atlas_layout().texels().iter().map(|&n| n as u64).product::<u64>();
+                assert_eq!(r.atlas_texture_bytes(), voxels * if diffuse { 4 } else { 8 });
                 for (i, c) in cams(&a.header, 2, 48, 36).iter().enumerate() {
                     let t = 0.7 * i as f32;
                     let dd = diff(&r.render(c, t).unwrap(), &snerf_asset::render(a, c, t));
