@@ -1,8 +1,8 @@
 //! The wgpu renderer: uploads an asset (atlas -> one 3D texture of blocks, or two with
 //! hardware filtering; indirection grids -> a storage buffer, view MLP -> a uniform buffer),
-//! builds the one shader variant
-//! the scene needs, and ray-marches one or more views into a float output buffer that is
-//! either read back (headless, tests) or presented (window).
+//! builds the one shader variant the scene needs (`shader_variant`), and ray-marches one or
+//! more views into a float output buffer that is either read back (headless, tests) or
+//! presented (window).
 
 use anyhow::{anyhow, bail, Context, Result};
 use std::fmt;
