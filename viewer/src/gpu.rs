@@ -467,13 +467,12 @@ impl GpuRenderer {
         }
         let device = &ctx.device;
         let texels = layout.texels();
-        let fmt = if opts.hardware_filter {
-            wgpu::TextureFormat::Rgba8Unorm
-        } else if h.diffuse {
+        let split = texel_split(opts.hardware_filter, h.diffuse);
+        let fmt = match (opts.hardware_filter, split[0].len()) {
+            (true, _) => wgpu::TextureFormat::Rgba8Unorm,
             // density and RGB only: the features of a diffuse asset are zero and never read
-            wgpu::TextureFormat::R32Uint
-        } else {
-            wgpu::TextureFormat::Rg32Uint
+            (false, 4) => wgpu::TextureFormat::R32Uint,
+            (false, _) => wgpu::TextureFormat::Rg32Uint,
         };
         let (tex, sampler, grid_buf, mlp_buf, pipeline) =
             ctx.scoped("uploading the asset", || {
@@ -493,15 +492,11 @@ impl GpuRenderer {
                         view_formats: &[],
                     })
                 };
-                let mk_tex = |label| mk_sized(label, texels);
-                let tex = if opts.hardware_filter && h.diffuse {
-                    // the shader binds a features texture but never reads it (DIFFUSE)
-                    vec![mk_tex("atlas channels 0-3"), mk_sized("no features (diffuse)", [1, 1, 1])]
-                } else if opts.hardware_filter {
-                    vec![mk_tex("atlas channels 0-3"), mk_tex("atlas channels 4-7")]
-                } else {
-                    vec![mk_tex("atlas voxels")]
-                };
+                let mut tex: Vec<wgpu::Texture> = split.iter().map(|_| mk_sized("atlas", texels)).collect();
+                if opts.hardware_filter && tex.len() == 1 {
+                    // the filter shader binds a features texture; a diffuse one never reads it
+                    tex.push(mk_sized("no features (diffuse)", [1, 1, 1]));
+                }
                 let sampler = opts.hardware_filter.then(|| {
                     device.create_sampler(&wgpu::SamplerDescriptor {
                         label: Some("atlas trilinear"),
@@ -576,16 +571,8 @@ impl GpuRenderer {
         t.iter().map(|&n| n as u64).product::<u64>() * voxel as u64
     }
 
-    /// Bytes per texel and channel range of each texture that holds the atlas: one
-    /// rg32uint texture holds all 8 channel bytes of a voxel (a diffuse asset's r32uint the
-    /// first 4); two rgba8unorm textures hold 4 each (a diffuse asset's first alone).
-    #[allow(clippy::single_range_in_vec_init)]
     fn texel_split(&self) -> Vec<std::ops::Range<usize>> {
-        match (self.opts.hardware_filter, self.header.diffuse) {
-            (true, false) => vec![0..4, 4..8],
-            (_, true) => vec![0..4],
-            (false, false) => vec![0..8],
-        }
+        texel_split(self.opts.hardware_filter, self.header.diffuse)
     }
 
     /// Copy block `src` (apron-inclusive, 8 bytes per voxel) into per-texture staging
@@ -1173,6 +1160,18 @@ fn build_pipeline(
         compilation_options: Default::default(),
         cache: None,
     })
+}
+
+/// The voxel channels each atlas texture holds: one rg32uint texture all 8 channel bytes of
+/// a voxel (a diffuse asset's r32uint the first 4); two rgba8unorm textures 4 each (a
+/// diffuse asset's first alone).
+#[allow(clippy::single_range_in_vec_init)]
+fn texel_split(hardware_filter: bool, diffuse: bool) -> Vec<std::ops::Range<usize>> {
+    match (hardware_filter, diffuse) {
+        (true, false) => vec![0..4, 4..8],
+        (_, true) => vec![0..4],
+        (false, false) => vec![0..8],
+    }
 }
 
 /// Sizes the GPU path relies on (a hand-built `Asset` may be inconsistent).

@@ -12,7 +12,7 @@ use crate::chunk::{
 };
 use crate::header::Header;
 use crate::mlp::{ViewMlp, MLP_FLOATS};
-use crate::quantize::CHANNELS;
+use crate::quantize::load_voxels;
 
 pub struct Assembler {
     asset: Asset,
@@ -198,17 +198,8 @@ impl Assembler {
                 bail!("duplicate block {}", i);
             }
         }
-        let dst = &mut self.asset.atlas[first * bb..(first + count) * bb];
         let fc = self.asset.header.file_channels();
-        if fc == CHANNELS {
-            dst.copy_from_slice(&p[8..]);
-        } else {
-            // density and diffuse RGB from the file, zero features
-            for (v, f) in dst.chunks_exact_mut(CHANNELS).zip(p[8..].chunks_exact(fc)) {
-                v[..fc].copy_from_slice(f);
-                v[fc..].fill(0);
-            }
-        }
+        load_voxels(&mut self.asset.atlas[first * bb..(first + count) * bb], &p[8..], fc);
         for i in first..first + count {
             if !self.asset.present[i] {
                 self.asset.present[i] = true;

@@ -7,7 +7,7 @@ use std::path::Path;
 use crate::assemble::Assembler;
 use crate::atomic::write_atomic;
 use crate::chunk::{encode_chunk, preamble_of, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
-use crate::quantize::CHANNELS;
+use crate::quantize::{store_voxels, CHANNELS};
 use crate::header::Header;
 use crate::mlp::ViewMlp;
 
@@ -151,13 +151,7 @@ impl Asset {
             let mut p = Vec::with_capacity(8 + self.header.file_block_bytes());
             p.extend_from_slice(&(i as u32).to_le_bytes());
             p.extend_from_slice(&1u32.to_le_bytes());
-            if fc == CHANNELS {
-                p.extend_from_slice(block);
-            } else {
-                for v in block.chunks_exact(CHANNELS) {
-                    p.extend_from_slice(&v[..fc]);
-                }
-            }
+            store_voxels(block, fc, &mut p);
             put(&mut out, TAG_BLKS, &p);
         }
         let count = n;

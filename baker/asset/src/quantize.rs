@@ -7,6 +7,31 @@ use crate::header::DensityRange;
 /// Channels per voxel: density code, diffuse RGB, 4 specular features.
 pub const CHANNELS: usize = 8;
 
+/// Appends the first `channels` bytes of every voxel of `voxels` (CHANNELS bytes each) to
+/// `out`: what a file stores of them (all 8, or density and RGB in a diffuse asset).
+pub fn store_voxels(voxels: &[u8], channels: usize, out: &mut Vec<u8>) {
+    if channels == CHANNELS {
+        out.extend_from_slice(voxels);
+    } else {
+        for v in voxels.chunks_exact(CHANNELS) {
+            out.extend_from_slice(&v[..channels]);
+        }
+    }
+}
+
+/// The inverse of `store_voxels`: fills `voxels` (CHANNELS bytes each) from `stored`
+/// (`channels` bytes each), the channels a file leaves out zero.
+pub fn load_voxels(voxels: &mut [u8], stored: &[u8], channels: usize) {
+    if channels == CHANNELS {
+        voxels.copy_from_slice(stored);
+    } else {
+        for (v, s) in voxels.chunks_exact_mut(CHANNELS).zip(stored.chunks_exact(channels)) {
+            v[..channels].copy_from_slice(s);
+            v[channels..].fill(0);
+        }
+    }
+}
+
 /// round(v*255) clamped to 0..=255; NaN maps to 0.
 pub fn quantize_unit(v: f32) -> u8 {
     let q = (v * 255.0).round();
