@@ -325,7 +325,10 @@ fn no_dangling_link(p: &std::path::Path) -> Result<()> {
 fn one_pair(a: &BenchSnerfArgs, run: &std::path::Path, model: &str, style: &str) -> Result<Value> {
     let srun = a.out.join("stylized").join(format!("{model}--{}", style_name(style)));
     let cons = srun.join("consistency.json");
-    let scored = std::fs::read(&cons).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|c| c["frames"].as_u64() == Some(a.frames as u64));
+    let scored = std::fs::read(&cons).ok().and_then(|b| serde_json::from_slice::<Value>(&b).ok()).is_some_and(|c| {
+        // scored on this path, under today's pixel rule (older records are scored again)
+        c["frames"].as_u64() == Some(a.frames as u64) && c["warp_pixels"].as_str() == Some(snerf_stylize::consistency::WARP_PIXELS)
+    });
     if !scored {
         // `snerf stylize` resumes a run with the same options and does nothing once it is done
         let mut args = vec!["stylize".to_string(), s(run), "--style".into(), style.to_string(), "--out".into(), s(&srun)];

@@ -7,6 +7,16 @@
 //! charge the stylization with the background's colour. The same geometry scores every
 //! method, so the numbers compare stylizations, not depth estimates.
 //!
+//! Only pixels the surface covers wholly take part, in both frames (`WARP_PIXELS`): realistic
+//! opacity within one 8-bit level of 1 (`silhouette::COVER_EPS`). A silhouette pixel is part
+//! background, in a share that changes from view to view with the sub-pixel position of the
+//! edge, so its error measures how the edge is antialiased against the background, the same
+//! for every stylization. On a dark object in front of the white background those pixels
+//! carried most of the error: the unstylized field's own error on them was above per-frame
+//! stylization's (microsoft-mixed-reality × spring: 0.0193 against 0.0130; BENCH.md §5s), and
+//! they held 58–84% of the field's error, so they set a floor on SNeRF ÷ per-frame that no
+//! stylization could go below.
+//!
 //! Consistency alone can be bought by washing the style out, so style distances come with
 //! it (`StyleMeters`): the weight-free `style_metric` (the painting's palette covered by the
 //! scene's pixels, and their texture statistics against the painting's; no stylizer aims at
@@ -25,6 +35,7 @@ use snerf_trainer::space::Vec3;
 use snerf_trainer::train::{views_have_alpha, Model};
 
 use crate::reproject::{Seen, COVERED};
+use snerf_geometry::silhouette::COVER_EPS;
 use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleReference, StyleSamples, StyleScore};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer, StylizerOptions};
@@ -41,6 +52,10 @@ pub const PATH_STEPS_PER_TURN: usize = 72;
 /// 16-frame path, 0.999 over a 48-frame one; BENCH.md §5l).
 pub const STYLE_RING: usize = 8;
 
+/// Which pixels the warp errors score, as `snerf consistency` records it (`warp_pixels`):
+/// records scored before the rule (silhouette pixels included) do not carry it.
+pub const WARP_PIXELS: &str = "wholly covered";
+
 /// The novel path and the realistic field's geometry along it, followed by the style ring.
 /// Every per-frame list (`realistic`, `render`'s output, the frames callers pass back in)
 /// holds the path's frames first, then the ring's `STYLE_RING`: warp errors use the path,
@@ -56,6 +71,9 @@ pub struct PathGeometry {
     pub realistic: Vec<Image>,
     /// World point seen at each pixel (None where the scene does not cover the pixel).
     points: Vec<Vec<Option<Vec3>>>,
+    /// `points` where the surface covers the pixel wholly (None elsewhere): the pixels the
+    /// warp errors score and read.
+    surface: Vec<Vec<Option<Vec3>>>,
     /// The realistic field's opacity per pixel.
     opacity: Vec<Vec<f32>>,
     /// Whether the training views have a silhouette (alpha): a bounded object.
@@ -97,7 +115,8 @@ impl PathGeometry {
             points.push(pts);
             opacity.push(r.opacity);
         }
-        Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, opacity, silhouette })
+        let surface = wholly_covered(&points, &opacity);
+        Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, surface, opacity, silhouette })
     }
 
     /// Whether the scene is a bounded object with a silhouette in its training views.
@@ -125,14 +144,15 @@ impl PathGeometry {
 
 
     /// Mean squared error between path frame j = i + gap and path frame i warped into it,
-    /// over all pairs and all covered, non-occluded pixels. NaN if no pixel qualifies.
+    /// over all pairs and all wholly covered, non-occluded pixels (read from frame i's wholly
+    /// covered pixels). NaN if no pixel qualifies.
     pub fn warp_error(&self, frames: &[Image], gap: usize) -> f64 {
         let (w, h) = (self.intr.width as usize, self.intr.height as usize);
         let (mut sum, mut count) = (0.0f64, 0u64);
         for i in 0..frames.len().min(self.path_frames).saturating_sub(gap) {
             let j = i + gap;
-            let seen = Seen { origin: [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]], width: w, height: h, points: &self.points[i] };
-            for (p, pt) in self.points[j].iter().enumerate() {
+            let seen = Seen { origin: [self.cams[i][0][3], self.cams[i][1][3], self.cams[i][2][3]], width: w, height: h, points: &self.surface[i] };
+            for (p, pt) in self.surface[j].iter().enumerate() {
                 let Some(x) = pt else { continue };
                 let Some((u, v, dist)) = self.project(i, *x) else { continue };
                 // frame i's colour at the point, from its pixels that show that surface
@@ -237,6 +257,15 @@ impl PathGeometry {
         let covered: usize = path.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
         covered as f64 / path.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
     }
+}
+
+/// The points of pixels whose opacity is within `COVER_EPS` of 1 (the rest None).
+fn wholly_covered(points: &[Vec<Option<Vec3>>], opacity: &[Vec<f32>]) -> Vec<Vec<Option<Vec3>>> {
+    points
+        .iter()
+        .zip(opacity)
+        .map(|(pts, op)| pts.iter().zip(op).map(|(p, &a)| p.filter(|_| a >= 1.0 - COVER_EPS)).collect())
+        .collect()
 }
 
 /// Scene pixels per frame: opacity above `COVERED`.
@@ -400,5 +429,45 @@ pub fn path_description(kind: SceneKind, frames: usize) -> String {
     match kind {
         SceneKind::Forward => format!("{frames} frames on a circle in front of the mean camera, 5° steps; style scored on {STYLE_RING} frames 45° apart on that circle"),
         _ => format!("{frames} frames on an orbit around the scene, 5° apart; style scored on {STYLE_RING} frames 45° apart around the whole orbit"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two frames from one camera of a red surface over white: pixels 0 and 1 wholly covered,
+    /// pixel 2 on the silhouette (covered 60% in frame 0, 90% in frame 1: the edge moved by a
+    /// fraction of a pixel), pixel 3 background.
+    fn edge_path() -> PathGeometry {
+        let intr = Intrinsics { width: 4, height: 1, fx: 4.0, fy: 4.0, cx: 2.0, cy: 0.5, distortion: [0.0; 4] };
+        let cam = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+        let point = |x: usize| Some([(x as f32 + 0.5 - 2.0) / 4.0 * 5.0, 0.0, -5.0]);
+        let points: Vec<Vec<Option<Vec3>>> = (0..2).map(|_| vec![point(0), point(1), point(2), None]).collect();
+        let opacity = vec![vec![1.0, 1.0, 0.6, 0.0], vec![1.0, 1.0, 0.9, 0.0]];
+        let realistic = opacity.iter().map(|op| edge_frame(op, [1.0, 0.0, 0.0])).collect();
+        let surface = wholly_covered(&points, &opacity);
+        PathGeometry { path_frames: 2, cams: vec![cam; 2], intr, time: None, bg: [1.0; 3], realistic, points, surface, opacity, silhouette: true }
+    }
+
+    /// `colour` over white with each pixel's coverage.
+    fn edge_frame(opacity: &[f32], colour: [f32; 3]) -> Image {
+        Image { width: 4, height: 1, data: opacity.iter().flat_map(|&a| colour.map(|c| c * a + (1.0 - a))).collect() }
+    }
+
+    /// A surface of one colour is consistent whatever its silhouette pixels show; a colour
+    /// that changes between the frames is not.
+    #[test]
+    fn warp_errors_score_only_wholly_covered_pixels() {
+        let path = edge_path();
+        assert_eq!(path.warp_error(&path.realistic, 1), 0.0, "the edge's sub-pixel motion is not an inconsistency");
+        // what the rule removes: the silhouette pixel read across the two frames differs by
+        // the change in coverage (0.3 of the white background in G and B)
+        let (i, j) = (&path.realistic[0].data, &path.realistic[1].data);
+        assert!((i[2 * 3 + 1] - j[2 * 3 + 1]).abs() > 0.29);
+        let mut repainted = path.realistic.clone();
+        repainted[1] = edge_frame(&path.opacity[1], [0.8, 0.0, 0.0]);
+        let e = path.warp_error(&repainted, 1);
+        assert!((e - 0.04 / 3.0).abs() < 1e-6, "{e}");
     }
 }
