@@ -1,7 +1,7 @@
 //! Benchmarks (ignored by default; they print their numbers):
 //!   cargo test --release -p snerf-stylize --test stylizer_bench -- --ignored --nocapture
 //! - tract vs onnxruntime for `arbitrary` on one 384x384 view, side by side in one run
-//!   (the bar: tract <= 1.5x onnxruntime);
+//!   (the target: tract <= 1.5x onnxruntime);
 //! - gatys optimisation step time at 128x128 with full-width (random) VGG-16 weights, and
 //!   with the MobileNetV2 features at 128, 256 and 512;
 //! - `arbitrary` on views larger than 384: resize, native, bands (`bench_large_views`).
