@@ -590,7 +590,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     };
     let md = format!(
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`, painting {} (the per-frame baseline too); {}; warped-frame MSE (RGB in [0,1]) over non-occluded \
-         pixels the surface covers wholly (silhouette pixels are part background), with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
+         pixels at least a pixel from the silhouette (a silhouette pixel is part background), with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
          SNeRF / per-frame: short-range {:.3}×, long-range {:.3}×, style distance {:.3}×.\n\n\
          Style distance, between the scene pixels of the 8 ring frames and the style picture: colour (how far, in Oklab, \
          each of the painting's colours is from the nearest in each frame) + texture (sliced Wasserstein over contrast-normalized 5×5 patches \

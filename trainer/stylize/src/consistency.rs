@@ -7,8 +7,10 @@
 //! charge the stylization with the background's colour. The same geometry scores every
 //! method, so the numbers compare stylizations, not depth estimates.
 //!
-//! Only pixels the surface covers wholly take part, in both frames (`WARP_PIXELS`): realistic
-//! opacity within one 8-bit level of 1 (`silhouette::COVER_EPS`). A silhouette pixel is part
+//! Only pixels at least a pixel from the silhouette take part, in both frames (`WARP_PIXELS`):
+//! the pixel and its eight neighbours show the scene (realistic opacity above `COVERED`).
+//! Those are the pixels the surface covers wholly on a trained field, and the rule asks no
+//! opacity to reach 1 (a translucent or under-trained surface still has them). A silhouette pixel is part
 //! background, in a share that changes from view to view with the sub-pixel position of the
 //! edge, so its error measures how the edge is antialiased against the background, the same
 //! for every stylization. On a dark object in front of the white background those pixels
@@ -35,7 +37,7 @@ use snerf_trainer::space::Vec3;
 use snerf_trainer::train::{views_have_alpha, Model};
 
 use crate::reproject::{Seen, COVERED};
-use snerf_geometry::silhouette::COVER_EPS;
+use snerf_geometry::silhouette::min_max_3x3;
 use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleReference, StyleSamples, StyleScore};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer, StylizerOptions};
@@ -54,7 +56,7 @@ pub const STYLE_RING: usize = 8;
 
 /// Which pixels the warp errors score, as `snerf consistency` records it (`warp_pixels`):
 /// records scored before the rule (silhouette pixels included) do not carry it.
-pub const WARP_PIXELS: &str = "wholly covered";
+pub const WARP_PIXELS: &str = "off the silhouette";
 
 /// The novel path and the realistic field's geometry along it, followed by the style ring.
 /// Every per-frame list (`realistic`, `render`'s output, the frames callers pass back in)
@@ -71,8 +73,8 @@ pub struct PathGeometry {
     pub realistic: Vec<Image>,
     /// World point seen at each pixel (None where the scene does not cover the pixel).
     points: Vec<Vec<Option<Vec3>>>,
-    /// `points` where the surface covers the pixel wholly (None elsewhere): the pixels the
-    /// warp errors score and read.
+    /// `points` at least a pixel from the silhouette (None elsewhere): the pixels the warp
+    /// errors score and read.
     surface: Vec<Vec<Option<Vec3>>>,
     /// The realistic field's opacity per pixel.
     opacity: Vec<Vec<f32>>,
@@ -115,7 +117,7 @@ impl PathGeometry {
             points.push(pts);
             opacity.push(r.opacity);
         }
-        let surface = wholly_covered(&points, &opacity);
+        let surface = off_silhouette(&points, &opacity, intr.width as usize, intr.height as usize);
         Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, surface, opacity, silhouette })
     }
 
@@ -144,8 +146,8 @@ impl PathGeometry {
 
 
     /// Mean squared error between path frame j = i + gap and path frame i warped into it,
-    /// over all pairs and all wholly covered, non-occluded pixels (read from frame i's wholly
-    /// covered pixels). NaN if no pixel qualifies.
+    /// over all pairs and all non-occluded pixels off the silhouette (read from frame i's pixels
+    /// off the silhouette). NaN if no pixel qualifies.
     pub fn warp_error(&self, frames: &[Image], gap: usize) -> f64 {
         let (w, h) = (self.intr.width as usize, self.intr.height as usize);
         let (mut sum, mut count) = (0.0f64, 0u64);
@@ -259,12 +261,20 @@ impl PathGeometry {
     }
 }
 
-/// The points of pixels whose opacity is within `COVER_EPS` of 1 (the rest None).
-fn wholly_covered(points: &[Vec<Option<Vec3>>], opacity: &[Vec<f32>]) -> Vec<Vec<Option<Vec3>>> {
+/// The points of pixels at least a pixel from the silhouette: the pixel and its eight
+/// neighbours show the scene (opacity above `COVERED`); the rest None.
+fn off_silhouette(points: &[Vec<Option<Vec3>>], opacity: &[Vec<f32>], w: usize, h: usize) -> Vec<Vec<Option<Vec3>>> {
     points
         .iter()
         .zip(opacity)
-        .map(|(pts, op)| pts.iter().zip(op).map(|(p, &a)| p.filter(|_| a >= 1.0 - COVER_EPS)).collect())
+        .map(|(pts, op)| {
+            (0..pts.len())
+                .map(|p| {
+                    let (lo, _) = min_max_3x3(w, h, p % w, p / w, |i| op[i]);
+                    pts[p].filter(|_| lo > COVERED)
+                })
+                .collect()
+        })
         .collect()
 }
 
@@ -446,7 +456,7 @@ mod tests {
         let points: Vec<Vec<Option<Vec3>>> = (0..2).map(|_| vec![point(0), point(1), point(2), None]).collect();
         let opacity = vec![vec![1.0, 1.0, 0.6, 0.0], vec![1.0, 1.0, 0.9, 0.0]];
         let realistic = opacity.iter().map(|op| edge_frame(op, [1.0, 0.0, 0.0])).collect();
-        let surface = wholly_covered(&points, &opacity);
+        let surface = off_silhouette(&points, &opacity, intr.width as usize, intr.height as usize);
         PathGeometry { path_frames: 2, cams: vec![cam; 2], intr, time: None, bg: [1.0; 3], realistic, points, surface, opacity, silhouette: true }
     }
 
@@ -458,7 +468,7 @@ mod tests {
     /// A surface of one colour is consistent whatever its silhouette pixels show; a colour
     /// that changes between the frames is not.
     #[test]
-    fn warp_errors_score_only_wholly_covered_pixels() {
+    fn warp_errors_score_only_pixels_off_the_silhouette() {
         let path = edge_path();
         assert_eq!(path.warp_error(&path.realistic, 1), 0.0, "the edge's sub-pixel motion is not an inconsistency");
         // what the rule removes: the silhouette pixel read across the two frames differs by
