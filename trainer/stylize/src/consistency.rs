@@ -10,14 +10,14 @@
 //! Only pixels at least a pixel from the silhouette take part, in both frames (`WARP_PIXELS`):
 //! the pixel and its eight neighbours show the scene (realistic opacity above `COVERED`).
 //! Those are the pixels the surface covers wholly on a trained field, and the rule asks no
-//! opacity to reach 1 (a translucent or under-trained surface still has them). A silhouette pixel is part
-//! background, in a share that changes from view to view with the sub-pixel position of the
-//! edge, so its error measures how the edge is antialiased against the background, the same
-//! for every stylization. On a dark object in front of the white background those pixels
-//! carried most of the error: the unstylized field's own error on them was above per-frame
-//! stylization's (microsoft-mixed-reality × spring: 0.0193 against 0.0130; BENCH.md §5s), and
-//! they held 58–84% of the field's error, so they set a floor on SNeRF ÷ per-frame that no
-//! stylization could go below.
+//! opacity to reach 1 (a translucent or under-trained surface still has them). A silhouette
+//! pixel is part background, in a share that changes from view to view with the sub-pixel
+//! position of the edge, so its error measures how the edge is antialiased against the
+//! background, the same for every stylization. On a dark object in front of the white
+//! background those pixels carried most of the error: the unstylized field's own error on
+//! them was above per-frame stylization's (microsoft-mixed-reality × spring: 0.0193 against
+//! 0.0130; BENCH.md §5s), and they held 58–84% of the field's error, so they set a floor on
+//! SNeRF ÷ per-frame that no stylization could go below.
 //!
 //! Consistency alone can be bought by washing the style out, so style distances come with
 //! it (`StyleMeters`): the weight-free `style_metric` (the painting's palette covered by the
