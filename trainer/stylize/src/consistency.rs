@@ -30,6 +30,7 @@
 use anyhow::Result;
 use serde::Serialize;
 use snerf_data::{Dataset, Intrinsics, SceneKind};
+use snerf_geometry::silhouette::min_max_3x3;
 use snerf_trainer::camera_path::orbit;
 use snerf_trainer::eval::{eval_background, render_camera};
 use snerf_trainer::render::WorkspacePool;
@@ -37,7 +38,6 @@ use snerf_trainer::space::Vec3;
 use snerf_trainer::train::{views_have_alpha, Model};
 
 use crate::reproject::{Seen, COVERED};
-use snerf_geometry::silhouette::min_max_3x3;
 use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleReference, StyleSamples, StyleScore};
 use crate::stylizer::{Image, StyleEmbedder, Stylizer, StylizerOptions};
