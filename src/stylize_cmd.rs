@@ -8,7 +8,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::ProgressBar;
 use serde_json::{json, Value};
-use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters};
+use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters, StyleTargets};
+use snerf_stylize::fusion::{Read, ViewGeometry};
 use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
 use snerf_stylize::stylizer::{self, Image, Stylizer, StylizerOptions};
@@ -476,6 +477,39 @@ pub struct ConsistencyArgs {
     pub opts: DataOpts,
 }
 
+/// The path scored as a field that held the run's last training targets exactly would show
+/// it (`PathGeometry::carried`), reading the targets by copying a pixel and bilinearly: the
+/// bound the targets put on the field, whatever its fit. The training views' surface points
+/// come from the stylized field's depth, as the last round fused through it. Empty when the
+/// run did not keep its targets (or they do not match the dataset's views).
+#[allow(clippy::too_many_arguments)]
+fn carried_targets(
+    srun: &Path,
+    state: &snerf_loop::StylizeState,
+    data: &snerf_trainer::data::Dataset,
+    (model, pool): (&snerf_trainer::train::Model, &snerf_trainer::render::WorkspacePool),
+    path: &PathGeometry,
+    base: &[Image],
+    meters: &StyleMeters,
+    style: &StyleTargets,
+) -> Result<Vec<MethodScores>> {
+    let Some((views, targets)) = snerf_loop::last_round_targets(srun, state, data)? else { return Ok(Vec::new()) };
+    if views.iter().zip(&targets).any(|(v, t)| (v.intrinsics.width as usize, v.intrinsics.height as usize) != (t.width, t.height)) {
+        return Ok(Vec::new());
+    }
+    let geoms: Vec<ViewGeometry> = views
+        .iter()
+        .map(|v| {
+            let r = snerf_trainer::eval::render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, path.bg);
+            ViewGeometry::from_render(&model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity)
+        })
+        .collect();
+    [(Read::Nearest, "Last targets carried, copied pixels"), (Read::Bilinear, "Last targets carried, bilinear")]
+        .into_iter()
+        .map(|(read, name)| MethodScores::of(name, path, &path.carried(base, &targets, &geoms, read), meters, style))
+        .collect()
+}
+
 pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let t0 = Instant::now();
     let st_path = snerf_loop::state_path(&a.srun);
@@ -531,6 +565,8 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         one_round_frames = Some(frames);
     }
     methods.push(MethodScores::of(&format!("SNeRF, {} rounds", state.rounds_done), &path, &snerf_frames, &meters, &targets)?);
+    pb.set_message("targets carried to the path");
+    let carried = carried_targets(&a.srun, &state, &data, (&stylized, &spool), &path, &snerf_frames, &meters, &targets)?;
     pb.inc(1);
     pb.finish_and_clear();
 
@@ -588,6 +624,28 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         ),
         _ => String::new(),
     };
+    let ratio_of = |m: &MethodScores| {
+        json!({"short_range": m.short_range / pf.short_range, "long_range": m.long_range / pf.long_range, "style_swd": m.style_swd.total / pf.style_swd.total})
+    };
+    let carried_md = if carried.is_empty() {
+        String::new()
+    } else {
+        let line = |m: &MethodScores| {
+            format!(
+                "- {}: short-range {:.3}×, long-range {:.3}×, style distance {:.3}× of per-frame\n",
+                m.method,
+                m.short_range / pf.short_range,
+                m.long_range / pf.long_range,
+                m.style_swd.total / pf.style_swd.total
+            )
+        };
+        format!(
+            "What the last round's training targets allow: the path as a field that held them exactly would show it \
+             (every surface point the colour its owner view gives it in the targets, as the targets were fused), \
+             scored as above:\n\n{}\n",
+            carried.iter().map(line).collect::<String>()
+        )
+    };
     let md = format!(
         "# Cross-view consistency\n\nStylizer `{}`, style `{}`, painting {} (the per-frame baseline too); {}; warped-frame MSE (RGB in [0,1]) over non-occluded \
          pixels at least a pixel from the silhouette (a silhouette pixel is part background), with flow from the realistic field's depth; {:.0}% of pixels covered.\n\n{}\n\
@@ -595,7 +653,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
          Style distance, between the scene pixels of the 8 ring frames and the style picture: colour (how far, in Oklab, \
          each of the painting's colours is from the nearest in each frame) + texture (sliced Wasserstein over contrast-normalized 5×5 patches \
          at 3 scales), each in units of the same distance between the painting's two halves; it separates the realistic field from per-frame \
-         stylization by {:.2}× ({}).\n\n{gram_line}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
+         stylization by {:.2}× ({}).\n\n{gram_line}{carried_md}Contact sheet `consistency.png`: style | realistic | per-frame{} | SNeRF, frames 0 and {far}.\n",
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
         if by_box { "the object's box in each view" } else { "whole views" },
@@ -619,6 +677,8 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "warp_pixels": consistency::WARP_PIXELS,
         "methods": methods,
         "snerf_over_per_frame": ratios,
+        "targets_carried": carried,
+        "targets_carried_over_per_frame": carried.iter().map(ratio_of).collect::<Vec<_>>(),
         "style_metric_realistic_over_per_frame": realistic_over_per_frame,
         "style_gram_realistic_over_per_frame": gram_realistic_over_per_frame,
         "rounds": state.records,

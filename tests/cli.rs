@@ -275,6 +275,12 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
         assert!(sc["snerf_over_per_frame"][k].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{k}: {s}");
         assert!(sc["last_over_first_round"][k].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{k}: {s}");
     }
+    // the bound the last targets put on the field: copied and bilinear reads
+    let carried = sc["targets_carried_over_per_frame"].as_array().unwrap_or_else(|| panic!("no targets carried: {s}"));
+    assert_eq!(carried.len(), 2, "{s}");
+    for c in carried {
+        assert!(c["short_range"].as_f64().is_some_and(|x| x.is_finite() && x > 0.0), "{s}");
+    }
     assert_eq!(s["bars"]["pairs"], 1);
     assert!(out.join("snerf.md").exists() && out.join("snerf.json").exists());
     // again: nothing is trained or stylized twice, and the same numbers come back

@@ -160,6 +160,8 @@ pub fn pair_scores(c: &Value) -> Result<Value> {
         "separation": ratio(real, per_frame, "style")?,
         // share of the painting's colours a view has nothing within a JND of (a readout)
         "palette_missed": { "per_frame": per_frame["style_swd"]["missed"].as_f64(), "snerf": snerf["style_swd"]["missed"].as_f64() },
+        // what the last targets allow (a field that held them exactly; absent in older records)
+        "targets_carried_over_per_frame": c["targets_carried_over_per_frame"].clone(),
     }))
 }
 

@@ -26,6 +26,11 @@
 //! installed, `style_gram` (Gram matrices of ImageNet features, independent of every stylizer
 //! but `gatys`) and the distance between Magenta style embeddings of the frames and of the
 //! style image (the space `arbitrary` aims at).
+//!
+//! `PathGeometry::carried` shows the same path as a field that held its training targets
+//! exactly would (each surface point the colour its owner view gives it in the targets, read
+//! by copying a pixel or bilinearly): what the targets allow, so a gap can be put on the
+//! targets or on the field's fit of them (BENCH.md §5t).
 
 use anyhow::Result;
 use serde::Serialize;
@@ -37,6 +42,7 @@ use snerf_trainer::render::WorkspacePool;
 use snerf_trainer::space::Vec3;
 use snerf_trainer::train::{views_have_alpha, Model};
 
+use crate::fusion::{self, Read, ViewGeometry};
 use crate::reproject::{Seen, COVERED};
 use crate::style_gram::{self, GramMetric, Grams};
 use crate::style_metric::{self, StyleReference, StyleSamples, StyleScore};
@@ -135,6 +141,15 @@ impl PathGeometry {
                 Image { width: r.width, height: r.height, data: r.rgb }
             })
             .collect()
+    }
+
+    /// The path and the ring as a field that held `targets` (images of the training views
+    /// `geoms`) exactly would show them (`fusion::carry_to`); pixels whose point no view
+    /// sees keep `base`'s colour.
+    pub fn carried(&self, base: &[Image], targets: &[Image], geoms: &[ViewGeometry], read: Read) -> Vec<Image> {
+        let mut frames = base.to_vec();
+        fusion::carry_to(&mut frames, &self.points, targets, geoms, read);
+        frames
     }
 
     /// Project a world point into camera `i`: continuous pixel coordinates (pixel x spans

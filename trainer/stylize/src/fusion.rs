@@ -185,14 +185,40 @@ pub fn fuse(targets: &[Image], geoms: &[ViewGeometry], k: usize, read: Read) -> 
 /// the choice depends on the point alone, not on which view asks. Returns the targets and
 /// the fraction of scene pixels painted by another view.
 pub fn fuse_owner(targets: &[Image], geoms: &[ViewGeometry], read: Read) -> (Vec<Image>, f64) {
-    let origins: Vec<Vec3> = geoms.iter().map(|g| g.origin()).collect();
-    per_scene_pixel(targets, geoms, |order: &mut Vec<(f32, usize)>, i, _, x| {
-        order.clear();
-        order.extend(origins.iter().enumerate().map(|(j, o)| (norm(sub(*o, x)), j)));
-        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        // the nearest view that sees x, unless view i itself comes first
-        order.iter().take_while(|&&(_, j)| j != i).find_map(|&(_, j)| geoms[j].sample_visible(&targets[j], x, read))
-    })
+    per_scene_pixel(targets, geoms, |order: &mut Vec<(f32, usize)>, i, _, x| owner_colour(targets, geoms, x, read, Some(i), order))
+}
+
+/// The colour `targets` give world point `x` under `fuse_owner`'s rule: what the nearest
+/// view (by camera centre) that sees `x` painted there. With `own`, None where that view
+/// would be `own` or come after it (the asking view keeps its own colour). `order` is
+/// scratch space.
+fn owner_colour(
+    targets: &[Image],
+    geoms: &[ViewGeometry],
+    x: Vec3,
+    read: Read,
+    own: Option<usize>,
+    order: &mut Vec<(f32, usize)>,
+) -> Option<[f32; 3]> {
+    order.clear();
+    order.extend(geoms.iter().enumerate().map(|(j, g)| (norm(sub(g.origin(), x)), j)));
+    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    order.iter().take_while(|&&(_, j)| Some(j) != own).find_map(|&(_, j)| geoms[j].sample_visible(&targets[j], x, read))
+}
+
+/// Images seen from other cameras (`frames`, each with its world point per pixel in
+/// `points`) as a field that held `targets` exactly would show them: every pixel with a
+/// surface point takes the colour `fuse_owner`'s rule gives that point; pixels without
+/// one, or whose point no view sees, keep the colour they have.
+pub fn carry_to(frames: &mut [Image], points: &[Vec<Option<Vec3>>], targets: &[Image], geoms: &[ViewGeometry], read: Read) {
+    frames.par_iter_mut().zip(points).for_each(|(img, pts)| {
+        let mut order = Vec::new();
+        for (p, x) in pts.iter().enumerate() {
+            if let Some(rgb) = x.and_then(|x| owner_colour(targets, geoms, x, read, None, &mut order)) {
+                img.data[p * 3..p * 3 + 3].copy_from_slice(&rgb);
+            }
+        }
+    });
 }
 
 /// `render + step * (target - render)`, per pixel: a damped step from the current render
@@ -326,6 +352,41 @@ mod tests {
             // the stripe the middle view painted under its own camera stays in its target
             let p = 16 * w + 16;
             assert_eq!(&fused[1].data[p * 3..p * 3 + 3], &[1.0, 0.0, 0.0]);
+        }
+    }
+
+    /// A camera between the views sees every surface point in the colour its owner painted
+    /// there, the middle view's stripe included; a pixel with no surface, or with a point no
+    /// view sees, keeps the colour it had.
+    #[test]
+    fn carried_frames_show_each_point_in_its_owners_colour() {
+        let (geoms, targets) = three_views_of_a_plane();
+        let (w, h) = (32usize, 32usize);
+        let cx = -0.12f32;
+        let mut points: Vec<Option<Vec3>> = (0..w * h)
+            .map(|p| {
+                let (x, y) = ((p % w) as f32 + 0.5 - 16.0, (p / w) as f32 + 0.5 - 16.0);
+                Some([cx + 5.0 * x / 40.0, -5.0 * y / 40.0, 0.0])
+            })
+            .collect();
+        points[0] = None;
+        points[1] = Some([100.0, 0.0, 0.0]);
+        let base = Image { width: w, height: h, data: vec![0.25; w * h * 3] };
+        for read in [Read::Nearest, Read::Bilinear] {
+            let mut frames = vec![base.clone()];
+            carry_to(&mut frames, &[points.clone()], &targets, &geoms, read);
+            let got = |p: usize| &frames[0].data[p * 3..p * 3 + 3];
+            assert_eq!(got(0), &[0.25; 3], "no surface: unchanged");
+            assert_eq!(got(1), &[0.25; 3], "a point no view sees: unchanged");
+            let mut stripe = 0;
+            for (p, x) in points.iter().enumerate().skip(2) {
+                let x = x.unwrap();
+                let owner = [-0.3f32, 0.0, 0.3].iter().enumerate().min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs())).unwrap().0;
+                let want = geoms[owner].sample_visible(&targets[owner], x, read).expect("every view sees the plane");
+                assert_eq!(got(p), &want, "{read:?}: pixel {p}, owner {owner}");
+                stripe += (got(p) == &[1.0, 0.0, 0.0]) as usize;
+            }
+            assert!(stripe > 10, "{read:?}: the middle view's stripe shows on {stripe} pixels");
         }
     }
 }

@@ -461,6 +461,17 @@ pub fn pick_views(views: &[View], n: usize) -> Vec<View> {
     (0..n).map(|i| views[i * views.len() / n].clone()).collect()
 }
 
+/// The training targets of the run in `out`'s last finished round, with the views they
+/// belong to, when the run kept them (`StepFrom::Targets` saves them for the next round);
+/// None otherwise.
+pub fn last_round_targets(out: &Path, state: &StylizeState, data: &Dataset) -> Result<Option<(Vec<View>, Vec<Image>)>> {
+    if state.rounds_done == 0 || state.options.step_from != StepFrom::Targets {
+        return Ok(None);
+    }
+    let views = pick_views(&data.train, state.options.views);
+    Ok(consensus::load(out, consensus::Kept::Targets, state.rounds_done, views.len())?.map(|t| (views, t)))
+}
+
 /// "--option: recorded recorded, asked asked" for each option in which `asked` differs from
 /// `recorded` (the rounds aside: more or fewer rounds extend or end the same run), in the
 /// command line's terms, so the user can repeat the run's options.
