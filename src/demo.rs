@@ -163,6 +163,8 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         view_colour: crate::stylize_cmd::DEFAULT_VIEW_COLOUR.into(),
         palette: crate::stylize_cmd::DEFAULT_PALETTE.into(),
         seed: None,
+        rays: crate::stylize_cmd::DEFAULT_RAYS.into(),
+        colour_fit: crate::stylize_cmd::DEFAULT_COLOUR_FIT.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

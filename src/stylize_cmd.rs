@@ -151,6 +151,8 @@ pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
 /// The consensus rounds keep the first fusion's colours (BENCH.md §5q: the iterated median
 /// narrowed the palette, so round 5's style distance ended above round 1's).
 pub const DEFAULT_PALETTE: &str = "keep";
+pub const DEFAULT_RAYS: &str = "area";
+pub const DEFAULT_COLOUR_FIT: &str = "compensate";
 
 /// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -289,6 +291,20 @@ pub struct StylizeArgs {
     /// sequence: run two seeds to see how far the figures move with it (BENCH.md §5q)
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Where each training ray crosses its pixel while stylizing: area (anywhere in the
+    /// pixel's square: a painted pixel is the paint over its square, so the field cannot hold
+    /// one colour at the pixel centres and another between them, where new views look;
+    /// BENCH.md §5u) or centre (through the centre, as realistic training and runs made
+    /// before this option)
+    #[arg(long, default_value = DEFAULT_RAYS, value_parser = ["area", "centre"])]
+    pub rays: String,
+    /// Whether the targets make up for the colours the field falls short of: compensate
+    /// (each round, and halfway through the first, the targets are mapped per Oklab channel
+    /// by how far the field's renders fell short of the targets it trained on, quantile by
+    /// quantile, so that it shows the stylizer's palette; BENCH.md §5u) or plain (the
+    /// targets as fused, as runs made before this option)
+    #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["compensate", "plain"])]
+    pub colour_fit: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -407,6 +423,8 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         view_colour: option_enum("--view-colour", &a.view_colour)?,
         palette: option_enum("--palette", &a.palette)?,
         seed: a.seed,
+        rays: option_enum("--rays", &a.rays)?,
+        colour_fit: option_enum("--colour-fit", &a.colour_fit)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

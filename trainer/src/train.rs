@@ -64,6 +64,12 @@ pub struct TrainConfig {
     /// from. Absent in runs from before it existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pixel_footprint: Option<f32>,
+    /// Draw each training ray anywhere in its pixel's square instead of through its centre
+    /// (silhouette pixels keep their `pixel_rays` stratified rays). Set while stylizing: a
+    /// painted view's pixel is the paint over its square, and a field fitted only at pixel
+    /// centres is free between them, where a new view's rays fall (BENCH.md §5s, §5u).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub area_rays: bool,
 }
 
 fn one() -> usize {
@@ -117,6 +123,7 @@ impl TrainConfig {
             // Static objects only: forward, unbounded and dynamic scenes were not re-measured.
             pixel_rays: if data.kind == SceneKind::Object && !data.dynamic { 4 } else { 1 },
             pixel_footprint: if data.kind == SceneKind::Object && !data.dynamic { train_pixel_footprint(data) } else { None },
+            area_rays: false,
         }
     }
 }
@@ -452,7 +459,8 @@ impl Trainer {
             };
             let target = [0, 1, 2].map(|c| px[c] as f32 / 255.0 * a + bg[c] * (1.0 - a));
             if side < 2 || self.edge[p / 64] >> (p % 64) & 1 == 0 {
-                let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + 0.5, y as f32 + 0.5, v.time);
+                let (ox, oy) = if self.cfg.area_rays { (self.rng.uniform(), self.rng.uniform()) } else { (0.5, 0.5) };
+                let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + ox, y as f32 + oy, v.time);
                 tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
                 groups.push(1);
                 continue;

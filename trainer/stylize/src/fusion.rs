@@ -384,7 +384,7 @@ mod tests {
                 let owner = [-0.3f32, 0.0, 0.3].iter().enumerate().min_by(|a, b| (a.1 - x[0]).abs().total_cmp(&(b.1 - x[0]).abs())).unwrap().0;
                 let want = geoms[owner].sample_visible(&targets[owner], x, read).expect("every view sees the plane");
                 assert_eq!(got(p), &want, "{read:?}: pixel {p}, owner {owner}");
-                stripe += (got(p) == &[1.0, 0.0, 0.0]) as usize;
+                stripe += (got(p) == [1.0, 0.0, 0.0]) as usize;
             }
             assert!(stripe > 10, "{read:?}: the middle view's stripe shows on {stripe} pixels");
         }

@@ -117,21 +117,74 @@ pub fn map_onto(imgs: &[Image], geoms: &[ViewGeometry], reference: &Quantiles) -
         .collect()
 }
 
+/// The distribution a field must be trained on to show `want`'s colours (`ColourFit::
+/// Compensate` in the loop). A field fitted to painted views shows a narrower distribution
+/// than its targets: a stroke's darkest dark or most saturated colour is a few pixels, and
+/// the field, shared between many views and rays, reaches it only in part. Having trained
+/// on `trained` and shown `shown`, the field falls short of its targets by
+/// `trained − shown` at each quantile; targets at `trained + want − shown` make up that
+/// shortfall (an iterative-learning step: if the shortfall stays as it was, the field then
+/// shows `want`). Per Oklab channel and quantile, made non-decreasing so that the map it
+/// defines keeps the order of the colours. Empty (no change) when any of them is.
+pub fn compensated(want: &Quantiles, shown: &Quantiles, trained: &Quantiles) -> Quantiles {
+    if want.is_empty() || shown.is_empty() || trained.is_empty() {
+        return Quantiles { channels: Default::default() };
+    }
+    let channels = [0, 1, 2].map(|k| {
+        let mut top = f32::NEG_INFINITY;
+        (0..=LEVELS)
+            .map(|l| {
+                top = top.max(trained.channels[k][l] + want.channels[k][l] - shown.channels[k][l]);
+                top
+            })
+            .collect()
+    });
+    Quantiles { channels }
+}
+
 /// Where a run keeps its reference distribution (beside the consensus it is used with, so a
 /// run whose consensus was removed starts both again).
 fn path(out: &Path) -> PathBuf {
-    out.join("consensus").join("palette.json")
+    file(out, "palette.json")
 }
 
+fn file(out: &Path, name: &str) -> PathBuf {
+    out.join("consensus").join(name)
+}
+
+/// The distribution of the targets the field was last trained on (`compensated`), kept
+/// beside the palette.
+const TRAINED: &str = "trained.json";
+
 pub fn save(out: &Path, q: &Quantiles) -> Result<()> {
-    let p = path(out);
-    std::fs::create_dir_all(p.parent().expect("in consensus/")).with_context(|| format!("{}: cannot create", out.display()))?;
-    snerf_files::write_json_atomic(&p, q)
+    save_file(&path(out), q)
+}
+
+fn save_file(p: &Path, q: &Quantiles) -> Result<()> {
+    std::fs::create_dir_all(p.parent().expect("in consensus/")).with_context(|| format!("{}: cannot create", p.display()))?;
+    snerf_files::write_json_atomic(p, q)
+}
+
+/// Records the distribution of the targets the field is now trained on.
+pub fn save_trained(out: &Path, q: &Quantiles) -> Result<()> {
+    save_file(&file(out, TRAINED), q)
+}
+
+/// The distribution `save_trained` recorded, if the run has one.
+pub fn load_trained(out: &Path) -> Result<Option<Quantiles>> {
+    let p = file(out, TRAINED);
+    if !p.exists() {
+        return Ok(None);
+    }
+    load_file(&p).map(Some)
 }
 
 pub fn load(out: &Path) -> Result<Quantiles> {
-    let p = path(out);
-    let bytes = std::fs::read(&p).with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
+    load_file(&path(out))
+}
+
+fn load_file(p: &Path) -> Result<Quantiles> {
+    let bytes = std::fs::read(p).with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
     let q: Quantiles = serde_json::from_slice(&bytes).with_context(|| format!("{}: not a palette file", p.display()))?;
     let levels_ok = q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())) || q.channels.iter().all(Vec::is_empty);
     anyhow::ensure!(levels_ok, "{}: not a palette file ({} levels expected)", p.display(), LEVELS + 1);
@@ -187,6 +240,35 @@ mod tests {
         let itself = map_onto(std::slice::from_ref(&ri), std::slice::from_ref(&rg), &reference).remove(0);
         let worst = itself.data.iter().zip(&ri.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
         assert!(worst < 0.01, "a distribution mapped onto itself moved by {worst}");
+    }
+
+    /// A stand-in for a field that falls short of its targets: every colour pulled a fixed
+    /// share of the way toward mid-grey. Trained on the compensated targets, it shows the
+    /// targets' own spread after a step or two (against 0.8 of it uncompensated), and two
+    /// pixels of one colour are still one colour.
+    #[test]
+    fn compensated_targets_make_up_a_fields_shortfall() {
+        let field = |img: &Image| Image { data: img.data.iter().map(|v| 0.5 + 0.8 * (v - 0.5)).collect(), ..img.clone() };
+        let mut data = ramp(201, 0.7);
+        let same: Vec<f32> = data[30..33].to_vec();
+        data[90..93].copy_from_slice(&same);
+        let (want_img, geom) = view(data);
+        let (imgs, geoms) = (std::slice::from_ref(&want_img), std::slice::from_ref(&geom));
+        let want = Quantiles::of(imgs, geoms);
+        let spread = |q: &Quantiles| q.channels[0][LEVELS - 10] - q.channels[0][10];
+        let plain = spread(&Quantiles::of(&[field(&want_img)], geoms)) / spread(&want);
+        assert!(plain < 0.85, "the stand-in field keeps {plain} of the spread");
+        let (mut trained, mut targets) = (want.clone(), want_img.clone());
+        for _ in 0..3 {
+            let shown = Quantiles::of(&[field(&targets)], geoms);
+            let asked = compensated(&want, &shown, &trained);
+            targets = map_onto(imgs, geoms, &asked).remove(0);
+            trained = asked;
+        }
+        let kept = spread(&Quantiles::of(&[field(&targets)], geoms)) / spread(&want);
+        assert!((kept - 1.0).abs() < 0.03, "compensated, the field shows {kept} of the targets' spread (plain: {plain})");
+        assert_eq!(targets.data[30..33], targets.data[90..93], "one colour, one compensated colour");
+        assert!(compensated(&want, &Quantiles { channels: Default::default() }, &want).is_empty());
     }
 
     #[test]

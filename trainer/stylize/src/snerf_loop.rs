@@ -101,6 +101,25 @@
 //!   distribution of the first fused stylizations (`palette`); the median then reconciles
 //!   (BENCH.md §5q).
 //!
+//! - `Rays::Area` (the CLI's `--rays`, the default): while stylizing, each training ray
+//!   crosses its pixel anywhere in the pixel's square instead of at its centre. Fitted only
+//!   at the centres, the field is free between them, and a new view's rays fall between
+//!   them: the stylized field matched the stylizer on its training views (1.012×) and lost
+//!   7–9% of the style on views between them, and most of its remaining warp error was
+//!   there (BENCH.md §5s). A painted pixel is the paint over its square, so the field is
+//!   asked for that; the warp errors fall by about half. Alone it costs palette: the field's
+//!   colours average over the square, and its renders miss more of the painting's colours.
+//! - `ColourFit::Compensate` (the CLI's `--colour-fit`, the default) gives that palette
+//!   back. A field fitted to painted views shows a narrower colour distribution than its
+//!   targets (a stroke's darkest dark is a few pixels, which the field, shared between views
+//!   and rays, reaches in part), with area rays more so. The targets are mapped, per Oklab
+//!   channel and quantile, by what the field's renders of the training views fell short of
+//!   the targets it last trained on (`palette::compensated`, an iterative-learning step),
+//!   recalibrated at the start of every round and halfway through the first, so the field
+//!   shows the targets' distribution. The map is monotone and a function of the colour
+//!   alone, so colours the views agree on stay in agreement; the targets a round keeps for
+//!   the next round's step are the fused ones (BENCH.md §5u).
+//!
 //! Runs recorded before these options resume as they were.
 //!
 //! The paper's own way out, an optimizing stylizer started from the render (`gatys` with
@@ -213,6 +232,39 @@ pub struct StylizeOptions {
     /// (BENCH.md §5q).
     #[serde(default)]
     pub seed: Option<u64>,
+    /// Where each training ray crosses its pixel (before this option: `Centre`).
+    #[serde(default)]
+    pub rays: Rays,
+    /// Whether the targets make up for the colours the field falls short of (before this
+    /// option: `Plain`).
+    #[serde(default)]
+    pub colour_fit: ColourFit,
+}
+
+/// Where the stylizing trainer's rays cross their pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Rays {
+    /// Through the pixel's centre, as the realistic field trains.
+    #[default]
+    Centre,
+    /// Anywhere in the pixel's square (`TrainConfig::area_rays`): a painted view's pixel is
+    /// the paint over its square, so the field cannot put one colour at the centre the
+    /// training ray sees and another between centres, where a new view's rays fall.
+    Area,
+}
+
+/// Whether the targets the field trains on make up for the colours it falls short of.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ColourFit {
+    /// The targets as fused and stepped.
+    #[default]
+    Plain,
+    /// The targets mapped, per Oklab channel, so that the field shows their colour
+    /// distribution (`palette::compensated`), recalibrated against the field's renders at
+    /// the start of every round and halfway through the first.
+    Compensate,
 }
 
 /// What the consensus rounds do to the targets' colour distribution (`Targets::Consensus`).
@@ -453,6 +505,47 @@ impl Progress for Quiet {
     fn round_done(&mut self, _: &RoundRecord) {}
 }
 
+/// `ColourFit::Compensate`: `targets` mapped so that the field, trained on them, shows their
+/// colour distribution (`palette::compensated`). What the field shows is measured on its
+/// renders of the training views (`shown`, when the round has them; rendered here
+/// otherwise); what it was trained on is the distribution the last calibration recorded, or
+/// the targets themselves when it has trained on nothing else (`as_they_are`: the first
+/// round until halfway). Records the new distribution.
+fn compensate_targets(
+    out: &Path,
+    trainer: &Trainer,
+    views: &[View],
+    bg: [f32; 3],
+    has_alpha: bool,
+    targets: &[Image],
+    as_they_are: bool,
+    shown: Option<(Vec<Image>, Vec<ViewGeometry>)>,
+) -> Result<Vec<Image>> {
+    let (shown, geoms) = shown.unwrap_or_else(|| field_views(trainer, views, bg, has_alpha));
+    let want = palette::Quantiles::of(targets, &geoms);
+    let trained = match palette::load_trained(out)? {
+        Some(t) if !as_they_are => t,
+        _ => want.clone(),
+    };
+    let asked = palette::compensated(&want, &palette::Quantiles::of(&shown, &geoms), &trained);
+    palette::save_trained(out, &asked)?;
+    Ok(consensus::quantize(palette::map_onto(targets, &geoms, &asked)))
+}
+
+/// The field's colours at the training views (before the background is laid under them,
+/// where they have a silhouette) and the surface points it shows there.
+fn field_views(trainer: &Trainer, views: &[View], bg: [f32; 3], has_alpha: bool) -> (Vec<Image>, Vec<ViewGeometry>) {
+    views
+        .iter()
+        .map(|v| {
+            let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
+            let g = ViewGeometry::from_render(&trainer.model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity);
+            let colour = if has_alpha { unpremultiply(r.width, r.height, &r.rgb, &r.opacity, bg) } else { Image { width: r.width, height: r.height, data: r.rgb } };
+            (colour, g)
+        })
+        .unzip()
+}
+
 /// Training views the rounds use: all, or `n` evenly spaced.
 pub fn pick_views(views: &[View], n: usize) -> Vec<View> {
     if n == 0 || n >= views.len() {
@@ -585,6 +678,9 @@ pub fn run(
     for round in state.rounds_done..opts.rounds {
         let t_round = Instant::now();
         let resumed = partial::load(out, round + 1, data, opts)?;
+        // `ColourFit::Compensate`: what the field shows at the training views and their geometry,
+        // when this round rendered them anyway
+        let mut shown: Option<(Vec<Image>, Vec<ViewGeometry>)> = None;
         let (stylized, render_seconds, stylize_seconds, first_step, trained_before, mut loss_ema, fused_fraction) = match resumed {
             Some(p) => {
                 let partial::Resumed { trainer: t, targets, saved: p } = p;
@@ -686,16 +782,33 @@ pub fn run(
                 };
                 let stylize_seconds = t0.elapsed().as_secs_f64();
                 write_round_sheet(&out.join("rounds").join(format!("round_{}.png", round + 1)), &renders, &stylized, &targets)?;
+                if opts.fuse_views > 0 {
+                    shown = Some((if has_alpha { painted } else { renders }, geoms));
+                }
                 (targets, render_seconds, stylize_seconds, 0, 0.0, None, fused_fraction)
             }
         };
         // (3) train on random rays across the stylized views
-        let targets: Vec<View> = views.iter().zip(&stylized).map(|(v, s)| stylized_view(v, s)).collect();
-        trainer.set_views(targets)?;
         let steps = opts.steps_of_round(round + 1);
+        // `ColourFit::Compensate` calibrates when a round starts training (the first round
+        // trains on its targets as they are until halfway, where there is a field to measure)
+        let compensate = opts.colour_fit == ColourFit::Compensate && opts.fuse_views > 0;
+        let halfway = (compensate && round == 0 && first_step < steps / 2).then_some(steps / 2);
+        let train_on = if compensate && (round > 0 || first_step > 0) {
+            // a first round resumed before halfway has trained on the targets as they are
+            let as_they_are = round == 0 && first_step <= steps / 2;
+            compensate_targets(out, &trainer, &views, bg, has_alpha, &stylized, as_they_are, shown.take())?
+        } else {
+            stylized.clone()
+        };
+        trainer.set_views(views.iter().zip(&train_on).map(|(v, s)| stylized_view(v, s)).collect())?;
         progress.phase(round + 1, opts.rounds, "train", steps);
         let t0 = Instant::now();
         for s in first_step..steps {
+            if halfway == Some(s) && s > 0 {
+                let c = compensate_targets(out, &trainer, &views, bg, has_alpha, &stylized, true, None)?;
+                trainer.set_views(views.iter().zip(&c).map(|(v, s)| stylized_view(v, s)).collect())?;
+            }
             if snerf_files::interrupt::requested() {
                 let p = partial::Partial {
                     round: round + 1,
@@ -860,6 +973,7 @@ fn trainer_from(ck: snerf_trainer::checkpoint::Checkpoint, data: &Dataset, opts:
     if let Some(tv) = opts.plane_tv {
         cfg.tv = tv;
     }
+    cfg.area_rays = opts.rays == Rays::Area;
     let mut model = ck.model;
     if opts.view_colour == ViewColour::Diffuse {
         let view = model.field.layout.view;

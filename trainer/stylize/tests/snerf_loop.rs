@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use snerf_data::{load, LoadOptions};
 use snerf_stylize::consistency::{PathGeometry, StyleMeters, STYLE_RING};
+use snerf_stylize::palette;
 use snerf_stylize::snerf_loop::{self, Quiet, StylizeOptions, ViewColour};
 use snerf_stylize::stylizer::{self, Image, StylizerOptions};
 use snerf_trainer::checkpoint;
@@ -103,6 +104,8 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         view_colour: Default::default(),
         palette: Default::default(),
         seed: None,
+        rays: Default::default(),
+        colour_fit: Default::default(),
     }
 }
 
@@ -430,4 +433,37 @@ fn a_seed_of_its_own_changes_the_rays_and_is_recorded() {
     assert_ne!(source.cfg.seed, 7);
     assert!(seven == seven_again, "one seed, two fields");
     assert!(own != seven, "another seed trained the same field");
+}
+
+/// `Rays::Area` and `ColourFit::Compensate` (the command line's defaults): the stylizing
+/// trainer draws its rays across the pixels' squares and saves that with the field, the run
+/// records the distribution it last asked the field for and resumes with it, and the targets
+/// it keeps for the next round's step are the fused ones, not the compensated ones (a plain
+/// run with the same options keeps the same first-round targets and records nothing).
+#[test]
+fn area_rays_and_colour_compensation_run_and_resume() {
+    let Fixture { dir, data, run, style, source, style_img } = fixture("compensate");
+    let st = stylizer::from_spec("color", Some(&style), &StylizerOptions::default()).unwrap();
+    let mut o = fixed_content(options(&run, &data.root, &style, 1, false), 20);
+    o.step_from = snerf_loop::StepFrom::Targets;
+    let read = |out: &Path, round: usize| -> Vec<Vec<f32>> {
+        (0..12).map(|i| stylizer::image_from_png(&out.join(format!("targets/round_{round}/view_{i:03}.png"))).unwrap().data).collect()
+    };
+    let plain = dir.join("plain");
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &plain, &mut Quiet).unwrap();
+    assert!(palette::load_trained(&plain).unwrap().is_none(), "a plain run records no compensation");
+    assert!(!checkpoint::load(&plain.join(checkpoint::FILE_NAME)).unwrap().cfg.area_rays);
+
+    let out = dir.join("compensate");
+    o.rays = snerf_loop::Rays::Area;
+    o.colour_fit = snerf_loop::ColourFit::Compensate;
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    assert!(checkpoint::load(&out.join(checkpoint::FILE_NAME)).unwrap().cfg.area_rays, "the field trains on with the rays it used");
+    let first = palette::load_trained(&out).unwrap().expect("halfway through round 1 the run calibrates");
+    assert_eq!(read(&out, 1), read(&plain, 1), "round 1's kept targets are the fused stylizations, whatever the field trained on");
+    o.rounds = 2;
+    let s = snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(s.rounds_done, 2);
+    let second = palette::load_trained(&out).unwrap().unwrap();
+    assert_ne!(first, second, "round 2 calibrates again against the field it starts from");
 }
