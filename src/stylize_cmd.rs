@@ -9,7 +9,7 @@ use clap::Args;
 use indicatif::ProgressBar;
 use serde_json::{json, Value};
 use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters, StyleTargets};
-use snerf_stylize::fusion::{Read, ViewGeometry};
+use snerf_stylize::fusion::Read;
 use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
 use snerf_stylize::stylizer::{self, Image, Stylizer, StylizerOptions};
@@ -515,13 +515,7 @@ fn carried_targets(
     if views.iter().zip(&targets).any(|(v, t)| (v.intrinsics.width as usize, v.intrinsics.height as usize) != (t.width, t.height)) {
         return Ok(Vec::new());
     }
-    let geoms: Vec<ViewGeometry> = views
-        .iter()
-        .map(|v| {
-            let r = snerf_trainer::eval::render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, path.bg);
-            ViewGeometry::from_render(&model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity)
-        })
-        .collect();
+    let (_, geoms) = snerf_loop::field_views(model, pool, &views, path.bg, path.has_silhouette());
     [(Read::Nearest, "Last targets carried, copied pixels"), (Read::Bilinear, "Last targets carried, bilinear")]
         .into_iter()
         .map(|(read, name)| MethodScores::of(name, path, &path.carried(base, &targets, &geoms, read), meters, style))
@@ -642,26 +636,20 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         ),
         _ => String::new(),
     };
-    let ratio_of = |m: &MethodScores| {
-        json!({"short_range": m.short_range / pf.short_range, "long_range": m.long_range / pf.long_range, "style_swd": m.style_swd.total / pf.style_swd.total})
-    };
+    // each carried read against per-frame stylization: short range, long range, style
+    let carried_ratios: Vec<[f64; 3]> =
+        carried.iter().map(|m| [m.short_range / pf.short_range, m.long_range / pf.long_range, m.style_swd.total / pf.style_swd.total]).collect();
     let carried_md = if carried.is_empty() {
         String::new()
     } else {
-        let line = |m: &MethodScores| {
-            format!(
-                "- {}: short-range {:.3}×, long-range {:.3}×, style distance {:.3}× of per-frame\n",
-                m.method,
-                m.short_range / pf.short_range,
-                m.long_range / pf.long_range,
-                m.style_swd.total / pf.style_swd.total
-            )
+        let line = |(m, r): (&MethodScores, &[f64; 3])| {
+            format!("- {}: short-range {:.3}×, long-range {:.3}×, style distance {:.3}× of per-frame\n", m.method, r[0], r[1], r[2])
         };
         format!(
             "What the last round's training targets allow: the path as a field that held them exactly would show it \
              (every surface point the colour its owner view gives it in the targets, as the targets were fused), \
              scored as above:\n\n{}\n",
-            carried.iter().map(line).collect::<String>()
+            carried.iter().zip(&carried_ratios).map(line).collect::<String>()
         )
     };
     let md = format!(
@@ -696,7 +684,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "methods": methods,
         "snerf_over_per_frame": ratios,
         "targets_carried": carried,
-        "targets_carried_over_per_frame": carried.iter().map(ratio_of).collect::<Vec<_>>(),
+        "targets_carried_over_per_frame": carried_ratios.iter().map(|r| json!({"short_range": r[0], "long_range": r[1], "style_swd": r[2]})).collect::<Vec<_>>(),
         "style_metric_realistic_over_per_frame": realistic_over_per_frame,
         "style_gram_realistic_over_per_frame": gram_realistic_over_per_frame,
         "rounds": state.records,

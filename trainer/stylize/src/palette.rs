@@ -184,7 +184,7 @@ pub fn load(out: &Path) -> Result<Quantiles> {
 }
 
 fn load_file(p: &Path) -> Result<Quantiles> {
-    let bytes = std::fs::read(p).with_context(|| format!("{}: cannot read the run's reference palette", p.display()))?;
+    let bytes = std::fs::read(p).with_context(|| format!("{}: cannot read the run's colour distribution", p.display()))?;
     let q: Quantiles = serde_json::from_slice(&bytes).with_context(|| format!("{}: not a palette file", p.display()))?;
     let levels_ok = q.channels.iter().all(|c| c.len() == LEVELS + 1 && c.iter().all(|v| v.is_finite())) || q.channels.iter().all(Vec::is_empty);
     anyhow::ensure!(levels_ok, "{}: not a palette file ({} levels expected)", p.display(), LEVELS + 1);

@@ -521,7 +521,7 @@ fn compensate_targets(
     as_they_are: bool,
     shown: Option<(Vec<Image>, Vec<ViewGeometry>)>,
 ) -> Result<Vec<Image>> {
-    let (shown, geoms) = shown.unwrap_or_else(|| field_views(trainer, views, bg, has_alpha));
+    let (shown, geoms) = shown.unwrap_or_else(|| field_views(&trainer.model, &trainer.pool, views, bg, has_alpha));
     let want = palette::Quantiles::of(targets, &geoms);
     let trained = match palette::load_trained(out)? {
         Some(t) if !as_they_are => t,
@@ -532,14 +532,14 @@ fn compensate_targets(
     Ok(consensus::quantize(palette::map_onto(targets, &geoms, &asked)))
 }
 
-/// The field's colours at the training views (before the background is laid under them,
-/// where they have a silhouette) and the surface points it shows there.
-fn field_views(trainer: &Trainer, views: &[View], bg: [f32; 3], has_alpha: bool) -> (Vec<Image>, Vec<ViewGeometry>) {
+/// A field's colours at `views` (before the background is laid under them, where they have
+/// a silhouette) and the surface points it shows there.
+pub fn field_views(model: &Model, pool: &WorkspacePool, views: &[View], bg: [f32; 3], has_alpha: bool) -> (Vec<Image>, Vec<ViewGeometry>) {
     views
         .iter()
         .map(|v| {
-            let r = render_camera(&trainer.model, &trainer.pool, &v.c2w, &v.intrinsics, v.time, bg);
-            let g = ViewGeometry::from_render(&trainer.model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity);
+            let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
+            let g = ViewGeometry::from_render(&model.space, &v.c2w, &v.intrinsics, v.time, &r.depth, &r.opacity);
             let colour = if has_alpha { unpremultiply(r.width, r.height, &r.rgb, &r.opacity, bg) } else { Image { width: r.width, height: r.height, data: r.rgb } };
             (colour, g)
         })
