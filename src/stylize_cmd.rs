@@ -152,7 +152,7 @@ pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
 /// narrowed the palette, so round 5's style distance ended above round 1's).
 pub const DEFAULT_PALETTE: &str = "keep";
 pub const DEFAULT_RAYS: &str = "area";
-pub const DEFAULT_COLOUR_FIT: &str = "compensate";
+pub const DEFAULT_COLOUR_FIT: &str = "joint";
 
 /// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -298,12 +298,16 @@ pub struct StylizeArgs {
     /// before this option)
     #[arg(long, default_value = DEFAULT_RAYS, value_parser = ["area", "centre"])]
     pub rays: String,
-    /// Whether the targets make up for the colours the field falls short of: compensate
-    /// (each round, and halfway through the first, the targets are mapped per Oklab channel
-    /// by how far the field's renders fell short of the targets it trained on, quantile by
-    /// quantile, so that it shows the stylizer's palette; BENCH.md §5u) or plain (the
-    /// targets as fused, as runs made before this option)
-    #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["compensate", "plain"])]
+    /// Whether the targets make up for the colours the field falls short of: joint (every
+    /// target colour is moved by what the field's renders of the training views showed
+    /// short of it, averaged over the pixels of that colour, so that the field shows the
+    /// painting's colours together: red strokes on green stay red; recalibrated at every
+    /// round's start and after every share of the training steps as large as the last
+    /// round; BENCH.md §5v), compensate (per Oklab channel, quantile by quantile, at every
+    /// round's start and halfway through the first: each channel's spread, not which
+    /// colours go together; §5u) or plain (the targets as fused, as runs made before these
+    /// options)
+    #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["joint", "compensate", "plain"])]
     pub colour_fit: String,
     #[command(flatten)]
     pub s: StylizerArgs,

@@ -18,6 +18,8 @@
 //!   measurement share it.
 //! - `palette`: keeps the consensus rounds from narrowing the painting's colours (a
 //!   per-channel Oklab quantile map onto the first fused stylizations).
+//! - `colour_offsets`: what a field trained on painted views falls short of, per colour, so
+//!   that the targets make it up.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then
@@ -27,6 +29,7 @@
 // the GEMM keeps BLAS's argument list.
 #![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
+pub mod colour_offsets;
 pub mod consistency;
 pub mod fusion;
 pub mod paintings;

@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use snerf_data::{load, LoadOptions};
+use snerf_stylize::colour_offsets::ColourOffsets;
 use snerf_stylize::consistency::{PathGeometry, StyleMeters, STYLE_RING};
 use snerf_stylize::palette;
 use snerf_stylize::snerf_loop::{self, Quiet, StylizeOptions, ViewColour};
@@ -435,9 +436,10 @@ fn a_seed_of_its_own_changes_the_rays_and_is_recorded() {
     assert!(own != seven, "another seed trained the same field");
 }
 
-/// `Rays::Area` and `ColourFit::Compensate` (the command line's defaults): the stylizing
-/// trainer draws its rays across the pixels' squares and saves that with the field, the run
-/// records the distribution it last asked the field for and resumes with it, and the targets
+/// `Rays::Area` and `ColourFit::Joint` (the command line's defaults), and `Compensate`: the
+/// stylizing trainer draws its rays across the pixels' squares and saves that with the field,
+/// the run records its last calibration (the distribution it last asked the field for; the
+/// offsets per colour) and resumes with it, and the targets
 /// it keeps for the next round's step are the fused ones, not the compensated ones (a plain
 /// run with the same options keeps the same first-round targets and records nothing).
 #[test]
@@ -466,4 +468,21 @@ fn area_rays_and_colour_compensation_run_and_resume() {
     assert_eq!(s.rounds_done, 2);
     let second = palette::load_trained(&out).unwrap().unwrap();
     assert_ne!(first, second, "round 2 calibrates again against the field it starts from");
+    assert!(ColourOffsets::load(&out).unwrap().is_none(), "per channel, no offsets per colour");
+
+    // `ColourFit::Joint`: offsets per colour, recorded within round 1 (halfway, in a run of
+    // one round) and added to at round 2's start and within it; the kept targets are the
+    // fused ones again
+    let joint = dir.join("joint");
+    o.rounds = 1;
+    o.colour_fit = snerf_loop::ColourFit::Joint;
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &joint, &mut Quiet).unwrap();
+    assert_eq!(o.first_calibration(), 10);
+    let first = ColourOffsets::load(&joint).unwrap().expect("halfway through round 1 the run calibrates");
+    assert!(palette::load_trained(&joint).unwrap().is_none(), "per colour, no per-channel distribution");
+    assert_eq!(read(&joint, 1), read(&plain, 1), "round 1's kept targets are the fused stylizations");
+    o.rounds = 2;
+    snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &joint, &mut Quiet).unwrap();
+    let second = ColourOffsets::load(&joint).unwrap().unwrap();
+    assert_ne!(first, second, "round 2 adds the shortfall of the field it starts from");
 }
