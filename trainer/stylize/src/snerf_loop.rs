@@ -448,7 +448,8 @@ impl StylizeOptions {
     /// measure until it has trained, is calibrated at least once). The field's shortfall
     /// changes with the steps it takes, not with the rounds, so it is measured after every
     /// equal share of them: with `RoundSteps::Harmonic` (most of the steps in round 1) and 5
-    /// rounds, round 1 is calibrated four times and round 5 once, at its start.
+    /// rounds, round 1 is calibrated five times within it at the default 300 steps a round
+    /// (four at 100 or 200: the rounding decides), and round 5 once, at its start.
     pub fn calibration_interval(&self) -> u64 {
         self.steps_of_round(self.rounds).min(self.steps_of_round(1) / 2).max(1)
     }
