@@ -192,12 +192,13 @@ fn load_file(p: &Path) -> Result<Quantiles> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use snerf_data::Intrinsics;
 
-    /// One view of `w` pixels in a row, every pixel a scene pixel but the last.
-    fn view(data: Vec<f32>) -> (Image, ViewGeometry) {
+    /// One view of `w` pixels in a row, every pixel a scene pixel but the last (shared with
+    /// `colour_offsets`' tests).
+    pub(crate) fn view(data: Vec<f32>) -> (Image, ViewGeometry) {
         let w = data.len() / 3;
         let intr = Intrinsics { width: w as u32, height: 1, fx: 1.0, fy: 1.0, cx: 0.5, cy: 0.5, distortion: [0.0; 4] };
         let points = (0..w).map(|i| (i + 1 < w).then_some([i as f32, 0.0, 0.0])).collect();
