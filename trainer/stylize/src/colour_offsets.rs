@@ -34,6 +34,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::fusion::ViewGeometry;
+use crate::palette;
 use crate::style_metric::{oklab, srgb_from_oklab, JND};
 use crate::stylizer::Image;
 
@@ -150,14 +151,12 @@ impl ColourOffsets {
     }
 
     pub fn save(&self, out: &Path) -> Result<()> {
-        let p = path(out);
-        std::fs::create_dir_all(p.parent().expect("in consensus/")).with_context(|| format!("{}: cannot create", p.display()))?;
-        snerf_files::write_json_atomic(&p, self)
+        palette::save_file(&path(out), self)
     }
 }
 
 fn path(out: &Path) -> PathBuf {
-    out.join("consensus").join("offsets.json")
+    palette::file(out, "offsets.json")
 }
 
 #[cfg(test)]

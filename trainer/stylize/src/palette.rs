@@ -148,7 +148,8 @@ fn path(out: &Path) -> PathBuf {
     file(out, "palette.json")
 }
 
-fn file(out: &Path, name: &str) -> PathBuf {
+/// A file the run keeps beside its consensus (`consensus/NAME`).
+pub(crate) fn file(out: &Path, name: &str) -> PathBuf {
     out.join("consensus").join(name)
 }
 
@@ -160,7 +161,8 @@ pub fn save(out: &Path, q: &Quantiles) -> Result<()> {
     save_file(&path(out), q)
 }
 
-fn save_file(p: &Path, q: &Quantiles) -> Result<()> {
+/// Writes `q` as JSON at `p` (atomically), creating its folder.
+pub(crate) fn save_file<T: Serialize>(p: &Path, q: &T) -> Result<()> {
     std::fs::create_dir_all(p.parent().expect("in consensus/")).with_context(|| format!("{}: cannot create", p.display()))?;
     snerf_files::write_json_atomic(p, q)
 }
