@@ -4,17 +4,17 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use snerf_files::ScratchDir;
+
 fn snerf() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
     c.env("RAYON_NUM_THREADS", "2");
     c
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+fn tmp(name: &str) -> ScratchDir {
+    ScratchDir::new("snerf-cli", name).unwrap()
 }
 
 fn ok(out: Output) -> serde_json::Value {
@@ -239,7 +239,7 @@ fn bad_input_gets_a_clear_error_naming_the_file() {
 /// The inputs of the `bench snerf` tests: a real model's folder (None, with a note, when
 /// assimp-testmodels is not installed), a fresh directory, and a style file in it, so the
 /// tests do not depend on the paintings being installed.
-fn bench_snerf_inputs(name: &str) -> Option<(&'static Path, PathBuf, PathBuf)> {
+fn bench_snerf_inputs(name: &str) -> Option<(&'static Path, ScratchDir, PathBuf)> {
     let models = Path::new("/usr/share/assimp/models/glTF2/BoxTextured-glTF");
     if !models.is_dir() {
         eprintln!("SKIP: {} not installed (apt-get install assimp-testmodels)", models.display());

@@ -6,6 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use snerf_files::ScratchDir;
+
 fn snerf() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
     c.env("RAYON_NUM_THREADS", "2");
@@ -159,9 +161,7 @@ fn prepare(d: &Path) -> (PathBuf, PathBuf, PathBuf) {
 
 #[test]
 fn random_command_lines_never_panic_and_json_stays_finite() {
-    let d = std::env::temp_dir().join(format!("snerf-fuzz-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    let d = ScratchDir::new("snerf-fuzz", "cases").unwrap();
     let (ds, run, asset) = prepare(&d);
     let cases: usize = std::env::var("SNERF_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(60);
     let mut rng = Rng(0x5eed_cafe_f00d_1234);
@@ -188,5 +188,4 @@ fn random_command_lines_never_panic_and_json_stays_finite() {
     }
     println!("{cases} random command lines: {succeeded} ran, {refused} refused with a JSON error");
     assert!(succeeded > 0 && refused > 0, "the generator should produce both ({succeeded}, {refused})");
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -2,10 +2,11 @@
 //! `snerf stylize` keep in their run directories, on real short runs: every plotted number
 //! is the recorded one, and the pictures show axes and one line per run.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use serde_json::Value;
+use snerf_files::ScratchDir;
 
 fn snerf() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
@@ -13,11 +14,9 @@ fn snerf() -> Command {
     c
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-report-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+fn tmp(name: &str) -> ScratchDir {
+    ScratchDir::new("snerf-report", name).unwrap()
 }
 
 fn ok(out: Output) -> Value {

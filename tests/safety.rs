@@ -2,9 +2,11 @@
 //! could lose data or be told a failure was a success, and checks the command now refuses
 //! clearly, exits honestly and leaves every file it did not create alone.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
+
+use snerf_files::ScratchDir;
 
 fn snerf() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
@@ -12,11 +14,9 @@ fn snerf() -> Command {
     c
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-safety-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+fn tmp(name: &str) -> ScratchDir {
+    ScratchDir::new("snerf-safety", name).unwrap()
 }
 
 fn ok(out: Output) -> serde_json::Value {

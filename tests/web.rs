@@ -10,6 +10,8 @@ use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+use snerf_files::ScratchDir;
+
 fn snerf() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
     c.env("RAYON_NUM_THREADS", "2");
@@ -53,9 +55,7 @@ impl Drop for Server {
 #[test]
 fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     let Some((chromium, pw)) = browser() else { return };
-    let d = std::env::temp_dir().join(format!("snerf-web-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
+    let d = ScratchDir::new("snerf-web", "page").unwrap();
     // A small real asset: scene -> train -> bake.
     let ds = d.join("ds");
     ok(snerf()
@@ -177,5 +177,4 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     // diffuse file, and drew it without the view MLP)
     assert!(diff < 0.5 * apart, "diffuse asset: the page is {diff} from the diffuse reference, the full image {apart}");
     drop(server);
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -28,11 +28,9 @@ fn tiny_run(scene: &str, dir: &Path, steps: usize) -> (snerf_data::Dataset, Trai
     (data, t)
 }
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-bake-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+fn tmp(name: &str) -> snerf_files::ScratchDir {
+    snerf_files::ScratchDir::new("snerf-bake", name).unwrap()
 }
 
 #[test]

@@ -405,8 +405,7 @@ mod tests {
 
     #[test]
     fn a_link_to_nothing_is_named() {
-        let dir = std::env::temp_dir().join(format!("snerf-grid-link-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let dir = snerf_files::ScratchDir::new("snerf-grid-link", "dangling").unwrap();
         std::fs::create_dir_all(dir.join("real")).unwrap();
         no_dangling_link(&dir.join("absent")).unwrap();
         std::os::unix::fs::symlink(dir.join("real"), dir.join("good")).unwrap();
@@ -414,7 +413,6 @@ mod tests {
         std::os::unix::fs::symlink(dir.join("gone"), dir.join("data")).unwrap();
         let e = no_dangling_link(&dir.join("data")).unwrap_err().to_string();
         assert!(e.contains("data: a symbolic link to") && e.contains("gone, which does not exist"), "{e}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     fn consistency(real: f64, pf: (f64, f64, f64), sn: (f64, f64, f64), r1: (f64, f64, f64), r5: (f64, f64, f64)) -> Value {

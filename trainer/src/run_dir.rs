@@ -115,11 +115,8 @@ mod tests {
     use crate::run::{self, RunOptions};
     use crate::train::TrainConfig;
 
-    fn tmp(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("snerf-run-dir-{}-{tag}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn tmp(tag: &str) -> snerf_files::ScratchDir {
+        snerf_files::ScratchDir::new("snerf-run-dir", tag).unwrap()
     }
 
     /// A four-view Blender-style dataset of a grey disc on a transparent background, seen
@@ -161,7 +158,6 @@ mod tests {
         let gone = d.join("no-such-run");
         let e = format!("{:#}", RunDir::new(&gone).dataset().unwrap_err());
         assert!(e.contains(&gone.display().to_string()), "{e}");
-        std::fs::remove_dir_all(&d).ok();
     }
 
     #[test]
@@ -206,6 +202,5 @@ mod tests {
         std::fs::write(dir.config(), serde_json::to_vec(&old).unwrap()).unwrap();
         let e = format!("{:#}", dir.dataset().unwrap_err());
         assert!(e.contains("relative path datasets/some-scene") && e.contains("--data"), "{e}");
-        std::fs::remove_dir_all(&d).ok();
     }
 }

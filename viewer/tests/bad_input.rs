@@ -135,8 +135,7 @@ fn no_adapter_is_a_typed_error_and_cpu_fallback_says_so() {
 
 #[test]
 fn bad_pose_files_are_errors() {
-    let dir = std::env::temp_dir().join(format!("snerf-viewer-poses-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("poses");
     let p = dir.join("poses.json");
     std::fs::write(&p, "[{\"c2w\": [[1,0,0,0],[0,1,0,0]], \"time\": 0.5}]").unwrap();
     let e = snerf_viewer::load_poses(&p).unwrap_err().to_string();
@@ -150,7 +149,6 @@ fn bad_pose_files_are_errors() {
     let poses = snerf_viewer::load_poses(&p).unwrap();
     assert_eq!(poses.len(), 2);
     assert_eq!(poses[1].time, None);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

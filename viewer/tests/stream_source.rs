@@ -11,13 +11,6 @@ use snerf_asset::Asset;
 use snerf_stream::{ClientOptions, LiveAsset, ServeOptions, ServerHandle};
 use snerf_viewer::{AssetSource, StreamSource};
 
-fn tmp(tag: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-viewer-stream-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 fn serve(dir: &Path) -> ServerHandle {
     let mut o = ServeOptions::new(dir.join("assets"), "127.0.0.1:0".parse().unwrap());
     o.state_dir = Some(dir.join("state"));
@@ -45,7 +38,7 @@ fn follow(src: &mut StreamSource, held: &mut Option<Asset>) {
 
 #[test]
 fn a_streamed_asset_is_drawable_early_and_exact_at_the_end() {
-    let dir = tmp("adapter");
+    let dir = common::tmp("stream-adapter");
     std::fs::create_dir_all(dir.join("assets")).unwrap();
     let file = dir.join("assets").join("scene.snerf");
     common::object_asset().write(&file).unwrap();
@@ -83,5 +76,4 @@ fn a_streamed_asset_is_drawable_early_and_exact_at_the_end() {
     assert!(held.as_ref() == Some(&served), "the streamed asset differs from the served one");
 
     server.shutdown();
-    std::fs::remove_dir_all(&dir).ok();
 }

@@ -18,8 +18,7 @@ fn window_presents_and_screenshot_matches_headless() {
         eprintln!("SKIP window test: no DISPLAY and no Xvfb (apt-get install xvfb)");
         return;
     };
-    let dir = std::env::temp_dir().join(format!("snerf-viewer-window-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("window");
     let asset_path = dir.join("object.snerf");
     let asset = object_asset();
     asset.write(&asset_path).unwrap();
@@ -78,5 +77,4 @@ fn window_presents_and_screenshot_matches_headless() {
     );
     // Not a blank image: the object covers part of the view.
     assert!(coverage(&frame) > 0.05);
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -4,7 +4,7 @@
 //! should have produced. One test per binary (one winit event loop per process).
 mod common;
 use common::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -16,7 +16,7 @@ fn xdo(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stdout).trim().to_string()
 }
 
-fn pngs(dir: &PathBuf) -> Vec<PathBuf> {
+fn pngs(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .map(|r| {
             r.filter_map(|e| e.ok().map(|e| e.path()))
@@ -58,23 +58,21 @@ fn mouse_and_keys_drive_the_view() {
         eprintln!("SKIP window input test: no DISPLAY and no Xvfb");
         return;
     };
-    let dir = std::env::temp_dir().join(format!("snerf-viewer-input-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = tmp("input");
     let asset = object_asset();
     let (w, h) = (160u32, 120u32);
     let title = format!("snerf input test {}", std::process::id());
     let opts = snerf_viewer::ViewOptions {
         width: w,
         height: h,
-        screenshot_dir: dir.clone(),
+        screenshot_dir: dir.to_path_buf(),
         timeout: Some(Duration::from_secs(240)),
         title: title.clone(),
         print_stats: false,
         ..Default::default()
     };
     // The driver: waits for the window, then plays input and waits for each screenshot.
-    let d2 = dir.clone();
+    let d2 = dir.to_path_buf();
     let driver = std::thread::spawn(move || {
         let t0 = Instant::now();
         let wid = loop {
@@ -167,5 +165,4 @@ fn mouse_and_keys_drive_the_view() {
     let d_small = max_level_diff(&shots[2], &fs[0]);
     println!("after resize to 120x90 vs headless: max {} levels", d_small);
     assert!(d_small <= 1, "resized window shows {} levels off", d_small);
-    let _ = std::fs::remove_dir_all(&dir);
 }

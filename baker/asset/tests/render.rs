@@ -202,8 +202,7 @@ fn orbit_cameras_see_the_object_and_images_save() {
         assert_eq!(f.opacity[k], centre.opacity);
         frames.push(f);
     }
-    let dir = std::env::temp_dir().join(format!("snerf-asset-png-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = snerf_files::ScratchDir::new("snerf-asset-png", "strip").unwrap();
     write_png(&frames[0], dir.join("one.png")).unwrap();
     contact_strip(&frames, dir.join("strip.png")).unwrap();
     let img = image::open(dir.join("strip.png")).unwrap();
@@ -211,7 +210,7 @@ fn orbit_cameras_see_the_object_and_images_save() {
     let one = image::open(dir.join("one.png")).unwrap().to_rgb8();
     let px = one.get_pixel(12, 8);
     assert_eq!(px.0[0], snerf_asset::quantize_unit(frames[0].rgb[3 * (8 * 24 + 12)]));
-    std::fs::remove_dir_all(&dir).unwrap();
+    drop(dir);
 
     // forward orbit: parallel cameras around the reference one, looking down model -z
     let f = dense_asset(Kind::Forward);

@@ -78,8 +78,7 @@ fn dynamic_roundtrip_shares_blocks() {
 
 #[test]
 fn file_roundtrip_is_atomic() {
-    let dir = std::env::temp_dir().join(format!("snerf-asset-rt-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = snerf_files::ScratchDir::new("snerf-asset-rt", "file").unwrap();
     let path = dir.join("scene.snerf");
     for dynamic in [false, true] {
         let a = sphere_asset(dynamic);
@@ -102,7 +101,6 @@ fn file_roundtrip_is_atomic() {
     std::fs::write(&missing, b"SNERFAST\x01\0\0\0\0\0\0\0").unwrap();
     let err = format!("{:#}", Asset::read(&missing).unwrap_err());
     assert!(err.starts_with(&missing.display().to_string()), "{}", err);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

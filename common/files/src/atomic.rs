@@ -191,11 +191,8 @@ pub fn write_json_atomic(path: &Path, value: &impl Serialize) -> Result<()> {
 mod tests {
     use super::*;
 
-    fn scratch(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("snerf-files-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn scratch(tag: &str) -> crate::ScratchDir {
+        crate::ScratchDir::new("snerf-files", tag).unwrap()
     }
 
     #[test]
@@ -215,7 +212,6 @@ mod tests {
         assert_eq!(std::fs::read(&p).unwrap(), b"new");
         // (other tests write in parallel: look only at this directory's temp paths)
         assert!(!LIVE.lock().unwrap().iter().any(|t| t.starts_with(&d)));
-        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
@@ -235,6 +231,5 @@ mod tests {
         assert_eq!(sweep_stale(&d), 3);
         assert!(!dead.exists() && !dead_dir.exists() && !old_ckpt.exists());
         assert!(mine.exists() && user.exists() && user2.exists());
-        std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -191,11 +191,8 @@ pub fn ownership(dir: &Path) -> Result<Ownership> {
 mod tests {
     use super::*;
 
-    fn scratch(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("snerf-guard-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
+    fn scratch(tag: &str) -> crate::ScratchDir {
+        crate::ScratchDir::new("snerf-guard", tag).unwrap()
     }
 
     #[test]
@@ -224,7 +221,6 @@ mod tests {
             std::os::unix::fs::symlink(&ck, &soft).unwrap();
             assert!(check_output("--out", &soft, &ins).is_err());
         }
-        std::fs::remove_dir_all(&d).unwrap();
     }
 
     #[test]
@@ -244,6 +240,5 @@ mod tests {
         std::fs::remove_file(ds.join("train/IMG_precious.png")).unwrap();
         std::fs::write(ds.join("train/r_000.png"), b"edited by the user").unwrap();
         assert!(matches!(ownership(&ds).unwrap(), Ownership::Foreign(m) if m.contains("changed")));
-        std::fs::remove_dir_all(&d).unwrap();
     }
 }

@@ -10,6 +10,7 @@
 //! - `lock`: an exclusive lock on a run directory (released by the kernel if the process dies).
 //! - `interrupt`: Ctrl-C / SIGTERM handling: long jobs stop at a safe point and save; anything
 //!   else cleans its temp files and exits.
+//! - `scratch`: tests' temporary directories, removed when a test passes, kept when it fails.
 //!
 //! Depends on nothing of snerf's, so every crate (the viewer's included) can use it.
 
@@ -17,7 +18,9 @@ pub mod atomic;
 pub mod guard;
 pub mod interrupt;
 pub mod lock;
+pub mod scratch;
 
 pub use atomic::{write_atomic, write_json_atomic};
 pub use guard::{check_output, Input};
 pub use lock::DirLock;
+pub use scratch::ScratchDir;

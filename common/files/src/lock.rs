@@ -61,14 +61,12 @@ mod tests {
 
     #[test]
     fn second_lock_on_a_directory_fails_and_the_first_release_frees_it() {
-        let d = std::env::temp_dir().join(format!("snerf-lock-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
+        let d = crate::ScratchDir::new("snerf-lock", "second").unwrap();
         let a = DirLock::acquire(&d).unwrap();
         let e = DirLock::acquire(&d).unwrap_err().to_string();
         assert!(e.contains("in use by another snerf process"), "{e}");
         assert!(e.contains(&std::process::id().to_string()), "{e}");
         drop(a);
         let _b = DirLock::acquire(&d).unwrap();
-        std::fs::remove_dir_all(&d).unwrap();
     }
 }

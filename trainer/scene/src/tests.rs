@@ -12,11 +12,9 @@ use crate::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
-fn tmpdir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-scene-test-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+fn tmpdir(tag: &str) -> snerf_files::ScratchDir {
+    snerf_files::ScratchDir::new("snerf-scene-test", tag).unwrap()
 }
 
 fn px(f: &Frame, x: u32, y: u32) -> [u8; 4] {
@@ -387,7 +385,6 @@ fn dataset_layout_and_json() {
         .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
         .collect();
     assert!(names.iter().all(|n| !n.starts_with('.')), "{names:?}");
-    std::fs::remove_dir_all(&root).ok();
 }
 
 #[test]
@@ -417,7 +414,6 @@ fn opaque_scenes_and_kinds() {
             cols.dedup();
             assert!(cols.len() > 40, "{kind}: only {} colours", cols.len());
         }
-        std::fs::remove_dir_all(&root).ok();
     }
 }
 
@@ -528,7 +524,6 @@ fn avatar_dataset_has_times() {
         .all(|t| (0.0..=1.0).contains(t) && tr.iter().all(|x| (x - t).abs() > 1e-4)));
     let img = image::open(out.join("train/r_000.png")).unwrap().to_rgba8();
     assert!(img.pixels().any(|p| p[3] == 0) && img.pixels().any(|p| p[3] == 255));
-    std::fs::remove_dir_all(&root).ok();
 }
 
 #[test]
@@ -541,7 +536,6 @@ fn bad_specs_are_errors() {
     spec.train_views = 0;
     assert!(write_dataset(&spec, &root.join("x"), &|_, _| {}).is_err());
     assert!(!root.join("x").exists());
-    std::fs::remove_dir_all(&root).ok();
 }
 
 /// 100 views at 128x128 with 4x4 supersampling: prints the time (the brief asks for a few seconds).
@@ -577,7 +571,6 @@ fn speed_100_views_128() {
             t.elapsed().as_secs_f64()
         );
     }
-    std::fs::remove_dir_all(&root).ok();
 }
 
 // ---------------------------------------------------------------------------------------
@@ -751,7 +744,6 @@ fn gltf_built_in_code_textured_and_animated() {
     // Triangle strip mode converts too (quad as a 2-triangle strip of indices 0 1 2 0 2 3 -> 4 triangles).
     let strip = tiny_gltf(&root, None, 5);
     assert!(crate::gltf_load::load(&strip).is_ok());
-    std::fs::remove_dir_all(&root).ok();
 }
 
 #[test]
@@ -797,7 +789,6 @@ fn gltf_jpeg_texture() {
         .rgba
         .chunks(4)
         .any(|p| p[3] == 255 && p[0] > 150 && p[1] < 60));
-    std::fs::remove_dir_all(&root).ok();
 }
 
 #[test]
@@ -832,7 +823,6 @@ fn gltf_errors_are_clear() {
             .unwrap()
     );
     assert!(e.contains("nope.gltf") && e.contains("no such file"), "{e}");
-    std::fs::remove_dir_all(&root).ok();
 }
 
 // Installed test models (skipped with a note when absent).

@@ -242,8 +242,7 @@ mod tests {
 
     #[test]
     fn saved_offsets_read_back_and_a_bad_file_is_named() {
-        let dir = std::env::temp_dir().join(format!("snerf-offsets-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let dir = snerf_files::ScratchDir::new("snerf-offsets", "saved").unwrap();
         assert_eq!(ColourOffsets::load(&dir).unwrap(), None);
         let (want, geom) = view(strokes());
         let o = ColourOffsets::default().step(std::slice::from_ref(&want), &[field(&want)], std::slice::from_ref(&geom));
@@ -255,6 +254,5 @@ mod tests {
         std::fs::write(path(&dir), b"[1, 2").unwrap();
         let e = format!("{:#}", ColourOffsets::load(&dir).unwrap_err());
         assert!(e.contains("offsets.json: not a colour-offsets file"), "{e}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

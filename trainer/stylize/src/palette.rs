@@ -284,8 +284,7 @@ pub(crate) mod tests {
 
     #[test]
     fn a_saved_palette_reads_back_and_a_bad_one_is_named() {
-        let dir = std::env::temp_dir().join(format!("snerf-palette-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let dir = snerf_files::ScratchDir::new("snerf-palette", "saved").unwrap();
         let (img, geom) = view(ramp(50, 1.0));
         let q = Quantiles::of(std::slice::from_ref(&img), std::slice::from_ref(&geom));
         save(&dir, &q).unwrap();
@@ -301,6 +300,5 @@ pub(crate) mod tests {
         std::fs::write(path(&dir), b"{\"channels\": [[1.0], [2.0], [3.0]]}").unwrap();
         let e = format!("{:#}", load(&dir).unwrap_err());
         assert!(e.contains("palette.json: not a palette file"), "{e}");
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use snerf_data::{load, LoadOptions};
+use snerf_files::ScratchDir;
 use snerf_stylize::colour_offsets::ColourOffsets;
 use snerf_stylize::consistency::{PathGeometry, StyleMeters, STYLE_RING};
 use snerf_stylize::palette;
@@ -14,11 +15,9 @@ use snerf_stylize::stylizer::{self, Image, StylizerOptions};
 use snerf_trainer::checkpoint;
 use snerf_trainer::train::{TrainConfig, Trainer};
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("snerf-sloop-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+fn tmp(name: &str) -> ScratchDir {
+    ScratchDir::new("snerf-sloop", name).unwrap()
 }
 
 /// A 48×48 object dataset, a field trained on it for a few hundred steps, saved as a run.
@@ -59,7 +58,7 @@ fn style_png(dir: &Path) -> PathBuf {
 /// What every loop test starts from: a fresh directory, a trained run on a small object
 /// dataset, a style picture and its loaded forms.
 struct Fixture {
-    dir: PathBuf,
+    dir: ScratchDir,
     data: snerf_data::Dataset,
     run: PathBuf,
     style: PathBuf,

@@ -50,8 +50,7 @@ fn paintings_load_and_each_is_nearest_to_itself() {
         }
     }
     // a changed piece is an error naming the file, and nothing is assembled from it
-    let tmp = std::env::temp_dir().join(format!("snerf-paintings-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp).unwrap();
+    let tmp = snerf_files::ScratchDir::new("snerf-paintings", "changed").unwrap();
     for q in PAINTINGS[0].pieces {
         std::fs::copy(dir.join(q.file), tmp.join(q.file)).unwrap();
     }
@@ -63,7 +62,7 @@ fn paintings_load_and_each_is_nearest_to_itself() {
     let e = paintings::path(&tmp, &PAINTINGS[0]).unwrap_err().to_string();
     assert!(e.contains(first) && e.contains("SHA-256"), "{e}");
     assert!(!tmp.join(format!("{}.png", PAINTINGS[0].key)).exists());
-    std::fs::remove_dir_all(&tmp).unwrap();
+    drop(tmp);
     // `--style painting:KEY` is the same file
     let named = paintings::resolve_style(std::path::Path::new("painting:kandinsky")).unwrap();
     if paintings::styles_dir() == dir {

@@ -11,12 +11,18 @@ use snerf_asset::{
     encode_voxel, Asset, AssetBuilder, Camera, Frame, Header, Keyframe, Kind, Ndc, ViewMlp,
 };
 
-/// Private XDG_RUNTIME_DIR (silences Mesa) and the "GPU tests are required" switch.
+/// This test's directory: removed when it passes, kept (and named) when it fails.
+pub fn tmp(name: &str) -> snerf_files::ScratchDir {
+    snerf_files::ScratchDir::new("snerf-viewer", name).unwrap()
+}
+
+/// Private XDG_RUNTIME_DIR (silences Mesa) and the "GPU tests are required" switch. The
+/// directory is one under the target directory, shared by every run, so none is left behind.
 pub fn setup() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
-            let d = std::env::temp_dir().join(format!("snerf-viewer-xdg-{}", std::process::id()));
+            let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-runtime");
             let _ = std::fs::create_dir_all(&d);
             #[cfg(unix)]
             {

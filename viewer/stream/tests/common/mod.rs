@@ -42,32 +42,20 @@ impl Rng {
     }
 }
 
-pub struct TempDir(pub PathBuf);
+/// A fresh directory under the system temp dir, removed on drop when the test passes and
+/// kept (its path printed) when it fails.
+pub struct TempDir(snerf_files::ScratchDir);
 impl TempDir {
     pub fn new(name: &str) -> TempDir {
         static N: AtomicU64 = AtomicU64::new(0);
-        let p = std::env::temp_dir()
-            .join("snerf-stream-tests")
-            .join(format!(
-                "{}-{}-{}",
-                name,
-                std::process::id(),
-                N.fetch_add(1, Ordering::Relaxed)
-            ));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).unwrap();
-        TempDir(p)
+        let name = format!("{}-{name}", N.fetch_add(1, Ordering::Relaxed));
+        TempDir(snerf_files::ScratchDir::new("snerf-stream", &name).unwrap())
     }
     pub fn path(&self) -> &Path {
         &self.0
     }
     pub fn join(&self, s: &str) -> PathBuf {
         self.0.join(s)
-    }
-}
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

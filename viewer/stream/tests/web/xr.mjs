@@ -36,6 +36,8 @@ try {
     await wait(() => window.snerf.state === 'done' || window.snerf.state === 'error');
     const end = await page.evaluate(() => ({ state: window.snerf.state, error: window.snerf.error, blocks: window.snerf.blocks, posesSent: window.snerf.posesSent, lastPose: window.snerf.lastPose, xr: window.snerf.xr && { error: window.snerf.xr.error, place: window.snerf.xr.place } }));
     console.log(JSON.stringify({ turnedAt, end }));
+    // (process.exit skips `finally`: a browser not closed leaves its /tmp/org.chromium.* behind)
+    await browser.close();
     process.exit(0);
   }
   await wait(() => window.snerf && (window.snerf.state === 'done' || window.snerf.state === 'error'));
