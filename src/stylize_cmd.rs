@@ -303,14 +303,11 @@ pub struct StylizeArgs {
     /// short of it, averaged over the pixels of that colour, so that the field shows the
     /// painting's colours together: red strokes on green stay red; recalibrated at every
     /// round's start and after every share of the training steps as large as the last
-    /// round; BENCH.md §5v), distribution (the same offsets per colour, made up for what
-    /// the field's joint colour distribution falls short of its targets' rather than each
-    /// pixel's target: a stroke a pixel wide that the field cannot hold does not push its
-    /// colour ever farther out; §5w), compensate (per Oklab channel, quantile by quantile,
-    /// at every round's start and halfway through the first: each channel's spread, not
-    /// which colours go together; §5u) or plain (the targets as fused, as runs made before
-    /// these options)
-    #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["joint", "distribution", "compensate", "plain"])]
+    /// round; BENCH.md §5v), compensate (per Oklab channel, quantile by quantile, at every
+    /// round's start and halfway through the first: each channel's spread, not which
+    /// colours go together; §5u) or plain (the targets as fused, as runs made before these
+    /// options)
+    #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["joint", "compensate", "plain"])]
     pub colour_fit: String,
     #[command(flatten)]
     pub s: StylizerArgs,

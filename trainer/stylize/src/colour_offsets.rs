@@ -25,19 +25,6 @@
 //! the field cannot reach a target at all (a colour beyond it, a disagreement no map of
 //! colours can settle) the shortfall persists; a constant gain would add all of it again at
 //! every calibration, harmonic gains a shrinking share of it.
-//!
-//! Measured pixel by pixel (`Shortfall::Pixel`, `ColourFit::Joint`) the shortfall holds what
-//! no map of colours can close: a stroke a pixel wide that the field blurs into its
-//! neighbours stays short of its colour however far its offset pushes it, so that offset
-//! grows at every calibration, and the field, asked for ever more extreme colours, shows more
-//! of them as its fit improves over the rounds. On the pairs probed the targets a field
-//! trained on were farther from the painting than the stylizations they were made from, and
-//! the field's own distance to the painting rose round by round toward them (BENCH.md §5w).
-//! `Shortfall::Distribution` (`ColourFit::Distribution`) measures the shortfall of the
-//! field's colour distribution instead: the transfer `T` that takes the colours the field
-//! shows onto its targets' joint distribution (`colour_transfer`) says where each shown
-//! colour should have been, and `T(shown) − shown` is averaged per target colour as before.
-//! A field that shows its targets' colours, wherever it shows them, falls short of nothing.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -46,22 +33,10 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::colour_transfer::{Colours, Transfer};
 use crate::fusion::ViewGeometry;
 use crate::palette;
 use crate::style_metric::{oklab, srgb_from_oklab, JND};
 use crate::stylizer::Image;
-
-/// What a calibration measures the field's shortfall against.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shortfall {
-    /// Each pixel's own target: `target − shown` (`ColourFit::Joint`).
-    Pixel,
-    /// The targets' joint colour distribution: `T(shown) − shown`, where `T` is the transfer
-    /// (`colour_transfer`) that takes the colours the field shows onto its targets'
-    /// (`ColourFit::Distribution`).
-    Distribution,
-}
 
 /// A grid node: the Oklab colour `index × JND`.
 type Node = [i32; 3];
@@ -104,9 +79,8 @@ impl ColourOffsets {
     /// a surface in `geoms`), each weighted by how near its target's colour is to the node.
     /// A node that few pixels reach is shrunk toward no change (the weights' sum plus one
     /// pixel divides), so a stray colour does not set an offset alone.
-    pub fn step(&self, targets: &[Image], shown: &[Image], geoms: &[ViewGeometry], against: Shortfall) -> ColourOffsets {
+    pub fn step(&self, targets: &[Image], shown: &[Image], geoms: &[ViewGeometry]) -> ColourOffsets {
         let gain = 1.0 / (self.calibrations + 1) as f32;
-        let transfer = (against == Shortfall::Distribution).then(|| Transfer::between(&Colours::of(shown, geoms).samples, &Colours::of(targets, geoms).samples));
         let mut sums: HashMap<Node, ([f64; 3], f64)> = HashMap::new();
         for ((t, s), g) in targets.iter().zip(shown).zip(geoms) {
             for (p, x) in g.points.iter().enumerate() {
@@ -114,15 +88,10 @@ impl ColourOffsets {
                     continue;
                 }
                 let (want, got) = (oklab(pixel(t, p)), oklab(pixel(s, p)));
-                // where the field should have shown this pixel's colour
-                let aim = match &transfer {
-                    Some(t) => t.apply(got),
-                    None => want,
-                };
                 for (n, w) in corners(want) {
                     let e = sums.entry(n).or_default();
                     for k in 0..3 {
-                        e.0[k] += (w * (aim[k] - got[k])) as f64;
+                        e.0[k] += (w * (want[k] - got[k])) as f64;
                     }
                     e.1 += w as f64;
                 }
@@ -246,7 +215,7 @@ mod tests {
         let mut offsets = ColourOffsets::default();
         let mut targets = want.clone();
         for _ in 0..3 {
-            offsets = offsets.step(imgs, &[field(&targets)], geoms, Shortfall::Pixel);
+            offsets = offsets.step(imgs, &[field(&targets)], geoms);
             targets = offsets.apply(imgs, geoms).remove(0);
         }
         assert_eq!(offsets.calibrations, 3);
@@ -264,53 +233,11 @@ mod tests {
     #[test]
     fn a_field_that_shows_its_targets_gets_no_offsets() {
         let (want, geom) = view(strokes());
-        let o = ColourOffsets::default().step(std::slice::from_ref(&want), std::slice::from_ref(&want), std::slice::from_ref(&geom), Shortfall::Pixel);
+        let o = ColourOffsets::default().step(std::slice::from_ref(&want), std::slice::from_ref(&want), std::slice::from_ref(&geom));
         assert!(o.nodes.iter().all(|(_, v)| v.iter().all(|x| x.abs() < 1e-6)));
         let back = o.apply(std::slice::from_ref(&want), std::slice::from_ref(&geom)).remove(0);
         let worst = back.data.iter().zip(&want.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
         assert!(worst < 1e-3, "moved by {worst}");
-    }
-
-    /// `Shortfall::Distribution`: the offsets make the stand-in field show its targets' joint
-    /// colour distribution, as well as offsets measured pixel by pixel do.
-    #[test]
-    fn distribution_offsets_make_the_field_show_its_targets_colours() {
-        let (want, geom) = view(strokes());
-        let (imgs, geoms) = (std::slice::from_ref(&want), std::slice::from_ref(&geom));
-        let trained_on = |against: Shortfall| {
-            let (mut o, mut targets) = (ColourOffsets::default(), want.clone());
-            for _ in 0..6 {
-                o = o.step(imgs, &[field(&targets)], geoms, against);
-                targets = o.apply(imgs, geoms).remove(0);
-            }
-            targets
-        };
-        let colours = |img: &Image| Colours::of(std::slice::from_ref(img), geoms).samples;
-        let dirs = crate::style_metric::directions(3, 64, 7);
-        let apart = |img: &Image| crate::style_metric::sliced_w2(&colours(img), &colours(&want), &dirs);
-        let plain = apart(&field(&want));
-        let (distribution, pixel) = (apart(&field(&trained_on(Shortfall::Distribution))), apart(&field(&trained_on(Shortfall::Pixel))));
-        // (measured: 0.0171 plain, 0.0066 distribution, 0.0074 pixel)
-        assert!(distribution < 0.5 * plain && distribution <= pixel, "the field's colour distribution to its targets': plain {plain:.4}, distribution {distribution:.4}, pixel {pixel:.4}");
-    }
-
-    /// A field that shows its targets' colours, each at another pixel, falls short of no
-    /// colour: the distribution offsets stay at zero, where offsets measured pixel by pixel
-    /// would chase what no map of colours can change.
-    #[test]
-    fn colours_shown_at_other_pixels_are_no_shortfall() {
-        let (want, geom) = view(strokes());
-        let mut moved = want.clone();
-        let n = want.width - 1;
-        for p in 0..n {
-            let q = (p * 17 + 5) % n;
-            moved.data[p * 3..p * 3 + 3].copy_from_slice(&want.data[q * 3..q * 3 + 3]);
-        }
-        let (imgs, geoms) = (std::slice::from_ref(&want), std::slice::from_ref(&geom));
-        let largest = |o: &ColourOffsets| o.nodes.iter().map(|(_, v)| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).fold(0.0f32, f32::max);
-        let distribution = largest(&ColourOffsets::default().step(imgs, std::slice::from_ref(&moved), geoms, Shortfall::Distribution));
-        let pixel = largest(&ColourOffsets::default().step(imgs, std::slice::from_ref(&moved), geoms, Shortfall::Pixel));
-        assert!(distribution < JND / 4.0 && pixel > 2.0 * JND, "largest offset: distribution {distribution}, pixel {pixel}");
     }
 
     #[test]
@@ -318,7 +245,7 @@ mod tests {
         let dir = snerf_files::ScratchDir::new("snerf-offsets", "saved").unwrap();
         assert_eq!(ColourOffsets::load(&dir).unwrap(), None);
         let (want, geom) = view(strokes());
-        let o = ColourOffsets::default().step(std::slice::from_ref(&want), &[field(&want)], std::slice::from_ref(&geom), Shortfall::Distribution);
+        let o = ColourOffsets::default().step(std::slice::from_ref(&want), &[field(&want)], std::slice::from_ref(&geom));
         o.save(&dir).unwrap();
         assert_eq!(ColourOffsets::load(&dir).unwrap(), Some(o));
         std::fs::write(path(&dir), b"{\"cell\": 0.05, \"calibrations\": 1, \"nodes\": []}").unwrap();

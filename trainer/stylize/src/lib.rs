@@ -20,9 +20,6 @@
 //!   per-channel Oklab quantile map onto the first fused stylizations).
 //! - `colour_offsets`: what a field trained on painted views falls short of, per colour, so
 //!   that the targets make it up.
-//! - `colour_transfer`: a map of colours that takes one joint (3-D) colour distribution onto
-//!   another (iterated 1-D quantile maps along random bases); how far a field's colours are
-//!   from its targets' distribution.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then
@@ -33,7 +30,6 @@
 #![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
 
 pub mod colour_offsets;
-pub mod colour_transfer;
 pub mod consistency;
 pub mod fusion;
 pub mod paintings;

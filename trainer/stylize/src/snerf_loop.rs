@@ -131,15 +131,6 @@
 //!   which holds most of the steps, the field took more of the painting's colours in the
 //!   rounds after it, with more contrast, and the warp errors of round 5 ended up to 13%
 //!   above round 1's (BENCH.md §5v).
-//! - `ColourFit::Distribution` (the CLI's `--colour-fit distribution`) makes up what the
-//!   field's joint colour distribution falls short of its targets', not each pixel's target
-//!   (`colour_offsets::Shortfall`). Measured pixel by pixel, a stroke the field blurs into its
-//!   neighbours stays short of its colour whatever its offset, so `Joint`'s offsets for it
-//!   grow at every calibration; the targets the field trains on drift outside the
-//!   stylizations' palette, and the field, fitting them better each round, drifts after
-//!   them. Measured on the distribution, a field that shows its targets' colours falls short
-//!   of nothing: the warp errors fall by about a quarter and the rounds converge on more
-//!   pairs, for a style distance about that of per-frame stylization (BENCH.md §5w).
 //!
 //! Runs recorded before these options resume as they were.
 //!
@@ -174,7 +165,7 @@ use snerf_trainer::train::{mse_to_psnr, views_have_alpha, Model, Trainer};
 mod consensus;
 mod partial;
 
-use crate::colour_offsets::{ColourOffsets, Shortfall};
+use crate::colour_offsets::ColourOffsets;
 use crate::consistency::{self, PathGeometry, StyleMeters};
 use crate::fusion::{self, ViewGeometry};
 use crate::palette;
@@ -291,11 +282,6 @@ pub enum ColourFit {
     /// of them at the training views (`colour_offsets`), recalibrated at the start of every
     /// round and every `StylizeOptions::calibration_interval` steps within a round.
     Joint,
-    /// As `Joint`, the offsets made up for what the field's colour distribution falls short
-    /// of its targets' joint distribution, not each pixel's target (`colour_offsets::
-    /// Shortfall::Distribution`): they stop growing once the field shows its targets'
-    /// colours, where a per-pixel shortfall no map of colours can close goes on growing them.
-    Distribution,
 }
 
 /// What the consensus rounds do to the targets' colour distribution (`Targets::Consensus`).
@@ -448,7 +434,7 @@ impl StylizeOptions {
         match self.colour_fit {
             ColourFit::Plain => false,
             ColourFit::Compensate => round == 1 && s == self.steps_of_round(1) / 2,
-            ColourFit::Joint | ColourFit::Distribution => s > 0 && s.is_multiple_of(self.calibration_interval()),
+            ColourFit::Joint => s > 0 && s.is_multiple_of(self.calibration_interval()),
         }
     }
 
@@ -572,9 +558,8 @@ impl Progress for Quiet {
 /// - `Compensate`: the targets mapped so that the field shows their colour distribution per
 ///   Oklab channel (`palette::compensated`; what the field was trained on is the distribution
 ///   the last calibration asked for).
-/// - `Joint`, `Distribution`: the targets moved by the offsets per colour
-///   (`colour_offsets`), the field's shortfall (each pixel's, or its colour distribution's)
-///   added with gain `1/k` at the run's k-th calibration.
+/// - `Joint`: the targets moved by the offsets per colour (`colour_offsets`), the field's
+///   shortfall added with gain `1/k` at the run's k-th calibration.
 fn compensate_targets(
     out: &Path,
     fit: ColourFit,
@@ -587,13 +572,9 @@ fn compensate_targets(
     shown: Option<(Vec<Image>, Vec<ViewGeometry>)>,
 ) -> Result<Vec<Image>> {
     let (shown, geoms) = shown.unwrap_or_else(|| field_views(&trainer.model, &trainer.pool, views, bg, has_alpha));
-    if let Some(against) = match fit {
-        ColourFit::Joint => Some(Shortfall::Pixel),
-        ColourFit::Distribution => Some(Shortfall::Distribution),
-        _ => None,
-    } {
+    if fit == ColourFit::Joint {
         let last = if as_they_are { None } else { ColourOffsets::load(out)? };
-        let offsets = last.unwrap_or_default().step(targets, &shown, &geoms, against);
+        let offsets = last.unwrap_or_default().step(targets, &shown, &geoms);
         offsets.save(out)?;
         return Ok(consensus::quantize(offsets.apply(targets, &geoms)));
     }
@@ -1215,9 +1196,6 @@ mod tests {
         assert_eq!(within(&o, 2), [44, 88]);
         assert_eq!(within(&o, 5), Vec::<u64>::new());
         assert_eq!(o.first_calibration(), 44);
-        let joint: Vec<_> = (1..=5).map(|r| within(&o, r)).collect();
-        o.colour_fit = ColourFit::Distribution;
-        assert_eq!((1..=5).map(|r| within(&o, r)).collect::<Vec<_>>(), joint, "distribution: as joint");
         o.rounds = 1;
         assert_eq!(within(&o, 1), [50], "one round: halfway");
     }

@@ -151,7 +151,7 @@ impl Rng {
     }
 }
 
-pub(crate) fn directions(dim: usize, n: usize, seed: u64) -> Vec<Vec<f32>> {
+fn directions(dim: usize, n: usize, seed: u64) -> Vec<Vec<f32>> {
     let mut rng = Rng(seed);
     (0..n)
         .map(|_| {
@@ -298,7 +298,7 @@ fn quantiles<V: AsRef<[f32]>>(set: &[V], dir: &[f32]) -> Vec<f32> {
 }
 
 /// Sliced Wasserstein-2 distance; NaN when either set is empty.
-pub(crate) fn sliced_w2<V: AsRef<[f32]>>(a: &[V], b: &[V], dirs: &[Vec<f32>]) -> f64 {
+fn sliced_w2<V: AsRef<[f32]>>(a: &[V], b: &[V], dirs: &[Vec<f32>]) -> f64 {
     if a.is_empty() || b.is_empty() {
         return f64::NAN;
     }
