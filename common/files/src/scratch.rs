@@ -19,10 +19,6 @@ impl ScratchDir {
         std::fs::create_dir_all(&d)?;
         Ok(ScratchDir(d))
     }
-
-    pub fn path(&self) -> &Path {
-        &self.0
-    }
 }
 
 impl Drop for ScratchDir {
