@@ -165,6 +165,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         seed: None,
         rays: crate::stylize_cmd::DEFAULT_RAYS.into(),
         colour_fit: crate::stylize_cmd::DEFAULT_COLOUR_FIT.into(),
+        keep_rounds: crate::stylize_cmd::DEFAULT_KEEP_ROUNDS.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,

@@ -153,6 +153,8 @@ pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
 pub const DEFAULT_PALETTE: &str = "keep";
 pub const DEFAULT_RAYS: &str = "area";
 pub const DEFAULT_COLOUR_FIT: &str = "joint";
+/// A round's field is kept only when it is no worse than the last kept one (BENCH.md §5x).
+pub const DEFAULT_KEEP_ROUNDS: &str = "better";
 
 /// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -309,6 +311,14 @@ pub struct StylizeArgs {
     /// options)
     #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["joint", "compensate", "plain"])]
     pub colour_fit: String,
+    /// Which rounds' fields the run keeps: better (a round whose field the per-round
+    /// measurement finds worse than the last kept field on the short- or long-range warp
+    /// error or on the style distance is discarded, its scores kept in the record, and the
+    /// next round trains from the kept field; round 1 is always kept; without a per-round
+    /// measurement, --consistency-frames 0, every round is kept) or every (the last round's
+    /// field, whatever it measures, as runs made before this option)
+    #[arg(long, default_value = DEFAULT_KEEP_ROUNDS, value_parser = ["better", "every"])]
+    pub keep_rounds: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -351,6 +361,15 @@ impl Progress for Bars {
                 fmt_opt(r.short_range, 5),
                 fmt_opt(r.long_range, 5)
             ));
+            if let Some(d) = &r.discarded {
+                self.pb.println(format!(
+                    "round {}: field discarded (style distance {}, consistency short {} long {}: worse than the kept field's); the run goes on from the kept field",
+                    r.round,
+                    fmt_opt(d.style_swd.map(|s| s.total), 4),
+                    fmt_opt(d.short_range, 5),
+                    fmt_opt(d.long_range, 5)
+                ));
+            }
         }
         // stylize.json on disk holds the rounds before this one (it is rewritten after this call)
         let mut state: Value = std::fs::read(snerf_loop::state_path(&self.out))
@@ -429,6 +448,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         seed: a.seed,
         rays: option_enum("--rays", &a.rays)?,
         colour_fit: option_enum("--colour-fit", &a.colour_fit)?,
+        keep_rounds: option_enum("--keep-rounds", &a.keep_rounds)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {

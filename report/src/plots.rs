@@ -232,6 +232,21 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
             if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
                 cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
             }
+            // a round whose field was discarded (`--keep-rounds better`): the curves follow the
+            // kept field, the tables say what the discarded one measured
+            let d = &r["discarded"];
+            if d.is_object() {
+                let head = vec![run.clone(), format!("{} (discarded)", fmt(num(&r["round"]), 0)), fmt(num(&r["wall_seconds"]), 1)];
+                if value_of(d, key).is_some() {
+                    style.table.rows.push([head.clone(), vec![fmt(value_of(d, key), 4)]].concat());
+                }
+                if d["style_swd"].is_object() {
+                    terms.table.rows.push([head.clone(), vec![fmt(value_of(d, "style_swd.color"), 4), fmt(value_of(d, "style_swd.texture"), 4)]].concat());
+                }
+                if num(&d["short_range"]).is_some() || num(&d["long_range"]).is_some() {
+                    cons.table.rows.push([head, vec![fmt(num(&d["short_range"]), 5), fmt(num(&d["long_range"]), 5)]].concat());
+                }
+            }
         }
         style.hlines.extend(references(s, key, ""));
         // per-frame stylization's parts only: the unstylized field's palette term is several

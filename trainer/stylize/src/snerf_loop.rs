@@ -132,6 +132,15 @@
 //!   rounds after it, with more contrast, and the warp errors of round 5 ended up to 13%
 //!   above round 1's (BENCH.md §5v).
 //!
+//! - `KeepRounds::Better` (the CLI's `--keep-rounds`, the default): a round's field is kept only
+//!   when the per-round measurement finds it no worse than the last kept field on both warp
+//!   errors and on the style distance; otherwise the next round trains from the kept field.
+//!   With all of the above, the rounds after the first still ended above round 1 on style on
+//!   8 of 26 pairs, by 0.5–9.4%, the field fitting the targets' pixel-scale strokes more
+//!   closely round by round (BENCH.md §5v, §5w). A round that loses style or consistency has
+//!   not done what the rounds after the first are for, and the run's last field was the one a
+//!   user got. The discarded field's scores stay in the round's record.
+//!
 //! Runs recorded before these options resume as they were.
 //!
 //! The paper's own way out, an optimizing stylizer started from the render (`gatys` with
@@ -252,6 +261,27 @@ pub struct StylizeOptions {
     /// option: `Plain`).
     #[serde(default)]
     pub colour_fit: ColourFit,
+    /// Which rounds' fields the run keeps (before this option: `Every`).
+    #[serde(default)]
+    pub keep_rounds: KeepRounds,
+}
+
+/// Which rounds' fields a run keeps, judged by the per-round measurement (with a novel path:
+/// `consistency_frames` > 1; without one every round is kept).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum KeepRounds {
+    /// Every round's field, whatever it measures.
+    #[default]
+    Every,
+    /// A round's field only when it is no worse than the last kept field on any of the
+    /// round's measures: the short- and long-range warp errors and the weight-free style
+    /// distance. Otherwise the field is discarded (the record keeps what it measured) and
+    /// the next round trains from the kept one. Round 1, which takes the style, is always
+    /// kept. The rounds after it are there to reconcile the views without losing the style;
+    /// a round that loses either is a step that did not descend, and a descent method does
+    /// not take it (BENCH.md §5x).
+    Better,
 }
 
 /// Where the stylizing trainer's rays cross their pixels.
@@ -521,6 +551,48 @@ pub struct RoundRecord {
     /// The target step this round used (`StylizeOptions::step_of_round`).
     #[serde(default)]
     pub target_step: Option<f32>,
+    /// `KeepRounds::Better`: what this round's field measured when it was discarded (None: kept).
+    /// The scores above are then those of the field the round ends with, the kept one.
+    #[serde(default)]
+    pub discarded: Option<RoundScores>,
+}
+
+/// What the per-round measurement says of one field.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RoundScores {
+    pub style_distance: Option<f64>,
+    pub short_range: Option<f64>,
+    pub long_range: Option<f64>,
+    pub style_swd: Option<crate::style_metric::StyleScore>,
+    pub style_gram: Option<f64>,
+}
+
+impl RoundScores {
+    /// Whether a field scoring `self` may replace one scoring `kept` (`KeepRounds::Better`): no
+    /// worse on either warp error or on the weight-free style distance. A measure either
+    /// field lacks does not count (no path: every round is kept).
+    pub fn no_worse_than(&self, kept: &RoundScores) -> bool {
+        let no_worse = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => a <= b,
+            _ => true,
+        };
+        no_worse(self.short_range, kept.short_range)
+            && no_worse(self.long_range, kept.long_range)
+            && no_worse(self.style_swd.map(|s| s.total), kept.style_swd.map(|s| s.total))
+    }
+}
+
+impl RoundRecord {
+    /// What the field this round ends with measured.
+    pub fn scores(&self) -> RoundScores {
+        RoundScores {
+            style_distance: self.style_distance,
+            short_range: self.short_range,
+            long_range: self.long_range,
+            style_swd: self.style_swd,
+            style_gram: self.style_gram,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -905,18 +977,32 @@ pub fn run(
         // measure (not counted as round time)
         wall += t_round.elapsed().as_secs_f64();
         progress.phase(round + 1, opts.rounds, "measure", 1);
-        let (style_distance, short_range, long_range, style_swd, style_gram) = match (&path, &style_targets) {
+        let measured = match (&path, &style_targets) {
             (Some(p), Some(targets)) => {
                 let frames = p.render(&trainer.model, &trainer.pool);
                 let style = meters.score(p, &frames, targets)?;
-                (style.embedding, Some(p.warp_error(&frames, 1)), Some(p.warp_error(&frames, 7)), Some(style.swd), style.gram)
+                RoundScores {
+                    style_distance: style.embedding,
+                    short_range: Some(p.warp_error(&frames, 1)),
+                    long_range: Some(p.warp_error(&frames, 7)),
+                    style_swd: Some(style.swd),
+                    style_gram: style.gram,
+                }
             }
             _ => {
                 let style = meters.embedder.as_ref().zip(style_embedding.as_deref());
                 let d = style.map(|(e, s)| style_distance_of(&trainer.model, &trainer.pool, data, bg, e, s)).transpose()?;
-                (d, None, None, None, None)
+                RoundScores { style_distance: d, short_range: None, long_range: None, style_swd: None, style_gram: None }
             }
         };
+        // `KeepRounds::Better`: the last kept field's scores are the last record's (a discarded
+        // round records the kept field's)
+        let kept = match (opts.keep_rounds, state.records.last()) {
+            (KeepRounds::Better, Some(last)) if !measured.no_worse_than(&last.scores()) => Some(last.scores()),
+            _ => None,
+        };
+        let discarded = kept.map(|_| measured);
+        let RoundScores { style_distance, short_range, long_range, style_swd, style_gram } = kept.unwrap_or(measured);
         let record = RoundRecord {
             round: round + 1,
             wall_seconds: wall,
@@ -931,6 +1017,7 @@ pub fn run(
             style_gram,
             fused_fraction,
             target_step: Some(opts.step_of_round(round + 1)),
+            discarded,
         };
         progress.round_done(&record);
         state.records.push(record);
@@ -938,7 +1025,12 @@ pub fn run(
         // The checkpoint goes first: a kill between the two writes leaves the state one round
         // behind a newer field, and the resumed run repeats that round from it (harmless);
         // the other order could claim a round whose field was never saved.
-        checkpoint::save(&trainer, &ck_path)?;
+        if discarded.is_none() {
+            checkpoint::save(&trainer, &ck_path)?;
+        } else {
+            // the next round trains from the kept field, as a run resumed here would
+            trainer = trainer_from(checkpoint::load(&ck_path)?, data, opts)?;
+        }
         if let Some(p) = &previous {
             consensus::save(out, consensus::Kept::Targets, round + 1, p)?;
         }
@@ -1166,6 +1258,8 @@ mod tests {
         .unwrap();
         // the record predates --tv and --view-colour: it ran with the source's weight and MLP
         assert_eq!((recorded.plane_tv, recorded.view_colour), (None, ViewColour::Source));
+        // and --keep-rounds: its last round's field was the run's, whatever it measured
+        assert_eq!(recorded.keep_rounds, KeepRounds::Every);
         let asked = StylizeOptions { rounds: 7, plane_tv: Some(0.0), view_colour: ViewColour::Diffuse, steps_per_round: 100, ..recorded.clone() };
         let mut d = differing_options(&recorded, &asked);
         d.sort();
@@ -1173,6 +1267,26 @@ mod tests {
         assert!(differing_options(&recorded, &StylizeOptions { rounds: 9, ..recorded.clone() }).is_empty(), "more rounds extend the same run");
         // the record predates --seed too: it trained with the source run's
         assert_eq!(differing_options(&recorded, &StylizeOptions { seed: Some(3), ..recorded.clone() }), ["--seed: source recorded, 3 asked"]);
+    }
+
+    /// A field may replace the kept one when it is no worse on every measure both have.
+    #[test]
+    fn a_field_replaces_the_kept_one_when_no_measure_is_worse() {
+        let swd = |total| crate::style_metric::StyleScore { total, color: total / 2.0, texture: total / 2.0, missed: 0.1 };
+        let kept = RoundScores { style_distance: Some(5.0), short_range: Some(0.01), long_range: Some(0.02), style_swd: Some(swd(2.0)), style_gram: None };
+        assert!(kept.no_worse_than(&kept), "ties keep");
+        let better = RoundScores { short_range: Some(0.009), long_range: Some(0.019), style_swd: Some(swd(1.9)), ..kept };
+        assert!(better.no_worse_than(&kept));
+        assert!(!kept.no_worse_than(&better));
+        // one measure worse is enough to discard, whatever the others gained
+        assert!(!RoundScores { style_swd: Some(swd(2.001)), short_range: Some(0.001), long_range: Some(0.001), ..kept }.no_worse_than(&kept));
+        assert!(!RoundScores { short_range: Some(0.0101), ..better }.no_worse_than(&kept));
+        assert!(!RoundScores { long_range: Some(0.0201), ..better }.no_worse_than(&kept));
+        // the embedding and Gram distances are readouts, not measures the rounds are kept by
+        assert!(RoundScores { style_distance: Some(9.0), style_gram: Some(9.0), ..kept }.no_worse_than(&kept));
+        // no path, nothing to compare: kept
+        let none = RoundScores { style_distance: None, short_range: None, long_range: None, style_swd: None, style_gram: None };
+        assert!(none.no_worse_than(&kept) && kept.no_worse_than(&none));
     }
 
     /// Where each colour fit recalibrates within the rounds' training steps.

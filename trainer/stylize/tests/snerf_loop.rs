@@ -106,6 +106,7 @@ fn options(run: &Path, data: &Path, style: &Path, rounds: usize, appearance_only
         seed: None,
         rays: Default::default(),
         colour_fit: Default::default(),
+        keep_rounds: Default::default(),
     }
 }
 
@@ -484,4 +485,68 @@ fn area_rays_and_colour_compensation_run_and_resume() {
     snerf_loop::run(&o, &data, &source, st.as_ref(), &StyleMeters::default(), &style_img, &joint, &mut Quiet).unwrap();
     let second = ColourOffsets::load(&joint).unwrap().unwrap();
     assert_ne!(first, second, "round 2 adds the shortfall of the field it starts from");
+}
+
+/// Paints nothing for its first `clean` calls (the content as it is), then per-pixel noise: a
+/// round that trains on it is sure to end farther from the style than one that did not.
+struct NoisyAfter {
+    clean: usize,
+    calls: std::sync::atomic::AtomicUsize,
+}
+
+impl stylizer::Stylizer for NoisyAfter {
+    fn name(&self) -> String {
+        "noisy-after".into()
+    }
+    fn stylize(&self, content: &Image) -> anyhow::Result<Image> {
+        let call = self.calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        if call < self.clean {
+            return Ok(content.clone());
+        }
+        let mut rng = snerf_trainer::field::Rng::new(1000 + call as u64);
+        Ok(Image { width: content.width, height: content.height, data: content.data.iter().map(|_| rng.uniform()).collect() })
+    }
+}
+
+/// `KeepRounds::Better` (the command line's default): a round whose field measures worse than
+/// the last kept one is discarded: the run's field stays the kept one, bit for bit, the
+/// record says what the discarded field measured and carries the kept field's scores, and
+/// the run goes on from it. With `Every` the same round's field is the run's.
+#[test]
+fn a_round_that_measures_worse_is_discarded() {
+    let Fixture { dir, data, run, style, source, style_img } = fixture("keep");
+    let views = 12;
+    let mut o = options(&run, &data.root, &style, 1, false);
+    o.region = snerf_loop::Region::View;
+    o.fuse_views = 0;
+    o.target_step = 1.0;
+    o.keep_rounds = snerf_loop::KeepRounds::Better;
+    let st = NoisyAfter { clean: views, calls: Default::default() };
+    let out = dir.join("better");
+    snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    let round1 = std::fs::read(out.join(checkpoint::FILE_NAME)).unwrap();
+    o.rounds = 3;
+    let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(s.rounds_done, 3);
+    let r = &s.records;
+    assert!(r[0].discarded.is_none(), "round 1 is always kept");
+    for k in 1..3 {
+        let d = r[k].discarded.unwrap_or_else(|| panic!("round {} trained on noise and was kept: {:?}", k + 1, r[k]));
+        // noise averages to grey: far from the painting (and smooth, so no less consistent)
+        assert!(!d.no_worse_than(&r[0].scores()), "{d:?} against {:?}", r[0]);
+        assert!(d.style_swd.unwrap().total > r[0].style_swd.unwrap().total, "{d:?} against {:?}", r[0]);
+        assert_eq!(r[k].scores(), r[0].scores(), "a discarded round records the kept field's scores");
+    }
+    assert!(std::fs::read(out.join(checkpoint::FILE_NAME)).unwrap() == round1, "a discarded round replaced the run's field");
+
+    // every round kept: the same noise is the run's field
+    o.keep_rounds = snerf_loop::KeepRounds::Every;
+    o.rounds = 2;
+    let st = NoisyAfter { clean: views, calls: Default::default() };
+    let every = dir.join("every");
+    let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &every, &mut Quiet).unwrap();
+    assert!(s.records.iter().all(|r| r.discarded.is_none()));
+    let style = |k: usize| s.records[k].style_swd.unwrap().total;
+    assert!(style(1) > style(0), "{:?}", s.records);
+    assert!(std::fs::read(every.join(checkpoint::FILE_NAME)).unwrap() != round1);
 }
