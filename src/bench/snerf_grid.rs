@@ -138,6 +138,7 @@ pub fn pair_scores(c: &Value) -> Result<Value> {
     let ratio = |a: &Value, b: &Value, k: &str| -> Result<f64> { Ok(f(a, k)? / f(b, k)?) };
     let rounds = c["rounds"].as_array().context("no per-round record")?;
     let (first, last) = (rounds.first().context("no rounds")?, rounds.last().context("no rounds")?);
+    let trained = if last["discarded"].is_object() { &last["discarded"] } else { last };
     Ok(json!({
         "snerf_over_per_frame": {
             "short_range": ratio(snerf, per_frame, "short_range")?,
@@ -149,6 +150,14 @@ pub fn pair_scores(c: &Value) -> Result<Value> {
             "short_range": ratio(last, first, "short_range")?,
             "long_range": ratio(last, first, "long_range")?,
             "style": ratio(last, first, "style")?,
+        },
+        // `--keep-rounds better`: rounds whose field was discarded, and what the last round
+        // trained measured against round 1, kept or not (the drift the rule keeps out)
+        "rounds_discarded": rounds.iter().filter(|r| r["discarded"].is_object()).count(),
+        "last_trained_over_first_round": {
+            "short_range": ratio(trained, first, "short_range")?,
+            "long_range": ratio(trained, first, "long_range")?,
+            "style": ratio(trained, first, "style")?,
         },
         // what the style's change over the rounds is made of, and what the Gram distance on
         // ImageNet features says of it (readouts: the bar is on the weight-free total)
@@ -215,8 +224,12 @@ pub fn table(pairs: &[Value], bars: &Value) -> String {
         }
         let sc = &p["scores"];
         let g = |group: &str, k: &str| sc[group][k].as_f64().unwrap_or(f64::NAN);
+        let discarded = match sc["rounds_discarded"].as_u64() {
+            Some(n) if n > 0 => format!(" ({n} discarded)"),
+            _ => String::new(),
+        };
         md.push_str(&format!(
-            "| {name} | {:.3} / {:.3} / {:.2} | {:.3} / {:.3} / {:.4} | {:.2} | {:.0} |\n",
+            "| {name} | {:.3} / {:.3} / {:.2} | {:.3} / {:.3} / {:.4}{discarded} | {:.2} | {:.0} |\n",
             g("snerf_over_per_frame", "short_range"),
             g("snerf_over_per_frame", "long_range"),
             g("snerf_over_per_frame", "style"),
@@ -431,6 +444,18 @@ mod tests {
         assert!((s["snerf_over_per_frame"]["long_range"].as_f64().unwrap() - 0.25).abs() < 1e-12);
         assert!((s["snerf_over_per_frame"]["style"].as_f64().unwrap() - 0.9).abs() < 1e-12);
         assert!((s["last_over_first_round"]["long_range"].as_f64().unwrap() - 0.8).abs() < 1e-12);
+        assert_eq!(s["rounds_discarded"], 0);
+        for k in ["short_range", "long_range", "style"] {
+            assert_eq!(s["last_trained_over_first_round"][k], s["last_over_first_round"][k], "{k}: a kept last round is the one trained");
+        }
+        // a last round whose field was discarded: the kept field is scored, the discarded one read out
+        let mut cd = c.clone();
+        cd["rounds"][2]["discarded"] = json!({ "short_range": 0.002, "long_range": 0.01, "style_swd": { "total": 0.3 } });
+        let sd = pair_scores(&cd).unwrap();
+        assert_eq!(sd["rounds_discarded"], 1);
+        assert_eq!(sd["last_over_first_round"], s["last_over_first_round"]);
+        assert!((sd["last_trained_over_first_round"]["short_range"].as_f64().unwrap() - 0.5).abs() < 1e-12);
+        assert!((sd["last_trained_over_first_round"]["style"].as_f64().unwrap() - 0.3 / 0.28).abs() < 1e-12);
         assert!((s["separation"].as_f64().unwrap() - 2.0).abs() < 1e-12);
         for k in ["colour", "texture", "gram"] {
             assert!((s["style_parts_last_over_first"][k].as_f64().unwrap() - 0.27 / 0.28).abs() < 1e-12, "{k}");
