@@ -221,30 +221,21 @@ fn stylize_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
         cons.series.push(series(run, "short_range", run.clone(), col, false, true, pairs(recs, "wall_seconds", "short_range")));
         cons.series.push(series(run, "long_range", format!("{run} long range"), col, true, true, pairs(recs, "wall_seconds", "long_range")));
         for r in recs.as_array().into_iter().flatten() {
-            let head = vec![run.clone(), fmt(num(&r["round"]), 0), fmt(num(&r["wall_seconds"]), 1)];
-            fit.table.rows.push([head.clone(), vec![fmt(num(&r["fit_psnr"]), 2)]].concat());
-            if value_of(r, key).is_some() {
-                style.table.rows.push([head.clone(), vec![fmt(value_of(r, key), 4)]].concat());
-            }
-            if r["style_swd"].is_object() {
-                terms.table.rows.push([head.clone(), vec![fmt(value_of(r, "style_swd.color"), 4), fmt(value_of(r, "style_swd.texture"), 4)]].concat());
-            }
-            if num(&r["short_range"]).is_some() || num(&r["long_range"]).is_some() {
-                cons.table.rows.push([head, vec![fmt(num(&r["short_range"]), 5), fmt(num(&r["long_range"]), 5)]].concat());
-            }
+            let round = fmt(num(&r["round"]), 0);
+            let head = |round: String| vec![run.clone(), round, fmt(num(&r["wall_seconds"]), 1)];
+            fit.table.rows.push([head(round.clone()), vec![fmt(num(&r["fit_psnr"]), 2)]].concat());
             // a round whose field was discarded (`--keep-rounds better`): the curves follow the
-            // kept field, the tables say what the discarded one measured
-            let d = &r["discarded"];
-            if d.is_object() {
-                let head = vec![run.clone(), format!("{} (discarded)", fmt(num(&r["round"]), 0)), fmt(num(&r["wall_seconds"]), 1)];
-                if value_of(d, key).is_some() {
-                    style.table.rows.push([head.clone(), vec![fmt(value_of(d, key), 4)]].concat());
+            // kept field, the tables also say what the discarded one measured
+            let discarded = Some(&r["discarded"]).filter(|d| d.is_object()).map(|d| (format!("{round} (discarded)"), d));
+            for (round, v) in std::iter::once((round, r)).chain(discarded) {
+                if value_of(v, key).is_some() {
+                    style.table.rows.push([head(round.clone()), vec![fmt(value_of(v, key), 4)]].concat());
                 }
-                if d["style_swd"].is_object() {
-                    terms.table.rows.push([head.clone(), vec![fmt(value_of(d, "style_swd.color"), 4), fmt(value_of(d, "style_swd.texture"), 4)]].concat());
+                if v["style_swd"].is_object() {
+                    terms.table.rows.push([head(round.clone()), vec![fmt(value_of(v, "style_swd.color"), 4), fmt(value_of(v, "style_swd.texture"), 4)]].concat());
                 }
-                if num(&d["short_range"]).is_some() || num(&d["long_range"]).is_some() {
-                    cons.table.rows.push([head, vec![fmt(num(&d["short_range"]), 5), fmt(num(&d["long_range"]), 5)]].concat());
+                if num(&v["short_range"]).is_some() || num(&v["long_range"]).is_some() {
+                    cons.table.rows.push([head(round), vec![fmt(num(&v["short_range"]), 5), fmt(num(&v["long_range"]), 5)]].concat());
                 }
             }
         }
@@ -354,5 +345,23 @@ mod tests {
         // per-frame stylization's parts as reference lines; the realistic field's are left out
         let refs: Vec<(usize, f64)> = terms.hlines.iter().map(|h| (h.role, h.y)).collect();
         assert_eq!(refs, vec![(0, 0.175), (0, 0.175)]);
+    }
+
+    /// A round whose field was discarded: the curves follow the kept field, the tables also
+    /// give what the discarded one measured.
+    #[test]
+    fn a_discarded_round_is_plotted_as_kept_and_tabled_as_measured() {
+        let mut second = record(2, 20.0, Some(0.30), 0.50);
+        second["discarded"] = json!({ "short_range": 0.004, "long_range": 0.007, "style_swd": { "total": 0.31, "color": 0.1, "texture": 0.21 } });
+        let state = json!({ "records": [record(1, 10.0, Some(0.30), 0.50), second] });
+        let plots = build(&[Source::stylize("s", Path::new("s"), state, None)]);
+        let plot = |id: &str| plots.iter().find(|p| p.id == id).unwrap();
+        assert_eq!(plot("stylize_style").series[0].points, vec![[10.0, 0.30], [20.0, 0.30]]);
+        assert_eq!(plot("stylize_consistency").series[0].points, vec![[10.0, 0.003], [20.0, 0.003]]);
+        let rows = |id: &str| plot(id).table.rows.clone();
+        assert_eq!(rows("stylize_style")[2], vec!["s", "2 (discarded)", "20.0", "0.3100"]);
+        assert_eq!(rows("stylize_style_terms")[2], vec!["s", "2 (discarded)", "20.0", "0.1000", "0.2100"]);
+        assert_eq!(rows("stylize_consistency")[2], vec!["s", "2 (discarded)", "20.0", "0.00400", "0.00700"]);
+        assert_eq!(rows("stylize_fit").len(), 2, "one fit per round");
     }
 }
