@@ -347,7 +347,9 @@ impl Progress for Bars {
     }
     fn round_done(&mut self, r: &RoundRecord) {
         if !self.quiet {
-            self.pb.println(format!(
+            // what this round's training measured, kept or not
+            let m = r.discarded.unwrap_or_else(|| r.scores());
+            self.say(format!(
                 "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {} (Gram {}, embedding {}), consistency short {} long {}",
                 r.round,
                 r.wall_seconds,
@@ -355,19 +357,20 @@ impl Progress for Bars {
                 r.stylize_seconds,
                 r.train_seconds,
                 r.fit_psnr,
-                fmt_opt(r.style_swd.map(|s| s.total), 4),
-                fmt_opt(r.style_gram, 4),
-                fmt_opt(r.style_distance, 3),
-                fmt_opt(r.short_range, 5),
-                fmt_opt(r.long_range, 5)
+                fmt_opt(m.style_swd.map(|s| s.total), 4),
+                fmt_opt(m.style_gram, 4),
+                fmt_opt(m.style_distance, 3),
+                fmt_opt(m.short_range, 5),
+                fmt_opt(m.long_range, 5)
             ));
             if let Some(d) = &r.discarded {
-                self.pb.println(format!(
-                    "round {}: field discarded (style distance {}, consistency short {} long {}: worse than the kept field's); the run goes on from the kept field",
+                self.say(format!(
+                    "round {}: field discarded, worse than the kept field on the {} (kept: style distance {}, consistency short {} long {}); the next round trains from the kept field",
                     r.round,
-                    fmt_opt(d.style_swd.map(|s| s.total), 4),
-                    fmt_opt(d.short_range, 5),
-                    fmt_opt(d.long_range, 5)
+                    d.worse_than(&r.scores()).join(" and the "),
+                    fmt_opt(r.style_swd.map(|s| s.total), 4),
+                    fmt_opt(r.short_range, 5),
+                    fmt_opt(r.long_range, 5)
                 ));
             }
         }
@@ -381,6 +384,18 @@ impl Progress for Bars {
         records.push(serde_json::to_value(r).unwrap_or(Value::Null));
         state["records"] = Value::Array(records);
         self.live.stylize(&self.out, state);
+    }
+}
+
+impl Bars {
+    /// A line above the bar; on standard error when the bar is hidden (output not on a
+    /// terminal), so a log of the run still has one line per round.
+    fn say(&self, line: String) {
+        if self.pb.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            self.pb.println(line);
+        }
     }
 }
 
@@ -461,7 +476,15 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     bars.pb.finish_and_clear();
     bars.live.stylize(&a.out, serde_json::to_value(&state)?);
     if !quiet {
-        eprintln!("stylized run in {} ({} rounds, {:.0} s); per-round images in {}", a.out.display(), state.rounds_done, wall.elapsed().as_secs_f64(), a.out.join("rounds").display());
+        let discarded = state.records.iter().filter(|r| r.discarded.is_some()).count();
+        let kept = if discarded > 0 { format!(", {discarded} of them discarded, the field is round {}'s", last_kept_round(&state.records)) } else { String::new() };
+        eprintln!(
+            "stylized run in {} ({} rounds{kept}, {:.0} s); per-round images in {}",
+            a.out.display(),
+            state.rounds_done,
+            wall.elapsed().as_secs_f64(),
+            a.out.join("rounds").display()
+        );
     }
     Ok(json!({
         "command": "stylize",
@@ -470,6 +493,11 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         "wall_seconds": wall.elapsed().as_secs_f64(),
         "report": { "dir": crate::args::pj(a.out.join(snerf_report::live::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
     }))
+}
+
+/// The round whose field a run ends with: the last one not discarded (0: none recorded).
+fn last_kept_round(records: &[RoundRecord]) -> usize {
+    records.iter().rev().find(|r| r.discarded.is_none()).map(|r| r.round).unwrap_or(0)
 }
 
 /// The style a stylizer without a style image (a preset, a GAN) paints in, as a picture:

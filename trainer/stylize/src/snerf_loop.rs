@@ -572,13 +572,20 @@ impl RoundScores {
     /// worse on either warp error or on the weight-free style distance. A measure either
     /// field lacks does not count (no path: every round is kept).
     pub fn no_worse_than(&self, kept: &RoundScores) -> bool {
-        let no_worse = |a: Option<f64>, b: Option<f64>| match (a, b) {
-            (Some(a), Some(b)) => a <= b,
-            _ => true,
-        };
-        no_worse(self.short_range, kept.short_range)
-            && no_worse(self.long_range, kept.long_range)
-            && no_worse(self.style_swd.map(|s| s.total), kept.style_swd.map(|s| s.total))
+        self.worse_than(kept).is_empty()
+    }
+
+    /// The measures on which `self` is worse than `kept` (names as a person reads them).
+    pub fn worse_than(&self, kept: &RoundScores) -> Vec<&'static str> {
+        let worse = |a: Option<f64>, b: Option<f64>| matches!((a, b), (Some(a), Some(b)) if a > b);
+        [
+            ("short-range warp error", worse(self.short_range, kept.short_range)),
+            ("long-range warp error", worse(self.long_range, kept.long_range)),
+            ("style distance", worse(self.style_swd.map(|s| s.total), kept.style_swd.map(|s| s.total))),
+        ]
+        .into_iter()
+        .filter_map(|(name, w)| w.then_some(name))
+        .collect()
     }
 }
 
@@ -1282,6 +1289,7 @@ mod tests {
         assert!(!RoundScores { style_swd: Some(swd(2.001)), short_range: Some(0.001), long_range: Some(0.001), ..kept }.no_worse_than(&kept));
         assert!(!RoundScores { short_range: Some(0.0101), ..better }.no_worse_than(&kept));
         assert!(!RoundScores { long_range: Some(0.0201), ..better }.no_worse_than(&kept));
+        assert_eq!(RoundScores { long_range: Some(0.0201), style_swd: Some(swd(2.5)), ..better }.worse_than(&kept), ["long-range warp error", "style distance"]);
         // the embedding and Gram distances are readouts, not measures the rounds are kept by
         assert!(RoundScores { style_distance: Some(9.0), style_gram: Some(9.0), ..kept }.no_worse_than(&kept));
         // no path, nothing to compare: kept
