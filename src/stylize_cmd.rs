@@ -347,8 +347,7 @@ impl Progress for Bars {
     }
     fn round_done(&mut self, r: &RoundRecord) {
         if !self.quiet {
-            // what this round's training measured, kept or not
-            let m = r.discarded.unwrap_or_else(|| r.scores());
+            let m = r.trained();
             self.say(format!(
                 "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {} (Gram {}, embedding {}), consistency short {} long {}",
                 r.round,
@@ -477,7 +476,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     bars.live.stylize(&a.out, serde_json::to_value(&state)?);
     if !quiet {
         let discarded = state.records.iter().filter(|r| r.discarded.is_some()).count();
-        let kept = if discarded > 0 { format!(", {discarded} of them discarded, the field is round {}'s", last_kept_round(&state.records)) } else { String::new() };
+        let kept = if discarded > 0 { format!(", {discarded} of them discarded, the field is round {}'s", state.field_round()) } else { String::new() };
         eprintln!(
             "stylized run in {} ({} rounds{kept}, {:.0} s); per-round images in {}",
             a.out.display(),
@@ -493,11 +492,6 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         "wall_seconds": wall.elapsed().as_secs_f64(),
         "report": { "dir": crate::args::pj(a.out.join(snerf_report::live::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
     }))
-}
-
-/// The round whose field a run ends with: the last one not discarded (0: none recorded).
-fn last_kept_round(records: &[RoundRecord]) -> usize {
-    records.iter().rev().find(|r| r.discarded.is_none()).map(|r| r.round).unwrap_or(0)
 }
 
 /// The style a stylizer without a style image (a preset, a GAN) paints in, as a picture:

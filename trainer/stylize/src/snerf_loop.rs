@@ -590,6 +590,11 @@ impl RoundScores {
 }
 
 impl RoundRecord {
+    /// What the field this round trained measured, kept or not.
+    pub fn trained(&self) -> RoundScores {
+        self.discarded.unwrap_or_else(|| self.scores())
+    }
+
     /// What the field this round ends with measured.
     pub fn scores(&self) -> RoundScores {
         RoundScores {
@@ -607,6 +612,13 @@ pub struct StylizeState {
     pub options: StylizeOptions,
     pub rounds_done: usize,
     pub records: Vec<RoundRecord>,
+}
+
+impl StylizeState {
+    /// The round whose field the run holds: the last one not discarded (0: none yet).
+    pub fn field_round(&self) -> usize {
+        self.records.iter().rev().find(|r| r.discarded.is_none()).map(|r| r.round).unwrap_or(0)
+    }
 }
 
 pub fn state_path(dir: &Path) -> PathBuf {
@@ -1004,12 +1016,12 @@ pub fn run(
         };
         // `KeepRounds::Better`: the last kept field's scores are the last record's (a discarded
         // round records the kept field's)
-        let kept = match (opts.keep_rounds, state.records.last()) {
-            (KeepRounds::Better, Some(last)) if !measured.no_worse_than(&last.scores()) => Some(last.scores()),
-            _ => None,
+        let worse_than_kept = state.records.last().map(RoundRecord::scores).filter(|kept| opts.keep_rounds == KeepRounds::Better && !measured.no_worse_than(kept));
+        let (scores, discarded) = match worse_than_kept {
+            Some(kept) => (kept, Some(measured)),
+            None => (measured, None),
         };
-        let discarded = kept.map(|_| measured);
-        let RoundScores { style_distance, short_range, long_range, style_swd, style_gram } = kept.unwrap_or(measured);
+        let RoundScores { style_distance, short_range, long_range, style_swd, style_gram } = scores;
         let record = RoundRecord {
             round: round + 1,
             wall_seconds: wall,
