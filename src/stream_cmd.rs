@@ -61,9 +61,11 @@ pub struct ServeArgs {
     /// Congestion control: cubic (best on loopback/LAN) or bbr (10x faster under random loss, e.g. Wi-Fi).
     #[arg(long, default_value = "cubic")]
     pub congestion: String,
-    /// Web viewer address: the page over HTTP (HTTPS with --cert/--key; TCP) and
-    /// WebTransport (UDP) on this port (default: the --listen address, port + 1). Browsers
-    /// allow WebTransport from an http page only on loopback.
+    /// Web viewer address: the page over HTTPS (TCP) and WebTransport (UDP) on this port
+    /// (default: the --listen address, port + 1). Without --cert/--key the certificate is
+    /// generated for every address and name of this machine (browsers show a one-time
+    /// warning); listen on 0.0.0.0 for a headset on the LAN: one URL per LAN address is printed
+    /// and the first is shown as a QR code.
     #[arg(long, conflicts_with = "no_web")]
     pub web: Option<SocketAddr>,
     /// Do not serve the web viewer.
@@ -122,6 +124,11 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
                 "created_identity": h.created_identity(),
                 // The page wants the token in the fragment: WEB_URL#token=TOKEN.
                 "web_url": h.web().map(|w| w.url()),
+                // One per LAN address (empty when bound to loopback); the QR code holds
+                // `web_qr` + `#token=…`.
+                "web_urls": h.web().map(|w| w.lan_urls.clone()),
+                "web_qr": h.web().and_then(|w| w.qr_url().map(str::to_string)),
+                "web_cert_names": h.web().map(|w| w.cert_names.clone()),
                 "web_cert_sha256": h.web().and_then(|w| w.cert_hash.clone()),
             });
             println!("{v}");

@@ -9,6 +9,7 @@
 //! - `web`: the web viewer — its page (`web/`, embedded) over HTTP(S) and `snerf/1` over
 //!   WebTransport, served beside the native endpoint (`ServeOptions::web`); `conn` lets one
 //!   session code path serve both transports.
+//! - `glsl`: the march shader translated to GLSL ES 3.00 for the page's WebGL2 renderer.
 //! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
 //!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
 //!
@@ -21,12 +22,15 @@ pub mod bench;
 mod cache;
 mod conn;
 pub mod client;
+pub mod lan;
 pub mod live;
 mod pending;
+mod page;
 pub mod plan;
 pub mod thumbs;
 pub mod proto;
 pub mod server;
+mod stats;
 pub mod tls;
 pub mod url;
 pub mod web;

@@ -17,7 +17,7 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use tokio::sync::oneshot;
 
-use crate::server::ServerStats;
+use crate::stats::ServerStats;
 
 /// Why a pending connection was closed to make room.
 pub(crate) type Evicted = &'static str;
@@ -40,8 +40,18 @@ pub(crate) struct PendingTable {
     inner: Mutex<Inner>,
     max_per_source: usize,
     max_total: usize,
-    /// `pending` and `pending_evicted` are kept here.
     stats: Arc<ServerStats>,
+    counted: Counted,
+}
+
+/// Which counters of `ServerStats` a table keeps: the same rule bounds two kinds of
+/// connection that have not earned their place yet.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Counted {
+    /// QUIC and WebTransport connections before a valid Hello: `pending`, `pending_evicted`.
+    Handshakes,
+    /// The web page's TCP connections (`page.rs`): `page_conns`, `page_evicted`.
+    Pages,
 }
 
 /// One pending connection's place in the table; dropping it (authenticated, or gone) frees
@@ -66,12 +76,27 @@ pub(crate) fn source_key(ip: IpAddr) -> IpAddr {
 }
 
 impl PendingTable {
-    pub fn new(max_per_source: usize, max_total: usize, stats: Arc<ServerStats>) -> PendingTable {
+    pub fn new(max_per_source: usize, max_total: usize, stats: Arc<ServerStats>, counted: Counted) -> PendingTable {
         PendingTable {
             inner: Mutex::new(Inner::default()),
             max_per_source: max_per_source.max(1),
             max_total: max_total.max(1),
             stats,
+            counted,
+        }
+    }
+
+    fn gauge(&self) -> &std::sync::atomic::AtomicU64 {
+        match self.counted {
+            Counted::Handshakes => &self.stats.pending,
+            Counted::Pages => &self.stats.page_conns,
+        }
+    }
+
+    fn evictions(&self) -> &std::sync::atomic::AtomicU64 {
+        match self.counted {
+            Counted::Handshakes => &self.stats.pending_evicted,
+            Counted::Pages => &self.stats.page_evicted,
         }
     }
 
@@ -109,9 +134,7 @@ impl PendingTable {
             evict: tx,
         });
         *t.per_source.entry(source).or_insert(0) += 1;
-        self.stats
-            .pending
-            .store(t.order.len() as u64, Ordering::Relaxed);
+        self.gauge().store(t.order.len() as u64, Ordering::Relaxed);
         Pending {
             table: self.clone(),
             id,
@@ -122,7 +145,7 @@ impl PendingTable {
     fn evict(&self, t: &mut Inner, i: Option<usize>, why: Evicted) {
         if let Some(e) = i.and_then(|i| Self::take(t, i)) {
             let _ = e.evict.send(why);
-            self.stats.pending_evicted.fetch_add(1, Ordering::Relaxed);
+            self.evictions().fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -142,9 +165,7 @@ impl PendingTable {
         if let Some(i) = t.order.iter().position(|e| e.id == id) {
             Self::take(&mut t, i);
         }
-        self.stats
-            .pending
-            .store(t.order.len() as u64, Ordering::Relaxed);
+        self.gauge().store(t.order.len() as u64, Ordering::Relaxed);
     }
 }
 
@@ -174,7 +195,7 @@ mod tests {
     fn table(per: usize, total: usize) -> (Arc<PendingTable>, Arc<ServerStats>) {
         let stats = Arc::new(ServerStats::default());
         (
-            Arc::new(PendingTable::new(per, total, stats.clone())),
+            Arc::new(PendingTable::new(per, total, stats.clone(), Counted::Handshakes)),
             stats,
         )
     }

@@ -9,7 +9,7 @@ use bytes::Bytes;
 use quinn::{Endpoint, VarInt};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime};
 use tokio::sync::{watch, OwnedSemaphorePermit, Semaphore};
@@ -25,6 +25,7 @@ use crate::proto::{
     FrameError, ListEntry, Pose, ServerMsg, PROTOCOL_VERSION,
 };
 use crate::tls;
+pub use crate::stats::{SentBatch, ServerStats};
 
 /// Server limits (most have CLI flags in `snerf serve`).
 #[derive(Clone, Debug)]
@@ -79,6 +80,20 @@ pub struct Limits {
     /// Record each batch of blocks committed to a stream, with the pose it was ordered for,
     /// in `ServerStats::send_log` (what tests check the send order on).
     pub log_sends: bool,
+    /// The web page's server (`page.rs`): time allowed for a request head, counted from the
+    /// connection's accept (TLS handshake included) or from the end of the previous response
+    /// on a kept-alive connection. What stops a client that trickles its header (slowloris)
+    /// or opens a connection and says nothing.
+    pub page_head_timeout: Duration,
+    /// Time allowed to hand one response to the kernel: a client that stops reading is
+    /// dropped.
+    pub page_write_timeout: Duration,
+    /// Page connections at a time from one address (IPv6: one /64); at the cap a new one
+    /// closes that address's oldest. A browser opens at most 6 per host; this leaves room for
+    /// a few headsets behind one NAT.
+    pub page_conns_per_ip: usize,
+    /// Page connections at a time, all addresses; at the cap a new one closes the oldest.
+    pub page_conns: usize,
 }
 
 impl Default for Limits {
@@ -101,6 +116,10 @@ impl Default for Limits {
             log_sends: false,
             max_rate: None,
             web_cert_rotate: Duration::from_secs(12 * 86400),
+            page_head_timeout: Duration::from_secs(5),
+            page_write_timeout: Duration::from_secs(10),
+            page_conns_per_ip: 16,
+            page_conns: 256,
         }
     }
 }
@@ -159,50 +178,6 @@ impl ServeOptions {
             web: None,
         }
     }
-}
-
-/// Counters, readable while the server runs.
-#[derive(Debug, Default)]
-pub struct ServerStats {
-    /// Connections whose TLS handshake completed.
-    pub connections: AtomicU64,
-    /// Refused or closed because every client slot was taken.
-    pub refused_busy: AtomicU64,
-    /// Authenticated clients now (gauge, at most `max_clients`).
-    pub clients: AtomicU64,
-    /// Connections not yet authenticated now (gauge, at most `max_pending`).
-    pub pending: AtomicU64,
-    /// Unauthenticated connections closed to make room for newer ones (per-address or total
-    /// pending cap).
-    pub pending_evicted: AtomicU64,
-    /// QUIC Retry packets sent (address validation while many connections are pending).
-    pub retries: AtomicU64,
-    pub unauthorized: AtomicU64,
-    /// Connections closed for a malformed / oversized / out-of-order message or a timeout.
-    pub protocol_errors: AtomicU64,
-    pub streams_started: AtomicU64,
-    pub streams_completed: AtomicU64,
-    /// Record bytes (chunk index + chunk) handed to QUIC, all clients.
-    pub bytes_sent: AtomicU64,
-    pub bad_datagrams: AtomicU64,
-    pub pose_updates: AtomicU64,
-    /// Bytes of asset files held in the cache now (gauge, at most `Limits::cache_bytes`).
-    pub cache_bytes: AtomicU64,
-    /// Assets dropped from the cache to make room.
-    pub cache_evictions: AtomicU64,
-    /// Batches of blocks committed to streams, in order, all clients (only with
-    /// `Limits::log_sends`).
-    pub send_log: std::sync::Mutex<Vec<SentBatch>>,
-    /// Times the web viewer's generated certificate was replaced.
-    pub cert_rotations: AtomicU64,
-}
-
-/// One batch of BLKS chunks committed to a data stream, and the latest pose of the client
-/// when the batch was chosen (None before any).
-#[derive(Clone, Debug)]
-pub struct SentBatch {
-    pub pose: Option<Pose>,
-    pub chunks: Vec<u32>,
 }
 
 /// A running server. `shutdown` stops it; dropping the handle stops it too.
@@ -641,29 +616,53 @@ fn banner(path: &Path, h: &ServerHandle) -> String {
     b += &format!("  fingerprint (--pin): {}\n", h.fingerprint());
     b += &format!("  token (--token):     {}\n", token);
     if let Some(w) = h.web() {
-        // The token rides in the fragment, which the browser never sends to the server.
-        match h.token_file() {
-            Some(_) => b += &format!("  web viewer:          {}#token=TOKEN (the token from the file)\n", w.url()),
-            None => {
-                let url = format!("{}#token={}", w.url(), h.token());
-                b += &format!("  web viewer:          {}\n", url);
-                // A headset's camera reads the address off the terminal.
-                if std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-                    if let Some(q) = crate::web::qr_text(&url) {
-                        b += &q;
-                    }
-                }
-            }
-        }
-        if !w.https && !w.addr.ip().is_loopback() {
-            b += "  (plain HTTP is a secure context only on this machine: for a headset on the LAN give --cert/--key)\n";
-        }
+        b += &web_banner(w, h.token_file().is_none().then(|| h.token()));
     }
     if h.created_identity() && h.token_from_file() {
         // A token file is never created, so only the certificate can be new.
         b += "  (certificate created on this first run)\n";
     } else if h.created_identity() {
         b += "  (certificate/token created on this first run)\n";
+    }
+    b
+}
+
+/// The web viewer's part of the banner: one URL per LAN address (the token in the fragment,
+/// which the browser never sends), the QR code of the first (a headset's camera reads it off
+/// the terminal), the loopback URL for this machine, and the one thing a person must do once.
+/// `token`: None when it came from the user's file (not printed).
+fn web_banner(w: &crate::web::WebInfo, token: Option<&str>) -> String {
+    let frag = |u: &str| format!("{u}#token={}", token.unwrap_or("TOKEN"));
+    let mut b = String::new();
+    let local = crate::lan::page_url(SocketAddr::new(
+        if w.addr.ip().is_unspecified() { std::net::IpAddr::from([127, 0, 0, 1]) } else { w.addr.ip() },
+        w.addr.port(),
+    ));
+    if w.lan_urls.is_empty() {
+        b += &format!("  web viewer:          {}\n", frag(&local));
+        b += "  (this machine only: listen on 0.0.0.0 (--listen 0.0.0.0:PORT) for a headset on the LAN)\n";
+    } else {
+        for (i, u) in w.lan_urls.iter().enumerate() {
+            let label = if i == 0 { "web viewer (headset):" } else { "                     " };
+            b += &format!("  {label} {}\n", frag(u));
+        }
+        if w.addr.ip().is_unspecified() {
+            b += &format!("  on this machine:      {}\n", frag(&local));
+        }
+        if let Some(name) = w.cert_names.iter().find(|n| n.ends_with(".local")) {
+            b += &format!("  by name (mDNS):       {}\n", frag(&crate::lan::page_url_named(name, w.addr.port())));
+        }
+    }
+    if token.is_some() && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        if let Some(q) = w.qr_url().and_then(|u| crate::web::qr_text(&frag(u))) {
+            b += &q;
+        }
+    }
+    if token.is_none() {
+        b += "  (TOKEN: the token from the file)\n";
+    }
+    if w.cert_hash.is_some() {
+        b += "  The page's certificate is made here, so the browser warns once: choose Advanced, then Proceed.\n";
     }
     b
 }
@@ -733,6 +732,7 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
             limits.max_pending_per_ip,
             limits.max_pending,
             stats.clone(),
+            crate::pending::Counted::Handshakes,
         )),
         stats,
         quiet: opts.quiet,

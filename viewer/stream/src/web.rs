@@ -11,24 +11,25 @@
 //! endpoint keeps its stream limits (one client bidi stream, no client uni streams) exactly.
 //!
 //! Trust: without `--cert/--key` each start makes a fresh self-signed ECDSA P-256 certificate
-//! valid for 13 days (browsers accept at most 14 for `serverCertificateHashes`) and hands its
-//! SHA-256 to the page in `/config.json`; with `--cert/--key` that certificate is used and the
-//! page relies on the browser's normal verification. The page is served over plain HTTP,
-//! which browsers treat as a secure context only on loopback, or over HTTPS with that same
-//! certificate when `--cert/--key` are given.
+//! valid for 13 days (browsers accept at most 14 for `serverCertificateHashes`) whose
+//! subject alternative names hold every name a headset may open the page by (`lan.rs`): the
+//! page is served over HTTPS with it (a secure context on any address, once the person has
+//! clicked through the browser's one-time warning) and the page hands its SHA-256 to
+//! WebTransport in `/config.json`. With `--cert/--key` that certificate serves both and the
+//! browser verifies it normally.
 //!
 //! Who may connect: the page needs the access token, which it takes from the URL fragment
 //! (never sent in a request, never logged); the WebTransport CONNECT must come from a page of
-//! this server (its `Origin` equals `http://` + the authority it connected to, on this
+//! this server (its `Origin` equals `https://` + the authority it connected to, on this
 //! server's port), or it is refused with 403 before any `snerf/1` byte. HTTP requests must name
-//! this server by an IP literal or `localhost` in `Host` (no DNS rebinding).
+//! this server in `Host` by an IP literal, `localhost` or a name of its certificate (no DNS
+//! rebinding; `page.rs`).
 
 use anyhow::{anyhow, Context, Result};
 use std::net::SocketAddr;
 use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Duration;
-use tokio::io::{AsyncRead, AsyncReadExt, AsyncWrite, AsyncWriteExt};
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinSet;
@@ -37,8 +38,9 @@ use tokio::time::Instant;
 use crate::conn::Conn;
 use crate::pending::Pending;
 use crate::proto::code;
+use crate::lan::LocalNames;
+use crate::page::{PageCert, PageCerts};
 use crate::server::{handle, log, transport, Shared};
-use snerf_geometry::march::{march_shader, ShaderVariant};
 
 /// The page and its script, embedded at build time (no build step: plain ES modules).
 pub const INDEX_HTML: &str = include_str!("../web/index.html");
@@ -59,8 +61,13 @@ pub struct WebInfo {
     pub addr: SocketAddr,
     /// Hex SHA-256 of the generated certificate (None with `--cert/--key`).
     pub cert_hash: Option<String>,
-    /// The page is served over HTTPS (with `--cert/--key`), else plain HTTP.
+    /// The page is served over HTTPS (always: with the generated certificate or the user's).
     pub https: bool,
+    /// `https://ADDR:PORT/` on each LAN address the socket reaches (`lan.rs`), private IPv4
+    /// first; empty when bound to loopback or when the machine has no network.
+    pub lan_urls: Vec<String>,
+    /// The generated certificate's subject alternative names (empty with `--cert/--key`).
+    pub cert_names: Vec<String>,
     /// The generated certificate's hash now (it is rotated before it expires).
     live_hash: Arc<std::sync::RwLock<Option<String>>>,
 }
@@ -72,16 +79,25 @@ impl WebInfo {
         self.live_hash.read().map(|h| h.clone()).unwrap_or_else(|_| self.cert_hash.clone())
     }
 
-    /// `http://ADDR/`, or `https://…` with `--cert/--key` (the token goes in the fragment:
-    /// `#token=…`).
+    /// The page's URL (the token goes in the fragment: `#token=…`): the first LAN URL when
+    /// there is one — what a headset opens — else the address it is bound to, loopback for an
+    /// unspecified one.
     pub fn url(&self) -> String {
-        let host = if self.addr.ip().is_unspecified() {
-            "127.0.0.1".to_string()
+        if let Some(u) = self.lan_urls.first() {
+            return u.clone();
+        }
+        let ip = if self.addr.ip().is_unspecified() {
+            std::net::IpAddr::from([127, 0, 0, 1])
         } else {
-            host_literal(self.addr.ip())
+            self.addr.ip()
         };
-        let scheme = if self.https { "https" } else { "http" };
-        format!("{}://{}:{}/", scheme, host, self.addr.port())
+        crate::lan::page_url(SocketAddr::new(ip, self.addr.port()))
+    }
+
+    /// What the QR code holds: a LAN URL, never loopback (on the headset that names the
+    /// headset). None when the server reaches no LAN interface.
+    pub fn qr_url(&self) -> Option<&str> {
+        self.lan_urls.first().map(String::as_str)
     }
 }
 
@@ -98,50 +114,42 @@ pub fn qr_text(text: &str) -> Option<String> {
     )
 }
 
-fn host_literal(ip: std::net::IpAddr) -> String {
-    match ip {
-        std::net::IpAddr::V4(v) => v.to_string(),
-        std::net::IpAddr::V6(v) => format!("[{}]", v),
-    }
-}
-
 pub(crate) struct WebParts {
     pub info: WebInfo,
     http: TcpListener,
-    /// TLS for the page (`--cert/--key`): the same certificate, ALPN http/1.1.
-    page_tls: Option<tokio_rustls::TlsAcceptor>,
+    /// TLS for the page: the same certificate as WebTransport, ALPN http/1.1.
+    page: PageCerts,
     wt: wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>,
 }
 
-/// The certificate and key for WebTransport: the user's, or a fresh short-lived one.
-fn web_tls(
-    id: &crate::tls::Identity,
-    user_cert: bool,
-    addr: SocketAddr,
-) -> Result<(rustls::ServerConfig, Option<String>)> {
-    use rustls::pki_types::{CertificateDer, PrivateKeyDer};
-    let (certs, key, hash): (Vec<CertificateDer<'static>>, PrivateKeyDer<'static>, _) =
-        if user_cert {
-            (id.certs.clone(), id.key.clone_key(), None)
-        } else {
-            let (cert, key, hash) = generated_cert(addr)?;
-            (vec![cert], key, Some(hash))
-        };
-    tls_config(certs, key).map(|c| (c, hash))
+/// The certificate chain and key for the web port: the user's, or a fresh short-lived one
+/// for `names` (with its SHA-256).
+type Chain = (Vec<rustls::pki_types::CertificateDer<'static>>, rustls::pki_types::PrivateKeyDer<'static>, Option<String>);
+
+fn web_identity(id: &crate::tls::Identity, user_cert: bool, names: &[String]) -> Result<Chain> {
+    if user_cert {
+        Ok((id.certs.clone(), id.key.clone_key(), None))
+    } else {
+        let (cert, key, hash) = generated_cert(names)?;
+        Ok((vec![cert], key, Some(hash)))
+    }
 }
 
-/// A fresh self-signed ECDSA P-256 certificate valid for `CERT_DAYS`, for the names a page
-/// on this machine or at `addr` uses; and its SHA-256.
+/// The page's TLS: the web port's certificate with ALPN http/1.1.
+fn page_cert(chain: &Chain) -> Result<PageCert> {
+    let mut c = tls_config(chain.0.clone(), chain.1.clone_key())?;
+    c.alpn_protocols = vec![b"http/1.1".to_vec()];
+    Ok(PageCert { acceptor: tokio_rustls::TlsAcceptor::from(Arc::new(c)), der: chain.0[0].clone() })
+}
+
+/// A fresh self-signed ECDSA P-256 certificate valid for `CERT_DAYS` for `names` (DNS names
+/// and IP addresses), and its SHA-256.
 fn generated_cert(
-    addr: SocketAddr,
+    names: &[String],
 ) -> Result<(rustls::pki_types::CertificateDer<'static>, rustls::pki_types::PrivateKeyDer<'static>, String)> {
     use rustls::pki_types::{CertificateDer, PrivateKeyDer, PrivatePkcs8KeyDer};
-    let mut names = vec!["localhost".to_string(), "127.0.0.1".into(), "::1".into()];
-    if !addr.ip().is_unspecified() {
-        names.push(addr.ip().to_string());
-    }
     let g = wtransport::Identity::self_signed_builder()
-        .subject_alt_names(names)
+        .subject_alt_names(names.iter().cloned())
         .from_now_utc()
         .validity_days(CERT_DAYS)
         .build()
@@ -175,12 +183,12 @@ pub(crate) fn bind(
     user_cert: bool,
     limits: &crate::server::Limits,
 ) -> Result<WebParts> {
-    let (tls, cert_hash) = web_tls(id, user_cert, addr)?;
-    let page_tls = user_cert.then(|| {
-        let mut c = tls.clone();
-        c.alpn_protocols = vec![b"http/1.1".to_vec()];
-        tokio_rustls::TlsAcceptor::from(Arc::new(c))
-    });
+    let names = LocalNames::of_this_machine(addr.ip());
+    let cert_names = if user_cert { vec![] } else { names.cert_names() };
+    let chain = web_identity(id, user_cert, &cert_names)?;
+    let tls = tls_config(chain.0.clone(), chain.1.clone_key())?;
+    let page = Arc::new(std::sync::RwLock::new(Arc::new(page_cert(&chain)?)));
+    let cert_hash = chain.2.clone();
     let t = wt_transport(limits)?;
     let mut last_err = None;
     for _ in 0..20 {
@@ -210,10 +218,12 @@ pub(crate) fn bind(
                 addr: tcp_addr,
                 live_hash: Arc::new(std::sync::RwLock::new(cert_hash.clone())),
                 cert_hash,
-                https: page_tls.is_some(),
+                https: true,
+                lan_urls: names.urls(port),
+                cert_names,
             },
             http: TcpListener::from_std(tcp)?,
-            page_tls,
+            page,
             wt,
         });
     }
@@ -237,11 +247,11 @@ fn wt_transport(limits: &crate::server::Limits) -> Result<quinn::TransportConfig
 pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Receiver<bool>) {
     let info = Arc::new(parts.info);
     let wt = Arc::new(parts.wt);
-    let http = tokio::spawn(http_loop(parts.http, parts.page_tls, info.clone(), stop.clone()));
+    let http = tokio::spawn(crate::page::run(parts.http, parts.page.clone(), info.clone(), shared.clone(), stop.clone()));
     let rotate = info
         .cert_hash
         .is_some()
-        .then(|| tokio::spawn(rotate_loop(shared.clone(), wt.clone(), info.clone())));
+        .then(|| tokio::spawn(rotate_loop(shared.clone(), wt.clone(), parts.page.clone(), info.clone())));
     wt_loop(shared, wt, info.addr.port(), stop).await;
     http.abort();
     let _ = http.await;
@@ -252,22 +262,27 @@ pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Recei
 }
 
 /// A generated certificate lives `CERT_DAYS`; every `Limits::web_cert_rotate` a new one
-/// replaces it for new sessions (running ones keep theirs), `/config.json` hands out its
-/// hash, and the server says so.
+/// for the same names replaces it for new sessions and page connections (running ones keep
+/// theirs), `/config.json` hands out its hash, and the server says so. (A headset then shows
+/// the certificate warning once more when it reloads the page.)
 async fn rotate_loop(
     shared: Arc<Shared>,
     wt: Arc<wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>>,
+    page: PageCerts,
     info: Arc<WebInfo>,
 ) {
     let every = shared.limits.web_cert_rotate.max(Duration::from_millis(100));
     loop {
         tokio::time::sleep(every).await;
-        let next = generated_cert(info.addr).and_then(|(c, k, hash)| {
+        let next = generated_cert(&info.cert_names).and_then(|(c, k, hash)| {
+            let chain: Chain = (vec![c], k, Some(hash.clone()));
             let cfg = wtransport::ServerConfig::builder()
                 .with_bind_default(0)
-                .with_custom_tls_and_transport(tls_config(vec![c], k)?, wt_transport(&shared.limits)?)
+                .with_custom_tls_and_transport(tls_config(chain.0.clone(), chain.1.clone_key())?, wt_transport(&shared.limits)?)
                 .build();
             wt.reload_config(cfg, false).context("reloading the WebTransport certificate")?;
+            let pc = Arc::new(page_cert(&chain)?);
+            *page.write().unwrap_or_else(|e| e.into_inner()) = pc;
             Ok(hash)
         });
         match next {
@@ -323,15 +338,15 @@ async fn wt_loop(
 }
 
 /// Whether a WebTransport CONNECT comes from a page of this server: its Origin must be
-/// `http(s)://` + the authority it connected to, and that authority must name this port.
+/// `https://` + the authority it connected to (the page is only ever served over HTTPS), and
+/// that authority must name this port.
 pub fn origin_allowed(origin: Option<&str>, authority: &str, port: u16) -> bool {
     let Some(origin) = origin else { return false };
     let Some(auth_port) = authority.rsplit_once(':').and_then(|(_, p)| p.parse::<u16>().ok())
     else {
         return false;
     };
-    auth_port == port
-        && (origin == format!("http://{}", authority) || origin == format!("https://{}", authority))
+    auth_port == port && origin == format!("https://{}", authority)
 }
 
 async fn session(
@@ -379,172 +394,6 @@ async fn session(
     handle(shared, Conn::Web(conn), pending, deadline).await;
 }
 
-// ---- the page over HTTP/1.1 ----
-
-async fn http_loop(
-    l: TcpListener,
-    tls: Option<tokio_rustls::TlsAcceptor>,
-    info: Arc<WebInfo>,
-    mut stop: watch::Receiver<bool>,
-) {
-    let mut conns = JoinSet::new();
-    loop {
-        let r = tokio::select! {
-            r = l.accept() => r,
-            _ = stop.wait_for(|s| *s) => break,
-        };
-        let Ok((s, _)) = r else {
-            // Out of file descriptors or similar: back off rather than spin.
-            tokio::time::sleep(Duration::from_millis(50)).await;
-            continue;
-        };
-        while conns.try_join_next().is_some() {}
-        if conns.len() >= 64 {
-            continue; // dropped: too many page requests at once
-        }
-        let (info, tls) = (info.clone(), tls.clone());
-        conns.spawn(async move {
-            let _ = tokio::time::timeout(Duration::from_secs(10), async {
-                match tls {
-                    Some(t) => match t.accept(s).await {
-                        Ok(s) => http_conn(s, &info).await,
-                        Err(_) => Ok(()),
-                    },
-                    None => http_conn(s, &info).await,
-                }
-            })
-            .await;
-        });
-    }
-    conns.abort_all();
-}
-
-/// One request per connection (`Connection: close`): GET or HEAD of a few fixed paths.
-async fn http_conn<S: AsyncRead + AsyncWrite + Unpin>(mut s: S, info: &WebInfo) -> std::io::Result<()> {
-    let mut buf = Vec::with_capacity(2048);
-    let mut chunk = [0u8; 2048];
-    let head_end = loop {
-        let n = s.read(&mut chunk).await?;
-        if n == 0 {
-            return Ok(());
-        }
-        buf.extend_from_slice(&chunk[..n]);
-        if let Some(p) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
-            break p;
-        }
-        if buf.len() > 16 * 1024 {
-            return respond(&mut s, 431, "text/plain", b"request header too large", None).await;
-        }
-    };
-    let head = String::from_utf8_lossy(&buf[..head_end]).into_owned();
-    let mut lines = head.split("\r\n");
-    let mut req = lines.next().unwrap_or("").split(' ');
-    let (method, target) = (req.next().unwrap_or(""), req.next().unwrap_or(""));
-    let host = lines
-        .filter_map(|l| l.split_once(':'))
-        .find(|(k, _)| k.trim().eq_ignore_ascii_case("host"))
-        .map(|(_, v)| v.trim().to_string());
-    let Some(host) = host.filter(|h| host_ok(h, info.addr.port())) else {
-        return respond(&mut s, 421, "text/plain", b"unknown host", None).await;
-    };
-    if method != "GET" && method != "HEAD" {
-        return respond(&mut s, 405, "text/plain", b"method not allowed", None).await;
-    }
-    let head_only = method == "HEAD";
-    let (path, query) = target.split_once('?').unwrap_or((target, ""));
-    let csp = format!(
-        "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self'; \
-         connect-src 'self' https://{host}; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
-    );
-    let (status, ctype, body): (u16, &str, Vec<u8>) = match path {
-        "/" | "/index.html" => (200, "text/html; charset=utf-8", INDEX_HTML.as_bytes().to_vec()),
-        "/app.js" => (200, "text/javascript; charset=utf-8", APP_JS.as_bytes().to_vec()),
-        "/xr.js" => (200, "text/javascript; charset=utf-8", XR_JS.as_bytes().to_vec()),
-        "/app.css" => (200, "text/css; charset=utf-8", APP_CSS.as_bytes().to_vec()),
-        "/config.json" => {
-            let cfg = serde_json::json!({
-                "protocol": crate::proto::PROTOCOL_VERSION,
-                "webtransport": format!("https://{}{}", host, SESSION_PATH),
-                "cert_hash": info.current_cert_hash(),
-                "workgroup": snerf_geometry::march::WORKGROUP,
-            });
-            (200, "application/json", cfg.to_string().into_bytes())
-        }
-        "/present.wgsl" => (200, "text/plain; charset=utf-8", snerf_geometry::march::PRESENT_WGSL.as_bytes().to_vec()),
-        "/march.wgsl" => match shader_query(query) {
-            Some(variant) => (200, "text/plain; charset=utf-8", march_shader(variant).into_bytes()),
-            None => (400, "text/plain", b"bad shader variant".to_vec()),
-        },
-        _ => (404, "text/plain", b"not found".to_vec()),
-    };
-    let body = if head_only { &body[..0] } else { &body[..] };
-    respond(&mut s, status, ctype, body, Some(&csp)).await
-}
-
-/// `kind=K&dynamic=0|1&diffuse=0|1&block=B` with K in 0..=2 and B in 4..=64: the variant
-/// the page's asset needs (the web page always reads the atlas by texel loads).
-fn shader_query(q: &str) -> Option<ShaderVariant> {
-    let (mut kind, mut dynamic, mut diffuse, mut block) = (None, None, None, None);
-    let flag = |v: &str| match v {
-        "0" => Some(false),
-        "1" => Some(true),
-        _ => None,
-    };
-    for kv in q.split('&') {
-        match kv.split_once('=')? {
-            ("kind", v) => kind = v.parse::<u32>().ok().filter(|k| *k <= 2),
-            ("dynamic", v) => dynamic = Some(flag(v)?),
-            ("diffuse", v) => diffuse = Some(flag(v)?),
-            ("block", v) => block = v.parse::<u32>().ok().filter(|b| (4..=64).contains(b)),
-            _ => return None,
-        }
-    }
-    Some(ShaderVariant { kind: kind?, dynamic: dynamic?, diffuse: diffuse?, block: block?, hardware_filter: false })
-}
-
-/// `Host` must be an IP literal or `localhost`, with this port.
-fn host_ok(h: &str, port: u16) -> bool {
-    let Some((name, p)) = h.rsplit_once(':') else {
-        return false;
-    };
-    if p.parse::<u16>().ok() != Some(port) {
-        return false;
-    }
-    let name = name.trim_start_matches('[').trim_end_matches(']');
-    name.eq_ignore_ascii_case("localhost") || name.parse::<std::net::IpAddr>().is_ok()
-}
-
-async fn respond<S: AsyncWrite + Unpin>(
-    s: &mut S,
-    status: u16,
-    ctype: &str,
-    body: &[u8],
-    csp: Option<&str>,
-) -> std::io::Result<()> {
-    let reason = match status {
-        200 => "OK",
-        400 => "Bad Request",
-        404 => "Not Found",
-        405 => "Method Not Allowed",
-        421 => "Misdirected Request",
-        _ => "Request Header Fields Too Large",
-    };
-    let mut h = format!(
-        "HTTP/1.1 {status} {reason}\r\nContent-Type: {ctype}\r\nContent-Length: {}\r\n\
-         Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\nReferrer-Policy: no-referrer\r\n\
-         X-Frame-Options: DENY\r\nCross-Origin-Opener-Policy: same-origin\r\n\
-         Cross-Origin-Resource-Policy: same-origin\r\nConnection: close\r\n",
-        body.len()
-    );
-    if let Some(c) = csp {
-        h += &format!("Content-Security-Policy: {c}\r\n");
-    }
-    h += "\r\n";
-    s.write_all(h.as_bytes()).await?;
-    s.write_all(body).await?;
-    s.shutdown().await
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -561,21 +410,12 @@ mod tests {
 
     #[test]
     fn origins_and_hosts() {
-        assert!(origin_allowed(Some("http://127.0.0.1:8443"), "127.0.0.1:8443", 8443));
-        assert!(origin_allowed(Some("http://localhost:8443"), "localhost:8443", 8443));
+        assert!(origin_allowed(Some("https://127.0.0.1:8443"), "127.0.0.1:8443", 8443));
+        assert!(origin_allowed(Some("https://laptop.local:8443"), "laptop.local:8443", 8443));
+        assert!(!origin_allowed(Some("http://127.0.0.1:8443"), "127.0.0.1:8443", 8443));
         assert!(!origin_allowed(Some("http://evil.example"), "127.0.0.1:8443", 8443));
         assert!(!origin_allowed(Some("http://127.0.0.1:9000"), "127.0.0.1:8443", 8443));
         assert!(!origin_allowed(Some("http://127.0.0.1:9000"), "127.0.0.1:9000", 8443));
         assert!(!origin_allowed(None, "127.0.0.1:8443", 8443));
-        assert!(host_ok("127.0.0.1:80", 80) && host_ok("[::1]:80", 80) && host_ok("LOCALHOST:80", 80));
-        assert!(!host_ok("evil.example:80", 80) && !host_ok("127.0.0.1:81", 80) && !host_ok("127.0.0.1", 80));
-        let v = |kind, dynamic, diffuse, block| Some(ShaderVariant { kind, dynamic, diffuse, block, hardware_filter: false });
-        assert_eq!(shader_query("kind=2&dynamic=1&diffuse=0&block=8"), v(2, true, false, 8));
-        assert_eq!(shader_query("diffuse=1&kind=0&dynamic=0&block=16"), v(0, false, true, 16));
-        assert_eq!(shader_query("kind=3&dynamic=1&diffuse=0&block=8"), None);
-        assert_eq!(shader_query("kind=0&dynamic=0&diffuse=2&block=8"), None);
-        assert_eq!(shader_query("kind=0&dynamic=0&block=8"), None);
-        assert_eq!(shader_query("kind=0&dynamic=0"), None);
-        assert_eq!(shader_query("kind=0&dynamic=0&diffuse=0&block=8&x=1"), None);
     }
 }

@@ -8,9 +8,21 @@ export const CHROMIUM_ARGS = ['--no-sandbox', '--disable-background-networking',
   '--enable-unsafe-webgpu', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist', '--enable-gpu',
   '--enable-features=Vulkan', '--use-vulkan=swiftshader', '--use-angle=swiftshader'];
 
+// SNERF_NO_WEBGPU=1: the same flags without --enable-unsafe-webgpu, so `requestAdapter()`
+// returns null and the page draws with WebGL2, as in a browser without WebGPU.
+export function chromiumArgs() {
+  return process.env.SNERF_NO_WEBGPU === '1' ? CHROMIUM_ARGS.filter((a) => a !== '--enable-unsafe-webgpu') : CHROMIUM_ARGS;
+}
+
 // `pwDir`: a directory whose node_modules holds playwright-core (or playwright-core itself).
 export async function launchChromium(pwDir) {
   const require = createRequire(pwDir + '/');
   const { chromium } = require('playwright-core');
-  return chromium.launch({ executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium', headless: true, args: CHROMIUM_ARGS });
+  const browser = await chromium.launch({ executablePath: process.env.SNERF_CHROMIUM || '/usr/bin/chromium', headless: true, args: chromiumArgs() });
+  // `snerf serve` serves the page over HTTPS with a self-signed certificate: every page takes
+  // it as a person does by clicking through the browser's one-time warning.
+  const newPage = browser.newPage.bind(browser), newContext = browser.newContext.bind(browser);
+  browser.newPage = (o = {}) => newPage({ ignoreHTTPSErrors: true, ...o });
+  browser.newContext = (o = {}) => newContext({ ignoreHTTPSErrors: true, ...o });
+  return browser;
 }
