@@ -1,17 +1,25 @@
-// Ray march of a baked snerf asset, one invocation per pixel. A transcription of
+// Ray march of a baked snerf asset, one ray per pixel. A transcription of
 // baker/asset/src/render.rs (the CPU reference renderer): same camera ray, same
 // world -> model -> march-space mapping, same sample lattice and empty-cell jumps, same
 // trilinear decode, same compositing, then the view MLP once per pixel (deferred).
 //
-// The viewer prepends the variant constants (only the variant a scene needs is built):
+// This file is the march itself, shared by every target; `snerf_geometry::march::march_shader`
+// composes one variant from it (only the variant a scene needs is built). It prepends the
+// variant constants:
 //   const KIND: u32        0 object, 1 forward (NDC), 2 unbounded (MERF contraction)
 //   const DYNAMIC: bool    blend two keyframes (4D assets)
 //   const DIFFUSE: bool    a diffuse asset: zero features and view MLP, neither computed;
 //                          the atlas holds density and RGB only (one u32 a voxel)
 //   const BLOCK: u32       voxels per block edge (without apron)
 //   const WG: u32          workgroup edge
-// and one atlas access snippet (atlas_load.wgsl or atlas_filter.wgsl) that defines
+// and appends one atlas access snippet (atlas_load.wgsl or atlas_filter.wgsl) that defines
 //   fn atlas_interp(origin: vec3<u32>, l: vec3<f32>) -> Vals   (codes/255, not decoded)
+// and one target snippet, which holds the resources that differ per target and the entry
+// points: march_compute.wgsl (the compute shader of the native viewer and the WebGPU page:
+// storage buffers) or march_fragment.wgsl (a fragment shader, translated to GLSL ES 3.00 for
+// the WebGL2 page: textures). It defines
+//   fn grid_at(i: u32) -> u32              indirection grid entry i (all keyframes)
+//   fn cover_at(x: u32, y: u32) -> f32     the first pass's opacity at pixel (x, y) of this view
 
 struct Params {
     // camera: rows of c2w = [R | t]; intrinsics fx, fy, cx, cy
@@ -54,16 +62,12 @@ struct Sample {
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
-// indirection grids of all keyframes: EMPTY or the packed atlas position of the block
-@group(0) @binding(1) var<storage, read> grid: array<u32>;
+// binding 1 (the indirection grids of all keyframes: EMPTY or the packed atlas position of
+// the block, read by `grid_at`) comes with the target snippet
 // view MLP weights transposed to input-major vec4 rows (see gpu.rs `mlp_gpu_layout`)
 @group(0) @binding(2) var<uniform> mlp: array<vec4<f32>, 225>;
-@group(0) @binding(3) var<storage, read_write> out_rgba: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read_write> out_depth: array<f32>;
-// bindings 5..7 (atlas textures, sampler) come with the atlas snippet
-// the first pass's opacity, which the silhouette pass reads around each pixel (out_rgba
-// cannot serve: the silhouette pass rewrites it while neighbours still read)
-@group(0) @binding(8) var<storage, read_write> cover: array<f32>;
+// bindings 3, 4 and 8 (output, the first pass's opacity) come with the target snippet,
+// bindings 5..7 (atlas textures, sampler) with the atlas snippet
 
 const EMPTY: u32 = 0xffffffffu;
 // MAX_OPTICAL_DEPTH, UNBOUNDED_NEAR, UNBOUNDED_FAR, NDC_MIN_DZ, MAX_ITERS, COVER_EMPTY and
@@ -142,11 +146,11 @@ fn empty_vals() -> Vals {
 // interpolation sites only, so SIMD lanes that disagree run at most two block fetches.
 fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
     var s: Sample;
-    let a = grid[P.frames.x + cell];
+    let a = grid_at(P.frames.x + cell);
     var b = a;
     let w = P.dens.z;
     if (DYNAMIC && w != 0.0 && P.frames.z == 0u) {
-        b = grid[P.frames.y + cell];
+        b = grid_at(P.frames.y + cell);
     }
     s.ok = a != EMPTY || b != EMPTY;
     if (!s.ok) {
@@ -511,11 +515,11 @@ fn render_at(x: u32, y: u32, sx: f32, sy: f32) -> Px {
 fn on_silhouette(x: u32, y: u32) -> bool {
     let width = P.view.x;
     let height = P.view.y;
-    var lo = cover[y * P.view.w + P.view.z + x];
+    var lo = cover_at(x, y);
     var hi = lo;
     for (var yy = max(y, 1u) - 1u; yy < min(y + 2u, height); yy = yy + 1u) {
         for (var xx = max(x, 1u) - 1u; xx < min(x + 2u, width); xx = xx + 1u) {
-            let a = cover[yy * P.view.w + P.view.z + xx];
+            let a = cover_at(xx, yy);
             lo = min(lo, a);
             hi = max(hi, a);
         }
@@ -523,32 +527,15 @@ fn on_silhouette(x: u32, y: u32) -> bool {
     return lo < COVER_FULL && hi > COVER_EMPTY;
 }
 
-@compute @workgroup_size(WG, WG, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let width = P.view.x;
-    let height = P.view.y;
-    if (gid.x >= width || gid.y >= height) {
-        return;
-    }
-    let idx = gid.y * P.view.w + P.view.z + gid.x;
-    let side = P.frames.w;
-    if (side == 0u) {
-        let p = render_at(gid.x, gid.y, 0.5, 0.5);
-        out_rgba[idx] = vec4<f32>(p.rgb, p.opacity);
-        out_depth[idx] = p.depth;
-        cover[idx] = p.opacity;
-        return;
-    }
-    if (!on_silhouette(gid.x, gid.y)) {
-        return;
-    }
-    // snerf_geometry::silhouette::mean_of_rays over subpixel_grid(side * side)
+// snerf_geometry::silhouette::mean_of_rays over subpixel_grid(side * side): a silhouette
+// pixel of the second pass.
+fn pixel_mean(x: u32, y: u32, side: u32) -> Px {
     var rgb = vec3<f32>(0.0);
     var opacity = 0.0;
     var depth = 0.0;
     let n = side * side;
     for (var j = 0u; j < n; j = j + 1u) {
-        let p = render_at(gid.x, gid.y, (f32(j % side) + 0.5) / f32(side), (f32(j / side) + 0.5) / f32(side));
+        let p = render_at(x, y, (f32(j % side) + 0.5) / f32(side), (f32(j / side) + 0.5) / f32(side));
         rgb = rgb + p.rgb;
         opacity = opacity + p.opacity;
         depth = depth + p.depth * p.opacity;
@@ -558,6 +545,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     } else {
         depth = 0.0;
     }
-    out_rgba[idx] = vec4<f32>(rgb / f32(n), opacity / f32(n));
-    out_depth[idx] = depth;
+    return Px(rgb / f32(n), opacity / f32(n), depth);
 }

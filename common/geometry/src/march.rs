@@ -41,8 +41,10 @@ pub fn box_hit(o: Vec3, d: Vec3, h: f32) -> Option<(f32, f32)> {
     }
 }
 
-/// The march compute shader (`shaders/march.wgsl`) and its two atlas access snippets.
+/// The march (`shaders/march.wgsl`), its two atlas access snippets and its two targets.
 pub const MARCH_WGSL: &str = include_str!("../../../shaders/march.wgsl");
+pub const MARCH_COMPUTE_WGSL: &str = include_str!("../../../shaders/march_compute.wgsl");
+pub const MARCH_FRAGMENT_WGSL: &str = include_str!("../../../shaders/march_fragment.wgsl");
 pub const ATLAS_LOAD_WGSL: &str = include_str!("../../../shaders/atlas_load.wgsl");
 pub const ATLAS_FILTER_WGSL: &str = include_str!("../../../shaders/atlas_filter.wgsl");
 /// The presentation pass (march output buffer -> screen), shared by the native window and
@@ -70,11 +72,31 @@ pub struct ShaderVariant {
     pub hardware_filter: bool,
 }
 
-/// The march shader of one variant, composed exactly once for every client: the native
-/// viewer builds its pipeline from it and `snerf serve` hands the same text to the web page.
+/// What runs the march: the same march body with the resources and entry points of one
+/// target (`shaders/march_compute.wgsl` or `shaders/march_fragment.wgsl`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Target {
+    /// A compute shader, entry point `main` (storage buffers): the native viewer and the web
+    /// page on WebGPU.
+    Compute,
+    /// A full-screen triangle (`vs`) and a fragment shader (`fs`) writing RGBA and depth to
+    /// two render targets, the grid in a texture: the web page on WebGL2, translated to GLSL
+    /// ES 3.00 by `snerf-stream` (`glsl.rs`).
+    Fragment,
+}
+
+/// The march compute shader of one variant, composed exactly once for every client: the
+/// native viewer builds its pipeline from it and `snerf serve` hands the same text to the web
+/// page.
 pub fn march_shader(v: ShaderVariant) -> String {
+    march_shader_for(v, Target::Compute)
+}
+
+/// The march shader of one variant for one target. Every variant of every target is composed
+/// here, from the same march body: only the resource access and the entry points differ.
+pub fn march_shader_for(v: ShaderVariant, target: Target) -> String {
     format!(
-        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst DIFFUSE: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}",
+        "const KIND: u32 = {}u;\nconst DYNAMIC: bool = {};\nconst DIFFUSE: bool = {};\nconst BLOCK: u32 = {}u;\nconst WG: u32 = {}u;\n{}{}\n{}\n{}",
         v.kind,
         v.dynamic,
         v.diffuse,
@@ -82,7 +104,11 @@ pub fn march_shader(v: ShaderVariant) -> String {
         WORKGROUP,
         wgsl_prelude(),
         MARCH_WGSL,
-        if v.hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL }
+        if v.hardware_filter { ATLAS_FILTER_WGSL } else { ATLAS_LOAD_WGSL },
+        match target {
+            Target::Compute => MARCH_COMPUTE_WGSL,
+            Target::Fragment => MARCH_FRAGMENT_WGSL,
+        }
     )
 }
 

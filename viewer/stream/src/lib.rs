@@ -22,6 +22,7 @@ pub mod bench;
 mod cache;
 mod conn;
 pub mod client;
+pub mod glsl;
 pub mod lan;
 pub mod live;
 mod pending;

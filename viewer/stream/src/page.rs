@@ -256,6 +256,12 @@ pub(crate) fn route(req: &Request, info: &WebInfo, cert: &rustls::pki_types::Cer
             Some(variant) => (200, "text/plain; charset=utf-8", march_shader(variant).into_bytes().into()),
             None => (400, "text/plain", b"bad shader variant".as_slice().into()),
         },
+        // The same march as GLSL ES 3.00 for the WebGL2 renderer (`glsl.rs`).
+        "/march.glsl" => match shader_query(&req.query).map(crate::glsl::march_glsl) {
+            Some(Ok(p)) => (200, "application/json", p.to_json().into_bytes().into()),
+            Some(Err(_)) => (500, "text/plain", b"shader translation failed".as_slice().into()),
+            None => (400, "text/plain", b"bad shader variant".as_slice().into()),
+        },
         _ => (404, "text/plain", b"not found".as_slice().into()),
     };
     Response { status, ctype, body, csp: Some(csp) }
