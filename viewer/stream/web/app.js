@@ -3,6 +3,8 @@
 // of shaders/march.wgsl, composed by the server exactly as the native viewer composes it
 // (GET /march.wgsl); this file only does what the native viewer's host code does: parse the
 // chunks, place blocks in the atlas texture, pack the grid, lay out the MLP and the params.
+// Without WebGPU (older headset browsers) it draws with WebGL2: the same march, the fragment
+// target of shaders/march.wgsl translated to GLSL ES 3.00 by the server (GET /march.glsl).
 //
 // URL fragment (never sent to the server): token=HEX (required), asset=NAME (stream it right
 // away), cam=JSON ({c2w:[[4],[4],[4]], fx, fy, cx, cy, width, height}: a fixed camera),
@@ -20,7 +22,7 @@ const fixedCam = frag.get('cam') ? JSON.parse(frag.get('cam')) : null;
 const report = (window.snerf = {
   state: 'starting', error: null, listing: null, asset: null, sha256: null, bytes: 0,
   chunks: 0, blocks: 0, firstFrameMs: null, frames: 0, frame: null, firstFrame: null,
-  adapter: null, marks: {}, crcMs: 0, rotationRetries: 0,
+  adapter: null, backend: null, marks: {}, crcMs: 0, rotationRetries: 0,
 });
 
 function setStatus(s) { $('status').textContent = s; }
@@ -190,26 +192,21 @@ function orbitOf(h) {
   return { center: s.center, up: dirToWorld(s, [0, 1, 0]), start: dirToWorld(s, [0, 0, 1]), radius: 3 / s.scale, elevation: (30 * Math.PI) / 180 };
 }
 
-// ---- the renderer (host side of viewer/src/gpu.rs) ----
-class Renderer {
-  constructor(device, h, shader, presentWgsl, wg) {
-    this.device = device;
-    this.presentWgsl = presentWgsl;
+// ---- the renderers (host side of viewer/src/gpu.rs) ----
+// What both renderers (WebGPU, WebGL2) share: the atlas layout, the packed grid, the MLP's
+// layout, the silhouette pass's choice and the params struct (one layout: the WGSL `Params`,
+// a uniform buffer on WebGPU, a std140 uniform block on WebGL2).
+class MarchHost {
+  constructor(h, maxDim3D) {
     this.slots = [];
     this.h = h;
-    this.wg = wg;
     this.g = h.res / h.block;
     this.g3 = this.g ** 3;
     this.frames = h.frames ? h.frames.length : 1;
     this.edge = h.block + 2;
-    this.layout = planAtlas(h.atlas_blocks, this.edge, device.limits.maxTextureDimension3D);
-    const t = this.texels();
+    this.layout = planAtlas(h.atlas_blocks, this.edge, maxDim3D);
     // a diffuse asset's voxel is density and RGB alone (its features are zero): one u32
     this.voxelBytes = h.diffuse ? 4 : 8;
-    this.atlas = device.createTexture({ size: t, dimension: '3d', format: h.diffuse ? 'r32uint' : 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
-    this.gridBuf = device.createBuffer({ size: Math.max(4, this.g3 * this.frames * 4), usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_DST });
-    this.mlpBuf = device.createBuffer({ size: 900 * 4, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
-    this.pipeline = device.createComputePipeline({ layout: 'auto', compute: { module: device.createShaderModule({ code: shader }), entryPoint: 'main' } });
     this.grids = new Array(this.frames).fill(null);
     this.present = new Uint8Array(h.atlas_blocks);
     this.gridDirty = true;
@@ -217,7 +214,8 @@ class Renderer {
   texels() { const l = this.layout; return [l.nx * l.edge, l.ny * l.edge, l.nz * l.edge]; }
   packed(b) { const l = this.layout; return (b % l.nx) | ((Math.floor(b / l.nx) % l.ny) << 10) | (Math.floor(b / (l.nx * l.ny)) << 20); }
   origin(b) { const l = this.layout; return [(b % l.nx) * l.edge, (Math.floor(b / l.nx) % l.ny) * l.edge, Math.floor(b / (l.nx * l.ny)) * l.edge]; }
-  setMlp(payload) {
+  // The view MLP transposed to input-major vec4 rows (gpu.rs `mlp_gpu_layout`): 225 vec4.
+  mlpRows(payload) {
     const f = new Float32Array(payload.slice().buffer, 0, 883);
     const I = 34, H = 16, O = 3;
     const W1 = 0, B1 = H * I, W2 = B1 + H, B2 = W2 + H * H, W3 = B2 + H, B3 = W3 + O * H;
@@ -229,21 +227,11 @@ class Renderer {
     for (let j = 0; j < H; j++) v[k++] = f[B2 + j];
     for (let i = 0; i < H; i++) for (let j = 0; j < 4; j++) v[k++] = j < O ? f[W3 + j * H + i] : 0;
     for (let j = 0; j < 4; j++) v[k++] = j < O ? f[B3 + j] : 0;
-    this.device.queue.writeBuffer(this.mlpBuf, 0, v);
+    return v;
   }
   setGrid(frameIndex, entries) { this.grids[frameIndex] = entries; this.gridDirty = true; }
-  // `data`: `count` blocks of (block+2)^3 voxels, one texel each: 8 bytes (rg32uint), or 4
-  // (r32uint) in a diffuse asset, whose file stores density and RGB alone.
-  setBlocks(first, count, data) {
-    const e = this.edge, n = this.voxelBytes, bb = e * e * e * n;
-    for (let k = 0; k < count; k++) {
-      const b = first + k;
-      this.device.queue.writeTexture({ texture: this.atlas, origin: this.origin(b) }, data.subarray(k * bb, (k + 1) * bb), { bytesPerRow: e * n, rowsPerImage: e }, [e, e, e]);
-      this.present[b] = 1;
-    }
-    this.gridDirty = true;
-  }
-  uploadGrid() {
+  // Every keyframe's grid, entries packed, those of blocks not yet uploaded EMPTY.
+  gridEntries() {
     const host = new Uint32Array(this.g3 * this.frames).fill(EMPTY);
     for (let f = 0; f < this.frames; f++) {
       const g = this.grids[f];
@@ -253,8 +241,7 @@ class Renderer {
         if (e !== EMPTY && this.present[e]) host[f * this.g3 + i] = this.packed(e);
       }
     }
-    this.device.queue.writeBuffer(this.gridBuf, 0, host);
-    this.gridDirty = false;
+    return host;
   }
   // Side of the sub-pixel grid a silhouette pixel of `cam` takes (1: none): the header's
   // pixel_rays (absent: 1), as the field was trained, for cameras whose pixels are at least
@@ -288,6 +275,37 @@ class Renderer {
     u.set([k0 * this.g3, k1 * this.g3, k0 === k1 ? 1 : 0, side], 56);
     f.set([1 / t[0], 1 / t[1], 1 / t[2], 0], 60);
     return b;
+  }
+}
+
+// WebGPU: the compute shader of /march.wgsl.
+class Renderer extends MarchHost {
+  constructor(device, h, shader, presentWgsl, wg) {
+    super(h, device.limits.maxTextureDimension3D);
+    this.device = device;
+    this.presentWgsl = presentWgsl;
+    this.wg = wg;
+    const t = this.texels();
+    this.atlas = device.createTexture({ size: t, dimension: '3d', format: h.diffuse ? 'r32uint' : 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
+    this.gridBuf = device.createBuffer({ size: Math.max(4, this.g3 * this.frames * 4), usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_DST });
+    this.mlpBuf = device.createBuffer({ size: 900 * 4, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
+    this.pipeline = device.createComputePipeline({ layout: 'auto', compute: { module: device.createShaderModule({ code: shader }), entryPoint: 'main' } });
+  }
+  setMlp(payload) { this.device.queue.writeBuffer(this.mlpBuf, 0, this.mlpRows(payload)); }
+  // `data`: `count` blocks of (block+2)^3 voxels, one texel each: 8 bytes (rg32uint), or 4
+  // (r32uint) in a diffuse asset, whose file stores density and RGB alone.
+  setBlocks(first, count, data) {
+    const e = this.edge, n = this.voxelBytes, bb = e * e * e * n;
+    for (let k = 0; k < count; k++) {
+      const b = first + k;
+      this.device.queue.writeTexture({ texture: this.atlas, origin: this.origin(b) }, data.subarray(k * bb, (k + 1) * bb), { bytesPerRow: e * n, rowsPerImage: e }, [e, e, e]);
+      this.present[b] = 1;
+    }
+    this.gridDirty = true;
+  }
+  uploadGrid() {
+    this.device.queue.writeBuffer(this.gridBuf, 0, this.gridEntries());
+    this.gridDirty = false;
   }
   // Buffers of one view (slot 0: the page's canvas; slots 0 and 1: the two eyes in XR).
   slot(i, w, hgt) {
@@ -391,6 +409,216 @@ class Renderer {
   }
 }
 
+// WebGL2 (browsers without WebGPU): the same march, as the fragment shader of /march.glsl
+// (shaders/march.wgsl's fragment target translated to GLSL ES 3.00 by the server), drawn as
+// a full-screen triangle into float render targets, one pair per view. The same interface
+// as `Renderer`; `render`'s target is this renderer's canvas (`gl.canvas`), or null.
+// Bindings: GLSL ES 3.00 has no layout(binding), so uniform blocks and samplers are bound by
+// the names the translation reports, on the unit / binding point of their WGSL binding.
+const GL_BLIT_VS = `#version 300 es
+void main() {
+  vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
+  gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
+}`;
+// A view's target holds image row y at GL row y (see shaders/march_fragment.wgsl): the canvas
+// shows it flipped, one texel per pixel, as shaders/present.wgsl does on WebGPU.
+const GL_BLIT_FS = `#version 300 es
+precision highp float; uniform highp sampler2D img; uniform ivec2 origin; out vec4 o;
+void main() {
+  ivec2 size = textureSize(img, 0);
+  ivec2 p = ivec2(gl_FragCoord.xy) - origin;
+  o = vec4(texelFetch(img, ivec2(p.x, size.y - 1 - p.y), 0).rgb, 1.0);
+}`;
+
+function glProgram(gl, vs, fs, what) {
+  const sh = (type, src) => {
+    const s = gl.createShader(type);
+    gl.shaderSource(s, src);
+    gl.compileShader(s);
+    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(`${what}: ${gl.getShaderInfoLog(s)}`);
+    return s;
+  };
+  const p = gl.createProgram();
+  gl.attachShader(p, sh(gl.VERTEX_SHADER, vs));
+  gl.attachShader(p, sh(gl.FRAGMENT_SHADER, fs));
+  gl.linkProgram(p);
+  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(`${what}: ${gl.getProgramInfoLog(p)}`);
+  return p;
+}
+
+class RendererGL extends MarchHost {
+  // `prog`: the JSON of /march.glsl ({vertex, fragment, uniforms, textures}).
+  constructor(gl, h, prog) {
+    super(h, gl.getParameter(gl.MAX_3D_TEXTURE_SIZE));
+    this.gl = gl;
+    this.canvas = gl.canvas;
+    const t = this.texels();
+    const tex = (target) => {
+      const x = gl.createTexture();
+      gl.bindTexture(target, x);
+      // integer and 32-bit float textures are read by texelFetch only: no filtering, no mips
+      gl.texParameteri(target, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+      gl.texParameteri(target, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+      return x;
+    };
+    this.tex = tex;
+    this.atlas = tex(gl.TEXTURE_3D);
+    gl.texStorage3D(gl.TEXTURE_3D, 1, h.diffuse ? gl.R32UI : gl.RG32UI, t[0], t[1], t[2]);
+    // The grid: entry i at texel (i % width, i / width) of an r32uint texture.
+    const n = Math.max(1, this.g3 * this.frames), max = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+    this.gridW = Math.min(max, 4096);
+    this.gridH = Math.ceil(n / this.gridW);
+    if (this.gridH > max) throw new Error(`the grid (${n} entries) does not fit this GPU's 2D textures`);
+    this.grid = tex(gl.TEXTURE_2D);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R32UI, this.gridW, this.gridH);
+    this.mlpBuf = gl.createBuffer();
+    gl.bindBuffer(gl.UNIFORM_BUFFER, this.mlpBuf);
+    gl.bufferData(gl.UNIFORM_BUFFER, 900 * 4, gl.DYNAMIC_DRAW);
+    this.prog = glProgram(gl, prog.vertex, prog.fragment, 'march (GLSL)');
+    gl.useProgram(this.prog);
+    for (const [b, name] of Object.entries(prog.uniforms)) {
+      const i = gl.getUniformBlockIndex(this.prog, name);
+      if (i !== gl.INVALID_INDEX) gl.uniformBlockBinding(this.prog, i, +b);
+    }
+    for (const [b, name] of Object.entries(prog.textures)) gl.uniform1i(gl.getUniformLocation(this.prog, name), +b);
+    this.blit = glProgram(gl, GL_BLIT_VS, GL_BLIT_FS, 'present (GLSL)');
+    this.blitOrigin = gl.getUniformLocation(this.blit, 'origin');
+    gl.useProgram(this.blit);
+    gl.uniform1i(gl.getUniformLocation(this.blit, 'img'), 0);
+  }
+  setMlp(payload) {
+    const gl = this.gl;
+    gl.bindBuffer(gl.UNIFORM_BUFFER, this.mlpBuf);
+    gl.bufferSubData(gl.UNIFORM_BUFFER, 0, this.mlpRows(payload));
+  }
+  setBlocks(first, count, data) {
+    const gl = this.gl, e = this.edge, n = this.voxelBytes, bb = e * e * e * n;
+    gl.bindTexture(gl.TEXTURE_3D, this.atlas);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 4);
+    for (let k = 0; k < count; k++) {
+      const b = first + k, o = this.origin(b);
+      // u32 texels (little-endian, as the file stores a voxel's bytes): a copy when the
+      // payload's offset is not 4-aligned
+      const bytes = data.subarray(k * bb, (k + 1) * bb);
+      const words = bytes.byteOffset % 4 ? new Uint32Array(bytes.slice().buffer) : new Uint32Array(bytes.buffer, bytes.byteOffset, bb / 4);
+      gl.texSubImage3D(gl.TEXTURE_3D, 0, o[0], o[1], o[2], e, e, e, n === 8 ? gl.RG_INTEGER : gl.RED_INTEGER, gl.UNSIGNED_INT, words);
+      this.present[b] = 1;
+    }
+    this.gridDirty = true;
+  }
+  uploadGrid() {
+    const gl = this.gl;
+    const all = new Uint32Array(this.gridW * this.gridH).fill(EMPTY);
+    all.set(this.gridEntries());
+    gl.bindTexture(gl.TEXTURE_2D, this.grid);
+    gl.pixelStorei(gl.UNPACK_ALIGNMENT, 4);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.gridW, this.gridH, gl.RED_INTEGER, gl.UNSIGNED_INT, all);
+    this.gridDirty = false;
+  }
+  // Targets of one view: pass 0 (every pixel's centre ray) and pass 1 (the silhouette pass,
+  // which reads pass 0's as textures), each an rgba32float + r32float pair.
+  slot(i, w, hgt) {
+    const s0 = this.slots[i];
+    if (s0 && s0.w === w && s0.h === hgt) return s0;
+    const gl = this.gl;
+    const pass = () => {
+      const rgba = this.tex(gl.TEXTURE_2D);
+      gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA32F, w, hgt);
+      const depth = this.tex(gl.TEXTURE_2D);
+      gl.texStorage2D(gl.TEXTURE_2D, 1, gl.R32F, w, hgt);
+      const fb = gl.createFramebuffer();
+      gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, rgba, 0);
+      gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT1, gl.TEXTURE_2D, depth, 0);
+      gl.drawBuffers([gl.COLOR_ATTACHMENT0, gl.COLOR_ATTACHMENT1]);
+      const st = gl.checkFramebufferStatus(gl.FRAMEBUFFER);
+      if (st !== gl.FRAMEBUFFER_COMPLETE) throw new Error(`WebGL2: float render targets unsupported (status 0x${st.toString(16)})`);
+      const params = gl.createBuffer();
+      gl.bindBuffer(gl.UNIFORM_BUFFER, params);
+      gl.bufferData(gl.UNIFORM_BUFFER, 256, gl.DYNAMIC_DRAW);
+      return { rgba, depth, fb, params };
+    };
+    const s = { w, h: hgt, pass: [pass(), pass()] };
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    if (s0) for (const p of s0.pass) { gl.deleteTexture(p.rgba); gl.deleteTexture(p.depth); gl.deleteFramebuffer(p.fb); gl.deleteBuffer(p.params); }
+    return (this.slots[i] = s);
+  }
+  // As `Renderer.render`: march `views` ([{cam, x, y}]) at `time`, present each into
+  // `target` (this renderer's canvas, or null) at (x, y) from its top left; with `capture`,
+  // every view read back (Float32Array of width*height RGBA, A = opacity, rows top first).
+  // Every GL call is issued before the first await, so a caller that uploads the canvas right
+  // after calling (xr.js) gets this frame.
+  async render(views, time, target, capture) {
+    const gl = this.gl;
+    if (this.gridDirty) this.uploadGrid();
+    const slots = views.map((v, i) => this.slot(i, v.cam.width, v.cam.height));
+    const sides = views.map((v) => this.pixelSide(v.cam));
+    this.lastSides = sides;
+    gl.disable(gl.BLEND); gl.disable(gl.DEPTH_TEST); gl.disable(gl.SCISSOR_TEST); gl.disable(gl.CULL_FACE);
+    gl.useProgram(this.prog);
+    gl.activeTexture(gl.TEXTURE5); gl.bindTexture(gl.TEXTURE_3D, this.atlas);
+    gl.activeTexture(gl.TEXTURE1); gl.bindTexture(gl.TEXTURE_2D, this.grid);
+    gl.bindBufferBase(gl.UNIFORM_BUFFER, 2, this.mlpBuf);
+    const final = slots.map((s, i) => {
+      for (const k of sides[i] > 1 ? [0, 1] : [0]) {
+        const p = s.pass[k], other = s.pass[1 - k];
+        gl.bindBuffer(gl.UNIFORM_BUFFER, p.params);
+        gl.bufferSubData(gl.UNIFORM_BUFFER, 0, new Uint8Array(this.params(views[i].cam, time, k === 0 ? 0 : sides[i])));
+        gl.bindBufferBase(gl.UNIFORM_BUFFER, 0, p.params);
+        // pass 1 reads pass 0's output; pass 0 reads nothing there, but a texture bound to a
+        // sampler must not be the target being drawn (a feedback loop): pass 1's are bound
+        gl.activeTexture(gl.TEXTURE3); gl.bindTexture(gl.TEXTURE_2D, other.rgba);
+        gl.activeTexture(gl.TEXTURE4); gl.bindTexture(gl.TEXTURE_2D, other.depth);
+        gl.bindFramebuffer(gl.FRAMEBUFFER, p.fb);
+        gl.viewport(0, 0, s.w, s.h);
+        gl.drawArrays(gl.TRIANGLES, 0, 3);
+      }
+      return s.pass[sides[i] > 1 ? 1 : 0];
+    });
+    if (target) {
+      gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+      gl.viewport(0, 0, gl.drawingBufferWidth, gl.drawingBufferHeight);
+      gl.clearColor(0.12, 0.12, 0.12, 1);
+      gl.clear(gl.COLOR_BUFFER_BIT);
+      gl.useProgram(this.blit);
+      gl.activeTexture(gl.TEXTURE0);
+      views.forEach((v, i) => {
+        const s = slots[i], y = gl.drawingBufferHeight - v.y - s.h; // GL's viewport y is up
+        gl.bindTexture(gl.TEXTURE_2D, final[i].rgba);
+        gl.uniform2i(this.blitOrigin, v.x, y);
+        gl.viewport(v.x, y, s.w, s.h);
+        gl.drawArrays(gl.TRIANGLES, 0, 3);
+      });
+    }
+    let out = null;
+    if (capture) {
+      out = slots.map((s, i) => {
+        const px = new Float32Array(s.w * s.h * 4);
+        gl.bindFramebuffer(gl.READ_FRAMEBUFFER, final[i].fb);
+        gl.readBuffer(gl.COLOR_ATTACHMENT0);
+        gl.readPixels(0, 0, s.w, s.h, gl.RGBA, gl.FLOAT, px);
+        return px;
+      });
+      gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
+    }
+    const err = gl.getError();
+    if (err !== gl.NO_ERROR) throw new Error(`WebGL2 error 0x${err.toString(16)}`);
+    if (!out) await this.finished();
+    return out;
+  }
+  // Resolves once the GPU has done what was submitted (frame timing for the render scale).
+  finished() {
+    const gl = this.gl, sync = gl.fenceSync(gl.SYNC_GPU_COMMANDS_COMPLETE, 0);
+    gl.flush();
+    return new Promise((res) => {
+      const poll = () => {
+        if (gl.getSyncParameter(sync, gl.SYNC_STATUS) === gl.SIGNALED) { gl.deleteSync(sync); res(); } else setTimeout(poll, 1);
+      };
+      poll();
+    });
+  }
+}
+
 // AtlasLayout::plan (viewer/src/gpu.rs).
 function planAtlas(blocks, edge, maxDim) {
   const n = Math.max(1, blocks);
@@ -420,7 +648,9 @@ function timeSlot(frames, t) {
 const fovOf = (c) => (2 * Math.atan(0.5 * Math.max(c.width / c.fx, c.height / c.fy)) * 180) / Math.PI;
 
 // ---- streaming one asset ----
-// gpu: {device, wg, ctx (the canvas's WebGPU context), presentWgsl}.
+// gpu: {backend: 'webgpu', device, wg, ctx (the canvas's WebGPU context), presentWgsl, target}
+// or {backend: 'webgl2', gl (the canvas's WebGL2 context), target}; target(): what a frame
+// of the page's canvas is presented into.
 async function stream(name, gpu) {
   const t0 = performance.now();
   // Orbit state; `pan` moves the orbit centre (keyboard fly), in world units.
@@ -529,7 +759,7 @@ async function stream(name, gpu) {
       // What this frame shows: the blocks uploaded before it was submitted.
       const blocks = report.blocks, done = report.chunks === info.chunks;
       const ts = performance.now();
-      const out = await r.render([{ cam, x: 0, y: 0 }], time, gpu.ctx.getCurrentTexture(), capture);
+      const out = await r.render([{ cam, x: 0, y: 0 }], time, gpu.target(), capture);
       const ms = performance.now() - ts;
       report.frames++;
       if (report.firstFrameMs === null) {
@@ -599,7 +829,7 @@ async function stream(name, gpu) {
 
   function stats(ms, sc) {
     $('stats').textContent =
-      `${(1000 / Math.max(ms, 0.01)).toFixed(1)} fps (${ms.toFixed(1)} ms)  scale ${sc.toFixed(2)}\n` +
+      `${(1000 / Math.max(ms, 0.01)).toFixed(1)} fps (${ms.toFixed(1)} ms)  scale ${sc.toFixed(2)}  ${report.backend}\n` +
       `blocks ${report.blocks}/${h ? h.atlas_blocks : '?'}  chunks ${report.chunks}/${info.chunks}\n` +
       `${(report.bytes / 1048576).toFixed(2)} MiB received\n` +
       `first frame ${report.firstFrameMs === null ? '-' : report.firstFrameMs.toFixed(0) + ' ms'}`;
@@ -621,11 +851,20 @@ async function stream(name, gpu) {
       view.baseRadius = orbit.radius;
       const kind = { object: 0, forward: 1, unbounded: 2 }[h.kind];
       const dyn = h.frames && h.frames.length > 1 ? 1 : 0;
-      const res = await fetch(`/march.wgsl?kind=${kind}&dynamic=${dyn}&diffuse=${h.diffuse ? 1 : 0}&block=${h.block}`);
+      const variant = `kind=${kind}&dynamic=${dyn}&diffuse=${h.diffuse ? 1 : 0}&block=${h.block}`;
+      // The same march either way: the compute shader (WebGPU) or its fragment target in GLSL
+      // (WebGL2), both composed by the server from shaders/march.wgsl.
+      const res = await fetch(`/march.${gpu.backend === 'webgl2' ? 'glsl' : 'wgsl'}?${variant}`);
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
-      const code = await res.text();
-      report.marks.shader = performance.now();
-      r = new Renderer(gpu.device, h, code, gpu.presentWgsl, gpu.wg);
+      if (gpu.backend === 'webgl2') {
+        const prog = await res.json();
+        report.marks.shader = performance.now();
+        r = new RendererGL(gpu.gl, h, prog);
+      } else {
+        const code = await res.text();
+        report.marks.shader = performance.now();
+        r = new Renderer(gpu.device, h, code, gpu.presentWgsl, gpu.wg);
+      }
       report.marks.pipeline = performance.now();
       // a diffuse asset has no VMLP chunk: its view MLP is zero
       if (h.diffuse) { r.setMlp(new Uint8Array(883 * 4)); r.mlp = true; }
@@ -769,7 +1008,7 @@ async function stream(name, gpu) {
     for (let i = 0; i < n; i++) {
       const cam = cam0 || camera(fixedCam ? 1 : scale);
       const t = performance.now();
-      await r.render([{ cam, x: 0, y: 0 }], time, gpu.ctx.getCurrentTexture(), false);
+      await r.render([{ cam, x: 0, y: 0 }], time, gpu.target(), false);
       out.push(performance.now() - t);
     }
     return out;
@@ -859,31 +1098,50 @@ function showListing(assets) {
 async function main() {
   if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
   if (typeof WebTransport === 'undefined') throw new Error('this browser has no WebTransport (it needs a secure context: https, or http on localhost)');
-  if (!navigator.gpu) throw new Error('this browser has no WebGPU');
   config = await (await fetch('/config.json')).json();
   // The listing, the GPU and (with an asset named) the stream start together: the first
   // frame waits for none of the others.
   const listing = listAssets().then(showListing);
   listing.catch(() => {}); // awaited below; this only keeps an early failure from being "unhandled"
   const want = frag.get('asset');
-  const adapter = await navigator.gpu.requestAdapter();
-  if (!adapter) throw new Error('no WebGPU adapter');
+  // WebGPU where the browser has it; else WebGL2 (headset browsers without WebGPU), the same
+  // march translated to GLSL.
+  const adapter = navigator.gpu ? await navigator.gpu.requestAdapter().catch(() => null) : null;
   report.marks.adapter = performance.now();
-  report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
-  const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
-  report.marks.device = performance.now();
-  device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
+  report.backend = adapter ? 'webgpu' : 'webgl2';
+  let gpu;
+  if (adapter) {
+    report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
+    const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
+    report.marks.device = performance.now();
+    device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
+    gpu = { backend: 'webgpu', device };
+  } else {
+    // preserveDrawingBuffer: immersive mode reads this canvas (the last marched image) on
+    // frames that march nothing new
+    const gl = $('canvas').getContext('webgl2', { alpha: false, antialias: false, depth: false, stencil: false, preserveDrawingBuffer: true });
+    if (!gl) throw new Error('this browser has neither WebGPU nor WebGL2');
+    // the march writes rgba32float and r32float targets, read back exactly as WebGPU's buffers
+    if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('WebGL2 without EXT_color_buffer_float (float render targets)');
+    const dbg = gl.getExtension('WEBGL_debug_renderer_info');
+    report.adapter = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+    report.marks.device = performance.now();
+    gpu = { backend: 'webgl2', gl, target: () => gl.canvas };
+  }
   if (!want) {
     const assets = await listing;
     report.state = 'listed';
     setStatus(`${assets.length} asset(s); choose one`);
     return;
   }
-  const ctx = $('canvas').getContext('webgpu');
-  ctx.configure({ device, format: navigator.gpu.getPreferredCanvasFormat(), alphaMode: 'opaque' });
-  const pw = await fetch('/present.wgsl');
-  if (!pw.ok) throw new Error('present shader: HTTP ' + pw.status);
-  const info = await stream(want, { device, wg: config.workgroup, ctx, presentWgsl: await pw.text() });
+  if (gpu.backend === 'webgpu') {
+    const ctx = $('canvas').getContext('webgpu');
+    ctx.configure({ device: gpu.device, format: navigator.gpu.getPreferredCanvasFormat(), alphaMode: 'opaque' });
+    const pw = await fetch('/present.wgsl');
+    if (!pw.ok) throw new Error('present shader: HTTP ' + pw.status);
+    Object.assign(gpu, { wg: config.workgroup, ctx, presentWgsl: await pw.text(), target: () => ctx.getCurrentTexture() });
+  }
+  const info = await stream(want, gpu);
   await listing;
   report.state = 'done';
   setStatus(`${info.name}: ${info.size} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);

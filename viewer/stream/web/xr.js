@@ -131,9 +131,11 @@ export async function enterXR(api, report) {
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
   const rectLoc = gl.getUniformLocation(prog, 'rect');
-  const off = new OffscreenCanvas(16, 16);
-  const ctx = off.getContext('webgpu');
-  ctx.configure({ device: api.gpu.device, format: 'rgba8unorm', alphaMode: 'opaque' });
+  // WebGPU marches into an OffscreenCanvas of its own; the WebGL2 renderer (app.js
+  // `RendererGL`) into its context's canvas, which is uploaded the same way.
+  const off = api.gpu.backend === 'webgl2' ? api.gpu.gl.canvas : new OffscreenCanvas(16, 16);
+  const ctx = api.gpu.backend === 'webgl2' ? null : off.getContext('webgpu');
+  if (ctx) ctx.configure({ device: api.gpu.device, format: 'rgba8unorm', alphaMode: 'opaque' });
   // Dynamic render scale: the fraction of each eye's pixels marched, held to the display's
   // refresh (session.frameRate where the browser says it, else 72 Hz).
   let scale = api.capture ? 1 : api.fixedScale ?? 0.5;
@@ -254,7 +256,7 @@ export async function enterXR(api, report) {
     if (busy) { draw(); return; } // the last marched image, reprojected by nothing: never wait
     busy = true;
     const ts = performance.now();
-    const done = r.render(views, time, ctx.getCurrentTexture(), api.capture);
+    const done = r.render(views, time, ctx ? ctx.getCurrentTexture() : off, api.capture);
     draw();
     let glShot = null;
     if (api.capture) {

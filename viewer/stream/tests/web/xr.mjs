@@ -91,7 +91,7 @@ try {
   await page.evaluate(() => window.__xr.controllers.right.updateButtonValue('squeeze', 0));
   await frames(2);
   const gripped = await snap();
-  console.log(JSON.stringify({ before, moved, turned, walked, snapped, gripped, page: { error: await page.evaluate(() => window.snerf.error) } }));
+  console.log(JSON.stringify({ before, moved, turned, walked, snapped, gripped, page: { error: await page.evaluate(() => window.snerf.error), backend: await page.evaluate(() => window.snerf.backend) } }));
 } finally {
   await browser.close();
 }
