@@ -43,6 +43,30 @@ fn browser() -> Option<(PathBuf, PathBuf)> {
     None
 }
 
+/// A small real asset, `ASSETS/NAME.snerf`: scene -> train -> bake, in `d`.
+fn bake_small(d: &Path, assets: &Path, name: &str) -> PathBuf {
+    let ds = d.join("ds");
+    ok(snerf()
+        .args(["--json", "scene", "object", "--out"])
+        .arg(&ds)
+        .args(["--views", "6", "--test-views", "2", "--size", "16x16", "--supersample", "1"])
+        .output()
+        .unwrap());
+    let run = d.join("run");
+    ok(snerf().args(["--json", "train"]).arg(&ds).arg("--out").arg(&run).args(["--steps", "2"]).output().unwrap());
+    std::fs::create_dir_all(assets).unwrap();
+    let file = assets.join(format!("{name}.snerf"));
+    ok(snerf()
+        .args(["--json", "bake"])
+        .arg(&run)
+        .arg("--out")
+        .arg(&file)
+        .args(["--resolution", "32", "--eval-views", "0", "--visibility-views", "4"])
+        .output()
+        .unwrap());
+    file
+}
+
 /// Kills the server when the test ends, however it ends.
 struct Server(std::process::Child);
 impl Drop for Server {
@@ -56,27 +80,8 @@ impl Drop for Server {
 fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     let Some((chromium, pw)) = browser() else { return };
     let d = ScratchDir::new("snerf-web", "page").unwrap();
-    // A small real asset: scene -> train -> bake.
-    let ds = d.join("ds");
-    ok(snerf()
-        .args(["--json", "scene", "object", "--out"])
-        .arg(&ds)
-        .args(["--views", "6", "--test-views", "2", "--size", "16x16", "--supersample", "1"])
-        .output()
-        .unwrap());
-    let run = d.join("run");
-    ok(snerf().args(["--json", "train"]).arg(&ds).arg("--out").arg(&run).args(["--steps", "2"]).output().unwrap());
     let assets = d.join("assets");
-    std::fs::create_dir_all(&assets).unwrap();
-    let file = assets.join("a.snerf");
-    ok(snerf()
-        .args(["--json", "bake"])
-        .arg(&run)
-        .arg("--out")
-        .arg(&file)
-        .args(["--resolution", "32", "--eval-views", "0", "--visibility-views", "4"])
-        .output()
-        .unwrap());
+    let file = bake_small(&d, &assets, "a");
     // The CPU reference image of the orbit's first camera.
     let frames = d.join("frames");
     ok(snerf().args(["--json", "render"]).arg(&file).args(["--path", "orbit", "--frames", "1", "--size", "24x16", "--out"]).arg(&frames).output().unwrap());
@@ -177,4 +182,145 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     // diffuse file, and drew it without the view MLP)
     assert!(diff < 0.5 * apart, "diffuse asset: the page is {diff} from the diffuse reference, the full image {apart}");
     drop(server);
+}
+
+/// A "laptop" on a LAN of the test's own: a network namespace joined to this one by a veth
+/// pair, 10.77.N.1 on this side and 10.77.N.2 inside. Traffic to it never leaves the machine.
+/// Removed (with its veth) when dropped.
+struct Lan {
+    ns: String,
+    here: String,
+    laptop: String,
+}
+
+impl Lan {
+    /// None (after saying why) where namespaces cannot be made: not root, no `ip`. Under
+    /// SNERF_REQUIRE_NETNS=1 (CI, as root) that is a failure.
+    fn new() -> Option<Lan> {
+        let n = std::process::id() % 200 + 20;
+        let ns = format!("snerf-lan-{}", std::process::id());
+        let (va, vb) = (format!("snl{n}a"), format!("snl{n}b"));
+        let ip = |args: &[&str]| Command::new("ip").args(args).output().map(|o| (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned()));
+        let _ = ip(&["netns", "del", &ns]);
+        let _ = ip(&["link", "del", &va]);
+        let (here, laptop) = (format!("10.77.{n}.1"), format!("10.77.{n}.2"));
+        let steps: Vec<Vec<String>> = vec![
+            vec!["netns".into(), "add".into(), ns.clone()],
+            vec!["link".into(), "add".into(), va.clone(), "type".into(), "veth".into(), "peer".into(), "name".into(), vb.clone()],
+            vec!["link".into(), "set".into(), vb.clone(), "netns".into(), ns.clone()],
+            vec!["addr".into(), "add".into(), format!("{here}/24"), "dev".into(), va.clone()],
+            vec!["link".into(), "set".into(), va.clone(), "up".into()],
+            vec!["-n".into(), ns.clone(), "addr".into(), "add".into(), format!("{laptop}/24"), "dev".into(), vb.clone()],
+            vec!["-n".into(), ns.clone(), "link".into(), "set".into(), vb.clone(), "up".into()],
+            vec!["-n".into(), ns.clone(), "link".into(), "set".into(), "lo".into(), "up".into()],
+        ];
+        let lan = Lan { ns, here, laptop };
+        for s in steps {
+            let a: Vec<&str> = s.iter().map(String::as_str).collect();
+            match ip(&a) {
+                Ok((true, _)) => {}
+                r => {
+                    let why = format!("cannot make a network namespace (`ip {}`: {:?})", a.join(" "), r);
+                    if std::env::var("SNERF_REQUIRE_NETNS").as_deref() == Ok("1") {
+                        panic!("SNERF_REQUIRE_NETNS=1 but {why}");
+                    }
+                    eprintln!("skipping the LAN test: {why} (needs root and iproute2)");
+                    return None;
+                }
+            }
+        }
+        let _ = &lan.here;
+        Some(lan)
+    }
+}
+
+impl Drop for Lan {
+    fn drop(&mut self) {
+        // Deleting the namespace deletes its veth end, and with it the pair.
+        let _ = Command::new("ip").args(["netns", "del", &self.ns]).output();
+    }
+}
+
+/// The subject alternative names of the certificate served at `addr`, as OpenSSL reads them.
+fn served_sans(addr: &str) -> String {
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!("openssl s_client -connect {addr} -servername localhost </dev/null 2>/dev/null | openssl x509 -noout -ext subjectAltName"))
+        .output()
+        .expect("openssl");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn a_headset_on_the_lan_opens_the_printed_https_url_and_enters_vr() {
+    let Some((chromium, pw)) = browser() else { return };
+    let Some(lan) = Lan::new() else { return };
+    let d = ScratchDir::new("snerf-web", "lan").unwrap();
+    let assets = d.join("assets");
+    let file = bake_small(&d, &assets, "a");
+    // `snerf serve --listen 0.0.0.0:P` on the "laptop", as a user starts it.
+    let mut child = Command::new("ip")
+        .args(["netns", "exec", &lan.ns, env!("CARGO_BIN_EXE_snerf"), "--json", "serve"])
+        .arg(&assets)
+        .args(["--listen", "0.0.0.0:0", "--web", "0.0.0.0:0", "--state"])
+        .arg(d.join("state"))
+        .env("RAYON_NUM_THREADS", "2")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let server = Server(child);
+    let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
+    // One URL per LAN address: the namespace has one, and that is what the QR code holds.
+    let urls: Vec<&str> = ready["web_urls"].as_array().unwrap().iter().map(|u| u.as_str().unwrap()).collect();
+    assert_eq!(urls.len(), 1, "{ready}");
+    let url = urls[0];
+    let port = url.rsplit_once(':').unwrap().1.trim_end_matches('/');
+    assert_eq!(url, format!("https://{}:{port}/", lan.laptop), "{ready}");
+    assert_eq!(ready["web_url"], url);
+    assert_eq!(ready["web_qr"], url);
+    // The served certificate names the LAN address, loopback and the host name (+ .local).
+    let sans = served_sans(&format!("{}:{port}", lan.laptop));
+    let host = gethostname();
+    let mut want = vec![format!("IP Address:{}", lan.laptop), "IP Address:127.0.0.1".into(), "DNS:localhost".into()];
+    if let Some(h) = &host {
+        want.push(format!("DNS:{h}"));
+        want.push(format!("DNS:{h}.local"));
+    }
+    for w in &want {
+        assert!(sans.contains(w.as_str()), "the certificate lacks {w}: {sans}");
+    }
+    let names: Vec<&str> = ready["web_cert_names"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
+    assert!(names.contains(&lan.laptop.as_str()), "{names:?}");
+    let token = ready["token"].as_str().unwrap();
+    // Chromium in this namespace opens the printed https LAN URL (accepting the certificate
+    // once, as a person clicking through): the page streams the asset and draws it.
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/stream/tests/web/page.mjs");
+    let full = format!("{url}#token={token}&asset=a");
+    let out = Command::new("node").arg(&script).arg(&pw).arg(format!("{full}&capture=1")).arg("done").env("SNERF_CHROMIUM", &chromium).output().unwrap();
+    assert!(out.status.success(), "page.mjs: {}", String::from_utf8_lossy(&out.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(r["error"], serde_json::Value::Null, "page error over the LAN: {}", r["error"]);
+    let sha = String::from_utf8(Command::new("sha256sum").arg(&file).output().unwrap().stdout).unwrap();
+    let sha = sha.split_whitespace().next().unwrap().to_string();
+    assert_eq!(r["sha256"], sha.as_str());
+    assert_eq!(r["lastRender"]["complete"], true);
+    // Enter VR on an emulated Quest 3 (iwer): both eyes drawn, frames running.
+    let xr = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/stream/tests/web/xr.mjs");
+    // xr.mjs wants the folder whose node_modules holds playwright-core and iwer.
+    let pw_root = pw.parent().and_then(Path::parent).unwrap();
+    let out = Command::new("node").arg(&xr).arg(pw_root).arg(format!("{full}&capture=1")).env("SNERF_CHROMIUM", &chromium).output().unwrap();
+    assert!(out.status.success(), "xr.mjs: {}", String::from_utf8_lossy(&out.stderr));
+    let x: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let eyes = x["before"]["eyes"].as_array().unwrap_or_else(|| panic!("no eyes: {x}"));
+    assert_eq!(eyes.len(), 2);
+    assert!(eyes.iter().all(|e| e["rgba"].is_array()), "an eye was not drawn");
+    drop(server);
+}
+
+fn gethostname() -> Option<String> {
+    let h = std::fs::read_to_string("/proc/sys/kernel/hostname").ok()?.trim().to_string();
+    (!h.is_empty() && h.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'.')).then_some(h)
 }

@@ -348,40 +348,81 @@ fn first_frame_comes_before_the_whole_asset_under_a_small_send_budget() {
 /// One HTTP/1.1 request over `s`; the whole response as text.
 async fn get<S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin>(mut s: S, host: &str, path: &str) -> String {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: {host}\r\n\r\n").as_bytes()).await.unwrap();
+    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").as_bytes()).await.unwrap();
     let mut out = Vec::new();
     let _ = s.read_to_end(&mut out).await;
     String::from_utf8_lossy(&out).into_owned()
 }
 
+/// A TLS connection to the page that accepts only the certificate with SHA-256 `hash` (hex):
+/// what a browser gets once a person has accepted that certificate.
+async fn tls_to(addr: std::net::SocketAddr, hash: &str) -> tokio_rustls::client::TlsStream<tokio::net::TcpStream> {
+    let pin = snerf_stream::tls::parse_pin(hash).unwrap();
+    let mut cfg = rustls::ClientConfig::builder_with_provider(snerf_stream::tls::provider())
+        .with_protocol_versions(&[&rustls::version::TLS13])
+        .unwrap()
+        .dangerous()
+        .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(pin)))
+        .with_no_client_auth();
+    cfg.alpn_protocols = vec![b"http/1.1".to_vec()];
+    let tcp = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
+    tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg)).connect(name, tcp).await.unwrap()
+}
+
 #[test]
-fn the_page_routes_serve_the_composed_shader_with_strict_headers_and_check_the_host() {
+fn the_page_routes_serve_the_composed_shader_over_https_with_strict_headers_and_check_the_host() {
     let dir = TempDir::new("web-http");
     let state = TempDir::new("web-http-state");
     write_asset(&static_asset(16, 8, 0.9, 5), dir.path(), "scene");
     let h = start(dir.path(), state.path());
     let web = h.web().unwrap().clone();
-    assert!(!web.https && web.url().starts_with("http://127.0.0.1:"));
+    // No certificate given: the page is HTTPS all the same, with the generated certificate.
+    assert!(web.https && web.url().starts_with("https://127.0.0.1:"), "{}", web.url());
+    let hash = web.cert_hash.clone().unwrap();
     let host = format!("127.0.0.1:{}", web.addr.port());
     let rt = runtime();
-    let tcp = || rt.block_on(tokio::net::TcpStream::connect(web.addr)).unwrap();
-    let page = rt.block_on(get(tcp(), &host, "/"));
+    let tls = || rt.block_on(tls_to(web.addr, &hash));
+    let page = rt.block_on(get(tls(), &host, "/"));
     assert!(page.starts_with("HTTP/1.1 200"), "{page}");
     assert!(page.contains("Content-Security-Policy: default-src 'none'; script-src 'self';"), "{page}");
     assert!(page.contains("src=\"/app.js\""), "{page}");
     // The shader the page runs is the one the native viewer composes.
-    let wgsl = rt.block_on(get(tcp(), &host, "/march.wgsl?kind=2&dynamic=1&diffuse=1&block=8"));
+    let wgsl = rt.block_on(get(tls(), &host, "/march.wgsl?kind=2&dynamic=1&diffuse=1&block=8"));
     let body = wgsl.split_once("\r\n\r\n").unwrap().1;
     let variant = snerf_geometry::march::ShaderVariant { kind: 2, dynamic: true, diffuse: true, block: 8, hardware_filter: false };
     assert_eq!(body, snerf_geometry::march::march_shader(variant));
-    assert!(rt.block_on(get(tcp(), &host, "/march.wgsl?kind=7&dynamic=1&diffuse=0&block=8")).starts_with("HTTP/1.1 400"));
-    let cfg = rt.block_on(get(tcp(), &host, "/config.json"));
+    assert!(rt.block_on(get(tls(), &host, "/march.wgsl?kind=7&dynamic=1&diffuse=0&block=8")).starts_with("HTTP/1.1 400"));
+    let cfg = rt.block_on(get(tls(), &host, "/config.json"));
     let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").unwrap().1).unwrap();
     assert_eq!(cfg["webtransport"], format!("https://{host}/snerf/1"));
-    assert_eq!(cfg["cert_hash"].as_str().unwrap().len(), 64);
-    // Another name for this address (DNS rebinding) and unknown paths are refused.
-    assert!(rt.block_on(get(tcp(), &format!("evil.example:{}", web.addr.port()), "/")).starts_with("HTTP/1.1 421"));
-    assert!(rt.block_on(get(tcp(), &host, "/../../etc/passwd")).starts_with("HTTP/1.1 404"));
+    assert_eq!(cfg["cert_hash"].as_str(), Some(hash.as_str()));
+    // Another name for this address (DNS rebinding) and unknown paths are refused; the names
+    // in the certificate are accepted.
+    assert!(rt.block_on(get(tls(), &format!("evil.example:{}", web.addr.port()), "/")).starts_with("HTTP/1.1 421"));
+    assert!(rt.block_on(get(tls(), &host, "/../../etc/passwd")).starts_with("HTTP/1.1 404"));
+    assert!(rt.block_on(get(tls(), &format!("localhost:{}", web.addr.port()), "/")).starts_with("HTTP/1.1 200"));
+    // Plain HTTP gets no page from the TLS port.
+    let plain = rt.block_on(async { get(tokio::net::TcpStream::connect(web.addr).await.unwrap(), &host, "/").await });
+    assert!(!plain.contains("HTTP/1.1 200"), "{plain}");
+    // Keep-alive: three requests, one TLS handshake, answers in order.
+    let answers = rt.block_on(async {
+        use tokio::io::{AsyncReadExt, AsyncWriteExt};
+        let mut s = tls_to(web.addr, &hash).await;
+        let mut req = String::new();
+        for p in ["/app.css", "/config.json"] {
+            req += &format!("GET {p} HTTP/1.1\r\nHost: {host}\r\n\r\n");
+        }
+        req += &format!("HEAD /xr.js HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n");
+        s.write_all(req.as_bytes()).await.unwrap();
+        let mut out = Vec::new();
+        let _ = s.read_to_end(&mut out).await;
+        String::from_utf8_lossy(&out).into_owned()
+    });
+    assert_eq!(answers.matches("HTTP/1.1 200 OK").count(), 3, "{answers}");
+    assert_eq!(answers.matches("Connection: keep-alive").count(), 2, "{answers}");
+    assert!(answers.contains(snerf_stream::web::APP_CSS), "{answers}");
+    assert!(answers.ends_with("Connection: close\r\n") || answers.ends_with("\r\n\r\n"), "HEAD has no body: {answers}");
     h.shutdown();
 }
 
@@ -401,7 +442,7 @@ fn with_cert_and_key_the_page_is_served_over_https_with_that_certificate() {
     o.web = Some("127.0.0.1:0".parse().unwrap());
     let h = snerf_stream::spawn(o).unwrap();
     let web = h.web().unwrap().clone();
-    assert!(web.https && web.url().starts_with("https://") && web.cert_hash.is_none());
+    assert!(web.https && web.url().starts_with("https://") && web.cert_hash.is_none() && web.cert_names.is_empty());
     let pin = snerf_stream::tls::parse_pin(h.fingerprint()).unwrap();
     let mut cfg = rustls::ClientConfig::builder_with_provider(snerf_stream::tls::provider())
         .with_protocol_versions(&[&rustls::version::TLS13])
@@ -869,4 +910,387 @@ fn a_page_resumes_when_the_server_restarts_mid_stream() {
     assert_eq!(held + sending, chunks, "the second server did not send only the rest");
     assert!(sent_b < bytes.len() as u64, "the second server sent {sent_b} bytes: the whole asset");
     bsrv.shutdown();
+}
+
+/// Where the ray of pixel (x, y) of camera `cur` lands in the image of camera `old`: pixel
+/// coordinates (x + 0.5, y + 0.5 at a pixel's centre), or None behind `old`. Directions only
+/// (rotational reprojection): the two cameras' positions do not enter.
+fn reproject_px(cur: &snerf_asset::Camera, old: &snerf_asset::Camera, x: usize, y: usize) -> Option<[f64; 2]> {
+    let d = [(x as f64 + 0.5 - cur.cx as f64) / cur.fx as f64, -(y as f64 + 0.5 - cur.cy as f64) / cur.fy as f64, -1.0];
+    let w: [f64; 3] = [0, 1, 2].map(|i| (0..3).map(|j| cur.c2w[i][j] as f64 * d[j]).sum());
+    let e: [f64; 3] = [0, 1, 2].map(|j| (0..3).map(|i| old.c2w[i][j] as f64 * w[i]).sum());
+    (e[2] < 0.0).then(|| [old.cx as f64 + old.fx as f64 * e[0] / -e[2], old.cy as f64 - old.fy as f64 * e[1] / -e[2]])
+}
+
+/// Bilinear sample (GL's: texel centres at +0.5) of an RGB frame at pixel coordinates `p`.
+fn bilinear(f: &snerf_asset::Frame, p: [f64; 2], c: usize) -> f64 {
+    let (w, h) = (f.width as usize, f.height as usize);
+    let (x, y) = (p[0] - 0.5, p[1] - 0.5);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (tx, ty) = (x - x0, y - y0);
+    let at = |i: f64, j: f64| {
+        let (i, j) = ((i as isize).clamp(0, w as isize - 1) as usize, (j as isize).clamp(0, h as isize - 1) as usize);
+        (f.rgb[3 * (j * w + i) + c] as f64).clamp(0.0, 1.0)
+    };
+    (1.0 - ty) * ((1.0 - tx) * at(x0, y0) + tx * at(x0 + 1.0, y0)) + ty * ((1.0 - tx) * at(x0, y0 + 1.0) + tx * at(x0 + 1.0, y0 + 1.0))
+}
+
+#[test]
+fn immersive_mode_after_a_head_turn_presents_the_scene_turned_by_it_before_the_next_march_completes() {
+    let Some(b) = browser() else { return };
+    if iwer(&b).is_none() {
+        return;
+    }
+    let dir = TempDir::new("web-xr-warp");
+    let state = TempDir::new("web-xr-warp-state");
+    let asset = static_asset(32, 8, 0.8, 11);
+    write_asset(&asset, dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    // xrhold: one march, then the page only presents (what it does while a march is in flight).
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1"), ("xrhold", "1")]));
+    let (yaw, pitch) = (8.0f64, 3.0f64);
+    let r = xr_page(&b, &url, &["384", "192", "hold", &yaw.to_string(), &pitch.to_string()]);
+    let before = &r["before"];
+    // The march: like the CPU reference, and the layer showed it as it was at its own pose.
+    let old_cams = check_eyes(before, &asset, "before the turn");
+    let held = &r["held"];
+    assert_eq!((held["marches"].as_u64(), held["marchesNow"].as_u64()), (Some(1), Some(1)), "no second march: {held}");
+    let place = &before["place"];
+    let (ya, pa) = (yaw.to_radians(), pitch.to_radians());
+    let want_fwd = place_dir(place, [-pa.cos() * ya.sin(), pa.sin(), -pa.cos() * ya.cos()]);
+    for (i, old) in old_cams.iter().enumerate() {
+        let e = &held["eyes"][i];
+        let cur = cam_from_json(&e["cam"]);
+        let fwd = [0, 1, 2].map(|k| -cur.c2w[k][2] as f64);
+        assert!(dist3(fwd, want_fwd) < 1e-3, "eye {i} presented at forward {fwd:?}, the head turned to {want_fwd:?}");
+        let (w, hh) = (cur.width as usize, cur.height as usize);
+        assert_eq!((w, hh), (old.width as usize, old.height as usize));
+        let now = snerf_asset::render(&asset, &cur, 0.0);
+        let then = snerf_asset::render(&asset, old, 0.0);
+        // The new orientation seen from the old eye position: what rotation alone can reach.
+        let mut turned = cur.clone();
+        for k in 0..3 {
+            turned.c2w[k][3] = old.c2w[k][3];
+        }
+        let rot = snerf_asset::render(&asset, &turned, 0.0);
+        let gl: Vec<f64> = e["gl"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() / 255.0).collect();
+        // What the layer showed at the march, drawn again now: the old behaviour (no reprojection).
+        let stale: Vec<f64> = before["eyes"][i]["gl"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap() / 255.0).collect();
+        // Compared where the reprojection has the last image's own samples on all sides (the
+        // rest is the edge clamp), over the pixels where the scene shows (not the black
+        // background): n pixels, sums per channel of
+        // |layer - CPU now|, |stale - CPU now|, |bilinear(CPU then) - CPU now| (what exact
+        // rotational reprojection of an exact image would be off by: resampling, and the eye's
+        // few-mm translation in the turn, which rotation leaves as it is) and
+        // |layer - bilinear(CPU then)| (the reprojection itself).
+        let (mut n, mut d_now, mut d_stale, mut d_ref, mut d_warp, mut d_rot) = (0usize, 0f64, 0f64, 0f64, 0f64, 0f64);
+        for y in 0..hh {
+            for x in 0..w {
+                let Some(p) = reproject_px(&cur, old, x, y) else { continue };
+                if p[0] < 0.5 || p[1] < 0.5 || p[0] > w as f64 - 0.5 || p[1] > hh as f64 - 0.5 {
+                    continue;
+                }
+                let src = 4 * ((hh - 1 - y) * w + x); // GL rows bottom up
+                let truth: Vec<f64> = (0..3).map(|c| (now.rgb[3 * (y * w + x) + c] as f64).clamp(0.0, 1.0)).collect();
+                if truth.iter().all(|&t| t < 0.02) && (0..3).all(|c| bilinear(&then, p, c) < 0.02) {
+                    continue;
+                }
+                n += 1;
+                for c in 0..3 {
+                    let warped = bilinear(&then, p, c);
+                    d_now += (gl[src + c] - truth[c]).abs();
+                    d_stale += (stale[src + c] - truth[c]).abs();
+                    d_ref += (warped - truth[c]).abs();
+                    d_warp += (gl[src + c] - warped).abs();
+                    d_rot += (warped - (rot.rgb[3 * (y * w + x) + c] as f64).clamp(0.0, 1.0)).abs();
+                }
+            }
+        }
+        let m = (3 * n.max(1)) as f64;
+        let (d_now, d_stale, d_ref, d_warp, d_rot) = (d_now / m, d_stale / m, d_ref / m, d_warp / m, d_rot / m);
+        eprintln!(
+            "eye {i}: {n} pixels of the scene covered after a {yaw}° yaw, {pitch}° pitch turn; mean |diff| x255: presented vs CPU now {:.2}, \
+             old behaviour vs CPU now {:.2}, bilinear CPU then vs CPU now {:.2} (vs CPU at the new rotation from the old eye position \
+             {:.2}), presented vs bilinear CPU then {:.2}",
+            d_now * 255.0, d_stale * 255.0, d_ref * 255.0, d_rot * 255.0, d_warp * 255.0
+        );
+        assert!(n * 20 > w * hh, "eye {i}: the scene covers {n} pixels of the compared region");
+        // The reprojection is the homography: the layer is the last image, resampled. Bound:
+        // 8-bit quantization of the marched image (0.5/255) and of the layer (0.5/255), plus
+        // the march against the CPU (check_eyes: ~1e-7) and GL's filter weights (0.5/255).
+        assert!(d_warp <= 1.5 / 255.0, "eye {i}: the layer is not the last image reprojected ({:.2}/255)", d_warp * 255.0);
+        // Against the CPU reference at the new pose: no more than resampling the exact image
+        // is off by, plus the quantization above.
+        let bound = d_ref + 1.5 / 255.0;
+        assert!(d_now <= bound, "eye {i}: presented vs CPU now {:.2}/255 > {:.2}/255", d_now * 255.0, bound * 255.0);
+        // The last image drawn as it was (the old behaviour) fails that comparison by far.
+        assert!(d_stale > 2.0 * bound, "eye {i}: without reprojection {:.2}/255, bound {:.2}/255: the turn does not show", d_stale * 255.0, bound * 255.0);
+    }
+    h.shutdown();
+}
+
+/// Run a page script (tests/web/page.mjs or xr.mjs, with its playwright argument) in a
+/// Chromium without WebGPU (`SNERF_NO_WEBGPU=1`, see tests/web/launch.mjs: `requestAdapter()`
+/// returns null there), so the page draws with its WebGL2 renderer. Its JSON report.
+fn run_without_webgpu(b: &(PathBuf, PathBuf, PathBuf), script: &str, pw: &Path, args: &[&str]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web").join(script);
+    let out = Command::new(&b.0).arg(&script).arg(pw).args(args).env("SNERF_CHROMIUM", &b.1).env("SNERF_NO_WEBGPU", "1").output().expect("run node");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
+        eprintln!("{stderr}");
+    }
+    assert!(out.status.success(), "{} failed: {stderr}", script.display());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("report {stdout:?}: {e} (stderr: {stderr})"))
+}
+
+/// `check_render` on the WebGL2 renderer: the page's frame (read back from its float render
+/// target) and what its canvas presents, both against the CPU reference. Returns the report.
+fn check_render_webgl(b: &(PathBuf, PathBuf, PathBuf), h: &ServerHandle, asset: &Asset, name: &str, time: f32) -> serde_json::Value {
+    let cam = snerf_asset::orbit(&asset.header, 1, 0, 48, 32, 40.0);
+    let url = format!(
+        "{}#{}",
+        h.web().unwrap().url(),
+        fragment(&[("token", h.token()), ("asset", name), ("cam", &cam_json(&cam)), ("time", &time.to_string())])
+    );
+    let r = run_without_webgpu(b, "page.mjs", &b.2, &[&url, "done"]);
+    assert_eq!(r["error"], serde_json::Value::Null, "{name}: page error: {}", r["error"]);
+    assert_eq!(r["backend"], "webgl2", "{name}: drawn by {} ({})", r["backend"], r["adapter"]);
+    let cpu = snerf_asset::render(asset, &cam, time);
+    let bg = &asset.header.background;
+    let shown = cpu.rgb.chunks(3).filter(|p| (0..3).any(|c| (p[c] - bg[c]).abs() > 0.02)).count();
+    assert!(shown * 10 > cpu.rgb.len() / 3, "{name}: only {shown} pixels differ from the background");
+    let fr = &r["lastRender"];
+    assert_eq!((fr["complete"].as_bool(), fr["width"].as_u64(), fr["height"].as_u64()), (Some(true), Some(48), Some(32)), "{name}");
+    let d = mean_abs_diff(fr["rgba"].as_array().unwrap(), &cpu);
+    eprintln!("{name} at t={time}: WebGL2 ({}) vs CPU reference mean |diff| {d:?}", r["adapter"]);
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{name} at t={time}: mean |diff| {d:?} > 2/255");
+    // The canvas (the blit of the target, flipped to the screen's rows) shows that frame.
+    let png = base64_decode(r["canvasPng"].as_str().expect("canvas screenshot"));
+    let shot = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert_eq!(shot.dimensions(), (48, 32), "{name}");
+    let mut dc = [0f64; 3];
+    for (i, p) in shot.pixels().enumerate() {
+        for c in 0..3 {
+            dc[c] += (p[c] as f64 / 255.0 - (cpu.rgb[3 * i + c] as f64).clamp(0.0, 1.0)).abs() / (48.0 * 32.0);
+        }
+    }
+    eprintln!("{name}: presented WebGL2 canvas vs CPU reference mean |diff| {dc:?}");
+    assert!(dc.iter().all(|&x| x <= 2.0 / 255.0), "{name}: canvas mean |diff| {dc:?} > 2/255");
+    r
+}
+
+#[test]
+fn without_webgpu_the_page_draws_with_webgl2_from_the_same_wgsl_like_the_cpu_reference() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-webgl");
+    let state = TempDir::new("web-webgl-state");
+    let put = |a: &Asset, name: &str| Asset::from_bytes(&write_asset(a, dir.path(), name)).unwrap();
+    let scene = put(&static_asset(32, 8, 0.8, 11), "scene");
+    let moving = put(&dynamic_asset(16, 8, 0.9, 3, 21), "moving");
+    let outdoor = put(&kind_asset(snerf_asset::Kind::Unbounded, 32, 8, 0.9, 4), "outdoor");
+    let front = put(&kind_asset(snerf_asset::Kind::Forward, 32, 8, 0.9, 6), "front");
+    let mut d = static_asset(32, 8, 0.8, 13);
+    d.make_diffuse();
+    let flat = put(&d, "flat");
+    // A field trained with 2 x 2 rays a pixel: the silhouette pass (the fragment shader reads
+    // the first pass's output as textures) redraws the silhouette pixels as their means.
+    let mut e = static_asset(32, 8, 0.8, 17);
+    e.header.pixel_rays = 4;
+    let edges = put(&e, "edges");
+    let h = start(dir.path(), state.path());
+    for (asset, name, time) in [(&scene, "scene", 0.0), (&moving, "moving", 0.5), (&outdoor, "outdoor", 0.0), (&front, "front", 0.0), (&flat, "flat", 0.0)] {
+        let r = check_render_webgl(&b, &h, asset, name, time);
+        assert_eq!(r["lastFrame"]["pixelSides"], serde_json::json!([1]), "{name}");
+    }
+    // Where the browser has WebGPU (the default flags), the page takes it.
+    let cam = snerf_asset::orbit(&scene.header, 1, 0, 48, 32, 40.0);
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("cam", &cam_json(&cam))]));
+    let r = page(&b, &[&url, "done"]);
+    assert_eq!((r["error"].as_str(), r["backend"].as_str()), (None, Some("webgpu")), "{}", r["error"]);
+    let r = check_render_webgl(&b, &h, &edges, "edges", 0.0);
+    assert_eq!(r["lastFrame"]["pixelSides"], serde_json::json!([2]), "the silhouette pass did not run");
+    // ...and it changes the picture (one ray a pixel would not pass for it).
+    let cam = snerf_asset::orbit(&edges.header, 1, 0, 48, 32, 40.0);
+    let mut one = edges.clone();
+    one.header.pixel_rays = 1;
+    let (means, centres) = (snerf_asset::render(&edges, &cam, 0.0), snerf_asset::render(&one, &cam, 0.0));
+    let rgba = r["lastRender"]["rgba"].as_array().unwrap();
+    let page = |i: usize, k: usize| rgba[4 * i + k].as_f64().unwrap().clamp(0.0, 1.0);
+    let (mut changed, mut followed) = (0, 0);
+    for i in 0..(48 * 32) {
+        if (0..3).any(|k| (means.rgb[3 * i + k] - centres.rgb[3 * i + k]).abs() > 0.02) {
+            changed += 1;
+            followed += (0..3).all(|k| (page(i, k) - means.rgb[3 * i + k] as f64).abs() < 1.0 / 255.0) as usize;
+        }
+    }
+    eprintln!("edges: {changed} pixels where the means differ from one ray a pixel; the WebGL2 frame has the means at {followed}");
+    assert!(changed >= 20, "only {changed} pixels tell the silhouette pass apart");
+    assert_eq!(followed, changed, "the WebGL2 frame's silhouette pixels are not the means");
+    h.shutdown();
+}
+
+#[test]
+fn without_webgpu_immersive_mode_draws_both_eyes_with_webgl2_like_the_cpu_reference() {
+    let Some(b) = browser() else { return };
+    if iwer(&b).is_none() {
+        return;
+    }
+    let dir = TempDir::new("web-webgl-xr");
+    let state = TempDir::new("web-webgl-xr-state");
+    let asset = static_asset(32, 8, 0.8, 11);
+    write_asset(&asset, dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1")]));
+    let r = run_without_webgpu(&b, "xr.mjs", &b.2.join("../.."), &[&url]);
+    assert_eq!(r["page"]["error"], serde_json::Value::Null, "{}", r["page"]["error"]);
+    assert_eq!(r["page"]["backend"], "webgl2");
+    // Each eye's march against the CPU reference, and what the XR layer shows against it
+    // (the renderer's canvas uploaded into the layer as on WebGPU), at the first pose and
+    // after the head moved and turned.
+    let cams0 = check_eyes(&r["before"], &asset, "webgl2 before");
+    let cpu = snerf_asset::render(&asset, &cams0[0], 0.0);
+    let shown = cpu.rgb.chunks(3).filter(|p| p.iter().any(|&v| v > 0.02)).count();
+    assert!(shown * 20 > cpu.rgb.len() / 3, "the object is not in front of the user ({shown} pixels)");
+    let cams1 = check_eyes(&r["moved"], &asset, "webgl2 moved");
+    let cams2 = check_eyes(&r["turned"], &asset, "webgl2 turned");
+    assert!(dist3(eye_pos(&cams0[0]), eye_pos(&cams1[0])) > 0.0 && cams2[0].c2w != cams1[0].c2w, "the eyes did not follow the headset");
+    h.shutdown();
+}
+
+/// A TCP connection to `to` from the loopback address `from` (127.0.0.2: "another machine on
+/// the same Wi-Fi").
+async fn connect_from(from: &str, to: std::net::SocketAddr) -> tokio::net::TcpStream {
+    let s = tokio::net::TcpSocket::new_v4().unwrap();
+    s.bind(format!("{from}:0").parse().unwrap()).unwrap();
+    s.connect(to).await.unwrap()
+}
+
+/// Whether the server has closed `s` (EOF or reset) within `wait`.
+async fn closed_within(s: &mut tokio::net::TcpStream, wait: std::time::Duration) -> bool {
+    use tokio::io::AsyncReadExt;
+    let mut buf = [0u8; 4096];
+    let t = tokio::time::Instant::now() + wait;
+    loop {
+        match tokio::time::timeout_at(t, s.read(&mut buf)).await {
+            Err(_) => return false,
+            Ok(Ok(0)) | Ok(Err(_)) => return true,
+            Ok(Ok(_)) => continue,
+        }
+    }
+}
+
+#[test]
+fn hostile_connections_from_another_address_do_not_lock_out_the_page() {
+    use tokio::io::AsyncWriteExt;
+    let b = browser();
+    let dir = TempDir::new("web-hostile");
+    let state = TempDir::new("web-hostile-state");
+    let bytes = write_asset(&static_asset(16, 8, 0.9, 5), dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    let limits = Limits::default();
+    let (addr, hash) = (web.addr, web.cert_hash.clone().unwrap());
+    let host = format!("127.0.0.1:{}", addr.port());
+    let rt = runtime();
+    // The attack, from 127.0.0.2: 100 idle connections, 40 that trickle a TLS ClientHello a few
+    // bytes a second, 8 that send a 64 KiB header, and 8 that pipeline requests for the
+    // largest file and never read.
+    let attack = rt.block_on(async {
+        let mut idle = Vec::new();
+        for _ in 0..100 {
+            idle.push(connect_from("127.0.0.2", addr).await);
+        }
+        let mut trickle = tokio::task::JoinSet::new();
+        for _ in 0..40 {
+            let mut s = connect_from("127.0.0.2", addr).await;
+            trickle.spawn(async move {
+                // A TLS record header claiming a long ClientHello, then a byte a second.
+                let _ = s.write_all(&[0x16, 0x03, 0x01, 0x02, 0x00]).await;
+                for _ in 0..30 {
+                    tokio::time::sleep(std::time::Duration::from_millis(700)).await;
+                    if s.write_all(&[0x01]).await.is_err() {
+                        return true; // the server closed it
+                    }
+                }
+                false
+            });
+        }
+        let mut big = Vec::new();
+        for _ in 0..8 {
+            let mut s = tls_to_from("127.0.0.2", addr, &hash).await;
+            let head = format!("GET / HTTP/1.1\r\nHost: {host}\r\nX-Pad: {}\r\n", "a".repeat(64 * 1024));
+            let _ = s.write_all(head.as_bytes()).await;
+            big.push(s);
+        }
+        let mut deaf = Vec::new();
+        for _ in 0..8 {
+            let mut s = tls_to_from("127.0.0.2", addr, &hash).await;
+            let req = format!("GET /march.wgsl?kind=2&dynamic=1&diffuse=0&block=8 HTTP/1.1\r\nHost: {host}\r\n\r\n").repeat(200);
+            let _ = tokio::time::timeout(std::time::Duration::from_millis(200), s.write_all(req.as_bytes())).await;
+            deaf.push(s);
+        }
+        (idle, trickle, big, deaf)
+    });
+    let (mut idle, mut trickle, mut big, _deaf) = attack;
+    // The server holds at most its per-address cap of them (plus nothing else).
+    let held = h.stats().page_conns.load(Ordering::Relaxed);
+    assert!(held <= limits.page_conns_per_ip as u64, "{held} page connections held");
+    assert!(h.stats().page_evicted.load(Ordering::Relaxed) >= 100, "evicted {}", h.stats().page_evicted.load(Ordering::Relaxed));
+    // While the attack goes on, a client at 127.0.0.1 gets the page at once...
+    let t0 = std::time::Instant::now();
+    let page = rt.block_on(async { get(tls_to(addr, &hash).await, &host, "/").await });
+    assert!(page.starts_with("HTTP/1.1 200"), "{page}");
+    eprintln!("page under attack: {:?}", t0.elapsed());
+    // ...and the real page in Chromium streams the asset byte for byte.
+    if let Some(b) = &b {
+        let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene")]));
+        let r = page_of(b, &[&url, "done"]);
+        assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+        let sha = snerf_stream::proto::to_hex(&Sha256::digest(&bytes));
+        assert_eq!(r["sha256"], sha.as_str());
+    }
+    // Every hostile connection is closed by the server within the head timeout (plus the
+    // write timeout for those that never read), whichever way it misbehaved.
+    let within = limits.page_head_timeout + std::time::Duration::from_secs(2);
+    rt.block_on(async {
+        for s in idle.iter_mut() {
+            assert!(closed_within(s, within).await, "an idle connection is still open");
+        }
+        while let Some(r) = trickle.join_next().await {
+            assert!(r.unwrap(), "a trickling connection was kept for 20 s");
+        }
+        for s in big.iter_mut() {
+            use tokio::io::AsyncReadExt;
+            let mut out = Vec::new();
+            let _ = tokio::time::timeout(within, s.read_to_end(&mut out)).await;
+            let out = String::from_utf8_lossy(&out);
+            assert!(out.is_empty() || out.starts_with("HTTP/1.1 431"), "{out}");
+        }
+    });
+    let after = limits.page_write_timeout + std::time::Duration::from_secs(1);
+    std::thread::sleep(after);
+    assert_eq!(h.stats().page_conns.load(Ordering::Relaxed), 0, "connections left open");
+    assert!(h.stats().page_timeouts.load(Ordering::Relaxed) > 0);
+    h.shutdown();
+}
+
+/// `tls_to` from another loopback address.
+async fn tls_to_from(from: &str, addr: std::net::SocketAddr, hash: &str) -> tokio_rustls::client::TlsStream<tokio::net::TcpStream> {
+    let pin = snerf_stream::tls::parse_pin(hash).unwrap();
+    let mut cfg = rustls::ClientConfig::builder_with_provider(snerf_stream::tls::provider())
+        .with_protocol_versions(&[&rustls::version::TLS13])
+        .unwrap()
+        .dangerous()
+        .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(pin)))
+        .with_no_client_auth();
+    cfg.alpn_protocols = vec![b"http/1.1".to_vec()];
+    let tcp = connect_from(from, addr).await;
+    let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
+    tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg)).connect(name, tcp).await.unwrap()
+}
+
+/// `page` by another name (the report of page.mjs), for tests that also name a variable `page`.
+fn page_of(b: &(PathBuf, PathBuf, PathBuf), args: &[&str]) -> serde_json::Value {
+    page(b, args)
 }
