@@ -385,7 +385,7 @@ struct Target {
     height: u32,
     rgba: wgpu::Buffer,
     depth: wgpu::Buffer,
-    /// The first pass's opacity (march.wgsl `cover`), read by the silhouette pass.
+    /// The first pass's opacity (march_compute.wgsl `cover`), read by the silhouette pass.
     _cover: wgpu::Buffer,
     /// Per view: the centre pass's bind group, then the silhouette pass's (its own params).
     bind_groups: Vec<wgpu::BindGroup>,
