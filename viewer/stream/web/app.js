@@ -810,7 +810,7 @@ async function stream(name, gpu) {
     $('time').value = time;
   }
   const api = {
-    gpu, capture, ready, fixedScale: frag.has('xrscale') ? parseFloat(frag.get('xrscale')) : null, togglePlay, advance, sendPose: sendPoseRaw,
+    gpu, capture, ready, fixedScale: frag.has('xrscale') ? parseFloat(frag.get('xrscale')) : null, hold: frag.has('xrhold'), togglePlay, advance, sendPose: sendPoseRaw,
     renderer: () => r, header: () => h, orbit: () => orbit, time: () => time,
     playing: () => playing,
     setXR: (on) => { xrActive = on; if (!on) { dirty = true; refined = false; } },

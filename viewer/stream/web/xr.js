@@ -72,16 +72,46 @@ export function eyeCamera(P, T, w, hh, place, rig) {
   return { c2w, fx, fy, cx, cy, width: w, height: hh };
 }
 
+// Reprojection of the last marched image of an eye to the eye's current pose (rotational
+// timewarp): the homography taking a fragment of the eye's viewport at the current pose
+// (gl_FragCoord minus the viewport origin: pixel edges, y up) to homogeneous pixel
+// coordinates (pixel edges, y down) in the image marched at camera `old`. `cur` is the eye's
+// camera now, at the viewport's size; both are `eyeCamera` cameras (c2w rows, the camera
+// looks down -z, y up, pixel (x, y)'s ray ((x+0.5-cx)/fx, -(y+0.5-cy)/fy, -1), as
+// shaders/march.wgsl `render_at`). Directions only, so the eye's translation since the march
+// is not compensated (see web/README.md, "Immersive mode"). The third coordinate is the
+// depth along the old camera's view axis: <= 0 for a ray behind it. Returns a column-major
+// 3x3 for uniformMatrix3fv.
+export function reprojection(cur, old) {
+  // fragment -> ray in the current camera
+  const K1 = [[1 / cur.fx, 0, -cur.cx / cur.fx], [0, 1 / cur.fy, (cur.cy - cur.height) / cur.fy], [0, 0, -1]];
+  // current camera -> world -> old camera: Ro^T Rn
+  const R = [0, 1, 2].map((i) => [0, 1, 2].map((j) => [0, 1, 2].reduce((a, k) => a + old.c2w[k][i] * cur.c2w[k][j], 0)));
+  // ray in the old camera -> its pixel (x + 0.5, y + 0.5) times the depth -z
+  const K2 = [[old.fx, 0, -old.cx], [0, -old.fy, -old.cy], [0, 0, -1]];
+  const mm = (A, B) => A.map((r) => [0, 1, 2].map((j) => r[0] * B[0][j] + r[1] * B[1][j] + r[2] * B[2][j]));
+  const M = mm(K2, mm(R, K1));
+  return [M[0][0], M[1][0], M[2][0], M[0][1], M[1][1], M[2][1], M[0][2], M[1][2], M[2][2]];
+}
+
 const VS = `#version 300 es
-uniform vec4 rect; out vec2 uv;
 void main() {
   vec2 p = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));
-  uv = rect.xy + p * rect.zw;
   gl_Position = vec4(p * 2.0 - 1.0, 0.0, 1.0);
 }`;
+// One eye: `warp` (see `reprojection`) maps the fragment to the last image's pixel; `size` is
+// that eye's image size in pixels and `rect` turns its pixel into texture coordinates (origin
+// of its rectangle, one pixel), the offscreen image uploaded with UNPACK_FLIP_Y (GL's y up).
+// Outside the image the nearest edge pixel (clamp) is shown: see web/README.md.
 const FS = `#version 300 es
-precision highp float; uniform sampler2D img; in vec2 uv; out vec4 o;
-void main() { o = vec4(texture(img, uv).rgb, 1.0); }`;
+precision highp float; uniform sampler2D img; uniform mat3 warp; uniform vec2 origin, size; uniform vec4 rect;
+out vec4 o;
+void main() {
+  vec3 q = warp * vec3(gl_FragCoord.xy - origin, 1.0);
+  if (q.z <= 0.0) { o = vec4(0.12, 0.12, 0.12, 1.0); return; } // behind the old camera
+  vec2 p = clamp(q.xy / q.z, vec2(0.5), size - 0.5);
+  o = vec4(texture(img, rect.xy + p * rect.zw).rgb, 1.0);
+}`;
 
 function program(gl) {
   const sh = (type, src) => {
@@ -130,7 +160,7 @@ export async function enterXR(api, report) {
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
   gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
-  const rectLoc = gl.getUniformLocation(prog, 'rect');
+  const loc = Object.fromEntries(['warp', 'origin', 'size', 'rect'].map((n) => [n, gl.getUniformLocation(prog, n)]));
   // WebGPU marches into an OffscreenCanvas of its own; the WebGL2 renderer (app.js
   // `RendererGL`) into its context's canvas, which is uploaded the same way.
   const off = api.gpu.backend === 'webgl2' ? api.gpu.gl.canvas : new OffscreenCanvas(16, 16);
@@ -140,6 +170,9 @@ export async function enterXR(api, report) {
   // refresh (session.frameRate where the browser says it, else 72 Hz).
   let scale = api.capture ? 1 : api.fixedScale ?? 0.5;
   let busy = false, last = null, lastPose = 0, grab = null;
+  // What `tex` holds: the last marched image, its size and each eye's rectangle and camera
+  // (every presented frame is reprojected from it to the eyes' current poses).
+  let shown = null;
   const pressed = new Map();
   session.addEventListener('select', () => api.togglePlay());
   session.addEventListener('end', () => { api.setXR(false); xr.state = 'ended'; });
@@ -240,33 +273,51 @@ export async function enterXR(api, report) {
       return { cam: e.cam, x, y };
     });
     const time = api.time();
-    const draw = () => {
+    // Present: each eye's last marched image, reprojected to the eye's current pose (the
+    // current pose: the camera at the viewport's own size, whatever the render scale).
+    const present = () => {
       gl.bindFramebuffer(gl.FRAMEBUFFER, layer.framebuffer);
       gl.bindTexture(gl.TEXTURE_2D, tex);
-      gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, true);
-      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, off);
       gl.useProgram(prog);
-      for (const e of eyes) {
+      eyes.forEach((e, i) => {
+        const s = shown.eyes[i];
+        if (!s) return;
+        const cur = eyeCamera(e.v.projectionMatrix, e.v.transform.matrix, e.vp.width, e.vp.height, place, rig);
         gl.viewport(e.vp.x, e.vp.y, e.vp.width, e.vp.height);
-        // The eye's rectangle of the offscreen image, in GL texture coordinates (y up).
-        gl.uniform4f(rectLoc, e.x / W, (H - e.y - e.h) / H, e.w / W, e.h / H);
+        gl.uniformMatrix3fv(loc.warp, false, reprojection(cur, s.cam));
+        gl.uniform2f(loc.origin, e.vp.x, e.vp.y);
+        gl.uniform2f(loc.size, s.w, s.h);
+        gl.uniform4f(loc.rect, s.x / shown.W, (shown.H - s.y) / shown.H, 1 / shown.W, -1 / shown.H);
         gl.drawArrays(gl.TRIANGLES, 0, 3);
+        e.cur = cur;
+      });
+      if (api.capture) {
+        // What the layer shows this frame, per eye, with the camera it was reprojected to.
+        xr.shown = {
+          n: (xr.shown ? xr.shown.n : 0) + 1,
+          marches: xr.frames,
+          eyes: eyes.map((e) => {
+            const px = new Uint8Array(e.vp.width * e.vp.height * 4);
+            gl.readPixels(e.vp.x, e.vp.y, e.vp.width, e.vp.height, gl.RGBA, gl.UNSIGNED_BYTE, px);
+            return { cam: e.cur, viewport: [e.vp.x, e.vp.y, e.vp.width, e.vp.height], gl: px };
+          }),
+        };
       }
     };
-    if (busy) { draw(); return; } // the last marched image, reprojected by nothing: never wait
+    // While a march is in flight (or, with `xrhold`, for tests, once one has completed) the
+    // last image is presented at the new pose: the loop never waits.
+    if (busy || (api.hold && xr.frames > 0)) { if (shown) present(); return; }
     busy = true;
     const ts = performance.now();
     const done = r.render(views, time, ctx ? ctx.getCurrentTexture() : off, api.capture);
-    draw();
-    let glShot = null;
-    if (api.capture) {
-      // What the layer shows, per eye, to compare with the marched image.
-      glShot = eyes.map((e) => {
-        const px = new Uint8Array(e.vp.width * e.vp.height * 4);
-        gl.readPixels(e.vp.x, e.vp.y, e.vp.width, e.vp.height, gl.RGBA, gl.UNSIGNED_BYTE, px);
-        return px;
-      });
-    }
+    // The image being marched becomes what is shown (the upload waits for the march on the GPU).
+    gl.bindTexture(gl.TEXTURE_2D, tex);
+    gl.pixelStorei(gl.UNPACK_FLIP_Y_WEBGL, true);
+    gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA, gl.RGBA, gl.UNSIGNED_BYTE, off);
+    shown = { W, H, eyes: eyes.map((e) => ({ cam: e.cam, x: e.x, y: e.y, w: e.w, h: e.h })) };
+    present();
+    // What the layer shows, per eye, to compare with the marched image.
+    const glShot = api.capture ? xr.shown.eyes.map((e) => e.gl) : null;
     done.then((out) => {
       const ms = performance.now() - ts;
       busy = false;

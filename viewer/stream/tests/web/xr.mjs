@@ -6,10 +6,14 @@
 // window.snerf.xr (eyes with cameras, raw XR matrices, marched pixels and what the WebGL
 // layer shows). With `early`: enters VR while the asset still streams, turns the head
 // around a moment later, waits for the stream to end and prints {turnedAt, posesSent}.
+// With `hold YAW PITCH` (a page with `xrhold=1`: one march, then none): waits for the first
+// march, turns the head by YAW then PITCH degrees, lets frames present and prints
+// {before, held}: the march's snapshot and the last presented frame (xr.shown: per eye the
+// camera it was reprojected to and the layer's pixels).
 import { launchChromium } from './launch.mjs';
 import { readFileSync } from 'fs';
 
-const [pwDir, url, width, height, mode] = process.argv.slice(2);
+const [pwDir, url, width, height, mode, ...modeArgs] = process.argv.slice(2);
 const iwer = readFileSync(pwDir + '/node_modules/iwer/build/iwer.min.js', 'utf8');
 
 const browser = await launchChromium(pwDir);
@@ -41,6 +45,29 @@ try {
     process.exit(0);
   }
   await wait(() => window.snerf && (window.snerf.state === 'done' || window.snerf.state === 'error'));
+  if (mode === 'hold') {
+    if ((await page.evaluate(() => window.snerf.state)) !== 'done') throw new Error('page: ' + (await page.evaluate(() => window.snerf.error)));
+    await wait(() => !document.getElementById('xr').hidden);
+    await page.click('#xr');
+    await wait(() => window.snerf.xr && (window.snerf.xr.error || (window.snerf.xr.frames >= 1 && window.snerf.xr.eyes && window.snerf.xr.shown)));
+    const before = await page.evaluate(() => {
+      const x = window.snerf.xr;
+      return { error: x.error, frames: x.frames, time: x.time, scale: x.scale, place: x.place, eyes: x.eyes.map((e) => ({ cam: e.cam, projection: e.projection, transform: e.transform, viewport: e.viewport, rgba: Array.from(e.rgba), gl: Array.from(e.gl) })) };
+    });
+    const n0 = await page.evaluate(() => window.snerf.xr.shown.n);
+    // Head turned YAW degrees left (about +y), then PITCH up (about its own x).
+    const [yaw, pitch] = modeArgs.map((a) => (+a * Math.PI) / 360);
+    await page.evaluate(([y, p]) => window.__xr.quaternion.set(Math.cos(y) * Math.sin(p), Math.sin(y) * Math.cos(p), -Math.sin(y) * Math.sin(p), Math.cos(y) * Math.cos(p)), [yaw, pitch]);
+    // A few frames at the new pose (iwer applies it from the next frame on).
+    await wait((n) => window.snerf.xr.shown.n >= n + 4, n0);
+    const held = await page.evaluate(() => {
+      const s = window.snerf.xr.shown;
+      return { n: s.n, marches: s.marches, marchesNow: window.snerf.xr.frames, eyes: s.eyes.map((e) => ({ cam: e.cam, viewport: e.viewport, gl: Array.from(e.gl) })) };
+    });
+    console.log(JSON.stringify({ before, held }));
+    await browser.close();
+    process.exit(0);
+  }
   const state = await page.evaluate(() => window.snerf.state);
   if (state !== 'done') throw new Error('page: ' + (await page.evaluate(() => window.snerf.error)));
   await wait(() => !document.getElementById('xr').hidden);
