@@ -935,26 +935,23 @@ fn bilinear(f: &snerf_asset::Frame, p: [f64; 2], c: usize) -> f64 {
     (1.0 - ty) * ((1.0 - tx) * at(x0, y0) + tx * at(x0 + 1.0, y0)) + ty * ((1.0 - tx) * at(x0, y0 + 1.0) + tx * at(x0 + 1.0, y0 + 1.0))
 }
 
-#[test]
-fn immersive_mode_after_a_head_turn_presents_the_scene_turned_by_it_before_the_next_march_completes() {
-    let Some(b) = browser() else { return };
-    if iwer(&b).is_none() {
-        return;
-    }
+/// The page held at its first march (`xrhold`: what it does while a march is in flight), the
+/// head turned by 8° of yaw then 3° of pitch: the presented layer against the CPU reference
+/// at the new eye cameras. `run(url, args)` runs tests/web/xr.mjs. Returns the page's backend.
+fn check_turn_reprojected(run: &dyn Fn(&str, &[&str]) -> serde_json::Value, what: &str) -> String {
     let dir = TempDir::new("web-xr-warp");
     let state = TempDir::new("web-xr-warp-state");
     let asset = static_asset(32, 8, 0.8, 11);
     write_asset(&asset, dir.path(), "scene");
     let h = start(dir.path(), state.path());
-    // xrhold: one march, then the page only presents (what it does while a march is in flight).
     let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene"), ("capture", "1"), ("xrhold", "1")]));
     let (yaw, pitch) = (8.0f64, 3.0f64);
-    let r = xr_page(&b, &url, &["384", "192", "hold", &yaw.to_string(), &pitch.to_string()]);
+    let r = run(&url, &["384", "192", "hold", &yaw.to_string(), &pitch.to_string()]);
     let before = &r["before"];
     // The march: like the CPU reference, and the layer showed it as it was at its own pose.
-    let old_cams = check_eyes(before, &asset, "before the turn");
+    let old_cams = check_eyes(before, &asset, &format!("{what} before the turn"));
     let held = &r["held"];
-    assert_eq!((held["marches"].as_u64(), held["marchesNow"].as_u64()), (Some(1), Some(1)), "no second march: {held}");
+    assert_eq!((held["marches"].as_u64(), held["marchesNow"].as_u64()), (Some(1), Some(1)), "{what}: no second march: {held}");
     let place = &before["place"];
     let (ya, pa) = (yaw.to_radians(), pitch.to_radians());
     let want_fwd = place_dir(place, [-pa.cos() * ya.sin(), pa.sin(), -pa.cos() * ya.cos()]);
@@ -962,7 +959,7 @@ fn immersive_mode_after_a_head_turn_presents_the_scene_turned_by_it_before_the_n
         let e = &held["eyes"][i];
         let cur = cam_from_json(&e["cam"]);
         let fwd = [0, 1, 2].map(|k| -cur.c2w[k][2] as f64);
-        assert!(dist3(fwd, want_fwd) < 1e-3, "eye {i} presented at forward {fwd:?}, the head turned to {want_fwd:?}");
+        assert!(dist3(fwd, want_fwd) < 1e-3, "{what} eye {i} presented at forward {fwd:?}, the head turned to {want_fwd:?}");
         let (w, hh) = (cur.width as usize, cur.height as usize);
         assert_eq!((w, hh), (old.width as usize, old.height as usize));
         let now = snerf_asset::render(&asset, &cur, 0.0);
@@ -1009,24 +1006,49 @@ fn immersive_mode_after_a_head_turn_presents_the_scene_turned_by_it_before_the_n
         let m = (3 * n.max(1)) as f64;
         let (d_now, d_stale, d_ref, d_warp, d_rot) = (d_now / m, d_stale / m, d_ref / m, d_warp / m, d_rot / m);
         eprintln!(
-            "eye {i}: {n} pixels of the scene covered after a {yaw}° yaw, {pitch}° pitch turn; mean |diff| x255: presented vs CPU now {:.2}, \
+            "{what} eye {i}: {n} pixels of the scene covered after a {yaw}° yaw, {pitch}° pitch turn; mean |diff| x255: presented vs CPU now {:.2}, \
              old behaviour vs CPU now {:.2}, bilinear CPU then vs CPU now {:.2} (vs CPU at the new rotation from the old eye position \
              {:.2}), presented vs bilinear CPU then {:.2}",
             d_now * 255.0, d_stale * 255.0, d_ref * 255.0, d_rot * 255.0, d_warp * 255.0
         );
-        assert!(n * 20 > w * hh, "eye {i}: the scene covers {n} pixels of the compared region");
+        assert!(n * 20 > w * hh, "{what} eye {i}: the scene covers {n} pixels of the compared region");
         // The reprojection is the homography: the layer is the last image, resampled. Bound:
         // 8-bit quantization of the marched image (0.5/255) and of the layer (0.5/255), plus
         // the march against the CPU (check_eyes: ~1e-7) and GL's filter weights (0.5/255).
-        assert!(d_warp <= 1.5 / 255.0, "eye {i}: the layer is not the last image reprojected ({:.2}/255)", d_warp * 255.0);
+        assert!(d_warp <= 1.5 / 255.0, "{what} eye {i}: the layer is not the last image reprojected ({:.2}/255)", d_warp * 255.0);
         // Against the CPU reference at the new pose: no more than resampling the exact image
         // is off by, plus the quantization above.
         let bound = d_ref + 1.5 / 255.0;
-        assert!(d_now <= bound, "eye {i}: presented vs CPU now {:.2}/255 > {:.2}/255", d_now * 255.0, bound * 255.0);
+        assert!(d_now <= bound, "{what} eye {i}: presented vs CPU now {:.2}/255 > {:.2}/255", d_now * 255.0, bound * 255.0);
         // The last image drawn as it was (the old behaviour) fails that comparison by far.
-        assert!(d_stale > 2.0 * bound, "eye {i}: without reprojection {:.2}/255, bound {:.2}/255: the turn does not show", d_stale * 255.0, bound * 255.0);
+        assert!(d_stale > 2.0 * bound, "{what} eye {i}: without reprojection {:.2}/255, bound {:.2}/255: the turn does not show", d_stale * 255.0, bound * 255.0);
     }
     h.shutdown();
+    r["held"]["backend"].as_str().unwrap_or_default().to_string()
+}
+
+#[test]
+fn immersive_mode_after_a_head_turn_presents_the_scene_turned_by_it_before_the_next_march_completes() {
+    let Some(b) = browser() else { return };
+    if iwer(&b).is_none() {
+        return;
+    }
+    let backend = check_turn_reprojected(&|url, args| xr_page(&b, url, args), "webgpu");
+    assert_eq!(backend, "webgpu");
+}
+
+#[test]
+fn without_webgpu_immersive_mode_after_a_head_turn_presents_the_scene_turned_by_it_too() {
+    let Some(b) = browser() else { return };
+    if iwer(&b).is_none() {
+        return;
+    }
+    let run = |url: &str, args: &[&str]| {
+        let all: Vec<&str> = std::iter::once(url).chain(args.iter().copied()).collect();
+        run_without_webgpu(&b, "xr.mjs", &b.2.join("../.."), &all)
+    };
+    let backend = check_turn_reprojected(&run, "webgl2");
+    assert_eq!(backend, "webgl2");
 }
 
 /// Run a page script (tests/web/page.mjs or xr.mjs, with its playwright argument) in a

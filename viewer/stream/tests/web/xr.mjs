@@ -62,7 +62,7 @@ try {
     await wait((n) => window.snerf.xr.shown.n >= n + 4, n0);
     const held = await page.evaluate(() => {
       const s = window.snerf.xr.shown;
-      return { n: s.n, marches: s.marches, marchesNow: window.snerf.xr.frames, eyes: s.eyes.map((e) => ({ cam: e.cam, viewport: e.viewport, gl: Array.from(e.gl) })) };
+      return { backend: window.snerf.backend, n: s.n, marches: s.marches, marchesNow: window.snerf.xr.frames, eyes: s.eyes.map((e) => ({ cam: e.cam, viewport: e.viewport, gl: Array.from(e.gl) })) };
     });
     console.log(JSON.stringify({ before, held }));
     await browser.close();
