@@ -79,3 +79,78 @@ fn architecture_says_what_each_crate_depends_on() {
     }
     assert!(checked >= 10, "only {checked} rows with dependencies found");
 }
+
+/// The `crate::MODULE` references of each top-level module of a crate's `src/` (comments
+/// left out): module -> the other modules it names.
+fn module_graph(src: &Path) -> std::collections::BTreeMap<String, std::collections::BTreeSet<String>> {
+    let mut g = std::collections::BTreeMap::new();
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().and_then(|x| x.to_str()) != Some("rs") {
+            continue;
+        }
+        let name = p.file_stem().unwrap().to_string_lossy().into_owned();
+        if name == "lib" || name == "main" {
+            continue;
+        }
+        let text = std::fs::read_to_string(&p).unwrap();
+        let mut uses = std::collections::BTreeSet::new();
+        for line in text.lines().map(str::trim_start).filter(|l| !l.starts_with("//")) {
+            let mut rest = line;
+            while let Some(i) = rest.find("crate::") {
+                rest = &rest[i + "crate::".len()..];
+                let m: String = rest.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
+                if !m.is_empty() && m != name {
+                    uses.insert(m);
+                }
+            }
+        }
+        g.insert(name, uses);
+    }
+    g
+}
+
+/// A cycle in the graph, as the modules along it, if there is one.
+fn find_cycle(g: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>) -> Option<Vec<String>> {
+    fn visit(
+        n: &str,
+        g: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>,
+        state: &mut std::collections::BTreeMap<String, u8>,
+        path: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        match state.get(n) {
+            Some(2) => return None,
+            Some(1) => {
+                let i = path.iter().position(|p| p == n).unwrap();
+                let mut c = path[i..].to_vec();
+                c.push(n.to_string());
+                return Some(c);
+            }
+            _ => {}
+        }
+        state.insert(n.to_string(), 1);
+        path.push(n.to_string());
+        for m in g.get(n).into_iter().flatten().filter(|m| g.contains_key(*m)) {
+            if let Some(c) = visit(m, g, state, path) {
+                return Some(c);
+            }
+        }
+        path.pop();
+        state.insert(n.to_string(), 2);
+        None
+    }
+    let mut state = std::collections::BTreeMap::new();
+    g.keys().find_map(|n| visit(n, g, &mut state, &mut Vec::new()))
+}
+
+#[test]
+fn the_streaming_crate_has_no_module_cycles() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let g = module_graph(&root.join("viewer/stream/src"));
+    assert!(g.len() > 10, "{g:?}");
+    assert_eq!(find_cycle(&g), None, "a module cycle in snerf-stream");
+    // The check finds one where there is one.
+    let mut bad = g.clone();
+    bad.get_mut("pending").unwrap().insert("server".into());
+    assert!(find_cycle(&bad).is_some());
+}

@@ -6,9 +6,12 @@
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
 //! - `bench`: `snerf bench stream` (QUIC vs TCP side by side, time to first view).
-//! - `web`: the web viewer — its page (`web/`, embedded) over HTTP(S) and `snerf/1` over
-//!   WebTransport, served beside the native endpoint (`ServeOptions::web`); `conn` lets one
-//!   session code path serve both transports.
+//! - `web`: the web viewer — its certificate (every name in `lan`), `snerf/1` over
+//!   WebTransport beside the native endpoint (`ServeOptions::web`), and `page`: the page
+//!   (`web/`, embedded) over HTTPS, bounded against hostile peers.
+//! - `session`: one client's `snerf/1` session, the same code for both carriers (`conn`);
+//!   `shared`: what all connections of a server share; `limits`: what they may use;
+//!   `pending`: admission (per address, in total); `stats`: counters.
 //! - `glsl`: the march shader translated to GLSL ES 3.00 for the page's WebGL2 renderer.
 //! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
 //!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
@@ -24,6 +27,7 @@ mod conn;
 pub mod client;
 pub mod glsl;
 pub mod lan;
+mod limits;
 pub mod live;
 mod pending;
 mod page;
@@ -31,6 +35,8 @@ pub mod plan;
 pub mod thumbs;
 pub mod proto;
 pub mod server;
+mod session;
+mod shared;
 mod stats;
 pub mod tls;
 pub mod url;

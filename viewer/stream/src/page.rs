@@ -27,9 +27,17 @@ use tokio::task::JoinSet;
 use tokio::time::{timeout_at, Duration, Instant};
 
 use crate::pending::{Counted, PendingTable};
-use crate::server::Shared;
-use crate::web::{WebInfo, APP_CSS, APP_JS, INDEX_HTML, SESSION_PATH, XR_JS};
+use crate::shared::Shared;
 use snerf_geometry::march::{march_shader, ShaderVariant};
+
+/// The page and its script, embedded at build time (no build step: plain ES modules).
+pub const INDEX_HTML: &str = include_str!("../web/index.html");
+pub const APP_JS: &str = include_str!("../web/app.js");
+pub const XR_JS: &str = include_str!("../web/xr.js");
+pub const APP_CSS: &str = include_str!("../web/app.css");
+
+/// Path of the WebTransport session (`https://HOST:PORT/snerf/1`).
+pub const SESSION_PATH: &str = "/snerf/1";
 
 /// Largest request head accepted (bytes).
 pub const MAX_HEAD: usize = 16 * 1024;
@@ -39,6 +47,9 @@ pub const MAX_HEAD: usize = 16 * 1024;
 pub(crate) struct PageCert {
     pub acceptor: tokio_rustls::TlsAcceptor,
     pub der: rustls::pki_types::CertificateDer<'static>,
+    /// SHA-256 of a generated certificate, which the page passes to WebTransport (rotated
+    /// with it); None for the user's certificate, which browsers verify normally.
+    pub hash: Option<String>,
 }
 
 pub(crate) type PageCerts = Arc<RwLock<Arc<PageCert>>>;
@@ -47,7 +58,7 @@ pub(crate) type PageCerts = Arc<RwLock<Arc<PageCert>>>;
 pub(crate) async fn run(
     l: TcpListener,
     certs: PageCerts,
-    info: Arc<WebInfo>,
+    port: u16,
     shared: Arc<Shared>,
     mut stop: watch::Receiver<bool>,
 ) {
@@ -72,22 +83,22 @@ pub(crate) async fn run(
         while conns.try_join_next().is_some() {}
         let mut place = table.admit(peer.ip());
         let cert = certs.read().map(|c| c.clone()).unwrap_or_else(|e| e.into_inner().clone());
-        let (info, shared) = (info.clone(), shared.clone());
+        let shared = shared.clone();
         conns.spawn(async move {
             tokio::select! {
                 _ = place.evicted() => {}
-                _ = connection(s, cert, &info, &shared) => {}
+                _ = connection(s, cert, port, &shared) => {}
             }
         });
     }
     conns.abort_all();
 }
 
-async fn connection(s: TcpStream, cert: Arc<PageCert>, info: &WebInfo, shared: &Shared) {
+async fn connection(s: TcpStream, cert: Arc<PageCert>, port: u16, shared: &Shared) {
     let _ = s.set_nodelay(true);
     let deadline = Instant::now() + shared.limits.page_head_timeout;
     match timeout_at(deadline, cert.acceptor.accept(s)).await {
-        Ok(Ok(tls)) => serve_requests(tls, deadline, &cert, info, shared).await,
+        Ok(Ok(tls)) => serve_requests(tls, deadline, &cert, port, shared).await,
         Ok(Err(_)) => {}
         Err(_) => {
             shared.stats.page_timeouts.fetch_add(1, Ordering::Relaxed);
@@ -100,7 +111,7 @@ async fn serve_requests<S: AsyncRead + AsyncWrite + Unpin>(
     mut s: S,
     first_deadline: Instant,
     cert: &PageCert,
-    info: &WebInfo,
+    port: u16,
     shared: &Shared,
 ) {
     let limits = &shared.limits;
@@ -122,7 +133,7 @@ async fn serve_requests<S: AsyncRead + AsyncWrite + Unpin>(
         };
         let req = Request::parse(&head);
         let keep = req.keep_alive && !req.has_body;
-        let resp = route(&req, info, &cert.der);
+        let resp = route(&req, port, cert);
         let written = tokio::time::timeout(
             limits.page_write_timeout,
             write(&mut s, &resp, req.method == "HEAD", keep),
@@ -225,8 +236,8 @@ impl Response {
 }
 
 /// The response to one request.
-pub(crate) fn route(req: &Request, info: &WebInfo, cert: &rustls::pki_types::CertificateDer<'_>) -> Response {
-    let Some(host) = req.host.as_deref().filter(|h| host_ok(h, info.addr.port(), cert)) else {
+pub(crate) fn route(req: &Request, port: u16, cert: &PageCert) -> Response {
+    let Some(host) = req.host.as_deref().filter(|h| host_ok(h, port, &cert.der)) else {
         return Response::text(421, "unknown host");
     };
     if req.method != "GET" && req.method != "HEAD" {
@@ -246,7 +257,7 @@ pub(crate) fn route(req: &Request, info: &WebInfo, cert: &rustls::pki_types::Cer
             let cfg = serde_json::json!({
                 "protocol": crate::proto::PROTOCOL_VERSION,
                 "webtransport": format!("https://{}{}", host, SESSION_PATH),
-                "cert_hash": info.current_cert_hash(),
+                "cert_hash": cert.hash,
                 "workgroup": snerf_geometry::march::WORKGROUP,
             });
             (200, "application/json", cfg.to_string().into_bytes().into())

@@ -40,16 +40,11 @@ use crate::pending::Pending;
 use crate::proto::code;
 use crate::lan::LocalNames;
 use crate::page::{PageCert, PageCerts};
-use crate::server::{handle, log, transport, Shared};
+use crate::limits::transport;
+use crate::session::handle;
+use crate::shared::{log, Shared};
 
-/// The page and its script, embedded at build time (no build step: plain ES modules).
-pub const INDEX_HTML: &str = include_str!("../web/index.html");
-pub const APP_JS: &str = include_str!("../web/app.js");
-pub const XR_JS: &str = include_str!("../web/xr.js");
-pub const APP_CSS: &str = include_str!("../web/app.css");
-
-/// Path of the WebTransport session (`https://HOST:PORT/snerf/1`).
-pub const SESSION_PATH: &str = "/snerf/1";
+pub use crate::page::{APP_CSS, APP_JS, INDEX_HTML, SESSION_PATH, XR_JS};
 
 /// Validity of the generated WebTransport certificate (browsers require ≤ 14 days).
 const CERT_DAYS: u32 = 13;
@@ -139,7 +134,7 @@ fn web_identity(id: &crate::tls::Identity, user_cert: bool, names: &[String]) ->
 fn page_cert(chain: &Chain) -> Result<PageCert> {
     let mut c = tls_config(chain.0.clone(), chain.1.clone_key())?;
     c.alpn_protocols = vec![b"http/1.1".to_vec()];
-    Ok(PageCert { acceptor: tokio_rustls::TlsAcceptor::from(Arc::new(c)), der: chain.0[0].clone() })
+    Ok(PageCert { acceptor: tokio_rustls::TlsAcceptor::from(Arc::new(c)), der: chain.0[0].clone(), hash: chain.2.clone() })
 }
 
 /// A fresh self-signed ECDSA P-256 certificate valid for `CERT_DAYS` for `names` (DNS names
@@ -181,7 +176,7 @@ pub(crate) fn bind(
     addr: SocketAddr,
     id: &crate::tls::Identity,
     user_cert: bool,
-    limits: &crate::server::Limits,
+    limits: &crate::limits::Limits,
 ) -> Result<WebParts> {
     let names = LocalNames::of_this_machine(addr.ip());
     let cert_names = if user_cert { vec![] } else { names.cert_names() };
@@ -236,7 +231,7 @@ pub(crate) fn bind(
 
 /// The QUIC transport for WebTransport sessions: HTTP/3 needs the client's control and QPACK
 /// streams and its CONNECT request; snerf/1 adds one bidirectional control stream.
-fn wt_transport(limits: &crate::server::Limits) -> Result<quinn::TransportConfig> {
+fn wt_transport(limits: &crate::limits::Limits) -> Result<quinn::TransportConfig> {
     let mut t = transport(limits)?;
     t.max_concurrent_bidi_streams(quinn::VarInt::from_u32(2))
         .max_concurrent_uni_streams(quinn::VarInt::from_u32(3));
@@ -247,7 +242,7 @@ fn wt_transport(limits: &crate::server::Limits) -> Result<quinn::TransportConfig
 pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Receiver<bool>) {
     let info = Arc::new(parts.info);
     let wt = Arc::new(parts.wt);
-    let http = tokio::spawn(crate::page::run(parts.http, parts.page.clone(), info.clone(), shared.clone(), stop.clone()));
+    let http = tokio::spawn(crate::page::run(parts.http, parts.page.clone(), info.addr.port(), shared.clone(), stop.clone()));
     let rotate = info
         .cert_hash
         .is_some()

@@ -1,0 +1,536 @@
+//! One client's `snerf/1` session, the same code for both carriers (`conn.rs`): Hello and
+//! token, the asset's small parts, then its blocks in priority order for the client's pose,
+//! within the send window, until the client has every chunk.
+
+use bytes::Bytes;
+use quinn::VarInt;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::{watch, OwnedSemaphorePermit};
+use tokio::task::JoinSet;
+use tokio::time::Instant;
+
+use crate::conn::{Conn, Recv, Send};
+use crate::pending::Pending;
+use crate::plan::{ServedAsset, View};
+use crate::proto::{
+    code, decode_client_msg, decode_pose, encode_frame, read_frame, ClientMsg, FrameError, Pose, ServerMsg,
+    PROTOCOL_VERSION,
+};
+use crate::shared::{log, Close, Shared};
+use crate::stats::{SentBatch, ServerStats};
+use crate::tls;
+
+pub(crate) async fn handle(shared: Arc<Shared>, conn: Conn, pending: Pending, deadline: Instant) {
+    let who = conn.quic().remote_address();
+    let mut tasks = JoinSet::new();
+    let r = session(&shared, &conn, &mut tasks, pending, deadline).await;
+    tasks.abort_all();
+    match r {
+        Ok(()) => {}
+        Err(Close(c, reason)) => {
+            match c {
+                code::UNAUTHORIZED => shared.stats.unauthorized.fetch_add(1, Ordering::Relaxed),
+                // BUSY is counted where it is decided (refused_busy, pending_evicted).
+                code::DONE | code::NOT_FOUND | code::SHUTDOWN | code::BUSY => 0,
+                _ => shared.stats.protocol_errors.fetch_add(1, Ordering::Relaxed),
+            };
+            log(
+                &shared,
+                who,
+                &format!("closing ({}): {}", code::name(c as u64), reason),
+            );
+            conn.quic().close(VarInt::from_u32(c), reason.as_bytes());
+        }
+    }
+    while tasks.join_next().await.is_some() {}
+}
+
+/// What a valid Hello asked for.
+struct Hello {
+    asset: Option<String>,
+    have: Vec<[u32; 2]>,
+    resume_id: Option<String>,
+    pose: Option<Pose>,
+}
+
+/// An authenticated client's slot (`Limits::max_clients`), held while its session lasts.
+struct Slot {
+    _permit: OwnedSemaphorePermit,
+    stats: Arc<ServerStats>,
+}
+
+impl Drop for Slot {
+    fn drop(&mut self) {
+        self.stats.clients.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// Take a client slot. `screen` refuses new connections while none is free, so this fails
+/// only for a client that lost a race for the last one.
+fn client_slot(shared: &Shared) -> Result<Slot, Close> {
+    let permit = shared.slots.clone().try_acquire_owned().map_err(|_| {
+        shared.stats.refused_busy.fetch_add(1, Ordering::Relaxed);
+        Close(
+            code::BUSY,
+            format!(
+                "server busy: all {} client slots are taken",
+                shared.limits.max_clients.max(1)
+            ),
+        )
+    })?;
+    shared.stats.clients.fetch_add(1, Ordering::Relaxed);
+    Ok(Slot {
+        _permit: permit,
+        stats: shared.stats.clone(),
+    })
+}
+
+fn frame_close(conn: &Conn, e: FrameError) -> Close {
+    if conn.quic().close_reason().is_some() {
+        return Close(code::DONE, "connection closed".into());
+    }
+    match e {
+        FrameError::TooLarge(..) => Close(code::TOO_LARGE, e.to_string()),
+        FrameError::Truncated => Close(code::MALFORMED, e.to_string()),
+        FrameError::Io(_) => Close(code::PROTOCOL, e.to_string()),
+    }
+}
+
+async fn send_msg(send: &mut Send, m: &ServerMsg) -> Result<(), Close> {
+    send.quic()
+        .write_all(&encode_frame(m))
+        .await
+        .map_err(|e| Close(code::PROTOCOL, format!("control stream: {}", e)))
+}
+
+/// Accept the control stream and a Hello with a valid token by `deadline` (the connection's
+/// `auth_timeout`) and within `hello_timeout` of the handshake, unless the pending table
+/// closes the connection first to make room. Returning drops `pending`: the connection
+/// leaves the table, authenticated or not.
+async fn authenticate(
+    shared: &Shared,
+    conn: &Conn,
+    mut pending: Pending,
+    deadline: Instant,
+) -> Result<(Send, Recv, Hello), Close> {
+    let deadline = deadline.min(Instant::now() + shared.limits.hello_timeout);
+    tokio::select! {
+        r = read_hello(shared, conn, deadline) => r,
+        why = pending.evicted() => Err(Close(code::BUSY, why.to_string())),
+    }
+}
+
+async fn read_hello(
+    shared: &Shared,
+    conn: &Conn,
+    deadline: Instant,
+) -> Result<(Send, Recv, Hello), Close> {
+    let limits = &shared.limits;
+    let (mut send, mut recv) = match tokio::time::timeout_at(deadline, conn.accept_bi()).await {
+        Err(_) => {
+            return Err(Close(
+                code::TIMEOUT,
+                "no control stream opened in time".into(),
+            ))
+        }
+        Ok(Err(_)) => return Err(Close(code::DONE, "connection closed".into())),
+        Ok(Ok(s)) => s,
+    };
+    // Control messages go before any data stream.
+    let _ = send.quic().set_priority(i32::MAX);
+    let first =
+        match tokio::time::timeout_at(deadline, read_frame(recv.quic(), limits.max_message)).await {
+            Err(_) => return Err(Close(code::TIMEOUT, "no Hello received in time".into())),
+            Ok(Err(e)) => return Err(frame_close(conn, e)),
+            Ok(Ok(None)) => {
+                return Err(Close(
+                    code::PROTOCOL,
+                    "control stream closed before Hello".into(),
+                ))
+            }
+            Ok(Ok(Some(b))) => b,
+        };
+    let msg = decode_client_msg(&first).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))?;
+    match msg {
+        ClientMsg::List { .. } => Err(Close(code::PROTOCOL, "List before Hello".into())),
+        ClientMsg::Hello {
+            version,
+            token,
+            asset,
+            have,
+            resume_id,
+            pose,
+        } => {
+            if version != PROTOCOL_VERSION {
+                return Err(Close(
+                    code::VERSION,
+                    format!(
+                        "protocol version {} not supported (server speaks {})",
+                        version, PROTOCOL_VERSION
+                    ),
+                ));
+            }
+            if !tls::token_eq(&token, &shared.token) {
+                return Err(Close(code::UNAUTHORIZED, "invalid access token".into()));
+            }
+            let hello = Hello {
+                asset,
+                have,
+                resume_id,
+                pose,
+            };
+            Ok((send, recv, hello))
+        }
+    }
+}
+
+async fn session(
+    shared: &Arc<Shared>,
+    conn: &Conn,
+    tasks: &mut JoinSet<Result<(), Close>>,
+    pending: Pending,
+    deadline: Instant,
+) -> Result<(), Close> {
+    let limits = &shared.limits;
+    let who = conn.quic().remote_address();
+    let (mut send, mut recv, hello) = authenticate(shared, conn, pending, deadline).await?;
+    // Authenticated from here on: only now does the connection take a client slot.
+    let _slot = client_slot(shared)?;
+    let Hello {
+        asset,
+        have,
+        resume_id,
+        pose,
+    } = hello;
+    let mut asset_task = false;
+    if let Some(name) = asset {
+        let (name, path) = shared.resolve(Some(&name))?;
+        let a = shared.load(&name, &path).await?;
+        let n = a.chunk_count() as usize;
+        let mut skip = vec![false; n];
+        let resumed = resume_id.as_deref() == Some(a.sha256.as_str());
+        if resumed {
+            for r in &have {
+                let (lo, hi) = (r[0] as usize, (r[1] as usize).min(n));
+                for s in skip.iter_mut().take(hi).skip(lo) {
+                    *s = true;
+                }
+            }
+        }
+        let sending: Vec<u32> = (0..n as u32).filter(|&i| !skip[i as usize]).collect();
+        let sending_bytes = crate::plan::records_len(&a, &sending);
+        send_msg(
+            &mut send,
+            &ServerMsg::Welcome {
+                version: PROTOCOL_VERSION,
+                asset: Some(a.info()),
+                resumed,
+                sending_chunks: sending.len() as u32,
+                sending_bytes,
+            },
+        )
+        .await?;
+        log(
+            shared,
+            who,
+            &format!(
+                "streaming {} ({} of {} chunks, {} bytes{})",
+                name,
+                sending.len(),
+                n,
+                sending_bytes,
+                if resumed { ", resumed" } else { "" }
+            ),
+        );
+        let (view_tx, view_rx) = watch::channel(pose.filter(|p| p.validate().is_ok()));
+        tasks.spawn(read_poses(conn.clone(), view_tx, shared.stats.clone()));
+        tasks.spawn(stream_asset(conn.clone(), a, skip, view_rx, shared.clone()));
+        asset_task = true;
+    } else {
+        send_msg(
+            &mut send,
+            &ServerMsg::Welcome {
+                version: PROTOCOL_VERSION,
+                asset: None,
+                resumed: false,
+                sending_chunks: 0,
+                sending_bytes: 0,
+            },
+        )
+        .await?;
+    }
+    // Control loop: List may follow; anything else is out of order.
+    let mut control_open = true;
+    let mut linger: Option<tokio::time::Instant> = None;
+    loop {
+        tokio::select! {
+            f = read_frame(recv.quic(), limits.max_message), if control_open => {
+                match f {
+                    Err(e) => return Err(frame_close(conn, e)),
+                    Ok(None) => control_open = false,
+                    Ok(Some(b)) => match decode_client_msg(&b).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))? {
+                        ClientMsg::List { thumbs } => {
+                            let mut assets = shared.list();
+                            if thumbs {
+                                // Rendered (or read from the cache) off the async workers.
+                                let sh = shared.clone();
+                                assets = tokio::task::spawn_blocking(move || {
+                                    for a in &mut assets {
+                                        a.thumb = sh.asset_path(&a.name).and_then(|p| sh.thumbs.get(&p));
+                                    }
+                                    assets
+                                })
+                                .await
+                                .map_err(|_| Close(code::INTERNAL, "thumbnail task failed".into()))?;
+                            }
+                            send_msg(&mut send, &ServerMsg::Listing { assets }).await?
+                        }
+                        ClientMsg::Hello { .. } => return Err(Close(code::PROTOCOL, "duplicate Hello".into())),
+                    },
+                }
+            }
+            r = tasks.join_next(), if asset_task => {
+                match r {
+                    None => asset_task = false,
+                    Some(Ok(Ok(()))) => {
+                        // Everything sent and acknowledged; give the client a moment to close,
+                        // still answering List meanwhile (the loop keeps reading control).
+                        linger = Some(tokio::time::Instant::now() + limits.linger);
+                    }
+                    Some(Ok(Err(c))) => return Err(c),
+                    Some(Err(_)) => return Ok(()),
+                }
+            }
+            _ = tokio::time::sleep_until(linger.unwrap_or_else(tokio::time::Instant::now)), if linger.is_some() => {
+                return Err(Close(code::DONE, "transfer complete".into()));
+            }
+            _ = conn.quic().closed() => return Ok(()),
+        }
+    }
+}
+
+async fn read_poses(
+    conn: Conn,
+    tx: watch::Sender<Option<Pose>>,
+    stats: Arc<ServerStats>,
+) -> Result<(), Close> {
+    let mut last: Option<u32> = None;
+    // Ends when the connection does; a pose stream never closes it (datagrams are best effort).
+    while let Some(d) = conn.read_datagram().await {
+        match decode_pose(&d) {
+            Ok((seq, p)) => {
+                if last.is_none_or(|l| seq > l) {
+                    last = Some(seq);
+                    stats.pose_updates.fetch_add(1, Ordering::Relaxed);
+                    let _ = tx.send(Some(p));
+                }
+            }
+            Err(_) => {
+                stats.bad_datagrams.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+    // Keep the join set from reporting completion as "asset task done".
+    std::future::pending::<()>().await;
+    Ok(())
+}
+
+async fn open_stream(conn: &Conn, stall: Duration) -> Result<Send, Close> {
+    match tokio::time::timeout(stall, conn.open_uni()).await {
+        Err(_) => Err(Close(
+            code::TIMEOUT,
+            "client granted no stream credit (stopped reading)".into(),
+        )),
+        Ok(Err(e)) => Err(Close(code::DONE, format!("connection lost: {}", e))),
+        Ok(Ok(s)) => Ok(s),
+    }
+}
+
+async fn write_batch(
+    mut s: Send,
+    asset: Arc<ServedAsset>,
+    idx: Vec<u32>,
+    shared: Arc<Shared>,
+) -> Result<u64, Close> {
+    let mut bufs = Vec::with_capacity(idx.len() * 2);
+    let mut bytes = 0u64;
+    for &i in &idx {
+        bufs.push(Bytes::copy_from_slice(&i.to_le_bytes()));
+        bufs.push(asset.chunk_bytes(i));
+        bytes += asset.record_len(i);
+    }
+    let stall = shared.limits.stall_timeout;
+    shared.stats.streams_started.fetch_add(1, Ordering::Relaxed);
+    match tokio::time::timeout(stall, s.quic().write_all_chunks(&mut bufs)).await {
+        Err(_) => {
+            return Err(Close(
+                code::TIMEOUT,
+                "client stopped reading (send stalled)".into(),
+            ))
+        }
+        Ok(Err(e)) => return Err(Close(code::DONE, format!("connection lost: {}", e))),
+        Ok(Ok(())) => {}
+    }
+    let _ = s.quic().finish();
+    shared.stats.bytes_sent.fetch_add(bytes, Ordering::Relaxed);
+    // Done when the client has acknowledged the whole stream: only then does the scheduler
+    // commit more blocks, so what is queued stays ~2 congestion windows and a pose change
+    // takes effect within about one round trip.
+    match tokio::time::timeout(stall, s.quic().stopped()).await {
+        Err(_) => {
+            return Err(Close(
+                code::TIMEOUT,
+                "client stopped acknowledging data".into(),
+            ))
+        }
+        Ok(Err(e)) => return Err(Close(code::DONE, format!("connection lost: {}", e))),
+        Ok(Ok(Some(c))) => {
+            return Err(Close(
+                code::PROTOCOL,
+                format!("client stopped a data stream (code {})", c),
+            ))
+        }
+        Ok(Ok(None)) => {}
+    }
+    shared
+        .stats
+        .streams_completed
+        .fetch_add(1, Ordering::Relaxed);
+    Ok(bytes)
+}
+
+/// Smallest amount the scheduler keeps in flight, whatever the congestion window says.
+const MIN_IN_FLIGHT: u64 = 128 * 1024;
+const MIN_BATCH: u64 = 16 * 1024;
+
+/// Stream everything not in `skip`: the meta chunks (HEAD, VMLP, GRIDs) on the first,
+/// highest-priority stream, then BLKS chunks in batches ordered for the latest pose, then END
+/// once every block stream has been acknowledged. Blocks are committed to streams only while
+/// less than ~2 congestion windows are unacknowledged, so the order can follow the pose.
+async fn stream_asset(
+    conn: Conn,
+    asset: Arc<ServedAsset>,
+    skip: Vec<bool>,
+    mut view_rx: watch::Receiver<Option<Pose>>,
+    shared: Arc<Shared>,
+) -> Result<(), Close> {
+    let limits = shared.limits.clone();
+    let max_streams = limits.max_streams.max(1);
+    let mut writers: JoinSet<Result<u64, Close>> = JoinSet::new();
+    let mut outstanding = 0u64;
+    let mut prio = i32::MAX - 1;
+    let joined = |r: Result<Result<u64, Close>, tokio::task::JoinError>| -> Result<u64, Close> {
+        r.map_err(|_| Close(code::INTERNAL, "writer task failed".into()))?
+    };
+    let meta: Vec<u32> = asset
+        .meta
+        .iter()
+        .copied()
+        .filter(|&i| !skip[i as usize])
+        .collect();
+    if !meta.is_empty() {
+        let mut s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.quic().set_priority(prio);
+        prio -= 1;
+        outstanding += crate::plan::records_len(&asset, &meta);
+        writers.spawn(write_batch(s, asset.clone(), meta, shared.clone()));
+    }
+    let mut remaining: Vec<u32> = (0..asset.blks.len() as u32)
+        .filter(|&b| !skip[asset.blks[b as usize].chunk as usize])
+        .collect();
+    let sort = |remaining: &mut Vec<u32>, pose: Option<Pose>| {
+        let view = pose.map(|p| View::new(&asset, &p));
+        let mut keyed: Vec<((u32, u8, f32), u32)> = remaining
+            .iter()
+            .map(|&b| (asset.priority(&asset.blks[b as usize], view.as_ref()), b))
+            .collect();
+        // Descending, so the most urgent block is popped from the end.
+        keyed.sort_by(|a, b| {
+            b.0 .0
+                .cmp(&a.0 .0)
+                .then(b.0 .1.cmp(&a.0 .1))
+                .then(b.0 .2.total_cmp(&a.0 .2))
+        });
+        remaining.clear();
+        remaining.extend(keyed.into_iter().map(|k| k.1));
+    };
+    let p0 = *view_rx.borrow_and_update();
+    sort(&mut remaining, p0);
+    let mut pose_now = p0;
+    let paced_from = tokio::time::Instant::now();
+    let mut paced_bytes = 0u64;
+    let mut last_sort = std::time::Instant::now() - Duration::from_secs(1);
+    while !remaining.is_empty() {
+        while let Some(r) = writers.try_join_next() {
+            outstanding -= joined(r)?;
+        }
+        let cwnd = conn.quic().congestion_state().window();
+        let target = cwnd
+            .saturating_mul(2)
+            .clamp(MIN_IN_FLIGHT, limits.send_budget.max(MIN_IN_FLIGHT));
+        if outstanding >= target || writers.len() >= max_streams {
+            tokio::select! {
+                Some(r) = writers.join_next() => outstanding -= joined(r)?,
+                _ = conn.quic().closed() => return Ok(()),
+            }
+            continue;
+        }
+        // Pacing: the next batch waits until the bytes so far fit the rate (and is chosen
+        // after the wait, for the pose then).
+        if let Some(rate) = limits.max_rate.filter(|r| *r > 0.0) {
+            let due = paced_from + Duration::from_secs_f64(paced_bytes as f64 / rate);
+            tokio::select! {
+                _ = tokio::time::sleep_until(due) => {}
+                _ = conn.quic().closed() => return Ok(()),
+            }
+        }
+        // Re-sort for a new pose, at most every 10 ms (a client streaming poses at a high
+        // rate must not make the server sort its blocks continuously).
+        if last_sort.elapsed() >= Duration::from_millis(10)
+            && view_rx.has_changed().unwrap_or(false)
+        {
+            let p = *view_rx.borrow_and_update();
+            sort(&mut remaining, p);
+            pose_now = p;
+            last_sort = std::time::Instant::now();
+        }
+        let batch_target =
+            (target / 4).clamp(MIN_BATCH, (limits.batch_bytes as u64).max(MIN_BATCH));
+        let mut batch = Vec::new();
+        let mut bytes = 0u64;
+        while let Some(&b) = remaining.last() {
+            if !batch.is_empty() && bytes >= batch_target {
+                break;
+            }
+            let c = asset.blks[b as usize].chunk;
+            bytes += asset.record_len(c);
+            batch.push(c);
+            remaining.pop();
+        }
+        if limits.log_sends {
+            if let Ok(mut log) = shared.stats.send_log.lock() {
+                log.push(SentBatch { pose: pose_now, chunks: batch.clone() });
+            }
+        }
+        let mut s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.quic().set_priority(prio);
+        prio = prio.saturating_sub(1).max(i32::MIN + 1);
+        outstanding += bytes;
+        paced_bytes += bytes;
+        writers.spawn(write_batch(s, asset.clone(), batch, shared.clone()));
+    }
+    while let Some(r) = writers.join_next().await {
+        joined(r)?;
+    }
+    if !skip[asset.end as usize] {
+        let mut s = open_stream(&conn, limits.stall_timeout).await?;
+        let _ = s.quic().set_priority(i32::MIN);
+        write_batch(s, asset.clone(), vec![asset.end], shared.clone()).await?;
+    } else {
+        // Nothing more to send; wait for the client to close.
+        std::future::pending::<()>().await;
+    }
+    Ok(())
+}
