@@ -26,6 +26,7 @@ mod cache;
 mod conn;
 pub mod client;
 pub mod glsl;
+pub mod http_stream;
 pub mod lan;
 mod limits;
 pub mod live;

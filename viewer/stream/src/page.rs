@@ -26,6 +26,7 @@ use tokio::sync::watch;
 use tokio::task::JoinSet;
 use tokio::time::{timeout_at, Duration, Instant};
 
+use crate::http_stream::HTTP_SESSION_PATH;
 use crate::pending::{Counted, PendingTable};
 use crate::shared::Shared;
 use snerf_geometry::march::{march_shader, ShaderVariant};
@@ -132,8 +133,34 @@ async fn serve_requests<S: AsyncRead + AsyncWrite + Unpin>(
             }
         };
         let req = Request::parse(&head);
-        let keep = req.keep_alive && !req.has_body;
-        let resp = route(&req, port, cert);
+        let (resp, keep) = if req.path == HTTP_SESSION_PATH {
+            // snerf/1 over HTTPS: the one route with a body, read whole (at most
+            // `max_message`) within the same deadline as the head.
+            let host = req.host.as_deref().filter(|h| host_ok(h, port, &cert.der));
+            match (host, req.method.as_str(), req.content_length) {
+                (None, ..) => (Response::text(421, "unknown host"), false),
+                (Some(_), "POST", Some(n)) if n <= limits.max_message => {
+                    let body = match timeout_at(deadline, read_body(&mut s, &mut buf, n)).await {
+                        Ok(Ok(b)) => b,
+                        Ok(Err(_)) => return,
+                        Err(_) => {
+                            shared.stats.page_timeouts.fetch_add(1, Ordering::Relaxed);
+                            return;
+                        }
+                    };
+                    let origin_ok = match (&req.origin, host) {
+                        (Some(o), Some(h)) => *o == format!("https://{h}"),
+                        _ => false,
+                    };
+                    let r = crate::http_stream::answer(shared, &req.query, &body, origin_ok).await;
+                    (r, req.keep_alive && req.has_body == (n > 0))
+                }
+                (Some(_), "POST", _) => (Response::text(413, "body missing or too large"), false),
+                _ => (Response::text(405, "method not allowed"), false),
+            }
+        } else {
+            (route(&req, port, cert), req.keep_alive && !req.has_body)
+        };
         let written = tokio::time::timeout(
             limits.page_write_timeout,
             write(&mut s, &resp, req.method == "HEAD", keep),
@@ -177,6 +204,20 @@ async fn read_head<S: AsyncRead + Unpin>(s: &mut S, buf: &mut Vec<u8>) -> std::i
     }
 }
 
+/// The `n` bytes of a body: what `read_head` left over in `buf`, then the rest from `s`;
+/// bytes after the body (a pipelined request) stay in `buf`.
+async fn read_body<S: AsyncRead + Unpin>(s: &mut S, buf: &mut Vec<u8>, n: usize) -> std::io::Result<Vec<u8>> {
+    let mut chunk = [0u8; 4096];
+    while buf.len() < n {
+        let k = s.read(&mut chunk).await?;
+        if k == 0 {
+            return Err(std::io::ErrorKind::UnexpectedEof.into());
+        }
+        buf.extend_from_slice(&chunk[..k]);
+    }
+    Ok(buf.drain(..n).collect())
+}
+
 /// What the server reads of a request head.
 #[derive(Debug, Default)]
 pub(crate) struct Request {
@@ -185,6 +226,9 @@ pub(crate) struct Request {
     pub query: String,
     pub host: Option<String>,
     pub keep_alive: bool,
+    pub origin: Option<String>,
+    /// `Content-Length`, when given and a number.
+    pub content_length: Option<usize>,
     /// A body was announced (the routes take none: answered, then the connection closed,
     /// since the body's bytes would be read as the next request).
     pub has_body: bool,
@@ -211,9 +255,12 @@ impl Request {
                 r.host = Some(v.to_string());
             } else if k.eq_ignore_ascii_case("connection") && v.to_ascii_lowercase().contains("close") {
                 r.keep_alive = false;
-            } else if (k.eq_ignore_ascii_case("content-length") && v != "0")
-                || k.eq_ignore_ascii_case("transfer-encoding")
-            {
+            } else if k.eq_ignore_ascii_case("origin") {
+                r.origin = Some(v.to_string());
+            } else if k.eq_ignore_ascii_case("content-length") {
+                r.content_length = v.parse().ok();
+                r.has_body |= v != "0";
+            } else if k.eq_ignore_ascii_case("transfer-encoding") {
                 r.has_body = true;
             }
         }
@@ -327,7 +374,10 @@ async fn write<S: AsyncWrite + Unpin>(s: &mut S, r: &Response, head_only: bool, 
         200 => "OK",
         400 => "Bad Request",
         404 => "Not Found",
+        401 => "Unauthorized",
+        403 => "Forbidden",
         405 => "Method Not Allowed",
+        413 => "Content Too Large",
         421 => "Misdirected Request",
         431 => "Request Header Fields Too Large",
         500 => "Internal Server Error",

@@ -260,6 +260,20 @@ fn cell_centre_radius(h: &Header, g: usize, cell: usize) -> ([f32; 3], f32) {
 pub use snerf_asset::render::grid_to_world;
 
 /// Record bytes of a set of chunks.
+/// Order block indices (into `asset.blks`) for `pose`, **most urgent last** (the sender pops
+/// from the end): the one order both carriers send in (`session.rs` over QUIC and
+/// WebTransport, `http_stream.rs` over HTTPS).
+pub fn order_blocks(asset: &ServedAsset, blocks: &mut Vec<u32>, pose: Option<Pose>) {
+    let view = pose.map(|p| View::new(asset, &p));
+    let mut keyed: Vec<((u32, u8, f32), u32)> = blocks
+        .iter()
+        .map(|&b| (asset.priority(&asset.blks[b as usize], view.as_ref()), b))
+        .collect();
+    keyed.sort_by(|a, b| b.0 .0.cmp(&a.0 .0).then(b.0 .1.cmp(&a.0 .1)).then(b.0 .2.total_cmp(&a.0 .2)));
+    blocks.clear();
+    blocks.extend(keyed.into_iter().map(|k| k.1));
+}
+
 pub fn records_len(a: &ServedAsset, idx: &[u32]) -> u64 {
     idx.iter().map(|&i| a.record_len(i)).sum::<u64>()
 }

@@ -13,7 +13,7 @@ use tokio::time::Instant;
 
 use crate::conn::{Conn, Recv, Send};
 use crate::pending::Pending;
-use crate::plan::{ServedAsset, View};
+use crate::plan::ServedAsset;
 use crate::proto::{
     code, decode_client_msg, decode_pose, encode_frame, read_frame, ClientMsg, FrameError, Pose, ServerMsg,
     PROTOCOL_VERSION,
@@ -440,22 +440,7 @@ async fn stream_asset(
     let mut remaining: Vec<u32> = (0..asset.blks.len() as u32)
         .filter(|&b| !skip[asset.blks[b as usize].chunk as usize])
         .collect();
-    let sort = |remaining: &mut Vec<u32>, pose: Option<Pose>| {
-        let view = pose.map(|p| View::new(&asset, &p));
-        let mut keyed: Vec<((u32, u8, f32), u32)> = remaining
-            .iter()
-            .map(|&b| (asset.priority(&asset.blks[b as usize], view.as_ref()), b))
-            .collect();
-        // Descending, so the most urgent block is popped from the end.
-        keyed.sort_by(|a, b| {
-            b.0 .0
-                .cmp(&a.0 .0)
-                .then(b.0 .1.cmp(&a.0 .1))
-                .then(b.0 .2.total_cmp(&a.0 .2))
-        });
-        remaining.clear();
-        remaining.extend(keyed.into_iter().map(|k| k.1));
-    };
+    let sort = |remaining: &mut Vec<u32>, pose: Option<Pose>| crate::plan::order_blocks(&asset, remaining, pose);
     let p0 = *view_rx.borrow_and_update();
     sort(&mut remaining, p0);
     let mut pose_now = p0;

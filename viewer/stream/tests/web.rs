@@ -1329,3 +1329,94 @@ async fn tls_to_from(from: &str, addr: std::net::SocketAddr, hash: &str) -> toki
 fn page_of(b: &(PathBuf, PathBuf, PathBuf), args: &[&str]) -> serde_json::Value {
     page(b, args)
 }
+
+/// page.mjs (or another script) with extra environment for launch.mjs.
+fn run_page_env(b: &(PathBuf, PathBuf, PathBuf), script: &str, args: &[&str], env: &[(&str, &str)]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web").join(script);
+    let mut c = Command::new(&b.0);
+    c.arg(&script).arg(&b.2).args(args).env("SNERF_CHROMIUM", &b.1);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    let out = c.output().expect("run node");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
+        eprintln!("{stderr}");
+    }
+    assert!(out.status.success(), "{} failed: {stderr}", script.display());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("report {stdout:?}: {e} (stderr: {stderr})"))
+}
+
+/// One request of snerf/1 over HTTPS: (status line, body).
+async fn post_http(addr: std::net::SocketAddr, hash: &str, host: &str, origin: Option<&str>, query: &str, body: &[u8]) -> (String, Vec<u8>) {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tls_to(addr, hash).await;
+    let mut head = format!("POST /snerf/1/http?{query} HTTP/1.1\r\nHost: {host}\r\nContent-Length: {}\r\nConnection: close\r\n", body.len());
+    if let Some(o) = origin {
+        head += &format!("Origin: {o}\r\n");
+    }
+    head += "\r\n";
+    s.write_all(head.as_bytes()).await.unwrap();
+    s.write_all(body).await.unwrap();
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out).await;
+    let p = out.windows(4).position(|w| w == b"\r\n\r\n").expect("a response");
+    let status = String::from_utf8_lossy(&out[..out.iter().position(|&c| c == b'\r').unwrap()]).into_owned();
+    (status, out[p + 4..].to_vec())
+}
+
+#[test]
+fn without_webtransport_the_page_streams_over_https_byte_for_byte_and_refusals_send_nothing() {
+    let dir = TempDir::new("web-https-stream");
+    let state = TempDir::new("web-https-stream-state");
+    let asset = static_asset(32, 8, 0.8, 11);
+    let bytes = write_asset(&asset, dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    let (addr, hash) = (web.addr, web.cert_hash.clone().unwrap());
+    let host = format!("127.0.0.1:{}", addr.port());
+    let origin = format!("https://{host}");
+    let hello = |token: &str| snerf_stream::proto::encode_frame(&serde_json::json!({"type": "hello", "version": 1, "token": token, "asset": "scene"}));
+    let rt = runtime();
+    // Refusals: wrong token, another origin, no origin, a body that does not decode, one too
+    // large; none carries a byte of the asset.
+    let cases: Vec<(Vec<u8>, Option<&str>, &str, &str)> = vec![
+        (hello("0".repeat(64).as_str()), Some(origin.as_str()), "part=data", "HTTP/1.1 401"),
+        (hello(h.token()), Some("https://evil.example"), "part=data", "HTTP/1.1 403"),
+        (hello(h.token()), None, "part=data", "HTTP/1.1 403"),
+        (b"\x05\x00\x00\x00{not".to_vec(), Some(origin.as_str()), "part=data", "HTTP/1.1 400"),
+        (vec![b' '; 70 * 1024], Some(origin.as_str()), "part=data", "HTTP/1.1 413"),
+        (hello(h.token()), Some(origin.as_str()), "part=everything", "HTTP/1.1 400"),
+    ];
+    for (body, o, q, want) in &cases {
+        let (status, got) = rt.block_on(post_http(addr, &hash, &host, *o, q, body));
+        assert!(status.starts_with(want), "{want}: got {status}");
+        assert!(got.len() < 200 && !got.windows(4).any(|w| w == b"BLKS" || w == b"HEAD"), "{want}: {} bytes", got.len());
+    }
+    assert_eq!(h.stats().bytes_sent.load(Ordering::Relaxed), 0);
+    // The right request gets the small parts first, as on a data stream.
+    let (status, got) = rt.block_on(post_http(addr, &hash, &host, Some(&origin), "part=data", &hello(h.token())));
+    assert!(status.starts_with("HTTP/1.1 200"), "{status}");
+    assert_eq!(&got[4..8], b"HEAD", "the first record is the header");
+    // The page in Chromium without WebTransport: byte-identical, and drawn like the CPU reference.
+    if let Some(b) = browser() {
+        let cam = snerf_asset::orbit(&asset.header, 1, 0, 64, 48, 40.0);
+        let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene"), ("cam", &cam_json(&cam))]));
+        let r = run_page_env(&b, "page.mjs", &[&url, "done"], &[("SNERF_NO_WEBTRANSPORT", "1")]);
+        assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+        assert_eq!(r["transport"], "https");
+        assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
+        let cpu = snerf_asset::render(&Asset::from_bytes(&bytes).unwrap(), &cam, 0.0);
+        let d = mean_abs_diff(r["lastRender"]["rgba"].as_array().unwrap(), &cpu);
+        assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {d:?}");
+        // The listing came the same way.
+        assert_eq!(r["listing"].as_array().map(|l| l.len()), Some(1));
+        // And with neither WebTransport nor WebGPU (a headset browser with WebGL2 alone).
+        let r = run_page_env(&b, "page.mjs", &[&url, "done"], &[("SNERF_NO_WEBTRANSPORT", "1"), ("SNERF_NO_WEBGPU", "1")]);
+        assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+        assert_eq!((r["transport"].as_str(), r["backend"].as_str()), (Some("https"), Some("webgl2")));
+        assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&bytes)).as_str());
+    }
+    h.shutdown();
+}

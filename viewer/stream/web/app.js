@@ -22,7 +22,7 @@ const fixedCam = frag.get('cam') ? JSON.parse(frag.get('cam')) : null;
 const report = (window.snerf = {
   state: 'starting', error: null, listing: null, asset: null, sha256: null, bytes: 0,
   chunks: 0, blocks: 0, firstFrameMs: null, frames: 0, frame: null, firstFrame: null,
-  adapter: null, backend: null, marks: {}, crcMs: 0, rotationRetries: 0,
+  adapter: null, backend: null, marks: {}, crcMs: 0, rotationRetries: 0, transport: null,
 });
 
 function setStatus(s) { $('status').textContent = s; }
@@ -114,6 +114,112 @@ async function readMsg(rd) {
   return JSON.parse(td.decode(await rd.take(n)));
 }
 
+// ---- snerf/1 over HTTPS (browsers without WebTransport) ----
+// PROTOCOL.md, "Over HTTPS": each request carries the client's control frames (the hello says
+// what is held and where the head looks); the answers are the server's control frames or the
+// next batch of records. This class offers the part of a WebTransport session the page uses
+// (a bidirectional control stream, incoming data streams, pose datagrams, closed/close), so
+// everything above it is one code path for both carriers.
+class HttpSession {
+  constructor(url) {
+    this.url = url;
+    this.hello = null; this.info = null; this.held = null; this.pose = null; this.stopped = false;
+    this.ready = Promise.resolve();
+    this.closed = new Promise((res, rej) => { this.closeWith = res; this.fail = rej; });
+    this.closed.catch(() => {});
+    this.incomingUnidirectionalStreams = new ReadableStream({ start: (c) => { this.uni = c; } });
+    this.ctlReadable = new ReadableStream({ start: (c) => { this.ctl = c; } });
+    // A pose "datagram" waits for the next request's hello.
+    this.datagrams = { writable: new WritableStream({ write: (b) => { this.pose = decodePose(b); } }) };
+  }
+  async post(part, msgs) {
+    const fr = msgs.map(frame), body = new Uint8Array(fr.reduce((n, f) => n + f.length, 0));
+    fr.reduce((o, f) => (body.set(f, o), o + f.length), 0);
+    const r = await fetch(`${this.url}?part=${part}`, { method: 'POST', body, cache: 'no-store' });
+    if (!r.ok) {
+      // A refusal: the snerf/1 close code is the body's first word, as a session would close.
+      const t = await r.text();
+      const e = { closeCode: parseInt(t, 10), reason: t.slice(t.indexOf(' ') + 1) };
+      this.stop(e);
+      throw new Error(`the server refused (code ${e.closeCode}: ${e.reason})`);
+    }
+    return r;
+  }
+  stop(info) {
+    if (this.stopped) return;
+    this.stopped = true;
+    try { this.ctl.close(); this.uni.close(); } catch { /* already closed */ }
+    this.closeWith(info);
+  }
+  close(info) { this.stop(info || { closeCode: 0, reason: 'done' }); }
+  async createBidirectionalStream() {
+    const writable = new WritableStream({
+      write: async (chunk) => {
+        const msg = JSON.parse(td.decode(chunk.subarray(4)));
+        if (msg.type === 'hello') this.hello = msg;
+        const r = await this.post('control', msg.type === 'hello' ? [msg] : [this.hello, msg]);
+        const b = new Uint8Array(await r.arrayBuffer());
+        for (let o = 0; o < b.length; ) {
+          const f = b.subarray(o, o + 4 + u32(b, o));
+          o += f.length;
+          const m = JSON.parse(td.decode(f.subarray(4)));
+          // The hello goes again with every request: its welcome is passed on once.
+          if (m.type === 'welcome' && msg.type !== 'hello') continue;
+          this.ctl.enqueue(f);
+          if (m.type === 'welcome' && m.asset) this.start(m);
+        }
+      },
+    });
+    return { writable, readable: this.ctlReadable };
+  }
+  start(welcome) {
+    this.info = welcome.asset;
+    this.held = new Uint8Array(this.info.chunks);
+    if (welcome.resumed) for (const [a, b] of this.hello.have || []) this.held.fill(1, a, Math.min(b, this.info.chunks));
+    this.pump().catch((e) => { if (!this.stopped) { this.stopped = true; this.fail(e); } });
+  }
+  // One request at a time: the next is asked for when the last answer has been read, with
+  // what is held now and the latest pose.
+  async pump() {
+    while (!this.stopped) {
+      const have = [];
+      this.held.forEach((h, i) => { if (!h) return; if (have.length && have[have.length - 1][1] === i) have[have.length - 1][1] = i + 1; else have.push([i, i + 1]); });
+      const hello = { ...this.hello, have, resume_id: this.info.sha256 };
+      if (this.pose) hello.pose = this.pose;
+      const r = await this.post('data', [hello]);
+      let done;
+      const finished = new Promise((res) => { done = res; });
+      const track = recordTracker((i) => { this.held[i] = 1; });
+      let bytes = 0;
+      const counted = new TransformStream({ transform: (c, ctl) => { bytes += c.length; track(c); ctl.enqueue(c); }, flush: () => done() });
+      this.uni.enqueue(r.body.pipeThrough(counted));
+      await finished;
+      if (bytes === 0) return; // the server has nothing more: the page closes when it has all
+    }
+  }
+}
+
+// Calls `onRecord(index)` for each whole record (u32 index + chunk: tag, u32 length, CRC,
+// payload) in the bytes it is fed, piece by piece.
+function recordTracker(onRecord) {
+  let head = new Uint8Array(16), have = 0, skip = 0;
+  return (c) => {
+    let o = 0;
+    while (o < c.length) {
+      if (skip > 0) { const k = Math.min(skip, c.length - o); skip -= k; o += k; if (skip === 0) onRecord(u32(head, 0)); continue; }
+      const k = Math.min(16 - have, c.length - o);
+      head.set(c.subarray(o, o + k), have); have += k; o += k;
+      if (have === 16) { have = 0; skip = u32(head, 8); if (skip === 0) onRecord(u32(head, 0)); }
+    }
+  };
+}
+
+// The 40-byte pose datagram back into the hello's pose.
+function decodePose(b) {
+  const dv = new DataView(b.buffer, b.byteOffset, b.byteLength), f = (i) => dv.getFloat32(8 + 4 * i, true);
+  return { eye: [f(0), f(1), f(2)], forward: [f(3), f(4), f(5)], time: f(6), fov_deg: f(7) };
+}
+
 // ---- WebTransport ----
 let config = null;
 // True while an immersive WebXR session draws (its frame loop replaces the page's).
@@ -127,7 +233,9 @@ async function connect(hello) {
     config = await (await fetch('/config.json')).json();
     const opts = {};
     if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
-    wt = new WebTransport(config.webtransport, opts);
+    // WebTransport where the browser has it; else snerf/1 over HTTPS requests.
+    wt = typeof WebTransport === 'undefined' ? new HttpSession('/snerf/1/http') : new WebTransport(config.webtransport, opts);
+    report.transport = typeof WebTransport === 'undefined' ? 'https' : 'webtransport';
     wt.closed.catch(() => {}); // a failed handshake rejects this too; `ready` reports it
     try {
       await wt.ready;
@@ -1097,7 +1205,6 @@ function showListing(assets) {
 
 async function main() {
   if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
-  if (typeof WebTransport === 'undefined') throw new Error('this browser has no WebTransport (it needs a secure context: https, or http on localhost)');
   config = await (await fetch('/config.json')).json();
   // The listing, the GPU and (with an asset named) the stream start together: the first
   // frame waits for none of the others.

@@ -22,7 +22,14 @@ export async function launchChromium(pwDir) {
   // `snerf serve` serves the page over HTTPS with a self-signed certificate: every page takes
   // it as a person does by clicking through the browser's one-time warning.
   const newPage = browser.newPage.bind(browser), newContext = browser.newContext.bind(browser);
-  browser.newPage = (o = {}) => newPage({ ignoreHTTPSErrors: true, ...o });
+  // SNERF_NO_WEBTRANSPORT=1: every page loses `WebTransport` before its scripts run, as in a
+  // browser without it (Safari, Firefox): the page streams over HTTPS requests instead.
+  const noWt = process.env.SNERF_NO_WEBTRANSPORT === '1';
+  browser.newPage = async (o = {}) => {
+    const p = await newPage({ ignoreHTTPSErrors: true, ...o });
+    if (noWt) await p.addInitScript('delete window.WebTransport;');
+    return p;
+  };
   browser.newContext = (o = {}) => newContext({ ignoreHTTPSErrors: true, ...o });
   return browser;
 }
