@@ -42,6 +42,7 @@ mod stats;
 pub mod tls;
 pub mod url;
 pub mod web;
+mod web_cert;
 
 pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
 pub use live::LiveAsset;

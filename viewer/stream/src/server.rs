@@ -137,7 +137,10 @@ pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
     let (shared, endpoint, id) = setup(&opts)?;
     let addr = endpoint.local_addr()?;
     let web = match opts.web {
-        Some(w) => Some(crate::web::bind(w, &id, opts.cert.is_some(), &opts.limits)?),
+        Some(w) => {
+            let state = opts.state_dir.clone().unwrap_or_else(|| tls::default_state_dir(&opts.path));
+            Some(crate::web::bind(w, &id, opts.cert.is_some(), &state, &opts.limits)?)
+        }
         None => None,
     };
     let web_info = web.as_ref().map(|w| w.info.clone());

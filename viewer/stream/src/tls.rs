@@ -79,7 +79,7 @@ pub fn default_state_dir(assets: &Path) -> PathBuf {
     base.join(".snerf-serve")
 }
 
-fn write_private(path: &Path, bytes: &[u8]) -> Result<()> {
+pub(crate) fn write_private(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let tmp = path.with_extension("tmp");
     let mut o = std::fs::OpenOptions::new();

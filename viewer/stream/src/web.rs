@@ -46,8 +46,7 @@ use crate::shared::{log, Shared};
 
 pub use crate::page::{APP_CSS, APP_JS, INDEX_HTML, SESSION_PATH, XR_JS};
 
-/// Validity of the generated WebTransport certificate (browsers require ≤ 14 days).
-const CERT_DAYS: u32 = 13;
+use crate::web_cert::CERT_DAYS;
 
 /// What a started web viewer listens on.
 #[derive(Clone, Debug)]
@@ -115,18 +114,21 @@ pub(crate) struct WebParts {
     /// TLS for the page: the same certificate as WebTransport, ALPN http/1.1.
     page: PageCerts,
     wt: wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>,
+    /// When the certificate in use was made (rotation counts from it) and where it is kept.
+    created: std::time::SystemTime,
+    state: std::path::PathBuf,
 }
 
 /// The certificate chain and key for the web port: the user's, or a fresh short-lived one
 /// for `names` (with its SHA-256).
 type Chain = (Vec<rustls::pki_types::CertificateDer<'static>>, rustls::pki_types::PrivateKeyDer<'static>, Option<String>);
 
-fn web_identity(id: &crate::tls::Identity, user_cert: bool, names: &[String]) -> Result<Chain> {
+fn web_identity(id: &crate::tls::Identity, user_cert: bool, names: &[String], state: &std::path::Path, renew: Duration) -> Result<(Chain, std::time::SystemTime)> {
     if user_cert {
-        Ok((id.certs.clone(), id.key.clone_key(), None))
+        Ok(((id.certs.clone(), id.key.clone_key(), None), std::time::SystemTime::now()))
     } else {
-        let (cert, key, hash) = generated_cert(names)?;
-        Ok((vec![cert], key, Some(hash)))
+        let g = crate::web_cert::kept_or_new(state, names, renew)?;
+        Ok(((vec![g.cert], g.key, Some(g.sha256)), g.created))
     }
 }
 
@@ -135,24 +137,6 @@ fn page_cert(chain: &Chain) -> Result<PageCert> {
     let mut c = tls_config(chain.0.clone(), chain.1.clone_key())?;
     c.alpn_protocols = vec![b"http/1.1".to_vec()];
     Ok(PageCert { acceptor: tokio_rustls::TlsAcceptor::from(Arc::new(c)), der: chain.0[0].clone(), hash: chain.2.clone() })
-}
-
-/// A fresh self-signed ECDSA P-256 certificate valid for `CERT_DAYS` for `names` (DNS names
-/// and IP addresses), and its SHA-256.
-fn generated_cert(
-    names: &[String],
-) -> Result<(rustls::pki_types::CertificateDer<'static>, rustls::pki_types::PrivateKeyDer<'static>, String)> {
-    use rustls::pki_types::{CertificateDer, PrivateKeyDer, PrivatePkcs8KeyDer};
-    let g = wtransport::Identity::self_signed_builder()
-        .subject_alt_names(names.iter().cloned())
-        .from_now_utc()
-        .validity_days(CERT_DAYS)
-        .build()
-        .map_err(|e| anyhow!("cannot generate the WebTransport certificate: {}", e))?;
-    let der = g.certificate_chain().as_slice()[0].der().to_vec();
-    let hash = crate::tls::fingerprint(&der);
-    let key = PrivateKeyDer::Pkcs8(PrivatePkcs8KeyDer::from(g.private_key().secret_der().to_vec()));
-    Ok((CertificateDer::from(der), key, hash))
 }
 
 /// TLS 1.3, ALPN h3, no 0-RTT.
@@ -176,11 +160,12 @@ pub(crate) fn bind(
     addr: SocketAddr,
     id: &crate::tls::Identity,
     user_cert: bool,
+    state: &std::path::Path,
     limits: &crate::limits::Limits,
 ) -> Result<WebParts> {
     let names = LocalNames::of_this_machine(addr.ip());
     let cert_names = if user_cert { vec![] } else { names.cert_names() };
-    let chain = web_identity(id, user_cert, &cert_names)?;
+    let (chain, created) = web_identity(id, user_cert, &cert_names, state, limits.web_cert_rotate)?;
     let tls = tls_config(chain.0.clone(), chain.1.clone_key())?;
     let page = Arc::new(std::sync::RwLock::new(Arc::new(page_cert(&chain)?)));
     let cert_hash = chain.2.clone();
@@ -220,6 +205,8 @@ pub(crate) fn bind(
             http: TcpListener::from_std(tcp)?,
             page,
             wt,
+            created,
+            state: state.to_path_buf(),
         });
     }
     Err(anyhow!(
@@ -246,7 +233,7 @@ pub(crate) async fn run(shared: Arc<Shared>, parts: WebParts, stop: watch::Recei
     let rotate = info
         .cert_hash
         .is_some()
-        .then(|| tokio::spawn(rotate_loop(shared.clone(), wt.clone(), parts.page.clone(), info.clone())));
+        .then(|| tokio::spawn(rotate_loop(shared.clone(), wt.clone(), parts.page.clone(), info.clone(), parts.created, parts.state.clone())));
     wt_loop(shared, wt, info.addr.port(), stop).await;
     http.abort();
     let _ = http.await;
@@ -265,12 +252,21 @@ async fn rotate_loop(
     wt: Arc<wtransport::Endpoint<wtransport::endpoint::endpoint_side::Server>>,
     page: PageCerts,
     info: Arc<WebInfo>,
+    mut created: std::time::SystemTime,
+    state: std::path::PathBuf,
 ) {
     let every = shared.limits.web_cert_rotate.max(Duration::from_millis(100));
     loop {
-        tokio::time::sleep(every).await;
-        let next = generated_cert(&info.cert_names).and_then(|(c, k, hash)| {
-            let chain: Chain = (vec![c], k, Some(hash.clone()));
+        // Counted from when the certificate was made: a kept one may be days old already.
+        let age = std::time::SystemTime::now().duration_since(created).unwrap_or_default();
+        tokio::time::sleep(every.saturating_sub(age)).await;
+        let next = crate::web_cert::generate(&info.cert_names).and_then(|g| {
+            created = g.created;
+            if let Err(e) = crate::web_cert::store(&state, &info.cert_names, &g) {
+                eprintln!("snerf serve: cannot keep the web viewer's certificate: {e:#}");
+            }
+            let hash = g.sha256.clone();
+            let chain: Chain = (vec![g.cert], g.key, Some(hash.clone()));
             let cfg = wtransport::ServerConfig::builder()
                 .with_bind_default(0)
                 .with_custom_tls_and_transport(tls_config(chain.0.clone(), chain.1.clone_key())?, wt_transport(&shared.limits)?)

@@ -1420,3 +1420,21 @@ fn without_webtransport_the_page_streams_over_https_byte_for_byte_and_refusals_s
     }
     h.shutdown();
 }
+
+#[test]
+fn a_restarted_server_keeps_the_certificate_a_headset_accepted() {
+    let dir = TempDir::new("web-keep");
+    let state = TempDir::new("web-keep-state");
+    write_asset(&static_asset(16, 8, 0.9, 5), dir.path(), "scene");
+    let a = start(dir.path(), state.path());
+    let first = a.web().unwrap().cert_hash.clone().unwrap();
+    a.shutdown();
+    let b = start(dir.path(), state.path());
+    assert_eq!(b.web().unwrap().cert_hash.as_deref(), Some(first.as_str()), "a new certificate means a new warning on the headset");
+    b.shutdown();
+    // Another state directory: another certificate.
+    let other = TempDir::new("web-keep-other");
+    let c = start(dir.path(), other.path());
+    assert_ne!(c.web().unwrap().cert_hash.as_deref(), Some(first.as_str()));
+    c.shutdown();
+}
