@@ -295,28 +295,44 @@ fn a_headset_on_the_lan_opens_the_printed_https_url_and_enters_vr() {
     let names: Vec<&str> = ready["web_cert_names"].as_array().unwrap().iter().map(|n| n.as_str().unwrap()).collect();
     assert!(names.contains(&lan.laptop.as_str()), "{names:?}");
     let token = ready["token"].as_str().unwrap();
-    // Chromium in this namespace opens the printed https LAN URL (accepting the certificate
-    // once, as a person clicking through): the page streams the asset and draws it.
+    // Chromium opens the printed https LAN URL (accepting the certificate once, as a person
+    // clicking through), as three kinds of headset browser: with WebGPU and WebTransport,
+    // without WebGPU (WebGL2), and without WebTransport (snerf/1 over HTTPS). Each time the page
+    // streams the asset byte for byte, draws it, and enters VR on an emulated Quest 3.
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/stream/tests/web/page.mjs");
-    let full = format!("{url}#token={token}&asset=a");
-    let out = Command::new("node").arg(&script).arg(&pw).arg(format!("{full}&capture=1")).arg("done").env("SNERF_CHROMIUM", &chromium).output().unwrap();
-    assert!(out.status.success(), "page.mjs: {}", String::from_utf8_lossy(&out.stderr));
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(r["error"], serde_json::Value::Null, "page error over the LAN: {}", r["error"]);
-    let sha = String::from_utf8(Command::new("sha256sum").arg(&file).output().unwrap().stdout).unwrap();
-    let sha = sha.split_whitespace().next().unwrap().to_string();
-    assert_eq!(r["sha256"], sha.as_str());
-    assert_eq!(r["lastRender"]["complete"], true);
-    // Enter VR on an emulated Quest 3 (iwer): both eyes drawn, frames running.
     let xr = Path::new(env!("CARGO_MANIFEST_DIR")).join("viewer/stream/tests/web/xr.mjs");
     // xr.mjs wants the folder whose node_modules holds playwright-core and iwer.
     let pw_root = pw.parent().and_then(Path::parent).unwrap();
-    let out = Command::new("node").arg(&xr).arg(pw_root).arg(format!("{full}&capture=1")).env("SNERF_CHROMIUM", &chromium).output().unwrap();
-    assert!(out.status.success(), "xr.mjs: {}", String::from_utf8_lossy(&out.stderr));
-    let x: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let eyes = x["before"]["eyes"].as_array().unwrap_or_else(|| panic!("no eyes: {x}"));
-    assert_eq!(eyes.len(), 2);
-    assert!(eyes.iter().all(|e| e["rgba"].is_array()), "an eye was not drawn");
+    let full = format!("{url}#token={token}&asset=a");
+    let sha = String::from_utf8(Command::new("sha256sum").arg(&file).output().unwrap().stdout).unwrap();
+    let sha = sha.split_whitespace().next().unwrap().to_string();
+    let browsers: [(&str, &[(&str, &str)], &str, &str); 3] = [
+        ("WebGPU + WebTransport", &[], "webgpu", "webtransport"),
+        ("WebGL2 + WebTransport", &[("SNERF_NO_WEBGPU", "1")], "webgl2", "webtransport"),
+        ("WebGPU + HTTPS", &[("SNERF_NO_WEBTRANSPORT", "1")], "webgpu", "https"),
+    ];
+    for (what, env, backend, transport) in browsers {
+        let mut c = Command::new("node");
+        c.arg(&script).arg(&pw).arg(format!("{full}&capture=1")).arg("done").env("SNERF_CHROMIUM", &chromium);
+        c.envs(env.iter().copied());
+        let out = c.output().unwrap();
+        assert!(out.status.success(), "page.mjs ({what}): {}", String::from_utf8_lossy(&out.stderr));
+        let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(r["error"], serde_json::Value::Null, "page error over the LAN ({what}): {}", r["error"]);
+        assert_eq!((r["backend"].as_str(), r["transport"].as_str()), (Some(backend), Some(transport)), "{what}");
+        assert_eq!(r["sha256"], sha.as_str(), "{what}");
+        assert_eq!(r["lastRender"]["complete"], true, "{what}");
+        let mut c = Command::new("node");
+        c.arg(&xr).arg(pw_root).arg(format!("{full}&capture=1")).env("SNERF_CHROMIUM", &chromium);
+        c.envs(env.iter().copied());
+        let out = c.output().unwrap();
+        assert!(out.status.success(), "xr.mjs ({what}): {}", String::from_utf8_lossy(&out.stderr));
+        let x: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let eyes = x["before"]["eyes"].as_array().unwrap_or_else(|| panic!("{what}: no eyes: {x}"));
+        assert_eq!(eyes.len(), 2, "{what}");
+        assert!(eyes.iter().all(|e| e["rgba"].is_array()), "{what}: an eye was not drawn");
+        eprintln!("LAN, {what}: streamed, drawn, in VR");
+    }
     drop(server);
 }
 
