@@ -311,7 +311,7 @@ fn web_banner(w: &crate::web::WebInfo, token: Option<&str>) -> String {
         }
     }
     if token.is_some() && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
-        if let Some(q) = w.qr_url().and_then(|u| crate::web::qr_text(&frag(u))) {
+        if let Some(q) = token.and_then(|t| w.qr(t)) {
             b += &q;
         }
     }

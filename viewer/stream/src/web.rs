@@ -93,6 +93,11 @@ impl WebInfo {
     pub fn qr_url(&self) -> Option<&str> {
         self.lan_urls.first().map(String::as_str)
     }
+
+    /// The QR code `snerf serve` prints: `qr_url()` with the token in its fragment.
+    pub fn qr(&self, token: &str) -> Option<String> {
+        qr_text(&format!("{}#token={token}", self.qr_url()?))
+    }
 }
 
 /// `text` as a QR code drawn with Unicode half blocks (two modules per character cell, dark
@@ -388,6 +393,56 @@ async fn session(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The printed QR code (Unicode half blocks) as a greyscale picture, 4 pixels a module.
+    fn qr_picture(q: &str) -> (usize, usize, Vec<u8>) {
+        let rows: Vec<Vec<char>> = q.lines().map(|l| l.chars().collect()).collect();
+        let (w, h) = (rows[0].len() * 4, rows.len() * 8);
+        let mut px = vec![255u8; w * h];
+        for (r, row) in rows.iter().enumerate() {
+            for (c, ch) in row.iter().enumerate() {
+                // Dense1x2 with dark on light inverted for a dark terminal: the *light*
+                // modules are drawn; ' ' is two dark modules, '█' two light ones.
+                let (top_light, bottom_light) = match ch {
+                    ' ' => (false, false),
+                    '▀' => (true, false),
+                    '▄' => (false, true),
+                    _ => (true, true),
+                };
+                for (half, light) in [(0, top_light), (1, bottom_light)] {
+                    for y in 0..4 {
+                        for x in 0..4 {
+                            px[(r * 8 + half * 4 + y) * w + c * 4 + x] = if light { 255 } else { 0 };
+                        }
+                    }
+                }
+            }
+        }
+        (w, h, px)
+    }
+
+    #[test]
+    fn the_printed_qr_code_reads_back_as_the_lan_url_with_the_token() {
+        let info = WebInfo {
+            addr: "0.0.0.0:4434".parse().unwrap(),
+            cert_hash: None,
+            https: true,
+            lan_urls: vec!["https://192.168.1.20:4434/".into(), "https://10.0.0.2:4434/".into()],
+            cert_names: vec![],
+            live_hash: Default::default(),
+        };
+        let token = "ab".repeat(32);
+        let (w, h, px) = qr_picture(&info.qr(&token).unwrap());
+        let mut img = rqrr::PreparedImage::prepare_from_greyscale(w, h, |x, y| px[y * w + x]);
+        let grids = img.detect_grids();
+        assert_eq!(grids.len(), 1);
+        let (_, content) = grids[0].decode().unwrap();
+        assert_eq!(content, format!("https://192.168.1.20:4434/#token={token}"));
+        // No LAN address: no QR code (a loopback URL would open the headset's own loopback).
+        let lonely = WebInfo { lan_urls: vec![], ..info };
+        assert!(lonely.qr(&token).is_none());
+        assert!(lonely.url().starts_with("https://127.0.0.1:4434/"));
+    }
 
     #[test]
     fn the_address_fits_a_qr_code() {
