@@ -67,6 +67,17 @@ fn bake_small(d: &Path, assets: &Path, name: &str) -> PathBuf {
     file
 }
 
+/// Start `snerf --json serve …` and read its ready line: the server (killed when dropped) and
+/// what it printed.
+fn serve_ready(mut cmd: Command) -> (Server, serde_json::Value) {
+    let mut child = cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let server = Server(child);
+    let ready = serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
+    (server, ready)
+}
+
 /// Kills the server when the test ends, however it ends.
 struct Server(std::process::Child);
 impl Drop for Server {
@@ -94,19 +105,9 @@ fn snerf_serve_web_page_renders_what_snerf_render_draws() {
     diffuse.make_diffuse();
     diffuse.write(assets.join("b.snerf")).unwrap();
     // The server, its web viewer on a free port.
-    let mut child = snerf()
-        .args(["--json", "serve"])
-        .arg(&assets)
-        .args(["--listen", "127.0.0.1:0", "--web", "127.0.0.1:0", "--state"])
-        .arg(d.join("state"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let server = Server(child);
-    let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
+    let mut cmd = snerf();
+    cmd.args(["--json", "serve"]).arg(&assets).args(["--listen", "127.0.0.1:0", "--web", "127.0.0.1:0", "--state"]).arg(d.join("state"));
+    let (server, ready) = serve_ready(cmd);
     let web = ready["web_url"].as_str().expect("web_url").to_string();
     assert!(ready["web_cert_sha256"].as_str().is_some_and(|h| h.len() == 64), "{ready}");
     let token = ready["token"].as_str().unwrap();
@@ -259,20 +260,13 @@ fn a_headset_on_the_lan_opens_the_printed_https_url_and_enters_vr() {
     let assets = d.join("assets");
     let file = bake_small(&d, &assets, "a");
     // `snerf serve --listen 0.0.0.0:P` on the "laptop", as a user starts it.
-    let mut child = Command::new("ip")
-        .args(["netns", "exec", &lan.ns, env!("CARGO_BIN_EXE_snerf"), "--json", "serve"])
+    let mut cmd = Command::new("ip");
+    cmd.args(["netns", "exec", &lan.ns, env!("CARGO_BIN_EXE_snerf"), "--json", "serve"])
         .arg(&assets)
         .args(["--listen", "0.0.0.0:0", "--web", "0.0.0.0:0", "--state"])
         .arg(d.join("state"))
-        .env("RAYON_NUM_THREADS", "2")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let server = Server(child);
-    let ready: serde_json::Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("serve --json: {e}: {line}"));
+        .env("RAYON_NUM_THREADS", "2");
+    let (server, ready) = serve_ready(cmd);
     // One URL per LAN address: the namespace has one, and that is what the QR code holds.
     let urls: Vec<&str> = ready["web_urls"].as_array().unwrap().iter().map(|u| u.as_str().unwrap()).collect();
     assert_eq!(urls.len(), 1, "{ready}");

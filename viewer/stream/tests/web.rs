@@ -354,9 +354,9 @@ async fn get<S: tokio::io::AsyncRead + tokio::io::AsyncWrite + Unpin>(mut s: S, 
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// A TLS connection to the page that accepts only the certificate with SHA-256 `hash` (hex):
-/// what a browser gets once a person has accepted that certificate.
-async fn try_tls_to(addr: std::net::SocketAddr, hash: &str) -> std::io::Result<tokio_rustls::client::TlsStream<tokio::net::TcpStream>> {
+/// TLS over `tcp` that accepts only the certificate with SHA-256 `hash` (hex): what a browser
+/// gets once a person has accepted that certificate.
+async fn tls_over(tcp: tokio::net::TcpStream, hash: &str) -> std::io::Result<tokio_rustls::client::TlsStream<tokio::net::TcpStream>> {
     let pin = snerf_stream::tls::parse_pin(hash).unwrap();
     let mut cfg = rustls::ClientConfig::builder_with_provider(snerf_stream::tls::provider())
         .with_protocol_versions(&[&rustls::version::TLS13])
@@ -365,11 +365,15 @@ async fn try_tls_to(addr: std::net::SocketAddr, hash: &str) -> std::io::Result<t
         .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(pin)))
         .with_no_client_auth();
     cfg.alpn_protocols = vec![b"http/1.1".to_vec()];
-    let tcp = tokio::net::TcpStream::connect(addr).await?;
     let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
     tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg)).connect(name, tcp).await
 }
 
+async fn try_tls_to(addr: std::net::SocketAddr, hash: &str) -> std::io::Result<tokio_rustls::client::TlsStream<tokio::net::TcpStream>> {
+    tls_over(tokio::net::TcpStream::connect(addr).await?, hash).await
+}
+
+/// A TLS connection to the page (`tls_over`).
 async fn tls_to(addr: std::net::SocketAddr, hash: &str) -> tokio_rustls::client::TlsStream<tokio::net::TcpStream> {
     try_tls_to(addr, hash).await.unwrap()
 }
@@ -1312,17 +1316,7 @@ fn hostile_connections_from_another_address_do_not_lock_out_the_page() {
 
 /// `tls_to` from another loopback address.
 async fn tls_to_from(from: &str, addr: std::net::SocketAddr, hash: &str) -> tokio_rustls::client::TlsStream<tokio::net::TcpStream> {
-    let pin = snerf_stream::tls::parse_pin(hash).unwrap();
-    let mut cfg = rustls::ClientConfig::builder_with_provider(snerf_stream::tls::provider())
-        .with_protocol_versions(&[&rustls::version::TLS13])
-        .unwrap()
-        .dangerous()
-        .with_custom_certificate_verifier(std::sync::Arc::new(snerf_stream::tls::PinVerifier::new(pin)))
-        .with_no_client_auth();
-    cfg.alpn_protocols = vec![b"http/1.1".to_vec()];
-    let tcp = connect_from(from, addr).await;
-    let name = rustls::pki_types::ServerName::try_from("localhost").unwrap();
-    tokio_rustls::TlsConnector::from(std::sync::Arc::new(cfg)).connect(name, tcp).await.unwrap()
+    tls_over(connect_from(from, addr).await, hash).await.unwrap()
 }
 
 /// `page` by another name (the report of page.mjs), for tests that also name a variable `page`.
