@@ -1262,6 +1262,21 @@ fn hostile_connections_from_another_address_do_not_lock_out_the_page() {
             let _ = s.write_all(head.as_bytes()).await;
             big.push(s);
         }
+        // The fallback transport's endpoint: a POST whose announced body trickles in.
+        for _ in 0..8 {
+            let mut s = tls_to_from("127.0.0.2", addr, &hash).await;
+            let head = format!("POST /snerf/1/http?part=data HTTP/1.1\r\nHost: {host}\r\nOrigin: https://{host}\r\nContent-Length: 60000\r\n\r\n");
+            let _ = s.write_all(head.as_bytes()).await;
+            trickle.spawn(async move {
+                for _ in 0..30 {
+                    tokio::time::sleep(std::time::Duration::from_millis(700)).await;
+                    if s.write_all(b"{").await.is_err() || s.flush().await.is_err() {
+                        return true;
+                    }
+                }
+                false
+            });
+        }
         let mut deaf = Vec::new();
         for _ in 0..8 {
             let mut s = tls_to_from("127.0.0.2", addr, &hash).await;
@@ -1288,6 +1303,10 @@ fn hostile_connections_from_another_address_do_not_lock_out_the_page() {
         assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
         let sha = snerf_stream::proto::to_hex(&Sha256::digest(&bytes));
         assert_eq!(r["sha256"], sha.as_str());
+        // And over the fallback transport (a browser without WebTransport), still under attack.
+        let r = run_page_env(b, "page.mjs", &[&url, "done"], &[("SNERF_NO_WEBTRANSPORT", "1")]);
+        assert_eq!(r["error"], serde_json::Value::Null, "page error (over HTTPS): {}", r["error"]);
+        assert_eq!((r["transport"].as_str(), r["sha256"].as_str()), (Some("https"), Some(sha.as_str())));
     }
     // Every hostile connection is closed by the server within the head timeout (plus the
     // write timeout for those that never read), whichever way it misbehaved.
