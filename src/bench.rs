@@ -43,10 +43,12 @@ pub enum BenchCmd {
     /// run's own report as `snerf train` does it at each curve point, projected onto a
     /// 5-minute training run.
     Report(BenchReportArgs),
-    /// The web viewer beside the native client on loopback, one run: navigation to first
-    /// frame, WebTransport download rate, frame time in headless Chromium (flat and on an
-    /// emulated Quest 3) against wgpu (lavapipe without a GPU). Needs Chromium, Node.js and
-    /// playwright-core/iwer (`bash .ci/run` installs them).
+    /// The web viewer's bars beside the native client on loopback, one run: navigation to
+    /// first frame on WebGPU and on WebGL2 against the native first view; the asset's transfer
+    /// by `snerf fetch`, the page over WebTransport and the page over HTTPS requests (MB/s and
+    /// ratios); frame time in headless Chromium on both renderers, flat and on an emulated
+    /// Quest 3 at its per-eye size, against wgpu (lavapipe without a GPU). Needs Chromium,
+    /// Node.js and playwright-core/iwer (`bash .ci/run` installs them).
     Web(web::BenchWebArgs),
 }
 
