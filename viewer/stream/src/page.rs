@@ -85,21 +85,22 @@ pub(crate) async fn run(
         let mut place = table.admit(peer.ip());
         let cert = certs.read().map(|c| c.clone()).unwrap_or_else(|e| e.into_inner().clone());
         let shared = shared.clone();
+        let certs = certs.clone();
         conns.spawn(async move {
             tokio::select! {
                 _ = place.evicted() => {}
-                _ = connection(s, cert, port, &shared) => {}
+                _ = connection(s, cert, &certs, port, &shared) => {}
             }
         });
     }
     conns.abort_all();
 }
 
-async fn connection(s: TcpStream, cert: Arc<PageCert>, port: u16, shared: &Shared) {
+async fn connection(s: TcpStream, cert: Arc<PageCert>, certs: &PageCerts, port: u16, shared: &Shared) {
     let _ = s.set_nodelay(true);
     let deadline = Instant::now() + shared.limits.page_head_timeout;
     match timeout_at(deadline, cert.acceptor.accept(s)).await {
-        Ok(Ok(tls)) => serve_requests(tls, deadline, &cert, port, shared).await,
+        Ok(Ok(tls)) => serve_requests(tls, deadline, &cert, certs, port, shared).await,
         Ok(Err(_)) => {}
         Err(_) => {
             shared.stats.page_timeouts.fetch_add(1, Ordering::Relaxed);
@@ -108,10 +109,12 @@ async fn connection(s: TcpStream, cert: Arc<PageCert>, port: u16, shared: &Share
 }
 
 /// Requests on one connection until the peer closes, asks to close, errs or times out.
+/// `cert`: the connection's own certificate; `certs`: the one in force now.
 async fn serve_requests<S: AsyncRead + AsyncWrite + Unpin>(
     mut s: S,
     first_deadline: Instant,
     cert: &PageCert,
+    certs: &PageCerts,
     port: u16,
     shared: &Shared,
 ) {
@@ -159,7 +162,11 @@ async fn serve_requests<S: AsyncRead + AsyncWrite + Unpin>(
                 _ => (Response::text(405, "method not allowed"), false),
             }
         } else {
-            (route(&req, port, cert), req.keep_alive && !req.has_body)
+            // /config.json gives the hash in force now, not this connection's: a page opens
+            // sessions long after it loaded (a resume, the listing after the first frame) on
+            // the connection it loaded from, and must pin the certificate those meet.
+            let now = certs.read().map(|c| c.hash.clone()).unwrap_or_else(|e| e.into_inner().hash.clone());
+            (route(&req, port, cert, now.as_deref()), req.keep_alive && !req.has_body)
         };
         let written = tokio::time::timeout(
             limits.page_write_timeout,
@@ -282,8 +289,8 @@ impl Response {
     }
 }
 
-/// The response to one request.
-pub(crate) fn route(req: &Request, port: u16, cert: &PageCert) -> Response {
+/// The response to one request; `hash`: the certificate hash /config.json hands out.
+pub(crate) fn route(req: &Request, port: u16, cert: &PageCert, hash: Option<&str>) -> Response {
     let Some(host) = req.host.as_deref().filter(|h| host_ok(h, port, &cert.der)) else {
         return Response::text(421, "unknown host");
     };
@@ -304,7 +311,7 @@ pub(crate) fn route(req: &Request, port: u16, cert: &PageCert) -> Response {
             let cfg = serde_json::json!({
                 "protocol": crate::proto::PROTOCOL_VERSION,
                 "webtransport": format!("https://{}{}", host, SESSION_PATH),
-                "cert_hash": cert.hash,
+                "cert_hash": hash,
                 "workgroup": snerf_geometry::march::WORKGROUP,
             });
             (200, "application/json", cfg.to_string().into_bytes().into())

@@ -166,6 +166,12 @@ fn page_streams_by_webtransport_and_renders_like_the_cpu_reference() {
     let want = snerf_stream::thumbs::render(&dir.join("scene.snerf")).unwrap();
     assert_eq!(t["rgb"].as_str(), Some(want.rgb.as_str()));
     assert!(listing[0]["thumb"].is_object());
+    // With an asset named, the listing is asked for only once the first frame is drawn (the
+    // frame shows nothing of it; its session and thumbnails would take the CPU that frame's
+    // shader compile needs).
+    let marks = &r["marks"];
+    let (listed, first) = (marks["listing"].as_f64().unwrap(), marks["firstFrame"].as_f64().unwrap());
+    assert!(listed >= first, "listing asked for at {listed} ms, first frame at {first} ms");
     // Byte-identical: the page's SHA-256 of the rebuilt file is the file's.
     let sha = snerf_stream::proto::to_hex(&Sha256::digest(&bytes));
     assert_eq!(r["sha256"], sha.as_str());
@@ -844,6 +850,10 @@ fn the_generated_certificate_is_rotated_and_pages_keep_connecting() {
     // which is what this test exercises whenever a rotation lands in that window.
     let web = h.web().unwrap().clone();
     let first = web.cert_hash.clone().unwrap();
+    let host = format!("127.0.0.1:{}", web.addr.port());
+    let rt = runtime();
+    // A page connection made before the rotation: the one a page loaded from.
+    let old = rt.block_on(tls_to(web.addr, &first));
     let t0 = std::time::Instant::now();
     while h.stats().cert_rotations.load(Ordering::Relaxed) == 0 {
         assert!(t0.elapsed().as_secs() < 30, "no rotation");
@@ -851,9 +861,12 @@ fn the_generated_certificate_is_rotated_and_pages_keep_connecting() {
     }
     let now = web.current_cert_hash().unwrap();
     assert_ne!(now, first);
+    // On that connection too, /config.json hands out the hash in force, not the connection's
+    // own: the page pins it for the sessions it opens later (a resume, the listing).
+    let cfg = rt.block_on(get(old, &host, "/config.json"));
+    let cfg: serde_json::Value = serde_json::from_str(cfg.split_once("\r\n\r\n").expect("an answer on the old connection").1).unwrap();
+    assert_ne!(cfg["cert_hash"].as_str().unwrap(), first, "the old connection hands out the old hash");
     // /config.json hands out the new hash, and a page connects with it.
-    let host = format!("127.0.0.1:{}", web.addr.port());
-    let rt = runtime();
     // (Over HTTPS pinned to the hash in force; a rotation in between is retried.)
     let cfg = (0..3)
         .find_map(|_| {

@@ -10,7 +10,8 @@
 // away), cam=JSON ({c2w:[[4],[4],[4]], fx, fy, cx, cy, width, height}: a fixed camera),
 // time=T (playback time of a 4D asset).
 
-import { xrSupported, enterXR } from './xr.js';
+// xr.js (immersive mode) is imported when the stream starts, not before this script runs:
+// the first frame does not wait for its download.
 
 const EMPTY = 0xffffffff;
 const $ = (id) => document.getElementById(id);
@@ -24,6 +25,11 @@ const report = (window.snerf = {
   chunks: 0, blocks: 0, firstFrameMs: null, frames: 0, frame: null, firstFrame: null,
   adapter: null, backend: null, marks: {}, crcMs: 0, rotationRetries: 0, transport: null,
 });
+// Marks (performance.now(), ms since navigation) of the steps to the first frame: script,
+// config, adapter, device, present (the present pipeline compiled), connected, welcome,
+// header, shader (its text fetched), pipeline (compiled), ready (pipeline, MLP and grids
+// in), submitted (the first march), firstFrame (its GPU work done), listing (asked for).
+report.marks.script = performance.now();
 
 function setStatus(s) { $('status').textContent = s; }
 function fail(e) {
@@ -221,16 +227,18 @@ function decodePose(b) {
 }
 
 // ---- WebTransport ----
-let config = null;
+const fetchConfig = async () => (await fetch('/config.json')).json();
 // True while an immersive WebXR session draws (its frame loop replaces the page's).
 let xrActive = false;
 // How often a handshake is tried again after the certificate was rotated under it.
 const ROTATION_RETRIES = 3;
-async function connect(hello) {
+async function connect(hello, firstConfig = null) {
   let wt;
   for (let attempt = 0; ; attempt++) {
-    // The server rotates its generated certificate: take the hash in use now.
-    config = await (await fetch('/config.json')).json();
+    // The server rotates its generated certificate: take the hash in use now (on the first
+    // try, `firstConfig` when given: the page's own read of it as it started, moments ago).
+    // (Each call its own: the stream's and the listing's sessions may be opened together.)
+    const config = attempt === 0 && firstConfig ? await firstConfig : await fetchConfig();
     const opts = {};
     if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
     // WebTransport where the browser has it; else snerf/1 over HTTPS requests.
@@ -245,7 +253,7 @@ async function connect(hello) {
       // that is no longer the server's: read the new one and try again. Any other failure
       // (the server down, a hash that has not changed) is the caller's to handle.
       if (!config.cert_hash || attempt >= ROTATION_RETRIES) throw e;
-      const now = await (await fetch('/config.json')).json();
+      const now = await fetchConfig();
       if (now.cert_hash === config.cert_hash) throw e;
       report.rotationRetries += 1;
     }
@@ -388,16 +396,31 @@ class MarchHost {
 
 // WebGPU: the compute shader of /march.wgsl.
 class Renderer extends MarchHost {
-  constructor(device, h, shader, presentWgsl, wg) {
+  // `present`: {wgsl: shaders/present.wgsl, format, pipeline: a promise of its pipeline for
+  // the canvas's `format`, compiled while the page started}.
+  constructor(device, h, shader, present, wg) {
     super(h, device.limits.maxTextureDimension3D);
     this.device = device;
-    this.presentWgsl = presentWgsl;
+    this.presentWgsl = present.wgsl;
     this.wg = wg;
     const t = this.texels();
     this.atlas = device.createTexture({ size: t, dimension: '3d', format: h.diffuse ? 'r32uint' : 'rg32uint', usage: GPUTextureUsage.TEXTURE_BINDING | GPUTextureUsage.COPY_DST });
+    // The atlas is zeroed on its first use; a one-texel write (of the zero it holds) has that
+    // done now, beside the compile below, rather than in the first frame's submission.
+    device.queue.writeTexture({ texture: this.atlas }, new Uint8Array(this.voxelBytes), { bytesPerRow: this.voxelBytes }, [1, 1, 1]);
     this.gridBuf = device.createBuffer({ size: Math.max(4, this.g3 * this.frames * 4), usage: GPUBufferUsage.STORAGE | GPUBufferUsage.COPY_DST });
     this.mlpBuf = device.createBuffer({ size: 900 * 4, usage: GPUBufferUsage.UNIFORM | GPUBufferUsage.COPY_DST });
-    this.pipeline = device.createComputePipeline({ layout: 'auto', compute: { module: device.createShaderModule({ code: shader }), entryPoint: 'main' } });
+    // Compiled off the page's thread while the MLP and the grids arrive and the blocks are
+    // taken in (SwiftShader takes a good part of a second for the march); `pipeline` is null
+    // until then (`ready()` waits for it) and `compiled` resolves with it or rejects.
+    this.pipeline = null;
+    this.compiled = Promise.all([
+      device.createComputePipelineAsync({ layout: 'auto', compute: { module: device.createShaderModule({ code: shader }), entryPoint: 'main' } }),
+      present.pipeline,
+    ]).then(([p, pp]) => {
+      this.pipeline = p;
+      if (!this.presentPipe) { this.presentPipe = pp; this.presentFormat = present.format; }
+    });
   }
   setMlp(payload) { this.device.queue.writeBuffer(this.mlpBuf, 0, this.mlpRows(payload)); }
   // `data`: `count` blocks of (block+2)^3 voxels, one texel each: 8 bytes (rg32uint), or 4
@@ -493,6 +516,7 @@ class Renderer extends MarchHost {
       }
     }
     d.queue.submit([enc.finish()]);
+    this.submittedAt = performance.now();
     if (!capture) { await d.queue.onSubmittedWorkDone(); return null; }
     const out = [];
     for (const s of slots) {
@@ -504,17 +528,22 @@ class Renderer extends MarchHost {
   }
   presentPipeline(format) {
     if (this.presentPipe && this.presentFormat === format) return this.presentPipe;
-    const module = this.device.createShaderModule({ code: this.presentWgsl });
-    this.presentPipe = this.device.createRenderPipeline({
-      layout: 'auto',
-      vertex: { module, entryPoint: 'vs' },
-      fragment: { module, entryPoint: 'fs', targets: [{ format }] },
-      primitive: { topology: 'triangle-list' },
-    });
+    this.presentPipe = this.device.createRenderPipeline(presentDescriptor(this.device, this.presentWgsl, format));
     this.presentFormat = format;
     for (const s of this.slots) if (s) s.present = null;
     return this.presentPipe;
   }
+}
+
+// shaders/present.wgsl's pipeline drawing into a texture of `format`.
+function presentDescriptor(device, wgsl, format) {
+  const module = device.createShaderModule({ code: wgsl });
+  return {
+    layout: 'auto',
+    vertex: { module, entryPoint: 'vs' },
+    fragment: { module, entryPoint: 'fs', targets: [{ format }] },
+    primitive: { topology: 'triangle-list' },
+  };
 }
 
 // WebGL2 (browsers without WebGPU): the same march, as the fragment shader of /march.glsl
@@ -538,19 +567,27 @@ void main() {
   o = vec4(texelFetch(img, ivec2(p.x, size.y - 1 - p.y), 0).rgb, 1.0);
 }`;
 
-function glProgram(gl, vs, fs, what) {
+// A program compiled and linked from `vs` and `fs`; resolves once it is linked. Nothing
+// asks for a status before the driver says it is done (KHR_parallel_shader_compile, where
+// the browser has it), so the page's thread goes on taking in the stream meanwhile instead
+// of blocking on the compile.
+async function glProgram(gl, vs, fs, what) {
   const sh = (type, src) => {
     const s = gl.createShader(type);
     gl.shaderSource(s, src);
     gl.compileShader(s);
-    if (!gl.getShaderParameter(s, gl.COMPILE_STATUS)) throw new Error(`${what}: ${gl.getShaderInfoLog(s)}`);
     return s;
   };
   const p = gl.createProgram();
-  gl.attachShader(p, sh(gl.VERTEX_SHADER, vs));
-  gl.attachShader(p, sh(gl.FRAGMENT_SHADER, fs));
+  const shaders = [sh(gl.VERTEX_SHADER, vs), sh(gl.FRAGMENT_SHADER, fs)];
+  for (const s of shaders) gl.attachShader(p, s);
   gl.linkProgram(p);
-  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(`${what}: ${gl.getProgramInfoLog(p)}`);
+  const par = gl.getExtension('KHR_parallel_shader_compile');
+  if (par) while (!gl.getProgramParameter(p, par.COMPLETION_STATUS_KHR)) await new Promise((res) => setTimeout(res, 2));
+  if (!gl.getProgramParameter(p, gl.LINK_STATUS)) {
+    const bad = shaders.find((s) => !gl.getShaderParameter(s, gl.COMPILE_STATUS));
+    throw new Error(`${what}: ${bad ? gl.getShaderInfoLog(bad) : gl.getProgramInfoLog(p)}`);
+  }
   return p;
 }
 
@@ -582,17 +619,26 @@ class RendererGL extends MarchHost {
     this.mlpBuf = gl.createBuffer();
     gl.bindBuffer(gl.UNIFORM_BUFFER, this.mlpBuf);
     gl.bufferData(gl.UNIFORM_BUFFER, 900 * 4, gl.DYNAMIC_DRAW);
-    this.prog = glProgram(gl, prog.vertex, prog.fragment, 'march (GLSL)');
-    gl.useProgram(this.prog);
-    for (const [b, name] of Object.entries(prog.uniforms)) {
-      const i = gl.getUniformBlockIndex(this.prog, name);
-      if (i !== gl.INVALID_INDEX) gl.uniformBlockBinding(this.prog, i, +b);
-    }
-    for (const [b, name] of Object.entries(prog.textures)) gl.uniform1i(gl.getUniformLocation(this.prog, name), +b);
-    this.blit = glProgram(gl, GL_BLIT_VS, GL_BLIT_FS, 'present (GLSL)');
-    this.blitOrigin = gl.getUniformLocation(this.blit, 'origin');
-    gl.useProgram(this.blit);
-    gl.uniform1i(gl.getUniformLocation(this.blit, 'img'), 0);
+    // Compiled while the MLP and the grids arrive, as `Renderer`'s pipeline: `pipeline` is
+    // null until both programs are linked and bound (`ready()` waits for it).
+    this.pipeline = null;
+    this.compiled = Promise.all([
+      glProgram(gl, prog.vertex, prog.fragment, 'march (GLSL)'),
+      glProgram(gl, GL_BLIT_VS, GL_BLIT_FS, 'present (GLSL)'),
+    ]).then(([march, blit]) => {
+      this.prog = march;
+      gl.useProgram(this.prog);
+      for (const [b, name] of Object.entries(prog.uniforms)) {
+        const i = gl.getUniformBlockIndex(this.prog, name);
+        if (i !== gl.INVALID_INDEX) gl.uniformBlockBinding(this.prog, i, +b);
+      }
+      for (const [b, name] of Object.entries(prog.textures)) gl.uniform1i(gl.getUniformLocation(this.prog, name), +b);
+      this.blit = blit;
+      this.blitOrigin = gl.getUniformLocation(this.blit, 'origin');
+      gl.useProgram(this.blit);
+      gl.uniform1i(gl.getUniformLocation(this.blit, 'img'), 0);
+      this.pipeline = true;
+    });
   }
   setMlp(payload) {
     const gl = this.gl;
@@ -709,6 +755,7 @@ class RendererGL extends MarchHost {
       });
       gl.bindFramebuffer(gl.READ_FRAMEBUFFER, null);
     }
+    this.submittedAt = performance.now();
     const err = gl.getError();
     if (err !== gl.NO_ERROR) throw new Error(`WebGL2 error 0x${err.toString(16)}`);
     if (!out) await this.finished();
@@ -756,11 +803,18 @@ function timeSlot(frames, t) {
 const fovOf = (c) => (2 * Math.atan(0.5 * Math.max(c.width / c.fx, c.height / c.fy)) * 180) / Math.PI;
 
 // ---- streaming one asset ----
-// gpu: {backend: 'webgpu', device, wg, ctx (the canvas's WebGPU context), presentWgsl, target}
-// or {backend: 'webgl2', gl (the canvas's WebGL2 context), target}; target(): what a frame
-// of the page's canvas is presented into.
-async function stream(name, gpu) {
+// The first frame's render scale, as a fraction of the page's (see `stream`).
+const FIRST_SCALE = 0.5;
+// backendReady: a promise of the renderer, 'webgpu' or 'webgl2'. gpuReady: a promise of the
+// GPU, {backend: 'webgpu', device, wg, ctx (the canvas's WebGPU context), present ({wgsl,
+// format, pipeline}), target} or {backend: 'webgl2', gl (the canvas's WebGL2 context),
+// target}; target(): what a frame of the page's canvas is presented into. The session opens
+// while the GPU is being set up; the header's shader fetch waits for the backend only, the
+// renderer for the GPU. firstConfig: a promise of /config.json as read at start.
+// onFirstFrame: called once the first frame is drawn.
+async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   const t0 = performance.now();
+  let gpu = null;
   // Orbit state; `pan` moves the orbit centre (keyboard fly), in world units.
   const view = { yaw: 0, pitch: null, radius: null, pan: [0, 0, 0] };
   let time = frag.has('time') ? parseFloat(frag.get('time')) : 0;
@@ -830,10 +884,11 @@ async function stream(name, gpu) {
       time, fov_deg: fovOf(c),
     };
   }
-  let { wt, ctl } = await connect(hello);
+  let { wt, ctl } = await connect(hello, firstConfig);
   report.connectedAt = performance.now();
   report.marks.connected = report.connectedAt;
   const welcome = await readMsg(ctl);
+  report.marks.welcome = performance.now();
   if (welcome.type !== 'welcome' || !welcome.asset) throw new Error('no asset in the welcome');
   const info = welcome.asset;
   report.asset = info;
@@ -849,7 +904,9 @@ async function stream(name, gpu) {
   const poseTimer = setInterval(sendPose, 250);
 
   let busy = false, dirty = false;
-  const ready = () => r && r.mlp && r.grids.every((g) => g);
+  // The small parts (MLP, grids) are in; `ready`: and the pipeline is compiled.
+  const partsIn = () => r && r.mlp && r.grids.every((g) => g);
+  const ready = () => partsIn() && r.pipeline;
   // One frame: march at the current scale, present to the canvas (and read back if asked).
   async function frameNow(sc) {
     if (busy || !ready()) return;
@@ -870,7 +927,10 @@ async function stream(name, gpu) {
       const out = await r.render([{ cam, x: 0, y: 0 }], time, gpu.target(), capture);
       const ms = performance.now() - ts;
       report.frames++;
-      if (report.firstFrameMs === null) {
+      const first = report.firstFrameMs === null;
+      if (first) {
+        report.marks.submitted = r.submittedAt;
+        report.marks.firstFrame = performance.now();
         report.firstFrameMs = performance.now() - t0;
         report.firstFrameAt = performance.now();
         report.firstFrame = { width: cam.width, height: cam.height, blocks, complete: done };
@@ -878,8 +938,11 @@ async function stream(name, gpu) {
       report.lastFrame = { width: cam.width, height: cam.height, complete: done, ms, scale: sc, pixelSides: r.lastSides };
       if (out) report.lastRender = { rgba: out[0], width: cam.width, height: cam.height, complete: done };
       if (done && !report.completeAt) report.completeAt = performance.now();
-      if (sc === scale && !fixedCam) adapt(ms);
+      // The first frame's time is mostly one-time work (the GPU's first use of the
+      // pipelines and the atlas): it says nothing about the frame rate.
+      if (sc === scale && !fixedCam && !first) adapt(ms);
       stats(ms, sc);
+      if (first && onFirstFrame) onFirstFrame();
     } catch (e) { fail(e); }
     busy = false;
   }
@@ -918,20 +981,21 @@ async function stream(name, gpu) {
     $('time').value = time;
   }
   const api = {
-    gpu, capture, ready, fixedScale: frag.has('xrscale') ? parseFloat(frag.get('xrscale')) : null, hold: frag.has('xrhold'), togglePlay, advance, sendPose: sendPoseRaw,
+    gpu: null, capture, ready, fixedScale: frag.has('xrscale') ? parseFloat(frag.get('xrscale')) : null, hold: frag.has('xrhold'), togglePlay, advance, sendPose: sendPoseRaw,
     renderer: () => r, header: () => h, orbit: () => orbit, time: () => time,
     playing: () => playing,
     setXR: (on) => { xrActive = on; if (!on) { dirty = true; refined = false; } },
   };
   // Enter VR is offered once the header is in (placement comes from it).
-  const xrOk = xrSupported();
+  const xrModule = import('./xr.js');
+  const xrOk = xrModule.then((m) => m.xrSupported());
   const offerXR = () => xrOk.then((ok) => {
     if (!ok) return;
     const b = $('xr');
     b.hidden = false;
     b.onclick = () => {
       report.xrClickAt = performance.now();
-      enterXR(api, report).catch((e) => { report.xr = { ...(report.xr || {}), state: 'error', error: String(e.message || e) }; setStatus('VR: ' + (e.message || e)); });
+      xrModule.then((m) => m.enterXR(api, report)).catch((e) => { report.xr = { ...(report.xr || {}), state: 'error', error: String(e.message || e) }; setStatus('VR: ' + (e.message || e)); });
     };
   });
 
@@ -962,7 +1026,16 @@ async function stream(name, gpu) {
       const variant = `kind=${kind}&dynamic=${dyn}&diffuse=${h.diffuse ? 1 : 0}&block=${h.block}`;
       // The same march either way: the compute shader (WebGPU) or its fragment target in GLSL
       // (WebGL2), both composed by the server from shaders/march.wgsl.
-      const res = await fetch(`/march.${gpu.backend === 'webgl2' ? 'glsl' : 'wgsl'}?${variant}`);
+      // The renderer is known once the adapter is (or is not); its device may still be in the
+      // making while the shader is fetched. A header that comes before the adapter's answer
+      // (a browser without WebGPU can take a few hundred ms to say so) has both texts fetched
+      // at once, tens of KB, rather than the fetch waiting for that answer.
+      const url = (b) => `/march.${b === 'webgl2' ? 'glsl' : 'wgsl'}?${variant}`;
+      const early = report.backend ? null : { webgpu: fetch(url('webgpu')), webgl2: fetch(url('webgl2')) };
+      if (early) for (const f of Object.values(early)) f.catch(() => {}); // the one not used
+      const backend = await backendReady;
+      const res = await (early ? early[backend] : fetch(url(backend)));
+      gpu = api.gpu = await gpuReady;
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
       if (gpu.backend === 'webgl2') {
         const prog = await res.json();
@@ -971,9 +1044,10 @@ async function stream(name, gpu) {
       } else {
         const code = await res.text();
         report.marks.shader = performance.now();
-        r = new Renderer(gpu.device, h, code, gpu.presentWgsl, gpu.wg);
+        r = new Renderer(gpu.device, h, code, gpu.present, gpu.wg);
       }
-      report.marks.pipeline = performance.now();
+      // Compiling while the rest comes in; awaited (failures too) before the first frame.
+      r.compiled.then(() => { report.marks.pipeline = performance.now(); }, () => {});
       // a diffuse asset has no VMLP chunk: its view MLP is zero
       if (h.diffuse) { r.setMlp(new Uint8Array(883 * 4)); r.mlp = true; }
       sendPose();
@@ -994,10 +1068,18 @@ async function stream(name, gpu) {
       report.blocks += n;
       if (report.arrivals.length < 65536) { report.arrivals.push(index); report.arrivalStreams.push(stream); }
     }
-    if (ready()) {
-      // The first frame is drawn as soon as the small parts are in, before more blocks are
-      // taken in (chunks are applied one at a time): progressive from the first block on.
-      if (report.firstFrameMs === null) { dirty = true; await frameNow(fixedCam ? 1 : scale); } else redraw();
+    if (partsIn()) {
+      // The first frame is drawn as soon as the small parts are in and the pipeline is
+      // compiled, before more blocks are taken in (chunks are applied one at a time):
+      // progressive from the first block on. It is marched at a fraction of the render
+      // scale (FIRST_SCALE: a quarter of its pixels): the page shows the scene sooner, and
+      // the next frames are marched at the render scale.
+      if (report.firstFrameMs === null) {
+        await r.compiled;
+        if (!report.marks.ready) report.marks.ready = performance.now();
+        dirty = true;
+        await frameNow(fixedCam ? 1 : scale * FIRST_SCALE);
+      } else redraw();
     }
   }
   const pendingChunks = [];
@@ -1203,53 +1285,81 @@ function showListing(assets) {
   return assets;
 }
 
-async function main() {
-  if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
-  config = await (await fetch('/config.json')).json();
-  // The listing, the GPU and (with an asset named) the stream start together: the first
-  // frame waits for none of the others.
-  const listing = listAssets().then(showListing);
-  listing.catch(() => {}); // awaited below; this only keeps an early failure from being "unhandled"
-  const want = frag.get('asset');
-  // WebGPU where the browser has it; else WebGL2 (headset browsers without WebGPU), the same
-  // march translated to GLSL.
-  const adapter = navigator.gpu ? await navigator.gpu.requestAdapter().catch(() => null) : null;
-  report.marks.adapter = performance.now();
-  report.backend = adapter ? 'webgpu' : 'webgl2';
-  let gpu;
+// The GPU: WebGPU where the browser has it, else WebGL2 (headset browsers without WebGPU),
+// the same march translated to GLSL. `cfg`: a promise of /config.json; `draw`: an asset will
+// be drawn (the canvas is set up and the present pipeline compiled as well).
+// `adapterReady`: a promise of the WebGPU adapter, or of null.
+async function openGpu(adapterReady, cfg, draw) {
+  const adapter = await adapterReady;
   if (adapter) {
     report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
+    // present.wgsl is fetched while the device is made
+    const pw = draw ? fetch('/present.wgsl') : null;
     const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
     report.marks.device = performance.now();
     device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
-    gpu = { backend: 'webgpu', device };
-  } else {
-    // preserveDrawingBuffer: immersive mode reads this canvas (the last marched image) on
-    // frames that march nothing new
-    const gl = $('canvas').getContext('webgl2', { alpha: false, antialias: false, depth: false, stencil: false, preserveDrawingBuffer: true });
-    if (!gl) throw new Error('this browser has neither WebGPU nor WebGL2');
-    // the march writes rgba32float and r32float targets, read back exactly as WebGPU's buffers
-    if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('WebGL2 without EXT_color_buffer_float (float render targets)');
-    const dbg = gl.getExtension('WEBGL_debug_renderer_info');
-    report.adapter = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
-    report.marks.device = performance.now();
-    gpu = { backend: 'webgl2', gl, target: () => gl.canvas };
+    const gpu = { backend: 'webgpu', device };
+    if (!draw) return gpu;
+    const ctx = $('canvas').getContext('webgpu');
+    const format = navigator.gpu.getPreferredCanvasFormat();
+    ctx.configure({ device, format, alphaMode: 'opaque' });
+    const res = await pw;
+    if (!res.ok) throw new Error('present shader: HTTP ' + res.status);
+    const wgsl = await res.text();
+    // Its pipeline compiles now, long before the first frame needs it (Renderer awaits it).
+    const pipeline = device.createRenderPipelineAsync(presentDescriptor(device, wgsl, format));
+    pipeline.then(() => { report.marks.present = performance.now(); }, () => {});
+    return Object.assign(gpu, { wg: (await cfg).workgroup, ctx, present: { wgsl, format, pipeline }, target: () => ctx.getCurrentTexture() });
   }
+  // preserveDrawingBuffer: immersive mode reads this canvas (the last marched image) on
+  // frames that march nothing new
+  const gl = $('canvas').getContext('webgl2', { alpha: false, antialias: false, depth: false, stencil: false, preserveDrawingBuffer: true });
+  if (!gl) throw new Error('this browser has neither WebGPU nor WebGL2');
+  // the march writes rgba32float and r32float targets, read back exactly as WebGPU's buffers
+  if (!gl.getExtension('EXT_color_buffer_float')) throw new Error('WebGL2 without EXT_color_buffer_float (float render targets)');
+  const dbg = gl.getExtension('WEBGL_debug_renderer_info');
+  report.adapter = dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER);
+  report.marks.device = performance.now();
+  return { backend: 'webgl2', gl, target: () => gl.canvas };
+}
+
+async function main() {
+  if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
+  const want = frag.get('asset');
+  // What the first frame needs starts at once and goes on side by side: the config, the GPU
+  // (adapter, device, the present pipeline) and, with an asset named, its session; the header
+  // waits for the GPU. The listing (a session of its own, and the thumbnails' bytes) is
+  // nothing that frame shows: with an asset named it starts once the frame is drawn.
+  const cfg = fetchConfig();
+  cfg.then(() => { report.marks.config = performance.now(); }, () => {});
+  const adapterReady = navigator.gpu ? navigator.gpu.requestAdapter().catch(() => null) : Promise.resolve(null);
+  const backendReady = adapterReady.then((a) => {
+    report.marks.adapter = performance.now();
+    return (report.backend = a ? 'webgpu' : 'webgl2');
+  });
+  const gpuReady = openGpu(adapterReady, cfg, !!want);
+  gpuReady.catch(() => {}); // awaited below and by the stream; this only keeps an early failure from being "unhandled"
+  let listing = null;
+  const list = () => {
+    if (!listing) {
+      report.marks.listing = performance.now();
+      listing = listAssets().then(showListing);
+      listing.catch(() => {});
+    }
+    return listing;
+  };
   if (!want) {
+    list();
+    await gpuReady;
     const assets = await listing;
     report.state = 'listed';
     setStatus(`${assets.length} asset(s); choose one`);
     return;
   }
-  if (gpu.backend === 'webgpu') {
-    const ctx = $('canvas').getContext('webgpu');
-    ctx.configure({ device: gpu.device, format: navigator.gpu.getPreferredCanvasFormat(), alphaMode: 'opaque' });
-    const pw = await fetch('/present.wgsl');
-    if (!pw.ok) throw new Error('present shader: HTTP ' + pw.status);
-    Object.assign(gpu, { wg: config.workgroup, ctx, presentWgsl: await pw.text(), target: () => ctx.getCurrentTexture() });
-  }
-  const info = await stream(want, gpu);
-  await listing;
+  const [info] = await Promise.all([stream(want, backendReady, gpuReady, cfg, list), gpuReady]);
+  // A listing asked for while the session was lost (the server restarting: the stream
+  // resumed) is asked for once more, now that the stream is complete.
+  await list().catch(() => { listing = null; return list(); });
   report.state = 'done';
   setStatus(`${info.name}: ${info.size} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);
 }
