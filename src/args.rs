@@ -151,9 +151,16 @@ pub struct DataOpts {
     /// Treat the scene as static even if frames carry times.
     #[arg(long = "static")]
     pub force_static: bool,
-    /// Integer image downscale factor.
+    /// Integer image downscale factor N: each N×N pixel block is averaged (box filter) and the
+    /// intrinsics divided by N; an `images_N/` folder beside `images/` (LLFF, COLMAP) is used
+    /// instead when present.
     #[arg(long, value_parser = crate::args::int_in::<u32>(1, 64, ""))]
     pub downscale: Option<u32>,
+    /// Longest image side in pixels, after --downscale [default: 1600; 0 = no cap]. Larger
+    /// images (a 4000×3000 phone photo) are resized once at load with an antialiased bicubic
+    /// filter and cached in ~/.cache/snerf/images, so the next load is fast.
+    #[arg(long, value_parser = crate::args::int_in::<u32>(0, 16384, ""))]
+    pub max_size: Option<u32>,
     /// For LLFF/COLMAP/single-file data: every n-th image is held out for testing.
     #[arg(long, value_parser = crate::args::int_in::<usize>(2, 100000, ""))]
     pub holdout_every: Option<usize>,
@@ -170,6 +177,8 @@ impl DataOpts {
             dynamic: if self.force_static { Some(false) } else { None },
             holdout_every: self.holdout_every,
             downscale: self.downscale,
+            max_size: self.max_size,
+            ..Default::default()
         };
         data::load(path, &opts)
     }

@@ -113,7 +113,7 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
         }
         let c2w = rigid_c2w(w2c_opencv_to_c2w_opengl(&r, img.tvec), &imgs_path, &what)?;
         let path = img_dir.join(&img.name);
-        images::check_png_extension(&path)?;
+        images::check_image_extension(&path)?;
         pending.push(PendingView {
             path,
             camera: if scaled {
@@ -127,6 +127,7 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
         });
     }
     let (train, test) = holdout_split(pending, opts);
+    let reduce = images::Reduce::new(software_downscale, opts);
     if train.is_empty() {
         bail!(
             "{}: no training views (holdout_every = {:?} leaves none)",
@@ -137,9 +138,9 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
     Ok(RawDataset {
         root,
         format: "colmap".into(),
-        train: images::load_views(train, software_downscale)?,
+        train: images::load_views(train, &reduce)?,
         val: Vec::new(),
-        test: images::load_views(test, software_downscale)?,
+        test: images::load_views(test, &reduce)?,
         pose_file: imgs_path,
         kind_hint: None,
         near_far: None,

@@ -3,7 +3,7 @@
 //! cameras in the OpenGL convention (camera-to-world, x right, y up, looking down -z), images as
 //! 8-bit RGBA, optional per-frame time. Data flow: `source` finds which format a path holds, the
 //! format module (`transforms`, `llff`, `colmap`) parses poses and intrinsics into pending views,
-//! `images` decodes and downscales the PNGs in parallel, and `detect` decides the scene kind
+//! `images` decodes the PNG/JPEG/WebP files in parallel and reduces them to training size, and `detect` decides the scene kind
 //! (object / forward / unbounded) and whether the scene is dynamic, unless the caller overrides it.
 
 mod colmap;
@@ -17,6 +17,7 @@ mod summary;
 mod transforms;
 
 pub use detect::{detect_kind, max_view_angle_deg, transparent_fraction};
+pub use images::{default_cache_dir, CACHE_MIN_PIXELS, DEFAULT_MAX_SIZE};
 pub use summary::summary;
 
 use std::path::Path;
@@ -63,8 +64,14 @@ pub struct LoadOptions {
     /// For formats without splits (LLFF, COLMAP, a single transforms.json): every n-th image
     /// (indices 0, n, 2n, ...) is a test view (default 8); `Some(0)` holds nothing out.
     pub holdout_every: Option<usize>,
-    /// Integer image downscale factor (LLFF `images_N` folders are used when present).
+    /// Integer image downscale factor, a box filter (LLFF/COLMAP `images_N` folders are used
+    /// when present).
     pub downscale: Option<u32>,
+    /// Cap on the longer image side in pixels after `downscale`; larger images are resized at
+    /// load (see the `images` module). `None` is [`DEFAULT_MAX_SIZE`], `Some(0)` no cap.
+    pub max_size: Option<u32>,
+    /// Where reduced images are cached; `None` is [`default_cache_dir`].
+    pub cache_dir: Option<PathBuf>,
 }
 
 #[derive(Clone, Debug)]
@@ -99,6 +106,24 @@ impl Intrinsics {
             fy: self.fy / sf,
             cx: self.cx / sf,
             cy: self.cy / sf,
+            distortion: self.distortion,
+        }
+    }
+}
+
+impl Intrinsics {
+    /// The intrinsics after resizing the whole image to `w x h` (each axis scales by its own
+    /// exact ratio, so rounding the size to whole pixels does not shift the principal point).
+    pub fn resized(&self, w: u32, h: u32) -> Intrinsics {
+        let sx = w as f32 / self.width.max(1) as f32;
+        let sy = h as f32 / self.height.max(1) as f32;
+        Intrinsics {
+            width: w,
+            height: h,
+            fx: self.fx * sx,
+            fy: self.fy * sy,
+            cx: self.cx * sx,
+            cy: self.cy * sy,
             distortion: self.distortion,
         }
     }

@@ -44,7 +44,7 @@ pub(crate) fn load(dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
     }
     let files = images::list_images(&img_dir)?;
     if files.is_empty() {
-        bail!("{}: no PNG images found", img_dir.display());
+        bail!("{}: no images found", img_dir.display());
     }
     if files.len() != n {
         bail!(
@@ -95,6 +95,7 @@ pub(crate) fn load(dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
         });
     }
     let (train, test) = holdout_split(pending, opts);
+    let reduce = images::Reduce::new(software_downscale, opts);
     if train.is_empty() {
         bail!(
             "{}: no training views (holdout_every = {:?} leaves none)",
@@ -105,9 +106,9 @@ pub(crate) fn load(dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
     Ok(RawDataset {
         root: dir.to_path_buf(),
         format: "llff".into(),
-        train: images::load_views(train, software_downscale)?,
+        train: images::load_views(train, &reduce)?,
         val: Vec::new(),
-        test: images::load_views(test, software_downscale)?,
+        test: images::load_views(test, &reduce)?,
         pose_file: npy_path,
         kind_hint: None,
         near_far: Some((near as f32, far as f32)),

@@ -152,13 +152,13 @@ pub(crate) fn load(files: &[(String, PathBuf)], opts: &LoadOptions) -> Result<Ra
             opts.holdout_every
         );
     }
-    let s = opts.downscale.unwrap_or(1);
+    let reduce = images::Reduce::new(opts.downscale.unwrap_or(1), opts);
     Ok(RawDataset {
         root,
         format: format.to_string(),
-        train: images::load_views(train, s)?,
-        val: images::load_views(val, s)?,
-        test: images::load_views(test, s)?,
+        train: images::load_views(train, &reduce)?,
+        val: images::load_views(val, &reduce)?,
+        test: images::load_views(test, &reduce)?,
         pose_file: first_path.clone(),
         kind_hint,
         near_far: None,
@@ -284,12 +284,22 @@ fn image_path(dir: &Path, file_path: &str) -> PathBuf {
         })
         .unwrap_or(false);
     if has_image_ext {
-        p
-    } else {
-        let mut s = p.into_os_string();
-        s.push(".png");
-        PathBuf::from(s)
+        return p;
     }
+    // Blender writes `file_path` without an extension and means PNG; a converted copy of such a
+    // dataset holds JPEG or WebP under the same names, so those are tried when no PNG exists.
+    // When none exists the PNG name is kept, for the "not found" message.
+    let with = |ext: &str| {
+        let mut s = p.clone().into_os_string();
+        s.push(".");
+        s.push(ext);
+        PathBuf::from(s)
+    };
+    images::READABLE_EXTS
+        .iter()
+        .map(|e| with(e))
+        .find(|c| c.is_file())
+        .unwrap_or_else(|| with("png"))
 }
 
 fn pending_views(path: &Path, file: &TransformsFile) -> Result<Vec<PendingView>> {
@@ -321,7 +331,7 @@ fn pending_views(path: &Path, file: &TransformsFile) -> Result<Vec<PendingView>>
             };
             let camera = camera_spec(&f.camera.over(&file.camera), path, &what)?;
             let img = image_path(&dir, &f.file_path);
-            images::check_png_extension(&img)?;
+            images::check_image_extension(&img)?;
             Ok(PendingView {
                 path: img,
                 camera,
