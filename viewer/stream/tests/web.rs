@@ -1464,3 +1464,22 @@ fn a_restarted_server_keeps_the_certificate_a_headset_accepted() {
     assert_ne!(c.web().unwrap().cert_hash.as_deref(), Some(first.as_str()));
     c.shutdown();
 }
+
+#[test]
+fn a_still_view_is_redrawn_at_full_resolution_once_the_asset_is_in() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-refine");
+    let state = TempDir::new("web-refine-state");
+    write_asset(&static_asset(32, 8, 0.8, 11), dir.path(), "scene");
+    let h = start(dir.path(), state.path());
+    // No fixed camera: the page's own orbit view, drawn at the adaptive scale while blocks
+    // arrive, then (nothing moving) once more at the canvas's full resolution.
+    let url = format!("{}#{}", h.web().unwrap().url(), fragment(&[("token", h.token()), ("asset", "scene")]));
+    let r = run_page_env(&b, "page.mjs", &[&url, "done"], &[("SNERF_WAIT_REFINED", "1")]);
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+    let f = &r["lastFrame"];
+    assert_eq!((f["scale"].as_f64(), f["complete"].as_bool()), (Some(1.0), Some(true)), "{f}");
+    // The first frame was smaller (it is marched at a fraction of the pixels).
+    assert!(r["firstFrame"]["width"].as_u64().unwrap_or(0) < f["width"].as_u64().unwrap(), "{} vs {f}", r["firstFrame"]);
+    h.shutdown();
+}

@@ -828,7 +828,7 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   // Render scale: the fraction of the canvas's device pixels marched, chosen each frame to
   // hold the display's frame rate while the view moves; a still view is refined at 1.
   // The first frames start small (frame rate first) and grow while frames are fast.
-  let scale = fixedCam ? 1 : 0.25, refined = false, lastInput = -1e9, playing = false, lastTick = null;
+  let scale = fixedCam ? 1 : 0.25, refined = false, lastInput = -1e9, playing = false, lastTick = null, lastScaled = -1e9;
   const rafTimes = [];
 
   function refreshMs() {
@@ -961,8 +961,11 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
     lastTick = now;
     const moving = playing || now - lastInput < 300;
     if (fixedCam) { if (dirty) frameNow(1); return; }
-    if (moving || dirty) { if (moving) refined = false; frameNow(scale); }
-    else if (!refined && !busy) { refined = true; frameNow(1); }
+    // Every frame at the adaptive scale leaves the view to be refined; the refinement (full
+    // resolution) comes once nothing has changed for a moment, and only when it can draw
+    // (before the scene is renderable a refinement would be spent on nothing).
+    if (moving || dirty) { refined = false; lastScaled = now; frameNow(scale); }
+    else if (!refined && !busy && ready() && now - lastScaled > 250) { refined = true; frameNow(1); }
   }
   requestAnimationFrame(tick);
 

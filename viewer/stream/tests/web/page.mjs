@@ -34,6 +34,10 @@ try {
   } else {
     await page.goto(url);
     await page.waitForFunction((w) => window.snerf && (window.snerf.state === w || window.snerf.state === 'error'), want, { timeout: 240000, polling: 50 });
+    // SNERF_WAIT_REFINED=1: then wait for the still view's full-resolution frame.
+    if (process.env.SNERF_WAIT_REFINED === '1') {
+      await page.waitForFunction(() => window.snerf.state === 'error' || (window.snerf.lastFrame && window.snerf.lastFrame.scale === 1 && window.snerf.lastFrame.complete), null, { timeout: 120000, polling: 50 });
+    }
     const r = await page.evaluate(() => {
       const s = window.snerf;
       const out = { ...s, lastRender: null };
