@@ -3,15 +3,25 @@
 //! save its state and stop with `Interrupted`. Outside such a job, or on a second signal, the
 //! process removes its live temp files and exits at once (130 for SIGINT, 143 for SIGTERM).
 //!
+//! A second signal counts only when it comes `SECOND_PRESS` or more after the first: a person
+//! pressing Ctrl-C again. Signals within that time are the same request delivered twice, as
+//! `timeout -s INT` or a terminal sends one to the process and another to its group; quitting
+//! on those would lose the run the first one asked to save.
+//!
 //! Signals arrive on an ordinary thread (signal-hook's iterator), not in a signal handler,
 //! so the cleanup may allocate and take locks.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Once;
+use std::sync::{Once, OnceLock};
+use std::time::{Duration, Instant};
 
 static REQUESTED: AtomicBool = AtomicBool::new(false);
 static GRACEFUL: AtomicUsize = AtomicUsize::new(0);
 static INSTALL: Once = Once::new();
+static FIRST: OnceLock<Instant> = OnceLock::new();
+
+/// Signals closer than this to the first are the same request (see the module doc).
+pub const SECOND_PRESS: Duration = Duration::from_secs(1);
 
 /// Exit status of a process stopped by SIGINT (the shell's convention, 128 + 2).
 pub const EXIT_INTERRUPTED: u8 = 130;
@@ -30,10 +40,14 @@ pub fn install() {
                 for sig in signals.forever() {
                     let graceful = GRACEFUL.load(Ordering::SeqCst) > 0;
                     if graceful && !REQUESTED.swap(true, Ordering::SeqCst) {
+                        let _ = FIRST.set(Instant::now());
                         eprintln!(
                             "\nsnerf: interrupted; saving at the next safe point (press Ctrl-C again to quit at once)"
                         );
                         continue;
+                    }
+                    if graceful && FIRST.get().is_some_and(|t| t.elapsed() < SECOND_PRESS) {
+                        continue; // the first request again, not a second press
                     }
                     crate::atomic::remove_live_temps();
                     std::process::exit(128 + sig);
