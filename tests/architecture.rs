@@ -80,32 +80,70 @@ fn architecture_says_what_each_crate_depends_on() {
     assert!(checked >= 10, "only {checked} rows with dependencies found");
 }
 
-/// The `crate::MODULE` references of each top-level module of a crate's `src/` (comments
-/// left out): module -> the other modules it names.
-fn module_graph(src: &Path) -> std::collections::BTreeMap<String, std::collections::BTreeSet<String>> {
-    let mut g = std::collections::BTreeMap::new();
-    for e in std::fs::read_dir(src).unwrap() {
-        let p = e.unwrap().path();
-        if p.extension().and_then(|x| x.to_str()) != Some("rs") {
-            continue;
-        }
-        let name = p.file_stem().unwrap().to_string_lossy().into_owned();
-        if name == "lib" || name == "main" {
-            continue;
-        }
-        let text = std::fs::read_to_string(&p).unwrap();
-        let mut uses = std::collections::BTreeSet::new();
-        for line in text.lines().map(str::trim_start).filter(|l| !l.starts_with("//")) {
-            let mut rest = line;
-            while let Some(i) = rest.find("crate::") {
-                rest = &rest[i + "crate::".len()..];
-                let m: String = rest.chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect();
-                if !m.is_empty() && m != name {
-                    uses.insert(m);
+/// The top-level modules that `text` (one module's source, comments left out) names through
+/// `crate::`: `crate::a::X` and each item of a brace form `use crate::{a, b::X, c::{d, e}}`
+/// (here a, b and c), spread over lines or not.
+fn crate_refs(text: &str) -> std::collections::BTreeSet<String> {
+    let code: String = text.lines().filter(|l| !l.trim_start().starts_with("//")).collect::<Vec<_>>().join("\n");
+    let ident = |s: &str| -> String { s.trim_start().chars().take_while(|c| c.is_ascii_alphanumeric() || *c == '_').collect() };
+    let mut uses = std::collections::BTreeSet::new();
+    let mut rest = code.as_str();
+    while let Some(i) = rest.find("crate::") {
+        rest = &rest["crate::".len() + i..];
+        if let Some(group) = rest.strip_prefix('{') {
+            // The items of the group are split at its top-level commas; nested braces
+            // belong to the item before them.
+            let (mut depth, mut start) = (0usize, 0usize);
+            for (j, c) in group.char_indices() {
+                match c {
+                    '{' => depth += 1,
+                    '}' if depth > 0 => depth -= 1,
+                    ',' | '}' if depth == 0 => {
+                        uses.insert(ident(&group[start..j]));
+                        start = j + 1;
+                        if c == '}' {
+                            break;
+                        }
+                    }
+                    _ => {}
                 }
             }
+        } else {
+            uses.insert(ident(rest));
         }
-        g.insert(name, uses);
+    }
+    uses.remove("");
+    uses.remove("self");
+    uses
+}
+
+/// The `crate::MODULE` references of each top-level module of a crate's `src/` (comments
+/// left out): module -> the other modules it names. A module's submodules (the files under
+/// `src/MODULE/`) count as part of it.
+fn module_graph(src: &Path) -> std::collections::BTreeMap<String, std::collections::BTreeSet<String>> {
+    fn sources(p: &Path, out: &mut Vec<std::path::PathBuf>) {
+        if p.is_dir() {
+            for e in std::fs::read_dir(p).unwrap() {
+                sources(&e.unwrap().path(), out);
+            }
+        } else if p.extension().and_then(|x| x.to_str()) == Some("rs") {
+            out.push(p.to_path_buf());
+        }
+    }
+    let mut g = std::collections::BTreeMap::<String, std::collections::BTreeSet<String>>::new();
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        let name = p.file_stem().unwrap().to_string_lossy().into_owned();
+        if !p.is_dir() && p.extension().and_then(|x| x.to_str()) != Some("rs") || name == "lib" || name == "main" {
+            continue;
+        }
+        let mut files = Vec::new();
+        sources(&p, &mut files);
+        let uses = g.entry(name.clone()).or_default();
+        for f in files {
+            uses.extend(crate_refs(&std::fs::read_to_string(&f).unwrap()));
+        }
+        uses.remove(&name);
     }
     g
 }
@@ -143,14 +181,55 @@ fn find_cycle(g: &std::collections::BTreeMap<String, std::collections::BTreeSet<
     g.keys().find_map(|n| visit(n, g, &mut state, &mut Vec::new()))
 }
 
+/// The crates whose modules are layered: each module names only modules below it, so a
+/// module can be read, tested and changed knowing what it stands on. A crate joins this list
+/// once it has no cycle left.
+const LAYERED_CRATES: [&str; 9] = [
+    "trainer/src",
+    "trainer/data/src",
+    "trainer/scene/src",
+    "baker/src",
+    "viewer/src",
+    "common/files/src",
+    "common/geometry/src",
+    "report/src",
+    "src",
+];
+
+/// Crates that still have a module cycle (the one found is named): listed so the check
+/// knows them all, and so that breaking the cycle moves the crate up into `LAYERED_CRATES`.
+const CRATES_WITH_CYCLES: [&str; 3] = [
+    // page -> http_stream -> page
+    "viewer/stream/src",
+    // asset -> assemble -> asset
+    "baker/asset/src",
+    // colour_offsets -> palette -> style_metric -> snerf_loop -> colour_offsets
+    "trainer/stylize/src",
+];
+
 #[test]
-fn the_streaming_crate_has_no_module_cycles() {
+fn crates_are_layered_without_module_cycles() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let g = module_graph(&root.join("viewer/stream/src"));
-    assert!(g.len() > 10, "{g:?}");
-    assert_eq!(find_cycle(&g), None, "a module cycle in snerf-stream");
+    for src in LAYERED_CRATES {
+        let g = module_graph(&root.join(src));
+        assert!(g.len() >= 3, "{src}: {g:?}");
+        assert_eq!(find_cycle(&g), None, "a module cycle in {src}");
+    }
+    for src in CRATES_WITH_CYCLES {
+        assert!(find_cycle(&module_graph(&root.join(src))).is_some(), "{src} has no module cycle left: move it to LAYERED_CRATES");
+    }
+    // The graph sees the trainer's layers: evaluation reaches the model, not the trainer.
+    let g = module_graph(&root.join("trainer/src"));
+    assert!(g["eval"].contains("model") && !g["eval"].contains("train"), "{:?}", g["eval"]);
     // The check finds one where there is one.
     let mut bad = g.clone();
-    bad.get_mut("pending").unwrap().insert("server".into());
+    bad.get_mut("eval").unwrap().insert("run".into());
     assert!(find_cycle(&bad).is_some());
+}
+
+#[test]
+fn module_references_are_read_from_paths_and_brace_forms() {
+    let text = "use crate::{a, b::X, c::{d, e::F},\n    self, g};\n// crate::commented\nlet x = crate::h::y();";
+    let got: Vec<String> = crate_refs(text).into_iter().collect();
+    assert_eq!(got, ["a", "b", "c", "g", "h"]);
 }

@@ -16,7 +16,8 @@ use crate::adam::Adam;
 use crate::field::Field;
 use crate::occupancy::Occupancy;
 use crate::space::SceneSpace;
-use crate::train::{CurvePoint, Model, TrainConfig, Trainer};
+use crate::model::Model;
+use crate::train::{CurvePoint, TrainConfig, Trainer};
 
 pub const MAGIC: &[u8; 8] = b"SNERFCKP";
 pub const VERSION: u32 = 1;
@@ -166,9 +167,6 @@ pub fn load(path: &Path) -> Result<Checkpoint> {
 
 pub use snerf_files::{write_atomic, write_json_atomic};
 
-pub fn write_png_atomic(path: &Path, img: &image::RgbImage) -> Result<()> {
-    let mut bytes = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)?;
-    write_atomic(path, &bytes)
-}
+// Commands have always found the image writer beside the other atomic writers here.
+pub use crate::png::write_png_atomic;
 

@@ -10,7 +10,7 @@ use snerf_data::{Intrinsics, View};
 use crate::metrics::{psnr, ssim};
 use crate::render::{render_chunk, RayResult, RayTask, WorkspacePool};
 use crate::space::Vec3;
-use crate::train::Model;
+use crate::model::Model;
 
 /// A rendered image: RGB floats, expected depth (march-space units) and opacity per pixel.
 pub struct Rendered {
@@ -153,7 +153,7 @@ pub fn evaluate(
         if let Some(dir) = out_dir {
             let disparity = model.space.kind == snerf_data::SceneKind::Unbounded;
             let img = side_by_side(&[&r.rgb, &gt, &depth_image(&r, disparity)], r.width, r.height);
-            crate::checkpoint::write_png_atomic(&dir.join(format!("{name}.png")), &img)
+            crate::png::write_png_atomic(&dir.join(format!("{name}.png")), &img)
                 .with_context(|| format!("writing evaluation image for {name}"))?;
         }
         scores.push(ViewScore { name, psnr: p, ssim: s, time: v.time });
@@ -211,7 +211,7 @@ pub fn sample_pixels(views: &[View], n: usize, seed: u64) -> Vec<(usize, u32, u3
     if total == 0 {
         return Vec::new();
     }
-    let mut rng = crate::field::Rng::new(seed);
+    let mut rng = crate::rng::Rng::new(seed);
     (0..n.min(total))
         .map(|_| {
             let vi = rng.below(views.len());
@@ -265,5 +265,5 @@ pub fn sampled_psnr(model: &Model, pool: &WorkspacePool, views: &[View], has_alp
                 .sum::<f64>()
         })
         .sum();
-    crate::train::mse_to_psnr(se / (3 * pixels.len().max(1)) as f64)
+    crate::metrics::mse_to_psnr(se / (3 * pixels.len().max(1)) as f64)
 }

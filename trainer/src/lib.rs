@@ -7,6 +7,15 @@
 //! rayon workers -> `adam` updates the one flat parameter vector -> `checkpoint` writes it
 //! atomically. `eval` renders held-out views and scores them with `metrics`. `run` trains into a
 //! run directory whose layout (and reading back: dataset, model) `run_dir` owns.
+//!
+//! Modules are layered, each naming only modules of its own layer or below (no cycles;
+//! `tests/architecture.rs` checks it):
+//! 1. core: `rng`, `orbit`, `space`, `metrics`, `png`, `adam`, `composite`, `occupancy`;
+//! 2. the field and its rendering: `view_mlp`, `field`, `render`;
+//! 3. `model` (what a renderer needs of a trained field);
+//! 4. `train`, `eval`;
+//! 5. `checkpoint` (a trainer's state on disk), `camera_path` (rendering a path), `run`,
+//!    `run_dir`.
 
 // Index loops over parallel fixed-size arrays (channels, axes, samples) read as the
 // formulas they implement; iterator zips of three or four arrays would not.
@@ -21,8 +30,12 @@ pub mod composite;
 pub mod eval;
 pub mod field;
 pub mod metrics;
+pub mod model;
 pub mod occupancy;
+pub mod orbit;
+pub mod png;
 pub mod render;
+pub mod rng;
 pub mod run;
 pub mod run_dir;
 pub mod space;

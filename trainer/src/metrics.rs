@@ -5,7 +5,16 @@
 pub fn psnr(a: &[f32], b: &[f32]) -> f64 {
     assert_eq!(a.len(), b.len());
     let mse: f64 = a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum::<f64>() / a.len().max(1) as f64;
-    crate::train::mse_to_psnr(mse)
+    mse_to_psnr(mse)
+}
+
+/// PSNR of an MSE on [0,1] colours, capped at 120 dB for a perfect fit. A non-finite MSE
+/// (a diverged field) stays NaN: it must never read as a perfect score.
+pub fn mse_to_psnr(mse: f64) -> f64 {
+    if !mse.is_finite() {
+        return f64::NAN;
+    }
+    -10.0 * mse.max(1e-12).log10()
 }
 
 fn gaussian_kernel() -> [f64; 11] {

@@ -196,3 +196,87 @@ pub fn metrics_json(t: &Trainer) -> serde_json::Value {
         "curve": t.curve,
     })
 }
+
+// A training run written and read back through `RunDir`: here rather than in `run_dir`, which
+// sits below `run` and must not name it.
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
+
+    fn tmp(tag: &str) -> snerf_files::ScratchDir {
+        snerf_files::ScratchDir::new("snerf-run-dir", tag).unwrap()
+    }
+
+    /// A four-view Blender-style dataset of a grey disc on a transparent background, seen
+    /// from the four sides: small enough to train a few steps in a unit test.
+    fn write_tiny_dataset(dir: &Path) {
+        let img = image::RgbaImage::from_fn(16, 16, |x, y| {
+            let (dx, dy) = (x as f32 - 7.5, y as f32 - 7.5);
+            if dx * dx + dy * dy < 25.0 {
+                image::Rgba([128, 128, 128, 255])
+            } else {
+                image::Rgba([0, 0, 0, 0])
+            }
+        });
+        for split in ["train", "test"] {
+            std::fs::create_dir_all(dir.join(split)).unwrap();
+            let frames: Vec<Value> = (0..4)
+                .map(|i| {
+                    let a = i as f32 * std::f32::consts::FRAC_PI_2;
+                    let eye = [4.0 * a.sin(), 0.5, 4.0 * a.cos()];
+                    let m = snerf_geometry::look_at(eye, [0.0; 3], [0.0, 1.0, 0.0]);
+                    let file = format!("{split}/r_{i}");
+                    img.save(dir.join(format!("{file}.png"))).unwrap();
+                    serde_json::json!({ "file_path": file, "transform_matrix": [m[0], m[1], m[2], [0.0, 0.0, 0.0, 1.0]] })
+                })
+                .collect();
+            let doc = serde_json::json!({ "camera_angle_x": 0.7, "frames": frames });
+            std::fs::write(dir.join(format!("transforms_{split}.json")), doc.to_string()).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_trained_run_gives_back_its_dataset_and_model() {
+        let d = tmp("trained");
+        let data_dir = d.join("data");
+        write_tiny_dataset(&data_dir);
+        let data = crate::data::load(&data_dir, &Default::default()).unwrap();
+        let mut cfg = TrainConfig::for_dataset(&data);
+        cfg.field.resolutions = vec![8, 16];
+        cfg.batch_rays = 256;
+        cfg.batch_samples = 0;
+        let opts = RunOptions { dir: d.join("run"), steps: Some(3), seconds: None, curve_pixels: 64, checkpoint_every: 1e9 };
+        let mut t = open(&data, cfg, &opts.dir, false).unwrap();
+        run(&mut t, &data, &opts, &mut |_, _, _| {}).unwrap();
+        // Three steps end long before the first scheduled evaluation, yet the curve has
+        // both ends: after the first step and at the last.
+        let steps: Vec<u64> = t.curve.iter().map(|c| c.step).collect();
+        assert_eq!(steps, [1, 3], "curve points");
+
+        let dir = RunDir::new(&opts.dir);
+        for f in [dir.checkpoint(), dir.config(), dir.metrics()] {
+            assert!(f.is_file(), "{} was not written", f.display());
+        }
+        assert_eq!(dir.dataset().unwrap(), data.root);
+        let (model, _pool) = dir.load_model().unwrap();
+        assert_eq!(model.field.params, t.model.field.params);
+        assert_eq!(model.space.kind, data.kind);
+
+        // A dataset given by a relative path is recorded absolute, so the run finds it from
+        // any working directory.
+        let mut rel = data.clone();
+        rel.root = PathBuf::from("datasets/some-scene");
+        save(&t, &rel, &opts).unwrap();
+        let config: Value = serde_json::from_slice(&std::fs::read(dir.config()).unwrap()).unwrap();
+        let recorded = PathBuf::from(config["dataset"]["root"].as_str().unwrap());
+        assert!(recorded.is_absolute() && recorded.ends_with("datasets/some-scene"), "{}", recorded.display());
+        assert_eq!(dir.dataset().unwrap(), recorded);
+        // A run recorded before that (a relative path that is not there) gets a clear error.
+        let mut old = config.clone();
+        old["dataset"]["root"] = "datasets/some-scene".into();
+        std::fs::write(dir.config(), serde_json::to_vec(&old).unwrap()).unwrap();
+        let e = format!("{:#}", dir.dataset().unwrap_err());
+        assert!(e.contains("relative path datasets/some-scene") && e.contains("--data"), "{e}");
+    }
+}

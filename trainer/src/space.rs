@@ -105,7 +105,7 @@ impl SceneSpace {
             }
         };
         let frame = Space { center, rot, scale, ndc };
-        let orbit = Some(crate::camera_path::preview_orbit(data.kind, &frame, &views, None));
+        let orbit = Some(crate::orbit::preview_orbit(data.kind, &frame, &views, None));
         Ok(SceneSpace { kind: data.kind, dynamic: data.dynamic, frame, time_range, orbit })
     }
 

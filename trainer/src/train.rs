@@ -11,10 +11,17 @@ use serde::{Deserialize, Serialize};
 use snerf_data::{Dataset, SceneKind, View};
 
 use crate::adam::Adam;
-use crate::field::{Field, FieldConfig, Rng};
+use crate::field::{Field, FieldConfig};
 use crate::occupancy::Occupancy;
 use crate::render::{density_batch, train_chunk, ChunkStats, RayTask, WorkspacePool};
+use crate::rng::Rng;
 use crate::space::SceneSpace;
+
+// Where the training step's PSNR has always been found; the formula lives with the metrics.
+pub use crate::metrics::mse_to_psnr;
+// `train::Model` is the path every user of a trained model names; the type lives below
+// training, where evaluation and checkpoints reach it without depending on the trainer.
+pub use crate::model::Model;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TrainConfig {
@@ -188,7 +195,7 @@ pub fn silhouette_mask(views: &[View]) -> Vec<u64> {
         let (w, h) = (v.intrinsics.width as usize, v.intrinsics.height as usize);
         for y in 0..h {
             for x in 0..w {
-                let (lo, hi) = crate::eval::min_max_3x3(w, h, x, y, |i| v.rgba[i * 4 + 3]);
+                let (lo, hi) = snerf_geometry::silhouette::min_max_3x3(w, h, x, y, |i| v.rgba[i * 4 + 3]);
                 if lo < 255 && hi > 0 {
                     let p = base + y * w + x;
                     bits[p / 64] |= 1 << (p % 64);
@@ -233,18 +240,6 @@ pub fn pixels_across_box(data: &Dataset) -> Option<f32> {
     }
     px.sort_by(f32::total_cmp);
     Some(px[px.len() / 2])
-}
-
-/// What a renderer needs: the scene mapping, the field and its occupancy grid, and how many
-/// rays a silhouette pixel takes (the training setting `pixel_rays`).
-#[derive(Clone, Debug)]
-pub struct Model {
-    pub space: SceneSpace,
-    pub field: Field,
-    pub occ: Occupancy,
-    pub pixel_rays: usize,
-    /// `TrainConfig::pixel_footprint`.
-    pub pixel_footprint: Option<f32>,
 }
 
 /// One point of the error-against-time curve.
@@ -295,15 +290,6 @@ impl StepStats {
     pub fn psnr(&self) -> f64 {
         mse_to_psnr(self.loss)
     }
-}
-
-/// PSNR of an MSE on [0,1] colours, capped at 120 dB for a perfect fit. A non-finite MSE
-/// (a diverged field) stays NaN: it must never read as a perfect score.
-pub fn mse_to_psnr(mse: f64) -> f64 {
-    if !mse.is_finite() {
-        return f64::NAN;
-    }
-    -10.0 * mse.max(1e-12).log10()
 }
 
 /// True when any training image has transparent pixels (a bounded object on no background).

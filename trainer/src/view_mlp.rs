@@ -6,7 +6,7 @@
 //! Input (VIN = 34): diffuse rgb (3), features (4), direction (3), and sin/cos of the
 //! direction at 4 octaves (24).
 
-use crate::field::Rng;
+use crate::rng::Rng;
 use snerf_geometry::view_mlp::{dense, encode};
 
 pub const VIN: usize = snerf_geometry::view_mlp::INPUTS;
