@@ -25,15 +25,21 @@
 
 use std::sync::atomic::Ordering;
 
-use crate::page::Response;
 use crate::proto::{code, decode_client_msg, encode_frame, ClientMsg, ServerMsg, PROTOCOL_VERSION};
 use crate::shared::{Close, Shared};
 
 /// The path of the requests.
 pub const HTTP_SESSION_PATH: &str = "/snerf/1/http";
 
+/// An answer: HTTP status and body (records or control frames for 200, `CODE reason` text
+/// otherwise). The page server (`page.rs`) writes it.
+pub(crate) struct Answer {
+    pub status: u16,
+    pub body: Vec<u8>,
+}
+
 /// The answer to one request. `origin_ok`: its `Origin` is this server's page.
-pub(crate) async fn answer(shared: &Shared, query: &str, body: &[u8], origin_ok: bool) -> Response {
+pub(crate) async fn answer(shared: &Shared, query: &str, body: &[u8], origin_ok: bool) -> Answer {
     if !origin_ok {
         shared.stats.unauthorized.fetch_add(1, Ordering::Relaxed);
         return error(Close(code::UNAUTHORIZED, "the request does not come from this server's page".into()), 403);
@@ -44,7 +50,7 @@ pub(crate) async fn answer(shared: &Shared, query: &str, body: &[u8], origin_ok:
         _ => Err(Close(code::MALFORMED, "part=control or part=data".into())),
     };
     match r {
-        Ok(body) => Response { status: 200, ctype: "application/octet-stream", body: body.into(), csp: None },
+        Ok(body) => Answer { status: 200, body },
         Err(c) => {
             match c.0 {
                 code::UNAUTHORIZED => shared.stats.unauthorized.fetch_add(1, Ordering::Relaxed),
@@ -63,8 +69,8 @@ pub(crate) async fn answer(shared: &Shared, query: &str, body: &[u8], origin_ok:
     }
 }
 
-fn error(c: Close, status: u16) -> Response {
-    Response { status, ctype: "text/plain", body: format!("{} {}", c.0, c.1).into_bytes().into(), csp: None }
+fn error(c: Close, status: u16) -> Answer {
+    Answer { status, body: format!("{} {}", c.0, c.1).into_bytes() }
 }
 
 /// The client's frames: a `hello` first, then anything else it sent.

@@ -155,7 +155,9 @@ async fn serve_requests<S: AsyncRead + AsyncWrite + Unpin>(
                         (Some(o), Some(h)) => *o == format!("https://{h}"),
                         _ => false,
                     };
-                    let r = crate::http_stream::answer(shared, &req.query, &body, origin_ok).await;
+                    let a = crate::http_stream::answer(shared, &req.query, &body, origin_ok).await;
+                    let ctype = if a.status == 200 { "application/octet-stream" } else { "text/plain" };
+                    let r = Response { status: a.status, ctype, body: a.body.into(), csp: None };
                     (r, req.keep_alive && req.has_body == (n > 0))
                 }
                 (Some(_), "POST", _) => (Response::text(413, "body missing or too large"), false),
