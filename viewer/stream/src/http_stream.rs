@@ -25,7 +25,7 @@
 
 use std::sync::atomic::Ordering;
 
-use crate::proto::{code, decode_client_msg, encode_frame, ClientMsg, ServerMsg, PROTOCOL_VERSION};
+use crate::proto::{code, decode_client_msg, encode_frame, split_frame, ClientMsg, ServerMsg, PROTOCOL_VERSION};
 use crate::shared::{Close, Shared};
 
 /// The path of the requests.
@@ -78,18 +78,11 @@ fn frames(shared: &Shared, body: &[u8]) -> Result<Vec<ClientMsg>, Close> {
     let mut out = Vec::new();
     let mut rest = body;
     while !rest.is_empty() {
-        if rest.len() < 4 {
-            return Err(Close(code::MALFORMED, "truncated frame".into()));
-        }
-        let n = u32::from_le_bytes([rest[0], rest[1], rest[2], rest[3]]) as usize;
-        if n > shared.limits.max_message {
-            return Err(Close(code::TOO_LARGE, format!("frame of {n} bytes")));
-        }
-        if rest.len() < 4 + n {
-            return Err(Close(code::MALFORMED, "truncated frame".into()));
-        }
-        out.push(decode_client_msg(&rest[4..4 + n]).map_err(|e| Close(code::MALFORMED, format!("{e:#}")))?);
-        rest = &rest[4 + n..];
+        let (frame, after) = split_frame(rest, shared.limits.max_message)
+            .map_err(|e| Close(code::TOO_LARGE, format!("{e:#}")))?
+            .ok_or_else(|| Close(code::MALFORMED, "truncated frame".into()))?;
+        out.push(decode_client_msg(frame).map_err(|e| Close(code::MALFORMED, format!("{e:#}")))?);
+        rest = after;
     }
     match out.first() {
         Some(ClientMsg::Hello { version, token, .. }) => {
@@ -123,17 +116,7 @@ async fn asked(shared: &Shared, hello: &ClientMsg) -> Result<Option<Asked>, Clos
     };
     let (name, path) = shared.resolve(Some(name))?;
     let asset = shared.load(&name, &path).await?;
-    let n = asset.chunk_count() as usize;
-    let mut skip = vec![false; n];
-    let resumed = resume_id.as_deref() == Some(asset.sha256.as_str());
-    if resumed {
-        for r in have {
-            let (lo, hi) = (r[0] as usize, (r[1] as usize).min(n));
-            for s in skip.iter_mut().take(hi).skip(lo) {
-                *s = true;
-            }
-        }
-    }
+    let (skip, resumed) = crate::plan::skipped(&asset, have, resume_id.as_deref());
     Ok(Some(Asked { asset, skip, resumed, pose: pose.filter(|p| p.validate().is_ok()) }))
 }
 

@@ -274,6 +274,24 @@ pub fn order_blocks(asset: &ServedAsset, blocks: &mut Vec<u32>, pose: Option<Pos
     blocks.extend(keyed.into_iter().map(|k| k.1));
 }
 
+/// The chunks a hello's `have` ranges spare (true: not sent), honoured only when its
+/// `resume_id` is this asset's SHA-256; and whether it was. Both carriers start from this
+/// (`session.rs`, `http_stream.rs`).
+pub fn skipped(asset: &ServedAsset, have: &[[u32; 2]], resume_id: Option<&str>) -> (Vec<bool>, bool) {
+    let n = asset.chunk_count() as usize;
+    let mut skip = vec![false; n];
+    let resumed = resume_id == Some(asset.sha256.as_str());
+    if resumed {
+        for r in have {
+            let (lo, hi) = (r[0] as usize, (r[1] as usize).min(n));
+            for s in skip.iter_mut().take(hi).skip(lo) {
+                *s = true;
+            }
+        }
+    }
+    (skip, resumed)
+}
+
 pub fn records_len(a: &ServedAsset, idx: &[u32]) -> u64 {
     idx.iter().map(|&i| a.record_len(i)).sum::<u64>()
 }

@@ -209,16 +209,7 @@ async fn session(
         let (name, path) = shared.resolve(Some(&name))?;
         let a = shared.load(&name, &path).await?;
         let n = a.chunk_count() as usize;
-        let mut skip = vec![false; n];
-        let resumed = resume_id.as_deref() == Some(a.sha256.as_str());
-        if resumed {
-            for r in &have {
-                let (lo, hi) = (r[0] as usize, (r[1] as usize).min(n));
-                for s in skip.iter_mut().take(hi).skip(lo) {
-                    *s = true;
-                }
-            }
-        }
+        let (skip, resumed) = crate::plan::skipped(&a, &have, resume_id.as_deref());
         let sending: Vec<u32> = (0..n as u32).filter(|&i| !skip[i as usize]).collect();
         let sending_bytes = crate::plan::records_len(&a, &sending);
         send_msg(
