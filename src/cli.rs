@@ -30,6 +30,10 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Cmd {
+    /// Photos or a video in, a posed dataset out, with COLMAP (features, matching, mapping,
+    /// undistortion); see --help.
+    #[command(long_about = crate::capture_cmd::CAPTURE_HELP)]
+    Capture(crate::capture_cmd::CaptureArgs),
     /// Write a multi-view dataset (nerf_synthetic layout) from a built-in scene or a glTF file.
     Scene(crate::scene_cmd::SceneArgs),
     /// Describe a dataset: format, detected scene kind (and why), splits, image sizes.
@@ -59,8 +63,12 @@ pub enum Cmd {
     View(crate::view_cmd::ViewArgs),
     /// Serve baked assets over QUIC (TLS 1.3, self-signed certificate pinned by clients, token).
     Serve(crate::stream_cmd::ServeArgs),
-    /// Download a baked asset from `snerf serve` (resumable, checksum-verified).
+    /// Download a baked asset from `snerf serve` or a published manifest URL (resumable,
+    /// checksum-verified).
     Fetch(crate::stream_cmd::FetchArgs),
+    /// Write baked assets as a content-addressed static layout (manifest + immutable objects
+    /// + the web viewer) that any HTTP host or CDN serves; clients order their own fetches.
+    Publish(crate::stream_cmd::PublishArgs),
     /// Error against run time, as pictures: plots, report.md, report.html and report.json from
     /// train runs, stylize runs, bakes and `bench quality` outputs.
     #[command(long_about = crate::report_cmd::REPORT_HELP)]
@@ -93,6 +101,7 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().ok();
     }
     let summary = match cli.cmd {
+        Cmd::Capture(a) => crate::capture_cmd::capture_cmd(&a, cli.threads)?,
         Cmd::Scene(a) => crate::scene_cmd::scene(&a)?,
         Cmd::Data(a) => crate::train_cmd::data_cmd(&a, cli.json)?,
         Cmd::Train(a) => crate::train_cmd::train_cmd(&a, cli.json)?,
@@ -108,6 +117,7 @@ pub fn dispatch(cli: Cli) -> Result<()> {
         Cmd::View(a) => crate::view_cmd::view_cmd(&a)?,
         Cmd::Serve(a) => crate::stream_cmd::serve_cmd(&a, cli.json)?,
         Cmd::Fetch(a) => crate::stream_cmd::fetch_cmd(&a)?,
+        Cmd::Publish(a) => crate::stream_cmd::publish_cmd(&a)?,
         Cmd::Report(a) => crate::report_cmd::report_cmd(&a, cli.json)?,
         Cmd::Compare(a) => crate::report_cmd::compare_cmd(&a, cli.json)?,
         Cmd::Demo(a) => crate::demo::demo(&a, cli.json)?,

@@ -3,6 +3,7 @@
 mod args;
 mod bake_cmd;
 mod bench;
+mod capture_cmd;
 mod cli;
 mod demo;
 mod report_cmd;

@@ -6,6 +6,7 @@
 //! `images` decodes the PNG/JPEG/WebP files in parallel and reduces them to training size, and `detect` decides the scene kind
 //! (object / forward / unbounded) and whether the scene is dynamic, unless the caller overrides it.
 
+pub mod capture;
 mod colmap;
 pub mod detect;
 mod images;

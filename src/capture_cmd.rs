@@ -1,0 +1,144 @@
+//! `snerf capture`: photos or a video in, a posed dataset out, with COLMAP (the work is in
+//! `snerf_data::capture`); this module parses the flags and draws a bar per phase.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Result};
+use clap::Args;
+use indicatif::ProgressBar;
+use serde_json::Value;
+use snerf_files::guard::{check_output, Input as GuardInput};
+use snerf_trainer::data::capture::{self, CaptureOptions, Event, Input, Matcher};
+
+use crate::args::bar;
+
+pub const CAPTURE_HELP: &str = "Photos (or a video) in, a dataset snerf trains on out, with COLMAP on the CPU.\n\n\
+Phases, each with a bar: the photos are copied into a work folder (rotated phone JPEGs are turned upright, \
+photos larger than --max-size reduced, WebP/PGM/PPM converted); COLMAP extracts SIFT features, matches them \
+(--matcher auto: exhaustive for 50 photos or fewer, sequential in name order above that and for video), maps \
+(incremental SfM), and undistorts the registered photos to a pinhole camera. The result is loaded once as \
+training will load it, and the scene kind is detected and explained (also `snerf data DATA`).\n\n\
+DATA gets images/, sparse/0/{cameras,images,points3D}.bin (COLMAP's own format, read by `snerf train DATA`) \
+and capture.json (this command's report: registration, COLMAP's mean reprojection error, times). It is \
+written into a temp folder beside DATA and renamed into place at the end: a failure or Ctrl-C leaves no \
+half-written dataset, and an existing DATA is replaced only if snerf wrote it and nobody changed it.\n\n\
+Photos COLMAP cannot place are listed; below --min-registered (default 0.8) of them the capture fails and \
+writes nothing. Good photos: 30-200 of them, sharp, each part of the scene seen from 3 or more places, \
+60-80% overlap between neighbours, fixed focus and exposure if the phone allows, walking around the object \
+or through the room rather than turning on the spot.\n\n\
+Needs COLMAP: Debian's `colmap` package (or $SNERF_COLMAP naming the binary); `bash scripts/setup-capture.sh` \
+installs it and ffmpeg (for --video).";
+
+#[derive(Args, Debug)]
+pub struct CaptureArgs {
+    /// Folder of photos (JPEG, PNG, WebP, PGM/PPM), taken in name order for sequential matching.
+    #[arg(required_unless_present = "video", conflicts_with = "video")]
+    pub photos: Option<PathBuf>,
+    /// A video file instead of photos: frames are taken with ffmpeg (which must be installed).
+    #[arg(long)]
+    pub video: Option<PathBuf>,
+    /// Frames per second of video to take with --video.
+    #[arg(long, default_value_t = 2.0, value_parser = crate::args::positive)]
+    pub fps: f64,
+    /// The dataset folder to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// auto | sequential | exhaustive (auto: exhaustive up to 50 photos, sequential above and
+    /// for video).
+    #[arg(long, default_value = "auto")]
+    pub matcher: Matcher,
+    /// Fail (writing nothing) when COLMAP registers less than this fraction of the photos.
+    #[arg(long, default_value_t = capture::DEFAULT_MIN_REGISTERED, value_parser = fraction)]
+    pub min_registered: f64,
+    /// Longest side of the photos COLMAP and the dataset get, in pixels (0 = as taken).
+    #[arg(long, default_value_t = 1600, value_parser = crate::args::int_in::<u32>(0, 16384, ""))]
+    pub max_size: u32,
+    /// SIFT features per photo (COLMAP's default is 8192; CPU matching time grows with its square).
+    #[arg(long, default_value_t = 4096, value_parser = crate::args::int_in::<u32>(256, 65536, ""))]
+    pub max_features: u32,
+    /// COLMAP camera model: SIMPLE_RADIAL (default, phones), OPENCV, RADIAL, OPENCV_FISHEYE, ...
+    #[arg(long, default_value = "SIMPLE_RADIAL")]
+    pub camera_model: String,
+    /// One camera per photo instead of one shared by all (photos from different cameras/zooms).
+    #[arg(long)]
+    pub camera_per_photo: bool,
+    /// Keep the distorted camera and the photos as taken instead of undistorting to a pinhole
+    /// camera (the loader then bends the rays; SIMPLE_RADIAL, RADIAL and OPENCV only).
+    #[arg(long)]
+    pub keep_distortion: bool,
+}
+
+/// A fraction in [0, 1].
+fn fraction(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}': must be a number in [0, 1]")),
+    }
+}
+
+pub fn capture_cmd(a: &CaptureArgs, threads: Option<usize>) -> Result<Value> {
+    let input = match (&a.photos, &a.video) {
+        (_, Some(v)) => Input::Video { file: v.clone(), fps: a.fps },
+        (Some(p), None) => {
+            if !p.is_dir() {
+                bail!("{}: not a folder of photos (for a video file use --video)", p.display());
+            }
+            check_output("--out", &a.out, &[GuardInput::Tree(p)])?;
+            Input::Photos(p.clone())
+        }
+        (None, None) => bail!("give a folder of photos or --video FILE"),
+    };
+    let cores = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+    let opts = CaptureOptions {
+        input,
+        out: a.out.clone(),
+        matcher: a.matcher,
+        min_registered: a.min_registered,
+        max_size: a.max_size,
+        max_features: a.max_features,
+        camera_model: a.camera_model.clone(),
+        single_camera: !a.camera_per_photo,
+        undistort: !a.keep_distortion,
+        threads: threads.unwrap_or(cores),
+    };
+    let mut pb: Option<ProgressBar> = None;
+    let report = capture::capture(&opts, &mut |ev| match ev {
+        Event::Phase { name, total } => {
+            if let Some(p) = pb.take() {
+                p.finish();
+            }
+            let p = if total > 0 {
+                bar(total, &format!("{{spinner}} {name:<12} {{bar:30}} {{pos}}/{{len}} [{{elapsed}}]"))
+            } else {
+                bar(0, &format!("{{spinner}} {name:<12} {{pos}} [{{elapsed}}]"))
+            };
+            p.enable_steady_tick(std::time::Duration::from_millis(200));
+            pb = Some(p);
+        }
+        Event::Done(i) => {
+            if let Some(p) = &pb {
+                p.set_position(i);
+            }
+        }
+        Event::Note(s) => match &pb {
+            Some(p) => p.println(s),
+            None => eprintln!("{s}"),
+        },
+    });
+    if let Some(p) = pb.take() {
+        p.finish();
+    }
+    let report = report?;
+    eprintln!(
+        "wrote {}: {} of {} photos registered ({:.0}%), mean reprojection error {}, {:.0} s",
+        a.out.display(),
+        report.registered,
+        report.photos,
+        report.registered_fraction * 100.0,
+        report.mean_reprojection_error_px.map(|e| format!("{e:.3} px")).unwrap_or_else(|| "unknown".into()),
+        report.total_seconds
+    );
+    eprintln!("scene kind {}", report.detection_note);
+    eprintln!("next: snerf train {} --out RUN", a.out.display());
+    Ok(serde_json::to_value(&report)?)
+}
