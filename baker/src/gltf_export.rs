@@ -372,12 +372,19 @@ pub fn encode_glb(
     root.insert("bufferViews".into(), std::mem::take(&mut bin.views).into());
     root.insert("buffers".into(), json!([{ "byteLength": bin.data.len() }]));
 
-    let mut json_bytes = serde_json::to_vec(&Value::Object(root))?;
+    let out = glb_container(&Value::Object(root), &bin.data)?;
+    stats.bytes = out.len() as u64;
+    Ok((out, stats))
+}
+
+/// The GLB container: header, JSON chunk (space padded), BIN chunk (4-byte aligned).
+pub(crate) fn glb_container(root: &Value, bin_data: &[u8]) -> Result<Vec<u8>> {
+    let mut json_bytes = serde_json::to_vec(root)?;
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
-    debug_assert_eq!(bin.data.len() % 4, 0);
-    let total = 12 + 8 + json_bytes.len() + 8 + bin.data.len();
+    debug_assert_eq!(bin_data.len() % 4, 0);
+    let total = 12 + 8 + json_bytes.len() + 8 + bin_data.len();
     ensure!(
         total <= u32::MAX as usize,
         "GLB would be {total} bytes, over the format's 4 GiB limit"
@@ -389,29 +396,28 @@ pub fn encode_glb(
     out.extend_from_slice(&(json_bytes.len() as u32).to_le_bytes());
     out.extend_from_slice(b"JSON");
     out.extend_from_slice(&json_bytes);
-    out.extend_from_slice(&(bin.data.len() as u32).to_le_bytes());
+    out.extend_from_slice(&(bin_data.len() as u32).to_le_bytes());
     out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin.data);
-    stats.bytes = out.len() as u64;
-    Ok((out, stats))
+    out.extend_from_slice(bin_data);
+    Ok(out)
 }
 
-const FLOAT: u32 = 5126;
-const UNSIGNED_BYTE: u32 = 5121;
+pub(crate) const FLOAT: u32 = 5126;
+pub(crate) const UNSIGNED_BYTE: u32 = 5121;
 const UNSIGNED_SHORT: u32 = 5123;
 const UNSIGNED_INT: u32 = 5125;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
-const ARRAY_BUFFER: u32 = 34962;
+pub(crate) const ARRAY_BUFFER: u32 = 34962;
 
 #[derive(Default)]
-struct Bin {
-    data: Vec<u8>,
-    views: Vec<Value>,
+pub(crate) struct Bin {
+    pub(crate) data: Vec<u8>,
+    pub(crate) views: Vec<Value>,
 }
 
 impl Bin {
     /// Appends a 4-byte aligned buffer view; returns its index.
-    fn view(&mut self, bytes: Vec<u8>, target: Option<u32>) -> usize {
+    pub(crate) fn view(&mut self, bytes: Vec<u8>, target: Option<u32>) -> usize {
         let mut v =
             json!({ "buffer": 0, "byteOffset": self.data.len(), "byteLength": bytes.len() });
         if let Some(t) = target {
@@ -427,7 +433,7 @@ impl Bin {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn accessor(
+pub(crate) fn accessor(
     list: &mut Vec<Value>,
     view: usize,
     component: u32,
@@ -449,11 +455,11 @@ fn accessor(
     list.len() - 1
 }
 
-fn f32_bytes<'a>(v: impl Iterator<Item = &'a f32>) -> Vec<u8> {
+pub(crate) fn f32_bytes<'a>(v: impl Iterator<Item = &'a f32>) -> Vec<u8> {
     v.flat_map(|x| x.to_le_bytes()).collect()
 }
 
-fn unorm8(c: f32) -> u8 {
+pub(crate) fn unorm8(c: f32) -> u8 {
     if c.is_nan() {
         0
     } else {

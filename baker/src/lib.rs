@@ -5,7 +5,8 @@
 //! 8-bit quantization -> (dynamic scenes: `temporal` picks each cell's codebook of sampled
 //! blocks within a size budget) -> `snerf_asset::Asset` (written by the asset crate). `faithfulness`
 //! scores the baked asset against the field it came from. `marching_cubes` + `gltf_export`
-//! turn the baked density and colour into a mesh for engines.
+//! turn the baked density and colour into a mesh for engines; `splats` + `splat_gltf` turn the
+//! baked voxels into Gaussian splats (glTF `KHR_gaussian_splatting`) for engines that draw them.
 
 // Index loops over parallel per-voxel arrays read as the formulas they implement.
 #![allow(clippy::needless_range_loop)]
@@ -16,4 +17,6 @@ pub mod faithfulness;
 pub mod gltf_export;
 pub mod marching_cubes;
 pub mod mesh_export;
+pub mod splat_gltf;
+pub mod splats;
 pub mod temporal;
