@@ -1,5 +1,6 @@
 //! `snerf serve`, `snerf fetch`: baked assets over QUIC (TLS 1.3, pinned self-signed
-//! certificate, access token), and `snerf bench stream`.
+//! certificate, access token), and `snerf bench stream`; `snerf publish` and `snerf fetch
+//! https://…/manifest.json`: a published scene on any static host or CDN.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -141,21 +142,89 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
 
 #[derive(Args, Debug)]
 pub struct FetchArgs {
-    /// quic://HOST:PORT/ASSET
+    /// quic://HOST:PORT/ASSET (from `snerf serve`), or http(s)://HOST/NAME/manifest.json (a
+    /// scene written by `snerf publish`, served by any static host or CDN).
     pub url: String,
-    /// SHA-256 fingerprint of the server's certificate (printed by `snerf serve`).
+    /// SHA-256 fingerprint of the server's certificate (printed by `snerf serve`; quic:// only).
     #[arg(long)]
-    pub pin: String,
+    pub pin: Option<String>,
     #[command(flatten)]
     pub token: crate::args::TokenArgs,
     /// The asset file to write; an interrupted fetch resumes from OUT.part.
     #[arg(long)]
     pub out: PathBuf,
+    /// https:// only: PEM certificate(s) to trust (default: the system's CA bundle), e.g. a
+    /// test origin's self-signed or private CA certificate.
+    #[arg(long)]
+    pub ca: Option<PathBuf>,
+    /// http(s):// only: parallel connections.
+    #[arg(long, default_value_t = 4, value_parser = crate::args::int_in::<usize>(1, 64, ""))]
+    pub parallel: usize,
+    /// http(s):// only: a file holding a bearer token the host requires (private scenes:
+    /// sent as `Authorization: Bearer TOKEN`).
+    #[arg(long)]
+    pub bearer_file: Option<PathBuf>,
 }
 
 pub fn fetch_cmd(a: &FetchArgs) -> Result<Value> {
+    if a.url.starts_with("http://") || a.url.starts_with("https://") {
+        let mut o = snerf_stream::cdn_client::CdnOptions { ca: a.ca.clone(), parallel: a.parallel, ..Default::default() };
+        if let Some(f) = &a.bearer_file {
+            let t = std::fs::read_to_string(f).with_context(|| format!("--bearer-file {}: cannot read", f.display()))?;
+            o.headers.push(("Authorization".into(), format!("Bearer {}", t.trim())));
+        }
+        let stats = snerf_stream::cdn_client::fetch_published_blocking(&a.url, &a.out, &o)?;
+        eprintln!(
+            "fetched {} -> {} ({} bytes, {} objects, {} requests, {} bytes on the wire, {:.2} s)",
+            a.url,
+            a.out.display(),
+            stats.asset_bytes,
+            stats.objects,
+            stats.requests,
+            stats.wire_bytes,
+            stats.all_s
+        );
+        return Ok(json!({ "command": "fetch", "url": a.url, "out": crate::args::pj(&a.out), "published": stats }));
+    }
+    let pin = a.pin.as_deref().context("quic:// needs --pin (the fingerprint `snerf serve` prints)")?;
     let token = a.token.resolve()?;
-    let stats = snerf_stream::fetch_blocking(&a.url, &a.pin, &token, &a.out).with_context(|| format!("fetching {}", a.url))?;
+    let stats = snerf_stream::fetch_blocking(&a.url, pin, &token, &a.out).with_context(|| format!("fetching {}", a.url))?;
     eprintln!("fetched {} -> {} ({:?})", a.url, a.out.display(), stats);
     Ok(json!({ "command": "fetch", "url": a.url, "out": crate::args::pj(&a.out), "stats": format!("{stats:?}") }))
+}
+
+#[derive(Args, Debug)]
+pub struct PublishArgs {
+    /// Baked asset files (.snerf): each becomes OUT/NAME/manifest.json.
+    #[arg(required = true)]
+    pub assets: Vec<PathBuf>,
+    /// The folder to write (created; objects already there are kept and not written again).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Target object size, KiB (objects pack neighbouring blocks; see BENCH.md §8d).
+    #[arg(long, default_value_t = snerf_stream::publish::DEFAULT_OBJECT_BYTES / 1024, value_parser = crate::args::int_in::<u64>(4, 1 << 20, ""))]
+    pub object_kb: u64,
+    /// Leave out the web viewer (index.html, app.js, … and the asset's shaders).
+    #[arg(long)]
+    pub no_web: bool,
+}
+
+/// `snerf publish`: a content-addressed layout any static host or CDN serves (PUBLISH.md).
+pub fn publish_cmd(a: &PublishArgs) -> Result<Value> {
+    let o = snerf_stream::publish::PublishOptions { object_bytes: a.object_kb * 1024, web: !a.no_web };
+    let mut out = Vec::new();
+    for asset in &a.assets {
+        let p = snerf_stream::publish::publish(asset, &a.out, &o).with_context(|| format!("publishing {}", asset.display()))?;
+        eprintln!(
+            "published {} -> {} ({} objects: {} written, {} bytes; {} already there)",
+            asset.display(),
+            p.manifest.display(),
+            p.objects,
+            p.objects_written,
+            p.bytes_written,
+            p.objects_reused
+        );
+        out.push(p);
+    }
+    Ok(json!({ "command": "publish", "out": crate::args::pj(&a.out), "assets": out }))
 }

@@ -13,6 +13,11 @@
 //!   `shared`: what all connections of a server share; `limits`: what they may use;
 //!   `pending`: admission (per address, in total); `stats`: counters.
 //! - `glsl`: the march shader translated to GLSL ES 3.00 for the page's WebGL2 renderer.
+//! - `publish`: `snerf publish` — a content-addressed layout (manifest + immutable objects)
+//!   any static host or CDN serves; `cdn_client`: its client (`snerf fetch https://…`), which
+//!   orders its own fetches with `plan::order_blocks` and checks every object's SHA-256;
+//!   `cdn_load`: many such viewers at once (`snerf bench publish`); `edge`: caddy (origin, TLS front) + varnish (caching edge) on loopback, for the tests
+//!   and `snerf bench publish`.
 //! - `proto`: the wire format; `tls`: certificates, fingerprints, pinning; `plan`: block
 //!   priorities for a pose; `url`: `quic://HOST:PORT/ASSET`.
 //!
@@ -23,8 +28,11 @@
 
 pub mod bench;
 mod cache;
+pub mod cdn_client;
+pub mod cdn_load;
 mod conn;
 pub mod client;
+pub mod edge;
 pub mod glsl;
 pub mod http_stream;
 pub mod lan;
@@ -35,6 +43,7 @@ mod page;
 pub mod plan;
 pub mod thumbs;
 pub mod proto;
+pub mod publish;
 pub mod server;
 mod session;
 mod shared;
