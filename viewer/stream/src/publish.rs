@@ -491,8 +491,13 @@ fn spatial_order(a: &ServedAsset) -> Vec<u32> {
 /// The web viewer: page files at OUT/ (replaced when they differ), the asset's shaders as
 /// objects.
 fn write_web(out: &Path, h: &Header, st: &mut Store) -> Result<WebShaders> {
+    // The page's own files by relative paths, so a scene published under a sub-path
+    // (https://host/scenes/) finds them.
+    let index = crate::page::INDEX_HTML
+        .replace("\"/app.css\"", "\"app.css\"")
+        .replace("\"/app.js\"", "\"app.js\"");
     for (file, text) in [
-        ("index.html", crate::page::INDEX_HTML),
+        ("index.html", index.as_str()),
         ("app.js", crate::page::APP_JS),
         ("xr.js", crate::page::XR_JS),
         ("app.css", crate::page::APP_CSS),

@@ -632,6 +632,24 @@ fn chromium_draws_a_published_scene_from_the_edge_in_the_planners_order() {
         .collect();
     assert_eq!(js_objs, objs);
     assert!(objs.len() > 5);
+    let lit = cpu.rgb.iter().filter(|&&v| v > 0.05).count();
+    assert!(lit > cpu.rgb.len() / 10, "the test image is almost black");
+
+    // A wrong byte never reaches the screen: an object corrupted behind a cold edge stops the
+    // page with the object named (after its tries), and no frame shows it complete.
+    edge.purge().unwrap();
+    let o = &m.objects[objs[objs.len() / 2] as usize];
+    let p = site.join("chunks").join(&o.sha256);
+    let mut bad = std::fs::read(&p).unwrap();
+    bad[40] ^= 0x55;
+    std::fs::write(&p, &bad).unwrap();
+    let r = page(&b, &url);
+    let e = r["error"].as_str().unwrap_or_default();
+    assert!(
+        r["state"] == "error" && e.contains(&o.sha256) && e.contains("SHA-256 mismatch"),
+        "{r:?}"
+    );
+    assert_ne!(r["lastFrame"]["complete"], true);
 }
 
 fn url_encode(s: &str) -> String {

@@ -8,7 +8,8 @@
 //
 // URL fragment (never sent to the server): token=HEX (required), asset=NAME (stream it right
 // away), cam=JSON ({c2w:[[4],[4],[4]], fx, fy, cx, cy, width, height}: a fixed camera),
-// time=T (playback time of a 4D asset).
+// time=T (playback time of a 4D asset). URL query manifest=URL: a scene written by `snerf
+// publish` on any static host (no token; see ManifestSession).
 
 // xr.js (immersive mode) is imported when the stream starts, not before this script runs:
 // the first frame does not wait for its download.
@@ -205,6 +206,171 @@ class HttpSession {
   }
 }
 
+// ---- a published scene (snerf publish; viewer/stream/PUBLISH.md) ----
+// Opened as index.html?manifest=URL (relative to the page, or on another origin with CORS):
+// no snerf process in the path. The manifest lists content-addressed objects (name = SHA-256)
+// and where every file chunk lives in them; this class fetches the objects, most urgent for
+// the latest pose first (the server's planner, below), checks each object's SHA-256 (once
+// more past the caches if wrong, then the session fails: no byte of a bad object is drawn),
+// and hands the chunks to the page as records on "streams", as a WebTransport session would.
+const manifestUrl = new URLSearchParams(location.search).get('manifest');
+let published = null; // { m, url }: the manifest and its URL, once read
+async function readManifest() {
+  if (published) return published;
+  const url = new URL(manifestUrl, location.href);
+  const r = await fetch(url, { cache: 'no-cache' });
+  if (!r.ok) throw new Error(`${url}: HTTP ${r.status}`);
+  const m = await r.json();
+  if (m.format !== 'snerf-publish') throw new Error(`${url}: not a snerf manifest`);
+  if (m.version !== 1) throw new Error(`${url}: manifest format version ${m.version}; this page reads version 1`);
+  published = { m, url, base: new URL(m.objects_base, url) };
+  return published;
+}
+// An object's bytes, checked against its name; once more under a query of its own (no cache
+// holds it, so the origin answers) if wrong.
+async function fetchObject(base, sha, size) {
+  let why = '';
+  for (let attempt = 0; attempt < 2; attempt++) {
+    const u = new URL(sha + (attempt ? `?refetch=${Date.now().toString(16)}${Math.random().toString(16).slice(2)}` : ''), base);
+    try {
+      const r = await fetch(u);
+      if (!r.ok) { why = `HTTP ${r.status}`; continue; }
+      const b = new Uint8Array(await r.arrayBuffer());
+      if (size !== undefined && b.length !== size) { why = `${b.length} bytes, the manifest says ${size}`; continue; }
+      const got = hex(new Uint8Array(await crypto.subtle.digest('SHA-256', b)));
+      if (got !== sha) { why = `SHA-256 mismatch (got ${got})`; continue; }
+      return b;
+    } catch (e) { why = String(e.message || e); }
+  }
+  throw new Error(`object ${sha}: ${why}, twice`);
+}
+// The shaders a published scene carries (objects too), checked like the rest.
+async function publishedFile(name) {
+  const { m, base } = await readManifest();
+  const sha = { 'present.wgsl': m.web.present_wgsl, 'march.wgsl': m.web.march_wgsl, 'march.glsl': m.web.march_glsl }[name];
+  return new Response(await fetchObject(base, sha));
+}
+
+// The server's block planner (viewer/stream/src/plan.rs: `ServedAsset::priority`,
+// `View::new`, `order_blocks`), in f32 like the Rust (Math.fround after every operation), so
+// it gives the same order for the same pose. tests/publish.rs compares the two on a pose.
+const f32 = Math.fround;
+const fsub = (a, b) => [f32(a[0] - b[0]), f32(a[1] - b[1]), f32(a[2] - b[2])];
+const fdot = (a, b) => f32(f32(f32(a[0] * b[0]) + f32(a[1] * b[1])) + f32(a[2] * b[2]));
+const fnorm = (a) => f32(Math.sqrt(fdot(a, a)));
+const PI_F32 = f32(Math.PI);
+function planView(m, pose) {
+  if (!pose) return null;
+  const fw = pose.forward.map(f32), n = Math.max(fnorm(fw), f32(1e-12));
+  const fov = f32(pose.fov_deg) > 0 ? f32(pose.fov_deg) : 90;
+  const frames = m.header.frames || null;
+  let frame = 0;
+  if (frames) { for (let i = frames.length - 1; i >= 0; i--) if (f32(frames[i].time) <= f32(pose.time)) { frame = i; break; } }
+  return { eye: pose.eye.map(f32), forward: fw.map((x) => f32(x / n)), half: f32(f32(fov * 0.5) * f32(PI_F32 / 180)), frame };
+}
+function planKey(m, b, v) {
+  const nf = m.asset.frames, k = v ? v.frame : 0;
+  let rank = nf;
+  for (const [lo, hi] of b.frames) rank = Math.min(rank, lo <= k && k <= hi ? 0 : lo > k ? lo - k : lo + nf - k);
+  if (!v) return [rank, 0, fnorm(fsub(b.centre, m.origin))];
+  const d = fsub(b.centre, v.eye), len = fnorm(d), r = f32(b.radius);
+  const near = Math.max(f32(len - r), 0);
+  if (len <= r || len < f32(1e-9)) return [rank, 0, 0];
+  const cos = f32(fdot(d, v.forward) / len);
+  const ang = f32(f32(Math.acos(Math.min(1, Math.max(-1, cos)))) - f32(Math.asin(Math.min(f32(r / len), 1))));
+  return [rank, ang <= v.half ? 0 : cos > 0 ? 1 : 2, near];
+}
+// Block indices (into m.blocks), most urgent first.
+function orderBlocks(m, pose) {
+  const v = planView(m, pose);
+  const keyed = m.blocks.map((b, i) => [planKey(m, b, v), i]);
+  // order_blocks sorts most urgent last (stable, descending) and sends from the end.
+  keyed.sort((a, b) => b[0][0] - a[0][0] || b[0][1] - a[0][1] || b[0][2] - a[0][2]);
+  return keyed.map((k) => k[1]).reverse();
+}
+// Objects, most urgent first: those of HEAD, VMLP, GRIDs and END, then by their most urgent
+// block (publish.rs, `Manifest::object_order`). `skip[o]`: leave object o out.
+function orderObjects(m, pose, skip) {
+  const seen = new Uint8Array(m.objects.length), out = [];
+  if (skip) skip.forEach((s, i) => { if (s) seen[i] = 1; });
+  const take = (o) => { if (!seen[o]) { seen[o] = 1; out.push(o); } };
+  for (const c of [...m.meta, m.end]) take(m.chunks[c][0]);
+  for (const b of orderBlocks(m, pose)) take(m.chunks[m.blocks[b].chunk][0]);
+  return out;
+}
+
+class ManifestSession {
+  constructor() {
+    this.hello = null; this.pose = null; this.stopped = false; this.parallel = 4;
+    this.ready = readManifest().then(() => {});
+    this.closed = new Promise((res, rej) => { this.closeWith = res; this.fail = rej; });
+    this.closed.catch(() => {});
+    this.incomingUnidirectionalStreams = new ReadableStream({ start: (c) => { this.uni = c; } });
+    this.ctlReadable = new ReadableStream({ start: (c) => { this.ctl = c; } });
+    this.datagrams = { writable: new WritableStream({ write: (b) => { this.pose = decodePose(b); } }) };
+  }
+  stop(info) {
+    if (this.stopped) return;
+    this.stopped = true;
+    try { this.ctl.close(); this.uni.close(); } catch { /* already closed */ }
+    this.closeWith(info);
+  }
+  close(info) { this.stop(info || { closeCode: 0, reason: 'done' }); }
+  async createBidirectionalStream() {
+    const { m } = await readManifest();
+    const writable = new WritableStream({
+      write: (chunk) => {
+        const msg = JSON.parse(td.decode(chunk.subarray(4)));
+        if (msg.type === 'hello') {
+          this.hello = msg;
+          if (msg.pose) this.pose = msg.pose;
+          const held = new Uint8Array(m.asset.chunks);
+          for (const [a, b] of msg.have || []) held.fill(1, a, Math.min(b, held.length));
+          this.ctl.enqueue(frame({ type: 'welcome', version: 1, asset: msg.asset === null ? null : m.asset, resumed: (msg.have || []).length > 0, sending_chunks: held.length - held.reduce((n, h) => n + h, 0), sending_bytes: 0 }));
+          if (msg.asset !== null) this.start(m, held);
+        } else if (msg.type === 'list') {
+          const kinds = { object: 'object', forward: 'forward', unbounded: 'unbounded' };
+          this.ctl.enqueue(frame({ type: 'listing', assets: [{ name: m.asset.name, size: m.asset.size, kind: kinds[m.header.kind] || null }] }));
+        }
+      },
+    });
+    return { writable, readable: this.ctlReadable };
+  }
+  start(m, held) {
+    // Which chunks each object holds; objects whose chunks are all held are not fetched.
+    this.objChunks = m.objects.map(() => []);
+    m.chunks.forEach((c, i) => this.objChunks[c[0]].push(i));
+    const skip = this.objChunks.map((cs) => cs.every((i) => held[i]));
+    this.requested = Uint8Array.from(skip, (s) => (s ? 1 : 0));
+    report.planPose = this.pose ? { ...this.pose, fov_deg: f32(this.pose.fov_deg) } : null;
+    report.planBlocks = orderBlocks(m, this.pose);
+    report.planObjects = orderObjects(m, this.pose, null);
+    report.objectsFetched = [];
+    const worker = async () => {
+      for (;;) {
+        if (this.stopped) return;
+        // The most urgent object not yet asked for, for the pose now.
+        const o = orderObjects(m, this.pose, this.requested)[0];
+        if (o === undefined) return;
+        this.requested[o] = 1;
+        const obj = await fetchObject(published.base, m.objects[o].sha256, m.objects[o].size);
+        report.objectsFetched.push(o);
+        const recs = this.objChunks[o].filter((i) => !held[i]).map((i) => {
+          const c = m.chunks[i], r = new Uint8Array(4 + c[2]);
+          new DataView(r.buffer).setUint32(0, i, true);
+          r.set(obj.subarray(c[1], c[1] + c[2]), 4);
+          return r;
+        });
+        if (this.stopped) return;
+        this.uni.enqueue(new ReadableStream({ start: (c) => { for (const r of recs) c.enqueue(r); c.close(); } }));
+      }
+    };
+    // An object wrong twice (asked again past the caches) is final: the session ends as one
+    // whose client rejected data (code 11), which the page does not resume.
+    Promise.all(Array.from({ length: this.parallel }, worker)).catch((e) => this.stop({ closeCode: 11, reason: String(e.message || e) }));
+  }
+}
+
 // Calls `onRecord(index)` for each whole record (u32 index + chunk: tag, u32 length, CRC,
 // payload) in the bytes it is fed, piece by piece.
 function recordTracker(onRecord) {
@@ -227,7 +393,12 @@ function decodePose(b) {
 }
 
 // ---- WebTransport ----
-const fetchConfig = async () => (await fetch('/config.json')).json();
+// A published scene has no server to ask: its manifest gives the march's workgroup.
+const fetchConfig = async () => {
+  if (!manifestUrl) return (await fetch('/config.json')).json();
+  const { m } = await readManifest();
+  return { protocol: 1, webtransport: null, cert_hash: null, workgroup: m.web.workgroup };
+};
 // True while an immersive WebXR session draws (its frame loop replaces the page's).
 let xrActive = false;
 // How often a handshake is tried again after the certificate was rotated under it.
@@ -241,9 +412,13 @@ async function connect(hello, firstConfig = null) {
     const config = attempt === 0 && firstConfig ? await firstConfig : await fetchConfig();
     const opts = {};
     if (config.cert_hash) opts.serverCertificateHashes = [{ algorithm: 'sha-256', value: unhex(config.cert_hash) }];
-    // WebTransport where the browser has it; else snerf/1 over HTTPS requests.
-    wt = typeof WebTransport === 'undefined' ? new HttpSession('/snerf/1/http') : new WebTransport(config.webtransport, opts);
-    report.transport = typeof WebTransport === 'undefined' ? 'https' : 'webtransport';
+    // WebTransport where the browser has it; else snerf/1 over HTTPS requests; a published
+    // scene's objects over whatever HTTP the host speaks (HTTP/3, HTTP/2).
+    if (manifestUrl) { wt = new ManifestSession(); report.transport = 'manifest'; }
+    else {
+      wt = typeof WebTransport === 'undefined' ? new HttpSession('/snerf/1/http') : new WebTransport(config.webtransport, opts);
+      report.transport = typeof WebTransport === 'undefined' ? 'https' : 'webtransport';
+    }
     wt.closed.catch(() => {}); // a failed handshake rejects this too; `ready` reports it
     try {
       await wt.ready;
@@ -1034,10 +1209,11 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
       // (a browser without WebGPU can take a few hundred ms to say so) has both texts fetched
       // at once, tens of KB, rather than the fetch waiting for that answer.
       const url = (b) => `/march.${b === 'webgl2' ? 'glsl' : 'wgsl'}?${variant}`;
-      const early = report.backend ? null : { webgpu: fetch(url('webgpu')), webgl2: fetch(url('webgl2')) };
+      const get = (b) => (manifestUrl ? publishedFile(`march.${b === 'webgl2' ? 'glsl' : 'wgsl'}`) : fetch(url(b)));
+      const early = report.backend ? null : { webgpu: get('webgpu'), webgl2: get('webgl2') };
       if (early) for (const f of Object.values(early)) f.catch(() => {}); // the one not used
       const backend = await backendReady;
-      const res = await (early ? early[backend] : fetch(url(backend)));
+      const res = await (early ? early[backend] : get(backend));
       gpu = api.gpu = await gpuReady;
       if (!res.ok) throw new Error('shader: HTTP ' + res.status);
       if (gpu.backend === 'webgl2') {
@@ -1297,7 +1473,7 @@ async function openGpu(adapterReady, cfg, draw) {
   if (adapter) {
     report.adapter = adapter.info ? `${adapter.info.vendor} ${adapter.info.architecture}` : 'unknown';
     // present.wgsl is fetched while the device is made
-    const pw = draw ? fetch('/present.wgsl') : null;
+    const pw = draw ? (manifestUrl ? publishedFile('present.wgsl') : fetch('/present.wgsl')) : null;
     const device = await adapter.requestDevice({ requiredLimits: { maxTextureDimension3D: adapter.limits.maxTextureDimension3D } });
     report.marks.device = performance.now();
     device.addEventListener('uncapturederror', (e) => fail('WebGPU: ' + e.error.message));
@@ -1327,8 +1503,8 @@ async function openGpu(adapterReady, cfg, draw) {
 }
 
 async function main() {
-  if (!token) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
-  const want = frag.get('asset');
+  if (!token && !manifestUrl) throw new Error('no access token: open the address snerf serve printed (it ends in #token=…)');
+  const want = manifestUrl ? (await readManifest()).m.asset.name : frag.get('asset');
   // What the first frame needs starts at once and goes on side by side: the config, the GPU
   // (adapter, device, the present pipeline) and, with an asset named, its session; the header
   // waits for the GPU. The listing (a session of its own, and the thumbnails' bytes) is
