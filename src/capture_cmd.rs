@@ -47,6 +47,11 @@ pub struct CaptureArgs {
     /// for video).
     #[arg(long, default_value = "auto")]
     pub matcher: Matcher,
+    /// Sequential matching: each photo is matched with the next N in name order (and at quadratic
+    /// steps 2, 4, 8, ... beyond). Smaller is faster, and safer on symmetric scenes, where
+    /// matching look-alike views from opposite sides folds the reconstruction.
+    #[arg(long, default_value_t = 10, value_parser = crate::args::int_in::<u32>(1, 1000, ""))]
+    pub overlap: u32,
     /// Fail (writing nothing) when COLMAP registers less than this fraction of the photos.
     #[arg(long, default_value_t = capture::DEFAULT_MIN_REGISTERED, value_parser = fraction)]
     pub min_registered: f64,
@@ -59,6 +64,11 @@ pub struct CaptureArgs {
     /// COLMAP camera model: SIMPLE_RADIAL (default, phones), OPENCV, RADIAL, OPENCV_FISHEYE, ...
     #[arg(long, default_value = "SIMPLE_RADIAL")]
     pub camera_model: String,
+    /// Known focal length in pixels of the photos as given (a calibrated camera); COLMAP keeps
+    /// it fixed instead of estimating it. Without it the focal comes from the EXIF data, or is
+    /// estimated (on a synthetic 24-view ring it came out 11-13% long, see BENCH.md 2d).
+    #[arg(long, value_parser = crate::args::positive)]
+    pub focal: Option<f64>,
     /// One camera per photo instead of one shared by all (photos from different cameras/zooms).
     #[arg(long)]
     pub camera_per_photo: bool,
@@ -94,9 +104,11 @@ pub fn capture_cmd(a: &CaptureArgs, threads: Option<usize>) -> Result<Value> {
         out: a.out.clone(),
         matcher: a.matcher,
         min_registered: a.min_registered,
+        overlap: a.overlap,
         max_size: a.max_size,
         max_features: a.max_features,
         camera_model: a.camera_model.clone(),
+        focal_px: a.focal,
         single_camera: !a.camera_per_photo,
         undistort: !a.keep_distortion,
         threads: threads.unwrap_or(cores),

@@ -8,8 +8,8 @@
 //! result is loaded once with this crate's loader (so a dataset that would not train is never
 //! written) to detect and explain the scene kind.
 //!
-//! Matching: sequential (each frame against its 10 neighbours in name order, plus quadratic
-//! steps) for video frames and for more than [`EXHAUSTIVE_MAX`] photos; exhaustive (every pair)
+//! Matching: sequential (each frame against the next `overlap` frames in name order, default
+//! 10, plus quadratic steps) for video frames and for more than [`EXHAUSTIVE_MAX`] photos; exhaustive (every pair)
 //! for [`EXHAUSTIVE_MAX`] photos or fewer, which does not assume any order. Exhaustive costs
 //! n²/2 pairs, and on a CPU each pair of 4096-feature images costs about 0.1–0.3 s.
 //!
@@ -97,10 +97,15 @@ pub struct CaptureOptions {
     pub min_registered: f64,
     /// Longer side cap for the photos COLMAP and the dataset get (0 = none).
     pub max_size: u32,
+    /// Sequential matching: each photo against this many following ones (in name order).
+    pub overlap: u32,
     /// SIFT features per image (COLMAP's default is 8192; matching cost grows with its square).
     pub max_features: u32,
     /// COLMAP camera model for the shared camera (SIMPLE_RADIAL, OPENCV, ...).
     pub camera_model: String,
+    /// A known focal length in pixels of the photos as given (a calibrated camera): COLMAP then
+    /// keeps it fixed instead of estimating it, which makes the geometry exact up to scale.
+    pub focal_px: Option<f64>,
     /// One camera for all photos (one phone, one video) or one per photo.
     pub single_camera: bool,
     /// Resample to a pinhole camera (see the module docs).
@@ -209,6 +214,15 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
             &opts.max_size.to_string(),
         ]);
     }
+    if let Some(f) = opts.focal_px {
+        let params = known_camera(
+            f,
+            &opts.camera_model,
+            &list[0],
+            &input_dir.join(&staged[0].name),
+        )?;
+        cmd.args(["--ImageReader.camera_params", &params]);
+    }
     phase(progress, "features", n as u64);
     tool::run("COLMAP feature extraction", cmd, progress, &mut |l, p| {
         if let Some((i, _)) = tool::bracket_count(l, "Processed file") {
@@ -225,7 +239,7 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
         Matcher::Exhaustive => cmd.arg("exhaustive_matcher"),
         _ => cmd
             .arg("sequential_matcher")
-            .args(["--SequentialMatching.overlap", "10"]),
+            .args(["--SequentialMatching.overlap", &opts.overlap.to_string()]),
     };
     cmd.arg("--database_path")
         .arg(&db)
@@ -274,9 +288,12 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
         .arg("--output_path")
         .arg(&sparse)
         .args(["--Mapper.num_threads", &threads]);
+    if opts.focal_px.is_some() {
+        cmd.args(["--Mapper.ba_refine_focal_length", "0"]);
+    }
     phase(progress, "mapping", n as u64);
     let mut best = 0u64;
-    tool::run("COLMAP mapping", cmd, progress, &mut |l, p| {
+    let mapped = tool::run("COLMAP mapping", cmd, progress, &mut |l, p| {
         // "Registering image #12 (7)": the 7th image of the model is being registered.
         if let Some(rest) = l.trim_start().strip_prefix("Registering image #") {
             if let Some(k) = rest
@@ -288,11 +305,16 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
                 p(Event::Done(best));
             }
         }
-    })?;
+    });
     timed("mapping", t);
 
-    // The largest model, against the floor.
-    let model = model::largest(&sparse)?;
+    // The largest model, against the floor. COLMAP exits with an error when it built none,
+    // which `model::largest` explains better than its log does.
+    let model = match (mapped, model::largest(&sparse)) {
+        (_, Ok(m)) => m,
+        (Err(e), Err(_)) if snerf_files::interrupt::is_interrupted(&e) => return Err(e),
+        (_, Err(e)) => return Err(e.context(format!("{n} photos, nothing was written"))),
+    };
     let registered = model.registered.len();
     let fraction = registered as f64 / n as f64;
     let not_registered: Vec<String> = staged
@@ -428,6 +450,28 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     tmp.keep();
     drop(old);
     Ok(report)
+}
+
+/// COLMAP's `camera_params` for a known focal length `f` (pixels of the photo as given),
+/// scaled to the staged photo, principal point at its centre, no distortion to start from.
+fn known_camera(f: f64, model: &str, original: &Path, staged: &Path) -> Result<String> {
+    if !(f.is_finite() && f > 0.0) {
+        bail!("the focal length must be a positive number of pixels, not {f}");
+    }
+    let (ow, oh) = image::image_dimensions(original)
+        .with_context(|| format!("{}: cannot read its size", original.display()))?;
+    let (w, h) = image::image_dimensions(staged)
+        .with_context(|| format!("{}: cannot read its size", staged.display()))?;
+    let f = f * w.max(h) as f64 / ow.max(oh) as f64;
+    let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
+    Ok(match model {
+        "SIMPLE_PINHOLE" => format!("{f},{cx},{cy}"),
+        "PINHOLE" => format!("{f},{f},{cx},{cy}"),
+        "SIMPLE_RADIAL" => format!("{f},{cx},{cy},0"),
+        "RADIAL" => format!("{f},{cx},{cy},0,0"),
+        "OPENCV" => format!("{f},{f},{cx},{cy},0,0,0,0"),
+        m => bail!("a known focal length works with SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV, not {m}"),
+    })
 }
 
 fn phase(progress: &mut dyn FnMut(Event), name: &str, total: u64) {
