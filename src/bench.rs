@@ -9,6 +9,7 @@ use snerf_trainer::data::LoadOptions;
 use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
+mod publish;
 mod quality;
 mod snerf_grid;
 mod style_metric;
@@ -50,6 +51,11 @@ pub enum BenchCmd {
     /// Quest 3 at its per-eye size, against wgpu (lavapipe without a GPU). Needs Chromium,
     /// Node.js and playwright-core/iwer (`bash .ci/run` installs them).
     Web(web::BenchWebArgs),
+    /// A published scene (`snerf publish`) behind a real CDN edge on loopback (caddy origin,
+    /// varnish edge): object sizes compared, N simulated viewers through the edge (byte-identical,
+    /// p50/p99 times, origin requests per viewer, hit ratio), and the same viewers against
+    /// `snerf serve`. Needs caddy and varnish (`bash .ci/run` installs them).
+    Publish(publish::BenchPublishArgs),
 }
 
 #[derive(Args, Debug)]
@@ -105,6 +111,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::Snerf(a) => snerf_grid::run(a),
         BenchCmd::StyleMetric(a) => style_metric::run(a),
         BenchCmd::Web(a) => web::run(a),
+        BenchCmd::Publish(a) => publish::run(a),
         BenchCmd::Report(a) => report(a),
     }
 }

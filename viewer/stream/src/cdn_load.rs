@@ -196,3 +196,113 @@ pub fn load(
         runs,
     })
 }
+
+/// The same viewers against `snerf serve` (QUIC; each a `snerf fetch` to a file, checked and
+/// removed), `concurrent` at a time: `snerf bench publish`'s comparison.
+#[derive(Clone, Debug, Serialize)]
+pub struct ServeLoad {
+    pub viewers: usize,
+    pub concurrent: usize,
+    pub ok: usize,
+    pub identical: usize,
+    pub errors: Vec<String>,
+    /// Connect to header + grids + MLP in (the server sends those first).
+    pub renderable_p50_s: f64,
+    pub renderable_p99_s: f64,
+    pub all_p50_s: f64,
+    pub all_p99_s: f64,
+    pub wall_s: f64,
+    pub viewers_per_s: f64,
+}
+
+pub fn serve_load(
+    bytes: &[u8],
+    name: &str,
+    work: &std::path::Path,
+    viewers: usize,
+    concurrent: usize,
+    threads: usize,
+) -> Result<ServeLoad> {
+    use sha2::{Digest, Sha256};
+    let dir = work.join("serve-assets");
+    std::fs::create_dir_all(&dir)?;
+    std::fs::write(dir.join(format!("{name}.snerf")), bytes)?;
+    let mut o = crate::ServeOptions::new(dir.clone(), "127.0.0.1:0".parse()?);
+    o.state_dir = Some(work.join("serve-state"));
+    o.quiet = true;
+    o.web = None;
+    o.limits.max_clients = concurrent.max(1) + 8;
+    o.limits.max_pending_per_ip = concurrent.max(32) + 8;
+    o.limits.max_pending = (concurrent + 8).max(256);
+    let h = crate::spawn(o)?;
+    let (url, pin, token) = (
+        h.url(name),
+        h.fingerprint().to_string(),
+        h.token().to_string(),
+    );
+    let want = crate::proto::to_hex(&Sha256::digest(bytes));
+    let outs = work.join("serve-out");
+    std::fs::create_dir_all(&outs)?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(threads.max(1))
+        .enable_all()
+        .build()?;
+    let t0 = Instant::now();
+    let res: Vec<Result<(f64, f64, bool)>> = rt.block_on(async {
+        let sem = Arc::new(tokio::sync::Semaphore::new(concurrent.max(1)));
+        let mut tasks = Vec::new();
+        for i in 0..viewers {
+            let (url, pin, token, sem, want) = (
+                url.clone(),
+                pin.clone(),
+                token.clone(),
+                sem.clone(),
+                want.clone(),
+            );
+            let out = outs.join(format!("{i}.snerf"));
+            tasks.push(tokio::spawn(async move {
+                let _p = sem.acquire_owned().await.expect("semaphore");
+                let s = crate::fetch(&url, &pin, &token, &out).await?;
+                let ok = std::fs::read(&out)
+                    .map(|b| crate::proto::to_hex(&Sha256::digest(&b)) == want)
+                    .unwrap_or(false);
+                let _ = std::fs::remove_file(&out);
+                Ok((
+                    s.time_to_renderable.unwrap_or_default().as_secs_f64(),
+                    s.elapsed.as_secs_f64(),
+                    ok,
+                ))
+            }));
+        }
+        let mut v = Vec::new();
+        for t in tasks {
+            v.push(t.await.unwrap_or_else(|e| Err(anyhow::anyhow!("{e}"))));
+        }
+        v
+    });
+    let wall_s = t0.elapsed().as_secs_f64();
+    h.shutdown();
+    let ok: Vec<(f64, f64, bool)> = res
+        .iter()
+        .filter_map(|r| r.as_ref().ok().copied())
+        .collect();
+    let fr: Vec<f64> = ok.iter().map(|x| x.0).collect();
+    let all: Vec<f64> = ok.iter().map(|x| x.1).collect();
+    Ok(ServeLoad {
+        viewers,
+        concurrent,
+        ok: ok.len(),
+        identical: ok.iter().filter(|x| x.2).count(),
+        errors: res
+            .iter()
+            .filter_map(|r| r.as_ref().err().map(|e| format!("{e:#}")))
+            .take(5)
+            .collect(),
+        renderable_p50_s: pct(&fr, 50.0),
+        renderable_p99_s: pct(&fr, 99.0),
+        all_p50_s: pct(&all, 50.0),
+        all_p99_s: pct(&all, 99.0),
+        wall_s,
+        viewers_per_s: viewers as f64 / wall_s,
+    })
+}
