@@ -239,6 +239,9 @@ async function fetchObject(base, sha, size) {
       if (size !== undefined && b.length !== size) { why = `${b.length} bytes, the manifest says ${size}`; continue; }
       const got = hex(new Uint8Array(await crypto.subtle.digest('SHA-256', b)));
       if (got !== sha) { why = `SHA-256 mismatch (got ${got})`; continue; }
+      // Which HTTP carried it (h3, h2, http/1.1), for the tests and benchmarks.
+      const e = performance.getEntriesByName(u.href)[0];
+      if (e && e.nextHopProtocol) (report.httpProtocols ||= {})[e.nextHopProtocol] = ((report.httpProtocols || {})[e.nextHopProtocol] || 0) + 1;
       return b;
     } catch (e) { why = String(e.message || e); }
   }
