@@ -134,7 +134,13 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         checkpoint::write_png_atomic(&p, &demo_style_image())?;
         style = Some(p);
     }
-    eprintln!("[5/8] SNeRF: {} rounds of render -> stylize ({stylizer}) -> train", a.rounds);
+    let loop_text = match snerf_stylize::snerf_loop::DEFAULT_CONTENT {
+        snerf_stylize::snerf_loop::Content::Render => format!("{} rounds of render -> stylize ({stylizer}) -> train", a.rounds),
+        snerf_stylize::snerf_loop::Content::Realistic => {
+            format!("the realistic views stylized once ({stylizer}), then {} rounds of render -> fuse -> train", a.rounds)
+        }
+    };
+    eprintln!("[5/8] SNeRF: {loop_text}");
     let s_args = |rounds: usize, out: PathBuf| crate::stylize_cmd::StylizeArgs {
         run: run_dir.clone(),
         style: style.clone(),
@@ -148,24 +154,9 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         // as many frames as the consistency step below, so the per-round curve and the
         // per-frame baseline are measured on the same path
         consistency_frames: CONSISTENCY_FRAMES,
-        fuse_views: crate::stylize_cmd::DEFAULT_FUSE_VIEWS,
-        target_step: crate::stylize_cmd::DEFAULT_TARGET_STEP,
-        content: crate::stylize_cmd::DEFAULT_CONTENT.into(),
-        step_schedule: crate::stylize_cmd::DEFAULT_STEP_SCHEDULE.into(),
-        lr_schedule: crate::stylize_cmd::DEFAULT_LR_SCHEDULE.into(),
-        round_steps: crate::stylize_cmd::DEFAULT_ROUND_STEPS.into(),
-        targets: crate::stylize_cmd::DEFAULT_TARGETS.into(),
-        fusion: crate::stylize_cmd::DEFAULT_FUSION.into(),
-        fusion_read: crate::stylize_cmd::DEFAULT_FUSION_READ.into(),
-        region: crate::stylize_cmd::DEFAULT_REGION.into(),
-        step_from: crate::stylize_cmd::DEFAULT_STEP_FROM.into(),
-        tv: crate::stylize_cmd::PlaneTv::default(),
-        view_colour: crate::stylize_cmd::DEFAULT_VIEW_COLOUR.into(),
-        palette: crate::stylize_cmd::DEFAULT_PALETTE.into(),
+        fuse_views: snerf_stylize::snerf_loop::StylizeOptions::default().fuse_views,
+        content: snerf_stylize::snerf_loop::DEFAULT_CONTENT.as_str().into(),
         seed: None,
-        rays: crate::stylize_cmd::DEFAULT_RAYS.into(),
-        colour_fit: crate::stylize_cmd::DEFAULT_COLOUR_FIT.into(),
-        keep_rounds: crate::stylize_cmd::DEFAULT_KEEP_ROUNDS.into(),
         s: crate::stylize_cmd::StylizerArgs {
             stylizer: stylizer.clone(),
             strength: 1.0,
@@ -183,6 +174,8 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             data: Some(data_dir.clone()),
             one_round: None,
             frames: CONSISTENCY_FRAMES,
+            path: None,
+            loop_path: false,
             out: None,
             save_frames: false,
             opts: DataOpts::default(),

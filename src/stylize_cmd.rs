@@ -114,63 +114,9 @@ pub fn stylize_image_cmd(a: &StylizeImageArgs) -> Result<Value> {
     Ok(json!({ "command": "stylize-image", "stylizer": s.name(), "out": crate::args::pj(&a.out), "seconds": secs, "load_seconds": load }))
 }
 
-/// Neighbouring views each stylized target is fused with (BENCH.md §5: chosen by measurement).
-pub const DEFAULT_FUSE_VIEWS: usize = 4;
-/// The loop's defaults, chosen by measurement (BENCH.md §5b): stylize the realistic renders
-/// once, step 1/t toward the fused stylization in round t (the first round takes the whole
-/// step, later ones average), and one learning-rate decay over the whole run.
-pub const DEFAULT_TARGET_STEP: f32 = 1.0;
-pub const DEFAULT_CONTENT: &str = "realistic";
-pub const DEFAULT_STEP_SCHEDULE: &str = "harmonic";
-pub const DEFAULT_LR_SCHEDULE: &str = "run";
-/// Training steps follow the target's step, 1/t (BENCH.md §5n): with the targets stepped from
-/// the previous targets they barely move after round 1, so the budget goes where they are
-/// first taken.
-pub const DEFAULT_ROUND_STEPS: &str = "harmonic";
-/// Each round fuses the previous round's fused targets (BENCH.md §5c: the only setting
-/// measured whose round 5 is more consistent than its round 1).
-pub const DEFAULT_TARGETS: &str = "consensus";
-/// Fresh stylizations are fused by giving each surface point its nearest painter (BENCH.md
-/// §5h: the same consistency as the median after five rounds, with more of the painting).
-pub const DEFAULT_FUSION: &str = "owner";
-/// Fusion copies pixels instead of resampling them (BENCH.md §5i: bilinear reads blur the
-/// consensus targets a little every round, and the painting's contrast with them; copying
-/// keeps round 5 at least as close to the painting as round 1, for twice the warp error).
-pub const DEFAULT_FUSION_READ: &str = "nearest";
-/// Default `--region`.
-pub const DEFAULT_REGION: &str = "object";
-/// Each round steps from the previous round's targets, so the field's own blur is never fed
-/// back into a target (BENCH.md §5n: the palette no longer narrows over the rounds).
-pub const DEFAULT_STEP_FROM: &str = "targets";
-/// No total-variation smoothing of the stylized field's planes (BENCH.md §5o).
-pub const DEFAULT_PLANE_TV: &str = "0";
-
-/// The stylized field is diffuse (BENCH.md §5p: the realistic field's frozen residual is
-/// close to a constant offset, which cut off the painting's darkest or brightest colours).
-pub const DEFAULT_VIEW_COLOUR: &str = "diffuse";
-/// The consensus rounds keep the first fusion's colours (BENCH.md §5q: the iterated median
-/// narrowed the palette, so round 5's style distance ended above round 1's).
-pub const DEFAULT_PALETTE: &str = "keep";
-pub const DEFAULT_RAYS: &str = "area";
-pub const DEFAULT_COLOUR_FIT: &str = "joint";
-/// A round's field is kept only when it is no worse than the last kept one (BENCH.md §5x).
-pub const DEFAULT_KEEP_ROUNDS: &str = "better";
-
-/// `--tv`: a weight (Some) or `source`, the realistic run's own (None).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlaneTv(pub Option<f32>);
-
-impl Default for PlaneTv {
-    fn default() -> PlaneTv {
-        parse_plane_tv(DEFAULT_PLANE_TV).expect("the default weight parses")
-    }
-}
-
-fn parse_plane_tv(s: &str) -> Result<PlaneTv, String> {
-    if s == "source" {
-        return Ok(PlaneTv(None));
-    }
-    crate::args::non_negative_f32(s).map(|w| PlaneTv(Some(w))).map_err(|e| format!("{e}, or `source`"))
+/// The library's defaults are the command line's.
+fn defaults() -> StylizeOptions {
+    StylizeOptions::default()
 }
 
 /// A lowercase option value as the serde enum of the same name.
@@ -193,11 +139,11 @@ pub struct StylizeArgs {
     #[arg(long)]
     pub data: Option<PathBuf>,
     /// Rounds of render -> stylize -> train (the paper uses 5; 1 is the one-shot baseline).
-    #[arg(long, default_value_t = 5, value_parser = crate::args::int_in::<usize>(1, 100, ""))]
+    #[arg(long, default_value_t = defaults().rounds, value_parser = crate::args::int_in::<usize>(1, 100, ""))]
     pub rounds: usize,
-    /// Training steps per round, on average: the run trains ROUNDS × this many steps, spread
-    /// over the rounds by --round-steps.
-    #[arg(long, default_value_t = 300, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
+    /// Training steps per round, on average: the run trains ROUNDS × this many steps, in
+    /// proportion to 1/t over the rounds (most in round 1).
+    #[arg(long, default_value_t = defaults().steps_per_round, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
     pub steps_per_round: u64,
     /// Longer side of the images handed to the stylizer (0: the training resolution).
     #[arg(long, default_value_t = 0, value_parser = crate::args::int_in::<usize>(0, 4096, "0 = the training resolution; the stylizer holds the whole image in memory"))]
@@ -208,117 +154,27 @@ pub struct StylizeArgs {
     /// Freeze density and the shared layers; stylize colour only (the paper's ablation).
     #[arg(long)]
     pub appearance_only: bool,
-    /// Frames of the novel path for the per-round warp errors (0: skip the per-round
+    /// Frames of the loop's own path for the per-round warp errors (0: skip the per-round
     /// measurement); the per-round style distances are scored on 8 more frames, 45° apart
-    /// around the whole orbit.
-    #[arg(long, default_value_t = 16, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
+    /// around the whole orbit. Nothing is selected on these: `snerf consistency` scores
+    /// another path.
+    #[arg(long, default_value_t = defaults().consistency_frames, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
     pub consistency_frames: usize,
-    /// Fuse each stylized target with this many nearest training views, reprojected through
-    /// the field's depth (per-pixel median), so every surface point gets one colour (0: off).
-    #[arg(long, default_value_t = DEFAULT_FUSE_VIEWS, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
+    /// Fusion: each surface point takes the colour its nearest painter gave it, and each
+    /// consensus step takes the per-pixel median over a view and this many nearest training
+    /// views, reprojected through the field's depth; 0: no fusion at all (each view trains
+    /// on its own stylization).
+    #[arg(long, default_value_t = defaults().fuse_views, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
     pub fuse_views: usize,
-    /// Each round's target is render + STEP × (stylized − render): a damped step from the
-    /// current render toward the stylization (1: the stylization itself); with
-    /// --step-schedule harmonic, round t steps STEP / t.
-    #[arg(long, default_value_t = DEFAULT_TARGET_STEP, value_parser = crate::args::unit_f32)]
-    pub target_step: f32,
-    /// What the stylizer paints: render (the current field's render, every round) or
-    /// realistic (the realistic field's renders, once; later rounds re-fuse those
-    /// stylizations through the current field's depth).
-    #[arg(long, default_value = DEFAULT_CONTENT, value_parser = ["render", "realistic"])]
+    /// What the stylizer paints: render (the current field's render, every round: the paper's
+    /// loop) or realistic (the realistic field's renders, once; later rounds reconcile those
+    /// stylizations across views: the one-pass variant). BENCH.md §5 measures both.
+    #[arg(long, default_value = snerf_loop::DEFAULT_CONTENT.as_str(), value_parser = ["render", "realistic"])]
     pub content: String,
-    /// The step of round t: constant (STEP) or harmonic (STEP / t).
-    #[arg(long, default_value = DEFAULT_STEP_SCHEDULE, value_parser = ["constant", "harmonic"])]
-    pub step_schedule: String,
-    /// Learning-rate decay: once per round (round) or once over all rounds (run).
-    #[arg(long, default_value = DEFAULT_LR_SCHEDULE, value_parser = ["round", "run"])]
-    pub lr_schedule: String,
-    /// Training steps per round: equal (--steps-per-round each) or harmonic (the same total,
-    /// in proportion to 1/t: most in round 1).
-    #[arg(long, default_value = DEFAULT_ROUND_STEPS, value_parser = ["equal", "harmonic"])]
-    pub round_steps: String,
-    /// What each round fuses: once (the stylizations of the realistic renders, every round)
-    /// or consensus (the previous round's fused targets, re-fused through the current depth,
-    /// so the views' targets agree a little more each round). Needs --content realistic and
-    /// --fuse-views > 0.
-    #[arg(long, default_value = DEFAULT_TARGETS, value_parser = ["once", "consensus"])]
-    pub targets: String,
-    /// How fresh stylizations are fused (every round with --targets once, the first round
-    /// with consensus): owner (each surface point takes what the nearest view that sees it
-    /// painted: one painting's strokes per point) or median (the per-channel median of the
-    /// view and its --fuse-views nearest views at that point: a blend).
-    #[arg(long, default_value = DEFAULT_FUSION, value_parser = ["owner", "median"])]
-    pub fusion: String,
-    /// How fusion reads another view's colour at a surface point: nearest (the pixel the point
-    /// falls in, copied) or bilinear (the mean of the four around it: a small blur, which the
-    /// consensus rounds compound; runs made before this option).
-    #[arg(long, default_value = DEFAULT_FUSION_READ, value_parser = ["nearest", "bilinear"])]
-    pub fusion_read: String,
-    /// What of each view the stylizer paints: object (views with a silhouette: the object's
-    /// box with a margin, at the scale the whole view would be painted at, so the empty
-    /// background does not set the stylizer's statistics; other views whole) or view (the
-    /// whole view, as runs made before this option).
-    #[arg(long, default_value = DEFAULT_REGION, value_parser = ["object", "view"])]
-    pub region: String,
-    /// Where each round's damped step toward the fused stylization starts: render (the
-    /// current field's render; runs made before this option) or targets (the previous
-    /// round's training targets: with the harmonic schedule, the running mean of the rounds'
-    /// fused stylizations, so the field's own blur is never fed back into a target). Round 1
-    /// steps from the render either way.
-    #[arg(long, default_value = DEFAULT_STEP_FROM, value_parser = ["render", "targets"])]
-    pub step_from: String,
-    /// Weight of the total-variation loss on the field's planes while stylizing. The
-    /// realistic field's weight smooths the planes against over-fitting its views; a stylized
-    /// field has to hold the painting's pixel-scale strokes, and smoothing takes the darks
-    /// out from between them (BENCH.md §5o). Consistency comes from the fused targets.
-    /// `source`: the realistic run's own weight (runs made before this option).
-    #[arg(long, default_value = DEFAULT_PLANE_TV, value_parser = parse_plane_tv)]
-    pub tv: PlaneTv,
-    /// Whether the stylized field's colour may change with the viewing direction: diffuse
-    /// (no: a painting has no highlights that move with the viewer, and the realistic
-    /// field's residual, frozen and fed the painted colours, is close to a constant offset
-    /// that cuts off the painting's darkest or brightest colours; BENCH.md §5p) or source
-    /// (the realistic field's view MLP, frozen, as runs made before this option).
-    #[arg(long, default_value = DEFAULT_VIEW_COLOUR, value_parser = ["diffuse", "source"])]
-    pub view_colour: String,
-    /// What the consensus rounds do to the targets' colours: keep (before each consensus
-    /// round the previous targets are mapped, per Oklab channel, onto the colour distribution
-    /// of the first fused stylizations, then the median reconciles the views; the iterated
-    /// median alone narrows the painting's palette round by round, BENCH.md §5q) or free (the
-    /// median alone, as runs made before this option).
-    #[arg(long, default_value = DEFAULT_PALETTE, value_parser = ["keep", "free"])]
-    pub palette: String,
-    /// Seed of the rays each training step draws (default: the realistic run's own). Which of
-    /// the painting's rarest colours the field ends a round holding depends on the ray
-    /// sequence: run two seeds to see how far the figures move with it (BENCH.md §5q)
+    /// Seed of the rays each training step draws (default: the realistic run's own): run two
+    /// seeds to see how far the figures move with it.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Where each training ray crosses its pixel while stylizing: area (anywhere in the
-    /// pixel's square: a painted pixel is the paint over its square, so the field cannot hold
-    /// one colour at the pixel centres and another between them, where new views look;
-    /// BENCH.md §5u) or centre (through the centre, as realistic training and runs made
-    /// before this option)
-    #[arg(long, default_value = DEFAULT_RAYS, value_parser = ["area", "centre"])]
-    pub rays: String,
-    /// Whether the targets make up for the colours the field falls short of: joint (every
-    /// target colour is moved by what the field's renders of the training views showed
-    /// short of it, averaged over the pixels of that colour, so that the field shows the
-    /// painting's colours together: red strokes on green stay red; recalibrated at every
-    /// round's start and after every share of the training steps as large as the last
-    /// round; BENCH.md §5v), compensate (per Oklab channel, quantile by quantile, at every
-    /// round's start and halfway through the first: each channel's spread, not which
-    /// colours go together; §5u) or plain (the targets as fused, as runs made before these
-    /// options)
-    #[arg(long, default_value = DEFAULT_COLOUR_FIT, value_parser = ["joint", "compensate", "plain"])]
-    pub colour_fit: String,
-    /// Which rounds' fields the run keeps: better (a round whose field the per-round
-    /// measurement finds worse than the last kept field on the short- or long-range warp
-    /// error or on the style distance is discarded, its scores kept in the record, and the
-    /// next round trains from the kept field; round 1 is always kept; without a per-round
-    /// measurement, --consistency-frames 0, every round is kept) or every (the last round's
-    /// field, whatever it measures, as runs made before this option)
-    #[arg(long, default_value = DEFAULT_KEEP_ROUNDS, value_parser = ["better", "every"])]
-    pub keep_rounds: String,
     #[command(flatten)]
     pub s: StylizerArgs,
     #[command(flatten)]
@@ -347,31 +203,21 @@ impl Progress for Bars {
     }
     fn round_done(&mut self, r: &RoundRecord) {
         if !self.quiet {
-            let m = r.trained();
             self.say(format!(
-                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s, train {:.0} s), fit {:.2} dB, style distance {} (Gram {}, embedding {}), consistency short {} long {}",
+                "round {}: {:.0} s (render {:.0} s, stylize {:.0} s{}, train {:.0} s), fit {:.2} dB, style distance {} (Gram {}, embedding {}), consistency short {} long {}",
                 r.round,
                 r.wall_seconds,
                 r.render_seconds,
                 r.stylize_seconds,
+                r.stylized_views.map(|n| format!(", {n} views painted")).unwrap_or_default(),
                 r.train_seconds,
                 r.fit_psnr,
-                fmt_opt(m.style_swd.map(|s| s.total), 4),
-                fmt_opt(m.style_gram, 4),
-                fmt_opt(m.style_distance, 3),
-                fmt_opt(m.short_range, 5),
-                fmt_opt(m.long_range, 5)
+                fmt_opt(r.style_swd.map(|s| s.total), 4),
+                fmt_opt(r.style_gram, 4),
+                fmt_opt(r.style_distance, 3),
+                fmt_opt(r.short_range, 5),
+                fmt_opt(r.long_range, 5)
             ));
-            if let Some(d) = &r.discarded {
-                self.say(format!(
-                    "round {}: field discarded, worse than the kept field on the {} (kept: style distance {}, consistency short {} long {}); the next round trains from the kept field",
-                    r.round,
-                    d.worse_than(&r.scores()).join(" and the "),
-                    fmt_opt(r.style_swd.map(|s| s.total), 4),
-                    fmt_opt(r.short_range, 5),
-                    fmt_opt(r.long_range, 5)
-                ));
-            }
         }
         // stylize.json on disk holds the rounds before this one (it is rewritten after this call)
         let mut state: Value = std::fs::read(snerf_loop::state_path(&self.out))
@@ -446,23 +292,8 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         appearance_only: a.appearance_only,
         consistency_frames: a.consistency_frames,
         fuse_views: a.fuse_views,
-        target_step: a.target_step,
         content: option_enum("--content", &a.content)?,
-        step_schedule: option_enum("--step-schedule", &a.step_schedule)?,
-        lr_schedule: option_enum("--lr-schedule", &a.lr_schedule)?,
-        round_steps: option_enum("--round-steps", &a.round_steps)?,
-        targets: option_enum("--targets", &a.targets)?,
-        fusion: option_enum("--fusion", &a.fusion)?,
-        fusion_read: option_enum("--fusion-read", &a.fusion_read)?,
-        region: option_enum("--region", &a.region)?,
-        step_from: option_enum("--step-from", &a.step_from)?,
-        plane_tv: a.tv.0,
-        view_colour: option_enum("--view-colour", &a.view_colour)?,
-        palette: option_enum("--palette", &a.palette)?,
         seed: a.seed,
-        rays: option_enum("--rays", &a.rays)?,
-        colour_fit: option_enum("--colour-fit", &a.colour_fit)?,
-        keep_rounds: option_enum("--keep-rounds", &a.keep_rounds)?,
     };
     let wall = Instant::now();
     let mut bars = Bars {
@@ -475,10 +306,8 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     bars.pb.finish_and_clear();
     bars.live.stylize(&a.out, serde_json::to_value(&state)?);
     if !quiet {
-        let discarded = state.records.iter().filter(|r| r.discarded.is_some()).count();
-        let kept = if discarded > 0 { format!(", {discarded} of them discarded, the field is round {}'s", state.field_round()) } else { String::new() };
         eprintln!(
-            "stylized run in {} ({} rounds{kept}, {:.0} s); per-round images in {}",
+            "stylized run in {} ({} rounds, {:.0} s); per-round images in {}",
             a.out.display(),
             state.rounds_done,
             wall.elapsed().as_secs_f64(),
@@ -525,10 +354,21 @@ pub struct ConsistencyArgs {
     /// A one-round stylized run to compare against (`snerf stylize --rounds 1`).
     #[arg(long)]
     pub one_round: Option<PathBuf>,
-    /// Frames of the novel path (5° apart) the warp errors are measured on. The style
-    /// distances are scored on 8 more frames, 45° apart around the whole orbit.
+    /// Frames of the evaluation path (5° apart) the warp errors are measured on. The style
+    /// distances are scored on 8 more frames, 45° apart around the whole orbit. The path
+    /// and its orbit are 15° higher (or lower) and 1.15× as far as the loop's own path, so
+    /// no frame is one the loop measured itself on.
     #[arg(long, default_value_t = 24, value_parser = crate::args::int_in::<usize>(2, 1000, ""))]
     pub frames: usize,
+    /// Score this camera path instead (nerfstudio's camera_path.json, as `snerf render
+    /// --path` reads it; one image size): every camera a frame, the style distances on 8 of
+    /// them evenly spaced.
+    #[arg(long)]
+    pub path: Option<PathBuf>,
+    /// Score the loop's own path (its per-round measurement's frames) instead of the
+    /// evaluation path: what the rounds measured, for comparison.
+    #[arg(long, conflicts_with = "path")]
+    pub loop_path: bool,
     /// Where to write consistency.json, consistency.md and consistency.png (default: SRUN).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -568,6 +408,21 @@ fn carried_targets(
         .collect()
 }
 
+/// The path `snerf consistency` scores: `--path`, `--loop-path`, or the evaluation path.
+fn scored_path(a: &ConsistencyArgs, realistic: &snerf_trainer::train::Model, pool: &snerf_trainer::render::WorkspacePool, data: &snerf_trainer::data::Dataset) -> Result<PathGeometry> {
+    if let Some(file) = &a.path {
+        let text = std::fs::read_to_string(file).with_context(|| format!("--path {}: cannot read", file.display()))?;
+        let first = data.test.first().unwrap_or(&data.train[0]).intrinsics;
+        let fov = 2.0 * (0.5 * first.height as f32 / first.fy).atan().to_degrees();
+        let cams = snerf_geometry::camera_path::parse(&text, (first.width, first.height), fov).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+        return PathGeometry::from_cameras(realistic, pool, data, &cams, &file.display().to_string());
+    }
+    if a.loop_path {
+        return PathGeometry::new(realistic, pool, data, a.frames);
+    }
+    PathGeometry::evaluation(realistic, pool, data, a.frames)
+}
+
 pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let t0 = Instant::now();
     let st_path = snerf_loop::state_path(&a.srun);
@@ -597,13 +452,13 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
 
     let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
     pb.set_message("realistic geometry");
-    let path = PathGeometry::new(&realistic, &pool, &data, a.frames)?;
+    let path = scored_path(a, &realistic, &pool, &data)?;
     let targets = meters.targets(&path, &style_img)?;
     pb.inc(1);
     pb.set_message("per-frame baseline");
     // painted as the run painted its training views: with `--region object`, the object's
     // box (the realistic field's silhouette in each frame)
-    let by_box = o.region == snerf_loop::Region::Object && path.has_silhouette();
+    let by_box = path.has_silhouette();
     let per_frame = path.stylize_frames(stylizer.as_ref(), by_box, o.style_res, 0)?;
     pb.inc(1);
     pb.set_message("SNeRF");
@@ -646,7 +501,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let realistic_over_per_frame = methods[0].style_swd.total / pf.style_swd.total;
     let gram_realistic_over_per_frame = methods[0].style_gram.zip(pf.style_gram).map(|(a, b)| a / b);
     // contact sheet: style | realistic | per-frame | (1 round) | SNeRF, for two frames far apart
-    let far = (a.frames - 1).min(7.max(a.frames / 2));
+    let far = (path.path_frames - 1).min(7.max(path.path_frames / 2));
     let style_tile = &style_img;
     let mut rows = Vec::new();
     for &i in &[0usize, far] {
@@ -709,7 +564,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         o.stylizer,
         if has_style { o.style.display().to_string() } else { "its own (reference: its stylization of a neutral image)".into() },
         if by_box { "the object's box in each view" } else { "whole views" },
-        consistency::path_description(data.kind, a.frames),
+        path.description,
         100.0 * path.coverage(),
         table,
         sn.short_range / pf.short_range,
@@ -723,8 +578,8 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     let v = json!({
         "command": "consistency",
         "srun": crate::args::pj(&a.srun),
-        "frames": a.frames,
-        "region": o.region,
+        "frames": path.path_frames,
+        "path": path.description,
         "coverage": path.coverage(),
         "warp_pixels": consistency::WARP_PIXELS,
         "methods": methods,

@@ -66,6 +66,9 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
             stylizer::save_png(&frames_dir.join(format!("mask_{k}.png")), &Image { width: frame.width, height: frame.height, data })?;
         }
     }
+    // the Gram distance on ImageNet features: the style measure neither the loop nor the
+    // default stylizer aims at (absent without the installed model)
+    let gram = snerf_stylize::style_gram::GramMetric::open(&StylizerOptions::default()).ok();
     let mut rows = Vec::new();
     for style in &a.styles {
         let sname = style_name(style);
@@ -73,7 +76,8 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
         let row = (|| -> Result<Value> {
             let file = paintings::resolve_style(Path::new(style))?;
             let st = stylizer::from_spec("arbitrary", Some(&file), &StylizerOptions::default())?;
-            let reference = path.style_reference(&stylizer::load_style_image(&file)?);
+            let style_img = stylizer::load_style_image(&file)?;
+            let reference = path.style_reference(&style_img);
             // the path's frames stay realistic: only the ring is scored
             let per_frame = path.stylize_frames(st.as_ref(), by_box, 0, path.path_frames)?;
             if a.save_frames {
@@ -85,7 +89,13 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
             }
             let real = path.style_score(&path.realistic, &reference);
             let pf = path.style_score(&per_frame, &reference);
-            Ok(json!({ "realistic": real, "per_frame": pf, "separation": real.total / pf.total }))
+            let mut row = json!({ "realistic": real, "per_frame": pf, "separation": real.total / pf.total });
+            if let Some(g) = &gram {
+                let grams = g.reference(&style_img, path.intr.width as usize, path.intr.height as usize)?;
+                let (gr, gp) = (path.style_gram(&path.realistic, g, &grams)?, path.style_gram(&per_frame, g, &grams)?);
+                row["gram"] = json!({ "realistic": gr, "per_frame": gp, "separation": gr / gp });
+            }
+            Ok(row)
         })();
         let mut v = json!({ "model": name, "style": sname });
         match row {
@@ -99,7 +109,7 @@ fn one_model(a: &BenchStyleMetricArgs, name: &str, data: &Path, run: &Path) -> R
 
 /// The table, and a line with the spread and how many pairs meet the bar.
 pub fn table(pairs: &[Value]) -> String {
-    let mut md = String::from("| model × style | realistic: colour + texture | per-frame: colour + texture | separation |\n|---|---|---|---|\n");
+    let mut md = String::from("| model × style | realistic: colour + texture | per-frame: colour + texture | separation | Gram separation |\n|---|---|---|---|---|\n");
     let score = |v: &Value| serde_json::from_value::<StyleScore>(v.clone()).ok();
     let mut seps = Vec::new();
     for p in pairs {
@@ -107,8 +117,10 @@ pub fn table(pairs: &[Value]) -> String {
         match (score(&p["realistic"]), score(&p["per_frame"]), p["separation"].as_f64()) {
             (Some(r), Some(f), Some(s)) => {
                 seps.push(s);
-                let mark = if s >= SEPARATION { "" } else { "**" };
-                md.push_str(&format!("| {name} | {:.4} + {:.4} | {:.4} + {:.4} | {mark}{s:.2}{mark} |\n", r.color, r.texture, f.color, f.texture));
+                let mark = |s: f64| if s >= SEPARATION { "" } else { "**" };
+                let g = p["gram"]["separation"].as_f64();
+                let gram = g.map(|g| format!("{}{g:.2}{}", mark(g), mark(g))).unwrap_or_else(|| "—".into());
+                md.push_str(&format!("| {name} | {:.4} + {:.4} | {:.4} + {:.4} | {}{s:.2}{} | {gram} |\n", r.color, r.texture, f.color, f.texture, mark(s), mark(s)));
             }
             _ => {
                 let e: String = p["error"].as_str().unwrap_or("?").chars().take(100).collect();
@@ -126,6 +138,13 @@ pub fn table(pairs: &[Value]) -> String {
             seps.len(),
             seps.len()
         ));
+        let grams: Vec<f64> = pairs.iter().filter_map(|p| p["gram"]["separation"].as_f64()).collect();
+        if !grams.is_empty() {
+            let lo = grams.iter().copied().fold(f64::INFINITY, f64::min);
+            let mean = grams.iter().sum::<f64>() / grams.len() as f64;
+            let met = grams.iter().filter(|&&s| s >= SEPARATION).count();
+            md.push_str(&format!("Gram separation over {} pairs: mean {mean:.2} (min {lo:.2}); at least {SEPARATION}× on {met} of {}.\n", grams.len(), grams.len()));
+        }
         md.push_str(&spread(pairs, "model"));
         md.push_str(&spread(pairs, "style"));
     }
@@ -195,8 +214,8 @@ mod tests {
             json!({ "model": "n", "style": "a", "error": "no such file" }),
         ];
         let md = table(&pairs);
-        assert!(md.contains("| m × a | 4.0000 + 2.0000 | 1.0000 + 1.0000 | 3.00 |"), "{md}");
-        assert!(md.contains("| m × b | 1.5000 + 1.0000 | 1.0000 + 1.0000 | **1.20** |"), "{md}");
+        assert!(md.contains("| m × a | 4.0000 + 2.0000 | 1.0000 + 1.0000 | 3.00 | — |"), "{md}");
+        assert!(md.contains("| m × b | 1.5000 + 1.0000 | 1.0000 + 1.0000 | **1.20** | — |"), "{md}");
         assert!(md.contains("| n × a | failed: no such file |"), "{md}");
         assert!(md.contains("Separation over 2 pairs: mean 2.10 (min 1.20, max 3.00); at least 1.5× on 1 of 2."), "{md}");
         // the spread per model and per style (a failed pair has no separation)

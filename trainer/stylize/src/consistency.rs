@@ -34,9 +34,10 @@
 
 use anyhow::Result;
 use serde::Serialize;
-use snerf_data::{Dataset, Intrinsics, SceneKind};
+use snerf_data::{Dataset, Intrinsics};
 use snerf_geometry::silhouette::min_max_3x3;
-use snerf_trainer::camera_path::orbit;
+use snerf_geometry::camera::Orbit;
+use snerf_geometry::camera_path::PathCamera;
 use snerf_trainer::eval::{eval_background, render_camera};
 use snerf_trainer::render::WorkspacePool;
 use snerf_trainer::space::Vec3;
@@ -86,18 +87,77 @@ pub struct PathGeometry {
     opacity: Vec<Vec<f32>>,
     /// Whether the training views have a silhouette (alpha): a bounded object.
     silhouette: bool,
+    /// Which frames these are, as records and reports name them.
+    pub description: String,
 }
 
 impl PathGeometry {
+    /// The loop's own path (its per-round measurement): `frames` cameras 5° apart on the
+    /// preview orbit, and the style ring around it.
     pub fn new(realistic: &Model, pool: &WorkspacePool, data: &Dataset, frames: usize) -> Result<PathGeometry> {
         anyhow::ensure!(frames >= 2, "a consistency path needs at least 2 frames");
+        let orbit = preview(&realistic.space, data);
+        let what = format!("the loop's path: {frames} frames 5° apart on the preview orbit, and {STYLE_RING} style frames 45° apart around it");
+        Self::on_orbit(realistic, pool, data, &orbit, frames, what)
+    }
+
+    /// The evaluation path `snerf consistency` scores by default: as `new`, on an orbit at
+    /// another elevation and radius ([`evaluation_orbit`]), so it shares no frame with the
+    /// loop's per-round measurement.
+    pub fn evaluation(realistic: &Model, pool: &WorkspacePool, data: &Dataset, frames: usize) -> Result<PathGeometry> {
+        anyhow::ensure!(frames >= 2, "a consistency path needs at least 2 frames");
+        let (orbit, change) = evaluation_orbit(&preview(&realistic.space, data));
+        let what = format!(
+            "the evaluation path: {frames} frames 5° apart on an orbit {change} than the loop's (no frame shared with its per-round measurement), and {STYLE_RING} style frames 45° apart around it"
+        );
+        Self::on_orbit(realistic, pool, data, &orbit, frames, what)
+    }
+
+    /// A path of the user's (nerfstudio `camera_path.json`, read with
+    /// `snerf_geometry::camera_path::parse`): every camera a path frame, and the style frames
+    /// 8 of them evenly spaced. The cameras must share one image size.
+    pub fn from_cameras(realistic: &Model, pool: &WorkspacePool, data: &Dataset, cams: &[PathCamera], name: &str) -> Result<PathGeometry> {
+        anyhow::ensure!(cams.len() >= 2, "{name}: a consistency path needs at least 2 cameras, not {}", cams.len());
+        let first = cams[0].cam;
+        if let Some((i, c)) = cams.iter().enumerate().find(|(_, c)| (c.cam.width, c.cam.height) != (first.width, first.height)) {
+            anyhow::bail!("{name}: camera {i} is {}x{}, camera 0 {}x{}; the warp errors need one image size", c.cam.width, c.cam.height, first.width, first.height);
+        }
+        let mut intr = data.test.first().unwrap_or(&data.train[0]).intrinsics;
+        (intr.fx, intr.fy, intr.cx, intr.cy, intr.width, intr.height) = (first.fx, first.fy, first.cx, first.cy, first.width, first.height);
+        intr.distortion = [0.0; 4];
+        let n = cams.len();
+        let ring: Vec<usize> = (0..STYLE_RING.min(n)).map(|k| k * n / STYLE_RING.min(n)).collect();
+        let mut c2w: Vec<_> = cams.iter().map(|c| c.cam.c2w).collect();
+        c2w.extend(ring.iter().map(|&k| cams[k].cam.c2w));
+        let time = cams[0].time.or(data.dynamic.then_some(0.5));
+        let what = format!("camera path {name}: {n} frames, style scored on {} of them evenly spaced", ring.len());
+        Self::with_cameras(realistic, pool, data, c2w, n, intr, time, what)
+    }
+
+    fn on_orbit(realistic: &Model, pool: &WorkspacePool, data: &Dataset, orbit: &Orbit, frames: usize, what: String) -> Result<PathGeometry> {
         let turn = PATH_STEPS_PER_TURN.max(frames);
-        let mut cams: Vec<_> = orbit(&realistic.space, &data.train, turn).into_iter().take(frames).collect();
-        cams.extend(orbit(&realistic.space, &data.train, 2 * STYLE_RING).into_iter().skip(1).step_by(2));
+        let mut cams: Vec<_> = orbit.path(turn).into_iter().take(frames).collect();
+        cams.extend(orbit.path(2 * STYLE_RING).into_iter().skip(1).step_by(2));
         let mut intr = data.test.first().unwrap_or(&data.train[0]).intrinsics;
         intr.distortion = [0.0; 4];
         // Dynamic scenes: the path holds time still (mid-sequence), so reprojection is exact.
         let time = data.dynamic.then_some(0.5);
+        Self::with_cameras(realistic, pool, data, cams, frames, intr, time, what)
+    }
+
+    /// The realistic field's renders and geometry at `cams` (the first `frames` the path,
+    /// the rest the style frames).
+    #[allow(clippy::too_many_arguments)]
+    fn with_cameras(
+        realistic: &Model,
+        pool: &WorkspacePool,
+        data: &Dataset,
+        cams: Vec<[[f32; 4]; 3]>,
+        frames: usize,
+        intr: Intrinsics,
+        time: Option<f32>,
+        description: String,
+    ) -> Result<PathGeometry> {
         let silhouette = views_have_alpha(&data.train);
         let bg = eval_background(silhouette);
         let mut images = Vec::with_capacity(cams.len());
@@ -105,26 +165,12 @@ impl PathGeometry {
         let mut opacity = Vec::with_capacity(cams.len());
         for c2w in &cams {
             let r = render_camera(realistic, pool, c2w, &intr, time, bg);
-            let (w, h) = (r.width, r.height);
-            let mut pts = vec![None; w * h];
-            for (p, slot) in pts.iter_mut().enumerate() {
-                if r.opacity[p] <= COVERED {
-                    continue;
-                }
-                let (x, y) = (p % w, p / w);
-                if let Some(ray) = realistic.space.ray(c2w, &intr, x as f32 + 0.5, y as f32 + 0.5, time) {
-                    let wp = realistic.space.march_to_world(&ray, r.depth[p]);
-                    if wp.iter().all(|v| v.is_finite()) {
-                        *slot = Some(wp);
-                    }
-                }
-            }
-            images.push(Image { width: w, height: h, data: r.rgb });
-            points.push(pts);
+            points.push(surface_points(realistic, c2w, &intr, time, &r));
+            images.push(Image { width: r.width, height: r.height, data: r.rgb });
             opacity.push(r.opacity);
         }
         let surface = off_silhouette(&points, &opacity, intr.width as usize, intr.height as usize);
-        Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, surface, opacity, silhouette })
+        Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, surface, opacity, silhouette, description })
     }
 
     /// Whether the scene is a bounded object with a silhouette in its training views.
@@ -223,7 +269,7 @@ impl PathGeometry {
         let mut out = self.realistic.clone();
         for (k, frame) in out.iter_mut().enumerate().skip(first) {
             let mask = by_box.then_some(masks[k].as_slice());
-            *frame = crate::snerf_loop::stylize_region(stylizer, &self.realistic[k], mask, res)?;
+            *frame = crate::stylize_view::stylize_region(stylizer, &self.realistic[k], mask, res)?;
         }
         Ok(out)
     }
@@ -274,6 +320,53 @@ impl PathGeometry {
         let covered: usize = path.iter().map(|f| f.iter().filter(|p| p.is_some()).count()).sum();
         covered as f64 / path.iter().map(|f| f.len()).sum::<usize>().max(1) as f64
     }
+}
+
+/// The capture's preview orbit (the one turntables and the viewer start on).
+fn preview(space: &snerf_trainer::space::SceneSpace, data: &Dataset) -> Orbit {
+    space.orbit.unwrap_or_else(|| {
+        let refs: Vec<&snerf_data::View> = data.train.iter().collect();
+        snerf_trainer::orbit::preview_orbit(space.kind, &space.frame, &refs, None)
+    })
+}
+
+/// The evaluation orbit: around an object, 15° higher (lower when the preview orbit is above
+/// 45°), 1.15× the radius, and turned by half a path step; a forward-facing capture's ellipse
+/// at 0.6× its radii, 1.15× as far from the target. Returns it with how it differs, in words.
+pub fn evaluation_orbit(o: &Orbit) -> (Orbit, String) {
+    match *o {
+        Orbit::Around { center, up, start, radius, elevation } => {
+            let turn = std::f32::consts::PI / PATH_STEPS_PER_TURN as f32;
+            let side = snerf_geometry::vec::cross(up, start);
+            let start = [0, 1, 2].map(|c| start[c] * turn.cos() + side[c] * turn.sin());
+            let de = if elevation > 45f32.to_radians() { -15f32 } else { 15.0 };
+            let around = Orbit::Around { center, up, start, radius: radius * 1.15, elevation: elevation + de.to_radians() };
+            (around, format!("{} by 15° and 1.15× as far", if de > 0.0 { "higher" } else { "lower" }))
+        }
+        Orbit::Ellipse { center, right, up, target, rx, ry } => {
+            let center = [0, 1, 2].map(|c| target[c] + (center[c] - target[c]) * 1.15);
+            (Orbit::Ellipse { center, right, up, target, rx: rx * 0.6, ry: ry * 0.6 }, "with 0.6× the radii and 1.15× as far".into())
+        }
+    }
+}
+
+/// The world point seen at each pixel of a render (None where the scene does not cover it).
+fn surface_points(model: &Model, c2w: &[[f32; 4]; 3], intr: &Intrinsics, time: Option<f32>, r: &snerf_trainer::eval::Rendered) -> Vec<Option<Vec3>> {
+    let w = r.width;
+    let mut pts = vec![None; w * r.height];
+    for (p, slot) in pts.iter_mut().enumerate() {
+        if r.opacity[p] <= COVERED {
+            continue;
+        }
+        let (x, y) = (p % w, p / w);
+        if let Some(ray) = model.space.ray(c2w, intr, x as f32 + 0.5, y as f32 + 0.5, time) {
+            let wp = model.space.march_to_world(&ray, r.depth[p]);
+            if wp.iter().all(|v| v.is_finite()) {
+                *slot = Some(wp);
+            }
+        }
+    }
+    pts
 }
 
 /// The points of pixels at least a pixel from the silhouette: the pixel and its eight
@@ -433,7 +526,7 @@ pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
             let tile = if img.width == tw && img.height == th {
                 (*img).clone()
             } else {
-                crate::snerf_loop::resize(img, tw, th)
+                crate::stylize_view::resize(img, tw, th)
             };
             for y in 0..th {
                 for x in 0..tw {
@@ -447,14 +540,6 @@ pub fn grid_image(rows: &[Vec<&Image>]) -> image::RgbImage {
         }
     }
     out
-}
-
-/// Paths that suit a scene kind need nothing special today; kept as a hook for the report.
-pub fn path_description(kind: SceneKind, frames: usize) -> String {
-    match kind {
-        SceneKind::Forward => format!("{frames} frames on a circle in front of the mean camera, 5° steps; style scored on {STYLE_RING} frames 45° apart on that circle"),
-        _ => format!("{frames} frames on an orbit around the scene, 5° apart; style scored on {STYLE_RING} frames 45° apart around the whole orbit"),
-    }
 }
 
 #[cfg(test)]
@@ -472,7 +557,7 @@ mod tests {
         let opacity = vec![vec![1.0, 1.0, 0.6, 0.0], vec![1.0, 1.0, 0.9, 0.0]];
         let realistic = opacity.iter().map(|op| edge_frame(op, [1.0, 0.0, 0.0])).collect();
         let surface = off_silhouette(&points, &opacity, intr.width as usize, intr.height as usize);
-        PathGeometry { path_frames: 2, cams: vec![cam; 2], intr, time: None, bg: [1.0; 3], realistic, points, surface, opacity, silhouette: true }
+        PathGeometry { path_frames: 2, cams: vec![cam; 2], intr, time: None, bg: [1.0; 3], realistic, points, surface, opacity, silhouette: true, description: String::new() }
     }
 
     /// `colour` over white with each pixel's coverage.

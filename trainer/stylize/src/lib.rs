@@ -38,4 +38,5 @@ pub mod reproject;
 pub mod snerf_loop;
 pub mod style_gram;
 pub mod style_metric;
+pub mod stylize_view;
 pub mod stylizer;

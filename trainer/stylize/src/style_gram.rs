@@ -14,7 +14,7 @@
 //! painting scale tried (½× to 2.8× the frames' footprint): the fine, high-contrast grain
 //! and halo the network paints around an object on an empty background raise every tap's
 //! activations, which raw Grams weigh above which features co-occur. With the object's box
-//! painted (`snerf_loop::Region::Object`) it is 0.95–1.48. Read it as "how far in Gram
+//! painted (the loop paints the object's box) it is 0.95–1.48. Read it as "how far in Gram
 //! terms", not as "how painted".
 //!
 //! The network is the MobileNetV2 trunk of Magenta's style prediction network
@@ -102,7 +102,7 @@ impl GramMetric {
         let s = long as f32 / style.width.max(style.height) as f32;
         let min = self.net.min_side();
         let (w, h) = (((style.width as f32 * s).round() as usize).max(min), ((style.height as f32 * s).round() as usize).max(min));
-        self.grams(&[(&crate::snerf_loop::resize(style, w, h), None)])
+        self.grams(&[(&crate::stylize_view::resize(style, w, h), None)])
     }
 }
 

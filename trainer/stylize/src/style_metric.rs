@@ -446,7 +446,7 @@ pub fn reference(style: &Image, view_width: usize, view_height: usize) -> StyleR
     let long = view_width.max(view_height);
     let s = long as f32 / style.width.max(style.height) as f32;
     let (w, h) = (((style.width as f32 * s).round() as usize).max(PATCH * 4), ((style.height as f32 * s).round() as usize).max(PATCH * 4));
-    StyleReference::new(&crate::snerf_loop::resize(style, w, h))
+    StyleReference::new(&crate::stylize_view::resize(style, w, h))
 }
 
 #[cfg(test)]

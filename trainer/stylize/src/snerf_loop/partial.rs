@@ -22,6 +22,8 @@ pub struct Partial {
     pub steps_done: u64,
     pub render_seconds: f64,
     pub stylize_seconds: f64,
+    #[serde(default)]
+    pub stylized_views: Option<usize>,
     pub train_seconds: f64,
     pub loss_ema: Option<f64>,
     /// Wall seconds the round had run before it was interrupted.

@@ -1,0 +1,128 @@
+//! What a stylization run is asked to do, and the schedule that follows from it: the step of
+//! each round's running mean, the training steps of each round, the learning-rate decay and
+//! when the colour offsets are recalibrated.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+/// What a stylization run was asked to do (fixed for the life of the run directory). Its
+/// `Default` is the command line's.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StylizeOptions {
+    /// The realistic run this one starts from.
+    pub source_run: PathBuf,
+    pub data: PathBuf,
+    pub style: PathBuf,
+    pub stylizer: String,
+    pub strength: f32,
+    pub rounds: usize,
+    /// Training steps per round on average (the run trains `rounds ×` this many).
+    pub steps_per_round: u64,
+    /// Longer side of the image handed to the stylizer (0: the training resolution).
+    pub style_res: usize,
+    /// Train on this many training views, evenly spaced (0: all of them).
+    pub views: usize,
+    pub appearance_only: bool,
+    /// Frames of the loop's own path for the per-round measurement (0: skip it).
+    pub consistency_frames: usize,
+    /// Neighbouring views each consensus step takes the median over (0: no fusion at all).
+    pub fuse_views: usize,
+    /// What the stylizer paints each round.
+    pub content: Content,
+    /// Seed of the rays each training step draws (None: the realistic run's own).
+    pub seed: Option<u64>,
+}
+
+/// The image the stylizer is given for each training view.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Content {
+    /// The current field's render, every round: the paper's loop.
+    Render,
+    /// The realistic field's renders, stylized once; later rounds reconcile those
+    /// stylizations across views (the one-pass variant).
+    Realistic,
+}
+
+/// The default `Content` (BENCH.md §5 compares the two).
+pub const DEFAULT_CONTENT: Content = Content::Realistic;
+
+impl Default for Content {
+    fn default() -> Content {
+        DEFAULT_CONTENT
+    }
+}
+
+impl Content {
+    /// As the command line and `stylize.json` spell it.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Content::Render => "render",
+            Content::Realistic => "realistic",
+        }
+    }
+}
+
+impl Default for StylizeOptions {
+    fn default() -> StylizeOptions {
+        StylizeOptions {
+            source_run: PathBuf::new(),
+            data: PathBuf::new(),
+            style: PathBuf::new(),
+            stylizer: "arbitrary".into(),
+            strength: 1.0,
+            rounds: 5,
+            steps_per_round: 300,
+            style_res: 0,
+            views: 0,
+            appearance_only: false,
+            consistency_frames: 16,
+            fuse_views: 4,
+            content: Content::default(),
+            seed: None,
+        }
+    }
+}
+
+impl StylizeOptions {
+    /// The step of round `round`'s running mean (1-based): `1/t`, so round t's target is the
+    /// mean of the first t rounds' fused stylizations.
+    pub fn step_of_round(&self, round: usize) -> f32 {
+        1.0 / round.max(1) as f32
+    }
+
+    /// Training steps of round `round` (1-based), in proportion to its step `1/t` (the same
+    /// total as `steps_per_round` every round; at least 1): most of them in round 1, where the
+    /// style is taken, and later rounds, whose targets move by O(1/t), refine.
+    pub fn steps_of_round(&self, round: usize) -> u64 {
+        let rounds = self.rounds.max(1);
+        let total = self.steps_per_round.max(1) * rounds as u64;
+        let h: f64 = (1..=rounds).map(|t| 1.0 / t as f64).sum();
+        // cumulative shares, rounded, so the rounds add up to the total exactly
+        let upto = |t: usize| ((1..=t).map(|k| 1.0 / k as f64).sum::<f64>() / h * total as f64).round() as u64;
+        let t = round.clamp(1, rounds);
+        (upto(t) - upto(t - 1)).max(1)
+    }
+
+    /// Learning-rate progress in [0, 1] of step `s` of round `round`: one decay over the
+    /// whole run, so later rounds move the field less.
+    pub fn lr_progress(&self, round: usize, s: u64) -> f64 {
+        let before: u64 = (1..round.max(1)).map(|t| self.steps_of_round(t)).sum();
+        let total: u64 = (1..=self.rounds.max(1)).map(|t| self.steps_of_round(t)).sum();
+        (before + s) as f64 / total.max(1) as f64
+    }
+
+    /// Training steps between colour-offset calibrations: as many as the last round takes,
+    /// and at most half the first round's (round 1 has no field of its own to measure until
+    /// it has trained, and is calibrated at least once within it).
+    pub fn calibration_interval(&self) -> u64 {
+        self.steps_of_round(self.rounds).min(self.steps_of_round(1) / 2).max(1)
+    }
+
+    /// Whether the targets are recalibrated before step `s` of a round is taken (a round
+    /// that starts training after round 1 is calibrated at its start anyway).
+    pub fn calibrates_at(&self, s: u64) -> bool {
+        s > 0 && s.is_multiple_of(self.calibration_interval())
+    }
+}
