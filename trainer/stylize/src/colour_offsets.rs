@@ -6,7 +6,7 @@
 //! and the area rays average it over each pixel's square. Matching the distribution of each
 //! Oklab channel apart (`palette::compensated`) restores every channel's spread but not
 //! which colours go together: on the pairs measured the field kept each channel's spread
-//! and still lost the painting's joint colours (red on green) round after round (BENCH.md
+//! and still lost the painting's joint colours (red on green) round after round (docs/stylize-notebook.md
 //! §5v).
 //!
 //! So the shortfall is measured where it happens: at every scene pixel of the training

@@ -16,7 +16,7 @@
 //! background, the same for every stylization. On a dark object in front of the white
 //! background those pixels carried most of the error: the unstylized field's own error on
 //! them was above per-frame stylization's (microsoft-mixed-reality × spring: 0.0193 against
-//! 0.0130; BENCH.md §5s), and they held 58–84% of the field's error, so they set a floor on
+//! 0.0130; docs/stylize-notebook.md §5s), and they held 58–84% of the field's error, so they set a floor on
 //! SNeRF ÷ per-frame that no stylization could go below.
 //!
 //! Consistency alone can be bought by washing the style out, so style distances come with
@@ -30,7 +30,7 @@
 //! `PathGeometry::carried` shows the same path as a field that held its training targets
 //! exactly would (each surface point the colour its owner view gives it in the targets, read
 //! by copying a pixel or bilinearly): what the targets allow, so a gap can be put on the
-//! targets or on the field's fit of them (BENCH.md §5t).
+//! targets or on the field's fit of them (docs/stylize-notebook.md §5t).
 
 use anyhow::Result;
 use serde::Serialize;
@@ -58,7 +58,7 @@ pub const PATH_STEPS_PER_TURN: usize = 72;
 /// 12–24 frames spans only 55–115° of the orbit, so its frames show one side of an object,
 /// and on a thin one the style of that side moves with every round by more than the rounds
 /// change the whole (hp-mixed-reality × Kandinsky: round 5 ÷ round 1 = 1.046 pooled over a
-/// 16-frame path, 0.999 over a 48-frame one; BENCH.md §5l).
+/// 16-frame path, 0.999 over a 48-frame one; docs/stylize-notebook.md §5l).
 pub const STYLE_RING: usize = 8;
 
 /// Which pixels the warp errors score, as `snerf consistency` records it (`warp_pixels`):

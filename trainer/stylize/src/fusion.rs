@@ -11,7 +11,7 @@
 //! seeing it painted there (the point's own view where that is the nearest). Every view then
 //! reads the same painter at a point, so the targets agree as the median's do, but a point
 //! keeps one painting's strokes where the median blends five views' different strokes into
-//! a flatter, browner average (BENCH.md §5h). Nearest by camera centre: for views around an
+//! a flatter, browner average (docs/stylize-notebook.md §5h). Nearest by camera centre: for views around an
 //! object, the view that sees a surface from closest sees it largest and, mostly, most
 //! frontally. Where the painter changes, a seam: consistent across views, since the choice
 //! depends on the point alone.
@@ -22,7 +22,7 @@
 //! targets' lightness contrast (standard deviation of Oklab L over their scene pixels) went
 //! from the stylizations' 0.23 to 0.16 with bilinear reads and to 0.20 with nearest ones
 //! (oculus-touch-v3 × Renoir; the painting's is 0.21), and with bilinear reads the style
-//! distance of round 5 ended above round 1's on 3 of 9 pairs (BENCH.md §5i). The price of
+//! distance of round 5 ended above round 1's on 3 of 9 pairs (docs/stylize-notebook.md §5i). The price of
 //! copying: what the views disagree on is no longer smoothed away, and the warp error of the
 //! stylized field is about twice the bilinear loop's.
 

@@ -51,7 +51,7 @@ const fn piece(file: &'static str, sha256: &'static str, x: f64, y: f64) -> Piec
 /// The same files and hashes as `scripts/setup-styles.sh`; positions from the package's
 /// `board22_0.qml`, `board1_0.qml`, `board19_0.qml`, `board7_0.qml`, `board21_0.qml` and
 /// `board20_0.qml`. The first three are the paintings the stylization defaults were
-/// measured on; the last three were added later as held-out styles (BENCH.md §5j).
+/// measured on; the last three were added later as held-out styles (docs/stylize-notebook.md §5j).
 pub const PAINTINGS: [Painting; 6] = [
     Painting {
         key: "vangogh",
@@ -136,7 +136,7 @@ pub const PAINTINGS: [Painting; 6] = [
 ];
 
 /// Fifteen more works from the same package, none of which any default or metric was
-/// chosen on: the held-out styles of `snerf bench style-metric` (BENCH.md §5m). Positions
+/// chosen on: the held-out styles of `snerf bench style-metric` (docs/stylize-notebook.md §5m). Positions
 /// from the package's `board2_0.qml` … `board17_0.qml` (boards 2–6 and 8–17; board 18,
 /// Renoir's *Girls at the Piano*, leaves holes between its pieces and is left out). One
 /// is a photograph of a sculpture, not a painting; it stays, as a style a user may well try.

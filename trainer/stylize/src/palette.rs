@@ -2,7 +2,7 @@
 //! median of the consensus (`fusion::fuse`) narrows the targets' colour distribution: an
 //! extreme colour (the darkest dark of a stroke, its most saturated red) survives a median
 //! only where most of the neighbours read it too, and reprojection misregisters thin strokes
-//! by about a pixel, so the tails shrink a little every round (BENCH.md §5p, §5q). The
+//! by about a pixel, so the tails shrink a little every round (docs/stylize-notebook.md §5p, §5q). The
 //! consensus is there to reconcile where the views disagree, not to change which colours the
 //! scene has.
 //!

@@ -9,12 +9,12 @@
 //! point within a pixel of a silhouette: warping an object whose colour differs from the
 //! background then reports an error that belongs to the interpolation, not to the
 //! stylization, and fusion carries that background into the targets' rims, a little more
-//! each consensus round (BENCH.md §5g).
+//! each consensus round (docs/stylize-notebook.md §5g).
 //!
 //! `Seen::nearest` is the other read, for fusion: the colour of the pixel the point falls in,
 //! under the same visibility rule. A bilinear read is a small blur; fusion that reads
 //! bilinearly blurs the targets once per round, and iterated over consensus rounds that
-//! takes the painting's contrast away (BENCH.md §5i). The nearest pixel copies what was
+//! takes the painting's contrast away (docs/stylize-notebook.md §5i). The nearest pixel copies what was
 //! painted.
 
 use snerf_trainer::space::{norm, sub, Vec3};

@@ -7,7 +7,7 @@
 //! features occur together, whatever their exact pixels), and they are what `gatys`
 //! minimizes, so the record can say how far each round is from the painting in those terms.
 //!
-//! What it does not do (measured, BENCH.md §5e, §5f): on 128² object views it does not
+//! What it does not do (measured, docs/stylize-notebook.md §5e, §5f): on 128² object views it does not
 //! separate `arbitrary`'s per-frame stylization from the unstylized scene. With whole views
 //! painted, the per-frame output is *farther* from the painting than the realistic field on
 //! all nine model × painting pairs measured (realistic ÷ per-frame 0.42–0.84), at every

@@ -16,7 +16,7 @@
 //!   painting's gamut, so "are the scene's colours in the painting" does not tell painted from
 //!   unpainted. Comparing proportions (a Wasserstein distance between the colour
 //!   distributions) did not either: on 24 model × painting pairs it ranked the unpainted scene
-//!   nearer than the painted one on most pairs (BENCH.md §5m).
+//!   nearer than the painted one on most pairs (docs/stylize-notebook.md §5m).
 //! - Texture: at 3 scales (full, 1/2, 1/4 resolution), sliced Wasserstein-2 distance between
 //!   5×5 Oklab patches with each patch's own mean taken out and its contrast normalized
 //!   (divided by its RMS + `CONTRAST_EPS`), so texture is scored apart from colour and from
@@ -364,7 +364,7 @@ fn coverage(palette: &[[f32; 3]], scene: &StyleSamples) -> (f64, f64) {
 /// interpolated between fewer samples than there are quantiles, and a scale resting on a
 /// handful of patches (a thin object at 1/4 resolution) would weigh as much as one resting
 /// on thousands. (On a thin controller's 48-frame path, the one patch found at 1/4
-/// resolution tripled the texture distance of every method; BENCH.md §5k.) When no scale has
+/// resolution tripled the texture distance of every method; docs/stylize-notebook.md §5k.) When no scale has
 /// that many, the scales with any patch at all are taken, so a tiny scene still gets a
 /// (rough) figure.
 fn texture(a: &StyleSamples, b: &StyleSamples) -> f64 {

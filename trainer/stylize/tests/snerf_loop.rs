@@ -330,7 +330,7 @@ fn targets_are_the_running_mean_across_resumes() {
 /// The same training twice gives the same field, bit for bit, however the threads share the
 /// work: each ray chunk adds its gradients into a fixed workspace and the workspaces are
 /// added in a fixed order. Before, the thread that ran a chunk chose the buffer, and two runs
-/// of one `snerf stylize` command ended rounds apart on the convergence bar (BENCH.md §5k).
+/// of one `snerf stylize` command ended rounds apart on the convergence bar (docs/stylize-notebook.md §5k).
 #[test]
 fn training_is_bit_reproducible_whatever_the_threads_do() {
     let threads = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();

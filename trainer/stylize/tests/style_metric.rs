@@ -111,7 +111,7 @@ fn stylized_photo_is_closer_to_the_painting_than_the_photo() {
 /// paintings apart from each other, a background outside the mask mostly ignored, and `gatys`
 /// (which minimizes these very statistics) moves a photo toward each painting. How
 /// `arbitrary`'s output scores is printed, not asserted: on 128² views it is *farther* than
-/// the unstylized views (BENCH.md §5e).
+/// the unstylized views (docs/stylize-notebook.md §5e).
 #[test]
 fn gram_distance_measures_what_gatys_minimizes() {
     use snerf_stylize::style_gram::{distance as gram_distance, GramMetric};

@@ -115,7 +115,7 @@ pub fn style_distance(embedder: &StyleEmbedder, a: &Image, style_embedding: &[f3
 /// the coarse bands (everything a 384 view can hold) from the 384 stylization and only the
 /// finer band from the stylization at the view's own size: the 384 stroke structure, the
 /// view's own resolution of detail, one network pass over the whole view (no tiles, no seams).
-/// Measured in BENCH.md §5e (`cargo test --release -p snerf-stylize --test stylizer_bench --
+/// Measured in docs/stylize-notebook.md §5e (`cargo test --release -p snerf-stylize --test stylizer_bench --
 /// --ignored large_views`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LargeViews {
