@@ -179,6 +179,8 @@ pub struct HttpConn {
 pub struct Resp {
     pub status: u16,
     pub body: Vec<u8>,
+    /// `Content-Encoding` (lower case; empty when none).
+    pub encoding: String,
 }
 
 impl HttpConn {
@@ -227,26 +229,31 @@ impl HttpConn {
 
     /// GET `url` (same origin as the connection); a body over `max` bytes is refused.
     pub async fn get(&mut self, url: &HttpUrl, max: u64) -> Result<Resp> {
+        self.get_with(url, max, "identity").await
+    }
+
+    /// GET with an `Accept-Encoding` (the body is returned as sent: see `Resp::encoding`).
+    pub async fn get_with(&mut self, url: &HttpUrl, max: u64, accept: &str) -> Result<Resp> {
         // A kept-alive connection the server has closed fails on first use: once more afresh.
         let fresh = self.io.is_none();
-        match self.try_get(url, max).await {
+        match self.try_get(url, max, accept).await {
             Ok(r) => Ok(r),
             Err(_) if !fresh => {
                 self.io = None;
-                self.try_get(url, max).await
+                self.try_get(url, max, accept).await
             }
             Err(e) => Err(e),
         }
         .with_context(|| format!("GET {url}"))
     }
 
-    async fn try_get(&mut self, url: &HttpUrl, max: u64) -> Result<Resp> {
+    async fn try_get(&mut self, url: &HttpUrl, max: u64, accept: &str) -> Result<Resp> {
         if self.io.is_none() {
             self.io = Some(Self::connect(self.origin.clone(), self.tls.clone()).await?);
         }
         let io = self.io.as_mut().unwrap();
         let mut req = format!(
-            "GET {} HTTP/1.1\r\nHost: {}\r\nUser-Agent: snerf\r\nAccept-Encoding: identity\r\n",
+            "GET {} HTTP/1.1\r\nHost: {}\r\nUser-Agent: snerf\r\nAccept-Encoding: {accept}\r\n",
             url.path,
             url.authority()
         );
@@ -275,7 +282,7 @@ impl HttpConn {
             .and_then(|l| l.split(' ').nth(1))
             .and_then(|s| s.parse().ok())
             .ok_or_else(|| anyhow!("not an HTTP response"))?;
-        let (mut len, mut chunked, mut close) = (None, false, false);
+        let (mut len, mut chunked, mut close, mut encoding) = (None, false, false, String::new());
         for l in lines {
             let Some((k, v)) = l.split_once(':') else {
                 continue;
@@ -290,6 +297,7 @@ impl HttpConn {
                 }
                 "transfer-encoding" => chunked = v.contains("chunked"),
                 "connection" => close = v.contains("close"),
+                "content-encoding" => encoding = v,
                 _ => {}
             }
         }
@@ -329,7 +337,11 @@ impl HttpConn {
             if got < n as usize {
                 body.truncate(got);
                 self.io = None;
-                return Ok(Resp { status, body });
+                return Ok(Resp {
+                    status,
+                    body,
+                    encoding,
+                });
             }
         } else if status != 204 && status != 304 {
             // Until the server closes.
@@ -342,7 +354,11 @@ impl HttpConn {
         if close {
             self.io = None;
         }
-        Ok(Resp { status, body })
+        Ok(Resp {
+            status,
+            body,
+            encoding,
+        })
     }
 }
 
@@ -390,10 +406,24 @@ pub struct CdnStats {
 }
 
 /// The manifest at `url`.
+/// (Asked for gzip: JSON shrinks ~11x, and PUBLISH.md has hosts compress it.)
 pub async fn get_manifest(conn: &mut HttpConn, url: &HttpUrl) -> Result<Manifest> {
-    let r = conn.get(url, 64 << 20).await?;
+    let r = conn.get_with(url, 64 << 20, "gzip").await?;
     ensure!(r.status == 200, "{url}: HTTP {}", r.status);
-    Manifest::parse(&r.body, &url.to_string())
+    let body = match r.encoding.as_str() {
+        "" | "identity" => r.body,
+        "gzip" | "x-gzip" => {
+            let mut out = Vec::new();
+            std::io::Read::read_to_end(
+                &mut std::io::Read::take(flate2::read::GzDecoder::new(&r.body[..]), 64 << 20),
+                &mut out,
+            )
+            .with_context(|| format!("{url}: bad gzip body"))?;
+            out
+        }
+        e => bail!("{url}: Content-Encoding {e:?} (gzip or none expected)"),
+    };
+    Manifest::parse(&body, &url.to_string())
 }
 
 /// Fetch objects `order` (indices into `m.objects`) from `base` over `parallel` connections;

@@ -247,6 +247,22 @@ fn the_native_client_is_byte_identical_through_varnish_and_the_tls_front() {
     );
     assert!(overhead < 0.05, "overhead {overhead}");
     assert!(!PathBuf::from(format!("{}.part", out.display())).exists());
+    // The manifest comes gzip-encoded (the host compresses it; the client inflates it).
+    let mu =
+        snerf_stream::cdn_client::HttpUrl::parse(&edge.edge_url("/scene/manifest.json")).unwrap();
+    let mut c = snerf_stream::cdn_client::HttpConn::new(&mu, None, vec![]);
+    let r = runtime()
+        .block_on(c.get_with(&mu, 1 << 26, "gzip"))
+        .unwrap();
+    let plain = std::fs::metadata(dir.join("site/scene/manifest.json"))
+        .unwrap()
+        .len();
+    assert_eq!(r.encoding, "gzip");
+    assert!(
+        (r.body.len() as u64) < plain / 3,
+        "{} of {plain}",
+        r.body.len()
+    );
     // Without the CA the TLS front is not trusted: a clear error, nothing written.
     let e = format!(
         "{:#}",
