@@ -3,12 +3,14 @@
 //! translation in OpenCV axes, converted to OpenGL camera-to-world). Images are read from the
 //! `images/` folder next to `sparse/` (or `images_N` for a downscale of N when present).
 //! Binary reads are bounded: every count is checked against the bytes left before allocating.
+//! `points3D.bin`, when present, gives the depth bounds (`colmap_points`).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Result};
 
+use crate::colmap_points::{near_far, read_points_bin, BoundCamera};
 use crate::images::{self, CameraSpec, PendingView};
 use crate::pose::{quat_to_mat, rigid_c2w, w2c_opencv_to_c2w_opengl};
 use crate::{holdout_split, Intrinsics, LoadOptions, RawDataset};
@@ -92,6 +94,7 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
         );
     }
     let mut pending = Vec::with_capacity(imgs.len());
+    let mut bound_cams = Vec::with_capacity(imgs.len());
     for img in &imgs {
         let what = format!("image '{}'", img.name);
         let k = *intr.get(&img.camera_id).ok_or_else(|| {
@@ -112,6 +115,14 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
             bail!("{}: {what}: pose contains NaN or Inf", imgs_path.display());
         }
         let c2w = rigid_c2w(w2c_opencv_to_c2w_opengl(&r, img.tvec), &imgs_path, &what)?;
+        bound_cams.push(BoundCamera {
+            r,
+            t: img.tvec,
+            tan_half: [
+                k.width as f64 / (2.0 * k.fx as f64),
+                k.height as f64 / (2.0 * k.fy as f64),
+            ],
+        });
         let path = img_dir.join(&img.name);
         images::check_image_extension(&path)?;
         pending.push(PendingView {
@@ -126,6 +137,15 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
             origin: format!("{} camera {}", cams_path.display(), img.camera_id),
         });
     }
+    // Depth bounds from the sparse points, when the model has them (see colmap_points).
+    let points_path = model_dir.join("points3D.bin");
+    let near_far = if points_path.is_file() {
+        let pts = read_points_bin(&read_bytes(&points_path)?)
+            .map_err(|e| anyhow!("{}: {e}", points_path.display()))?;
+        near_far(&pts, &bound_cams)
+    } else {
+        None
+    };
     let (train, test) = holdout_split(pending, opts);
     let reduce = images::Reduce::new(software_downscale, opts);
     if train.is_empty() {
@@ -143,7 +163,7 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
         test: images::load_views(test, &reduce)?,
         pose_file: imgs_path,
         kind_hint: None,
-        near_far: None,
+        near_far,
         aabb: None,
     })
 }

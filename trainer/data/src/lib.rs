@@ -8,6 +8,7 @@
 
 pub mod capture;
 mod colmap;
+mod colmap_points;
 pub mod detect;
 mod images;
 mod llff;
