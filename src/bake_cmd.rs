@@ -388,6 +388,20 @@ pub struct ExportGltfArgs {
     /// The .glb to write (binary glTF 2.0; written to a temporary file, then renamed).
     #[arg(long)]
     pub out: PathBuf,
+    /// What to write: `mesh` (the default: a marching-cubes surface with vertex colours, which
+    /// every glTF reader draws and which serves as a collision or preview proxy) or `splats`
+    /// (3D Gaussian splats with KHR_gaussian_splatting: keeps soft, thin and semi-transparent
+    /// matter and the stylized look, for engines that read the extension).
+    #[arg(long, value_enum, default_value_t = ExportFormat::Mesh)]
+    pub format: ExportFormat,
+    /// Splats only: keep at most this many (merging the flattest regions first, then leaving
+    /// out the faintest splats). Default: as many as the merge tolerance leaves.
+    #[arg(long)]
+    pub max_splats: Option<usize>,
+    /// Splats only: spherical-harmonics degree of the colour, 0 to 3 (default: 0 for a diffuse
+    /// asset, 1 for a view-dependent one, fitted to its view MLP by least squares).
+    #[arg(long)]
+    pub sh_degree: Option<u32>,
     /// Surface level: opacity of one voxel in (0,1). Lower keeps thinner, fainter matter.
     #[arg(long, default_value_t = 0.5, value_parser = crate::args::unit_f32)]
     pub iso: f32,
@@ -405,7 +419,20 @@ pub struct ExportGltfArgs {
     pub opts: DataOpts,
 }
 
+/// `export-gltf --format`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExportFormat {
+    Mesh,
+    Splats,
+}
+
 pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
+    if a.format == ExportFormat::Splats {
+        return export_splats_cmd(a);
+    }
+    if a.max_splats.is_some() || a.sh_degree.is_some() {
+        bail!("--max-splats and --sh-degree apply to --format splats only");
+    }
     if !(a.iso > 0.0 && a.iso < 1.0) {
         bail!("--iso {}: must be an opacity in (0,1)", a.iso);
     }
@@ -439,6 +466,53 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
         "report": report,
         "seconds": secs,
         "surface_agreement": agreement,
+        "validation": validation,
+    }))
+}
+
+/// `export-gltf --format splats`: the asset as Gaussian splats (`snerf_baker::splats`).
+fn export_splats_cmd(a: &ExportGltfArgs) -> Result<Value> {
+    if a.max_splats == Some(0) {
+        bail!("--max-splats 0: a splat file needs at least one splat");
+    }
+    if a.check.is_some() {
+        bail!("--check measures the mesh's surface; it does not apply to --format splats yet");
+    }
+    check_output("--out", &a.out, &[Input::File(&a.file)])?;
+    let t0 = Instant::now();
+    let asset = Asset::read(&a.file)?;
+    if a.sh_degree.is_some_and(|d| d > 3) {
+        bail!("--sh-degree {}: KHR_gaussian_splatting stores degrees 0 to 3", a.sh_degree.unwrap_or(0));
+    }
+    let opts = snerf_baker::splats::SplatOptions { max_splats: a.max_splats, sh_degree: a.sh_degree, ..Default::default() };
+    let report = snerf_baker::splat_gltf::export_splats(&asset, &opts, &a.out).with_context(|| format!("{}", a.file.display()))?;
+    let secs = t0.elapsed().as_secs_f64();
+    let asset_bytes = std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0);
+    eprintln!(
+        "{} -> {}: {} splats (from {} voxels, SH degree {}), {:.2} MB, {:.1} bytes/splat, {:.2}x the asset, in {:.1} s",
+        a.file.display(),
+        a.out.display(),
+        report.splats,
+        report.conversion.voxels,
+        report.sh_degree,
+        report.bytes as f64 / 1e6,
+        report.bytes_per_splat,
+        report.bytes as f64 / asset_bytes.max(1) as f64,
+        secs
+    );
+    let validation = if a.validate { Some(validate_glb(&a.out)?) } else { None };
+    Ok(json!({
+        "command": "export-gltf",
+        "format": "splats",
+        "file": pj(&a.file),
+        "out": pj(&a.out),
+        "splats": report.splats,
+        "bytes": report.bytes,
+        "bytes_per_splat": report.bytes_per_splat,
+        "asset_bytes": asset_bytes,
+        "size_ratio": report.bytes as f64 / asset_bytes.max(1) as f64,
+        "report": report,
+        "seconds": secs,
         "validation": validation,
     }))
 }

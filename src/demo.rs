@@ -215,6 +215,23 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     let exported = crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
         file: asset_path.clone(),
         out: glb.clone(),
+        format: crate::bake_cmd::ExportFormat::Mesh,
+        max_splats: None,
+        sh_degree: None,
+        iso,
+        check: None,
+        data: None,
+        validate: false,
+        opts: DataOpts::default(),
+    })?;
+    // the same asset as Gaussian splats (KHR_gaussian_splatting), for engines that draw them
+    let splats_glb = a.out.join("stylized_splats.glb");
+    let exported_splats = crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
+        file: asset_path.clone(),
+        out: splats_glb.clone(),
+        format: crate::bake_cmd::ExportFormat::Splats,
+        max_splats: None,
+        sh_degree: None,
         iso,
         check: None,
         data: None,
@@ -242,13 +259,14 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         "bake": baked,
         "baked_render": rendered,
         "gltf": exported,
+        "gltf_splats": exported_splats,
         "contact_sheet": pj(&sheet),
         "report": pj(a.out.join(snerf_report::pages::HTML)),
         "wall_seconds": t0.elapsed().as_secs_f64(),
     });
     checkpoint::write_json_atomic(&a.out.join("summary.json"), &summary)?;
     eprintln!(
-        "done in {:.0} s: test PSNR {:.2} dB; stylized, baked ({}) and exported ({}).\n\
+        "done in {:.0} s: test PSNR {:.2} dB; stylized, baked ({}) and exported ({}, {}).\n\
          Look at {} (prediction | truth | depth beside the training curve; the realistic and the stylized turntables; the \
          stylization rounds; style | realistic | per-frame | SNeRF) and {}.\n\
          View the baked asset: snerf view {}",
@@ -256,6 +274,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         report.mean_psnr,
         asset_path.display(),
         glb.display(),
+        splats_glb.display(),
         sheet.display(),
         a.out.join(snerf_report::pages::HTML).display(),
         asset_path.display()

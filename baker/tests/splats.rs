@@ -8,7 +8,7 @@
 use serde_json::Value;
 use snerf_asset::{encode_voxel, Asset, AssetBuilder, Header, Kind, ViewMlp};
 use snerf_baker::splat_gltf::{encode_splats_glb, export_splats};
-use snerf_baker::splats::{asset_splats, matrix_from_quat, SplatOptions, SH_C0};
+use snerf_baker::splats::{asset_splats, matrix_from_quat, SplatOptions, FOOTPRINT_SIGMA, SH_C0};
 
 const RES: u32 = 32;
 
@@ -150,9 +150,9 @@ fn one_voxel_becomes_one_gaussian_at_its_world_point_with_linear_scale_and_its_o
             pos[0]
         );
     }
-    // linear scale: the footprint rule s = h / √(2π) on every axis
+    // linear scale: the footprint rule s = h/√(2π) on every axis
     let scale = attribute(&json, &bin, "KHR_gaussian_splatting:SCALE");
-    let s = voxel_world(&a) / (2.0 * std::f32::consts::PI).sqrt();
+    let s = FOOTPRINT_SIGMA as f32 * voxel_world(&a);
     for k in 0..3 {
         assert!(
             (scale[0][k] - s).abs() < 1e-4 * s.max(1.0) && (scale[0][k] / s - 1.0).abs() < 1e-3,
@@ -160,7 +160,7 @@ fn one_voxel_becomes_one_gaussian_at_its_world_point_with_linear_scale_and_its_o
             scale[0]
         );
     }
-    // opacity: 1 − exp(−σ h) over the voxel's model-space edge
+    // opacity: 1 − exp(−σ h) over the voxel's model-space edge h
     let op = attribute(&json, &bin, "KHR_gaussian_splatting:OPACITY");
     let sigma = snerf_asset::decode_density(snerf_asset::encode_density(2.0, &a.header.density), &a.header.density).exp();
     let want = 1.0 - (-sigma * 2.0 / RES as f32).exp();
