@@ -170,7 +170,7 @@ fn babylon_renders_the_exported_splats_like_the_cpu_reference() {
         .output()
         .unwrap());
     assert!(r["splats"].as_u64().unwrap() > 1000, "{r}");
-    let (scores, load_ms) = engine_psnr(&asset, &glb, (&*d), 3, 160).unwrap();
+    let (scores, load_ms) = engine_psnr(&asset, &glb, &d, 3, 160).unwrap();
     println!("engine vs CPU reference PSNR at 3 orbit poses: {scores:?} dB; load {load_ms:.0} ms; {r}");
     for (i, s) in scores.iter().enumerate() {
         assert!(
@@ -249,6 +249,7 @@ fn bad_input_gets_a_clear_error_and_nothing_is_written() {
 /// -- --ignored bench --nocapture` exports each asset with the CLI and prints one table row:
 /// splats, bytes, bytes per splat, size against the .snerf, export seconds, the engine's load
 /// time and its PSNR against the CPU reference at 3 orbit poses (192×192).
+/// `SNERF_SPLAT_BENCH_MAX=N` exports with `--max-splats N`.
 #[test]
 #[ignore]
 fn bench_splats_on_assets() {
@@ -261,13 +262,12 @@ fn bench_splats_on_assets() {
         let asset = Asset::read(&file).unwrap();
         let glb = d.join(format!("a{k}.glb"));
         let t0 = std::time::Instant::now();
-        let r = ok(snerf()
-            .args(["--json", "export-gltf"])
-            .arg(&file)
-            .args(["--format", "splats", "--out"])
-            .arg(&glb)
-            .output()
-            .unwrap());
+        let mut cmd = snerf();
+        cmd.args(["--json", "export-gltf"]).arg(&file).args(["--format", "splats", "--out"]).arg(&glb);
+        if let Ok(max) = std::env::var("SNERF_SPLAT_BENCH_MAX") {
+            cmd.args(["--max-splats", &max]);
+        }
+        let r = ok(cmd.output().unwrap());
         let secs = t0.elapsed().as_secs_f64();
         let sub = d.join(format!("a{k}"));
         std::fs::create_dir_all(&sub).unwrap();
