@@ -56,7 +56,7 @@ pub enum Cmd {
     Inspect(crate::bake_cmd::InspectArgs),
     /// Render a baked asset along a camera path to PNG frames (CPU reference renderer).
     Render(crate::bake_cmd::RenderArgs),
-    /// Export a baked asset as a binary glTF mesh (marching cubes, baked colours, world units).
+    /// Export a baked asset as binary glTF: a mesh (marching cubes, baked colours, world units) or Gaussian splats (KHR_gaussian_splatting, --format splats).
     ExportGltf(crate::bake_cmd::ExportGltfArgs),
     /// Show a baked asset in a window (wgpu): orbit/fly controls, stereo, 4D playback; also
     /// streams from `snerf serve` (quic://HOST:PORT/ASSET) and draws blocks as they arrive.
