@@ -297,7 +297,7 @@ fn bench_snerf_scores_pairs_and_reuses_finished_steps() {
 
 /// With a step budget (`--steps`) the grid repeats: two grids in two directories, each
 /// rendering, training, stylizing and scoring from scratch, give the same scores to the
-/// last digit (training adds its gradients in a fixed order; BENCH.md §5k).
+/// last digit (training adds its gradients in a fixed order; docs/stylize-notebook.md §5k).
 #[test]
 fn bench_snerf_with_a_step_budget_repeats_exactly() {
     let Some((models, d, style)) = bench_snerf_inputs("bench-snerf-steps") else { return };

@@ -74,7 +74,7 @@ pub struct TrainConfig {
     /// Draw each training ray anywhere in its pixel's square instead of through its centre
     /// (silhouette pixels keep their `pixel_rays` stratified rays). Set while stylizing: a
     /// painted view's pixel is the paint over its square, and a field fitted only at pixel
-    /// centres is free between them, where a new view's rays fall (BENCH.md §5s, §5u).
+    /// centres is free between them, where a new view's rays fall (docs/stylize-notebook.md §5s, §5u).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub area_rays: bool,
 }
@@ -491,7 +491,7 @@ impl Trainer {
         // workspaces are added in slot order (by Adam) and their statistics here: float
         // addition is not associative, so letting the thread that happened to run a chunk
         // choose its buffer made two runs of the same command differ in the last bits, which
-        // Adam's normalized steps grew into visibly different fields (BENCH.md §5k). The
+        // Adam's normalized steps grew into visibly different fields (docs/stylize-notebook.md §5k). The
         // fixed split gives up work stealing: a thread that draws the cheaper chunks waits
         // at the end of the step, about 7% of throughput on 2 cores (same section). More
         // workspaces than threads, stolen whole, did not measurably win that back and
