@@ -212,32 +212,24 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     if iso < 0.5 {
         eprintln!("      the densest voxel is only {max_alpha:.3} opaque: the mesh uses iso level {iso:.4}");
     }
-    let exported = crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
-        file: asset_path.clone(),
-        out: glb.clone(),
-        format: crate::bake_cmd::ExportFormat::Mesh,
-        max_splats: None,
-        sh_degree: None,
-        iso,
-        check: None,
-        data: None,
-        validate: false,
-        opts: DataOpts::default(),
-    })?;
+    let export = |out: &Path, format| {
+        crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
+            file: asset_path.clone(),
+            out: out.to_path_buf(),
+            format,
+            max_splats: None,
+            sh_degree: None,
+            iso,
+            check: None,
+            data: None,
+            validate: false,
+            opts: DataOpts::default(),
+        })
+    };
+    let exported = export(&glb, crate::bake_cmd::ExportFormat::Mesh)?;
     // the same asset as Gaussian splats (KHR_gaussian_splatting), for engines that draw them
     let splats_glb = a.out.join("stylized_splats.glb");
-    let exported_splats = crate::bake_cmd::export_gltf_cmd(&crate::bake_cmd::ExportGltfArgs {
-        file: asset_path.clone(),
-        out: splats_glb.clone(),
-        format: crate::bake_cmd::ExportFormat::Splats,
-        max_splats: None,
-        sh_degree: None,
-        iso,
-        check: None,
-        data: None,
-        validate: false,
-        opts: DataOpts::default(),
-    })?;
+    let exported_splats = export(&splats_glb, crate::bake_cmd::ExportFormat::Splats)?;
     // error against run time: the training curve, the rounds, the bake, as pictures
     let bake_json = a.out.join("bake.json");
     checkpoint::write_json_atomic(&bake_json, &baked)?;

@@ -64,6 +64,7 @@ use anyhow::{bail, ensure, Result};
 use serde::Serialize;
 use snerf_asset::quantize::decode_density;
 use snerf_asset::{Asset, EMPTY};
+use snerf_geometry::sym3::sym3_eigen;
 use std::collections::HashMap;
 
 /// `Y₀₀`, the degree-0 real spherical harmonic.
@@ -165,7 +166,7 @@ impl Node {
                 cov[i][j] = self.second[i][j] / v - mean[i] * mean[j];
             }
         }
-        let (vals, vecs) = jacobi_eigen(cov);
+        let (vals, vecs) = sym3_eigen(cov);
         let mut order = [0, 1, 2];
         order.sort_by(|&i, &j| vals[j].total_cmp(&vals[i]));
         let extents = order.map(|k| (12.0 * vals[k].max(0.0)).sqrt());
@@ -509,45 +510,6 @@ fn det3(m: [[f64; 3]; 3]) -> f64 {
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
 
-/// Eigenvalues and eigenvectors (columns) of a symmetric 3×3 matrix (cyclic Jacobi).
-fn jacobi_eigen(mut a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _ in 0..32 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        let scale = a[0][0].abs() + a[1][1].abs() + a[2][2].abs();
-        if off <= 1e-15 * scale.max(1e-300) {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q].abs() < 1e-300 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let s = t * c;
-            // A ← JᵀAJ with J the rotation in the (p, q) plane
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
-            }
-            for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
-            }
-            for row in v.iter_mut() {
-                let (vp, vq) = (row[p], row[q]);
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
-    }
-    ([a[0][0], a[1][1], a[2][2]], v)
-}
-
 /// `n` near-uniform unit directions.
 pub fn fibonacci_sphere(n: usize) -> Vec<[f32; 3]> {
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
@@ -708,7 +670,7 @@ mod tests {
     #[test]
     fn jacobi_finds_the_eigenvectors() {
         let a = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 1.0]];
-        let (vals, v) = jacobi_eigen(a);
+        let (vals, v) = sym3_eigen(a);
         for k in 0..3 {
             let col = [v[0][k], v[1][k], v[2][k]];
             for i in 0..3 {

@@ -17,6 +17,7 @@
 //! - `silhouette`: which pixels are drawn as the mean over their square, and their rays.
 //! - `time`: which keyframes bracket a time.
 //! - `view_mlp`: the view-dependent colour MLP's input encoding and layers.
+//! - `sym3`: eigenvalues and eigenvectors of a symmetric 3×3 matrix (covariances).
 
 // `!(x < y)` is deliberate: it sends NaN down the safe branch (a degenerate ray misses,
 // a NaN time is the first frame), which `x >= y` would not.
@@ -30,6 +31,7 @@ pub mod march;
 pub mod ndc;
 pub mod silhouette;
 pub mod space;
+pub mod sym3;
 pub mod time;
 pub mod vec;
 pub mod view_mlp;

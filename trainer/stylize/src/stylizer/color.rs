@@ -121,7 +121,7 @@ fn mul(a: &Mat3, b: &Mat3) -> Mat3 {
 /// eigenvalues are floored at `EIGEN_FLOOR` (a colour direction the content barely uses is
 /// not blown up); for positive powers only rounding noise below zero is removed.
 fn sym_power(m: &Mat3, p: f64) -> Mat3 {
-    let (vals, vecs) = jacobi_eigen(m);
+    let (vals, vecs) = snerf_geometry::sym3::sym3_eigen(*m);
     let floor = if p < 0.0 { EIGEN_FLOOR } else { 0.0 };
     let mut out = [[0.0; 3]; 3];
     for k in 0..3 {
@@ -133,46 +133,6 @@ fn sym_power(m: &Mat3, p: f64) -> Mat3 {
         }
     }
     out
-}
-
-/// Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations: eigenvalues
-/// and eigenvectors as columns. Deterministic; converges in a handful of sweeps.
-fn jacobi_eigen(m: &Mat3) -> ([f64; 3], Mat3) {
-    let mut a = *m;
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    for _sweep in 0..50 {
-        let off = a[0][1].abs() + a[0][2].abs() + a[1][2].abs();
-        if off < 1e-15 {
-            break;
-        }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
-            if a[p][q].abs() < 1e-300 {
-                continue;
-            }
-            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-            let t = if theta == 0.0 { 1.0 } else { t };
-            let c = 1.0 / (t * t + 1.0).sqrt();
-            let s = t * c;
-            // a <- J^T a J, v <- v J, with J the rotation in the (p, q) plane.
-            for k in 0..3 {
-                let (akp, akq) = (a[k][p], a[k][q]);
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
-            }
-            for k in 0..3 {
-                let (apk, aqk) = (a[p][k], a[q][k]);
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
-            }
-            for k in 0..3 {
-                let (vkp, vkq) = (v[k][p], v[k][q]);
-                v[k][p] = c * vkp - s * vkq;
-                v[k][q] = s * vkp + c * vkq;
-            }
-        }
-    }
-    ([a[0][0], a[1][1], a[2][2]], v)
 }
 
 #[cfg(test)]
