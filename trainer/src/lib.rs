@@ -10,7 +10,8 @@
 //!
 //! Modules are layered, each naming only modules of its own layer or below (no cycles;
 //! `tests/architecture.rs` checks it):
-//! 1. core: `rng`, `orbit`, `space`, `metrics`, `png`, `adam`, `composite`, `occupancy`;
+//! 1. core: `rng`, `orbit`, `space`, `metrics`, `png`, `adam`, `composite`, `occupancy`,
+//!    `appearance` (per-photo colour transforms the training loss sees);
 //! 2. the field and its rendering: `view_mlp`, `field`, `render`;
 //! 3. `model` (what a renderer needs of a trained field);
 //! 4. `train`, `eval`;
@@ -24,6 +25,7 @@
 pub use snerf_data as data;
 
 pub mod adam;
+pub mod appearance;
 pub mod camera_path;
 pub mod checkpoint;
 pub mod composite;

@@ -75,6 +75,8 @@ pub struct Workspace {
     pub grad: Vec<f32>,
     /// One flag per plane cell (C floats) whose gradient this thread touched.
     pub touched: Vec<u8>,
+    /// Per-photo colour transforms the training loss sees (none: off) and their gradient.
+    pub appearance: crate::appearance::ChunkAppearance,
 }
 
 /// Statistics of one processed chunk.
@@ -327,7 +329,7 @@ pub fn train_chunk(
     let mut group_end = 0usize;
     let mut next_group = groups.iter();
     let mut k = 1usize;
-    let mut mean = [0.0f32; 3];
+    let mut d_mean = [0.0f32; 3];
     for (ri, task) in tasks.iter().enumerate() {
         // A pixel is the mean of its k rays: its loss is (mean - target)^2, so each ray's
         // colour gradient is 2 (mean - target) / k.
@@ -345,15 +347,14 @@ pub fn train_chunk(
                         m[c] += rgb[c] / k as f32;
                     }
                 }
-                let e: f32 = (0..3).map(|c| (m[c] - task.target[c]).powi(2)).sum();
-                stats.loss_sum += e as f64;
-                mean = m;
+                let (e, d_m) = ws.appearance.pixel(ri, &m, &task.target, loss_scale);
+                stats.loss_sum += e;
+                d_mean = d_m;
             }
         }
         let Some(ray) = task.ray else {
             if k == 1 {
-                let e: f32 = (0..3).map(|c| (task.bg[c] - task.target[c]).powi(2)).sum();
-                stats.loss_sum += e as f64;
+                stats.loss_sum += ws.appearance.pixel(ri, &task.bg, &task.target, loss_scale).0;
             }
             continue;
         };
@@ -362,16 +363,14 @@ pub fn train_chunk(
         let (spec, cache): ([f32; VOUT], ViewCache) =
             view.forward(&field.params, ViewLayout::input(&comp.value, &ray.dir));
         let rgb = shade(&comp.value, comp.t_final, &spec, &task.bg);
-        let mut d_rgb = [0.0f32; 3];
-        for c in 0..3 {
-            if k == 1 {
-                let e = rgb[c] - task.target[c];
-                stats.loss_sum += (e * e) as f64;
-                d_rgb[c] = 2.0 * e * loss_scale;
-            } else {
-                d_rgb[c] = 2.0 * (mean[c] - task.target[c]) * loss_scale / k as f32;
-            }
-        }
+        // dL/dcolour through the photo's colour transform (`d_mean`: a pixel's dL/dmean)
+        let d_rgb = if k == 1 {
+            let (e, d) = ws.appearance.pixel(ri, &rgb, &task.target, loss_scale);
+            stats.loss_sum += e;
+            d
+        } else {
+            d_mean.map(|d| d / k as f32)
+        };
         let acc = comp.value[7];
         // colour = value[0..3] + acc * spec + T_N * bg
         let d_spec = [0, 1, 2].map(|c| d_rgb[c] * acc);

@@ -56,6 +56,16 @@ pub fn open(data: &Dataset, cfg: TrainConfig, dir: &Path, resume: bool) -> Resul
         t.train_seconds = c.train_seconds;
         t.samples_seen = c.samples_seen;
         t.curve = c.curve;
+        let app = dir.join(crate::appearance::FILE_NAME);
+        if t.appearance.is_some() && app.exists() {
+            let a = crate::appearance::Appearance::load(&app)?;
+            anyhow::ensure!(
+                Some(&a.names) == t.appearance.as_ref().map(|x| &x.names),
+                "{}: its photos are not the dataset's training photos",
+                app.display()
+            );
+            t.appearance = Some(a);
+        }
         return Ok(t);
     }
     if !resume && ck.exists() {
@@ -167,6 +177,9 @@ fn next_eval_after(s: f64) -> f64 {
 pub fn save(t: &Trainer, data: &Dataset, opts: &RunOptions) -> Result<()> {
     let dir = RunDir::new(&opts.dir);
     checkpoint::save(t, &dir.checkpoint())?;
+    if let Some(a) = &t.appearance {
+        checkpoint::write_json_atomic(&opts.dir.join(crate::appearance::FILE_NAME), &serde_json::to_value(a)?)?;
+    }
     checkpoint::write_json_atomic(&dir.metrics(), &metrics_json(t))?;
     let mut dataset = snerf_data::summary(data);
     // Later commands (`snerf stylize RUN`, `bake`, `eval`) find the dataset through this

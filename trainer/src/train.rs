@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use snerf_data::{Dataset, SceneKind, View};
 
 use crate::adam::Adam;
+use crate::appearance::Appearance;
 use crate::field::{Field, FieldConfig};
 use crate::occupancy::Occupancy;
 use crate::render::{density_batch, train_chunk, ChunkStats, RayTask, WorkspacePool};
@@ -77,6 +78,14 @@ pub struct TrainConfig {
     /// centres is free between them, where a new view's rays fall (docs/stylize-notebook.md §5s, §5u).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub area_rays: bool,
+    /// Per-photo colour transforms learnt with the field (`appearance`): the weight of their
+    /// pull toward identity; 0 = off.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub appearance: f32,
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
 }
 
 fn one() -> usize {
@@ -131,6 +140,7 @@ impl TrainConfig {
             pixel_rays: if data.kind == SceneKind::Object && !data.dynamic { 4 } else { 1 },
             pixel_footprint: if data.kind == SceneKind::Object && !data.dynamic { train_pixel_footprint(data) } else { None },
             area_rays: false,
+            appearance: 0.0,
         }
     }
 }
@@ -272,6 +282,9 @@ pub struct Trainer {
     /// One bit per training pixel (indexed like `cum_pixels`): on a silhouette (see
     /// [`silhouette_mask`]), where the pixel is rendered as the mean of `pixel_rays` rays.
     edge: Vec<u64>,
+    /// Per-photo colour transforms (`cfg.appearance` > 0) and the photo of each ray of a step.
+    pub appearance: Option<Appearance>,
+    task_images: Vec<u32>,
 }
 
 /// Statistics of one step.
@@ -326,6 +339,7 @@ impl Trainer {
         let has_alpha = views_have_alpha(&views);
         let pool = WorkspacePool::new(model.field.params.len());
         let edge = silhouette_mask(&views);
+        let appearance = (cfg.appearance > 0.0).then(|| Appearance::new(view_names(&views), cfg.appearance));
         Ok(Trainer {
             rng: Rng::new(cfg.seed ^ 0x5eed),
             rays_next: cfg.batch_rays.max(1),
@@ -341,6 +355,8 @@ impl Trainer {
             has_alpha,
             cum_pixels: cum,
             edge,
+            appearance,
+            task_images: Vec::new(),
         })
     }
 
@@ -363,6 +379,7 @@ impl Trainer {
         self.has_alpha = views_have_alpha(&views);
         self.edge = silhouette_mask(&views);
         self.views = views;
+        self.appearance = None; // new targets are not the photos the transforms were fitted to
         Ok(())
     }
 
@@ -429,6 +446,7 @@ impl Trainer {
         let side = (self.cfg.pixel_rays as f32).sqrt().round() as usize;
         let mut tasks = Vec::with_capacity(n + side * side);
         let mut groups = Vec::with_capacity(n);
+        self.task_images.clear();
         while tasks.len() < n {
             let p = self.rng.below(total);
             let vi = self.cum_pixels.partition_point(|&c| c <= p);
@@ -448,6 +466,7 @@ impl Trainer {
                 let (ox, oy) = if self.cfg.area_rays { (self.rng.uniform(), self.rng.uniform()) } else { (0.5, 0.5) };
                 let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + ox, y as f32 + oy, v.time);
                 tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
+                self.task_images.push(vi as u32);
                 groups.push(1);
                 continue;
             }
@@ -456,6 +475,7 @@ impl Trainer {
                 let sy = ((j / side) as f32 + self.rng.uniform()) / side as f32;
                 let ray = self.model.space.ray(&v.c2w, &v.intrinsics, x as f32 + sx, y as f32 + sy, v.time);
                 tasks.push(RayTask { ray, bg, target, jitter: self.rng.uniform() });
+                self.task_images.push(vi as u32);
             }
             groups.push((side * side) as u16);
         }
@@ -476,6 +496,8 @@ impl Trainer {
         let model = &self.model;
         let pool = &self.pool;
         let distortion = self.cfg.distortion;
+        let transforms = self.appearance.as_ref().map_or(&[][..], |a| &a.transforms[..]);
+        let task_images = &self.task_images;
         // chunks of about `chunk_rays` rays that never split a pixel's rays
         let mut chunks = Vec::new();
         let (mut start, mut g0) = (0usize, 0usize);
@@ -501,7 +523,9 @@ impl Trainer {
             .into_par_iter()
             .map(|slot| {
                 pool.with_slot(slot, |ws| {
+                    ws.appearance.begin(transforms);
                     chunks.iter().skip(slot).step_by(n).fold(ChunkStats::default(), |acc, (tr, gr)| {
+                        ws.appearance.set_images(&task_images[tr.clone()]);
                         acc.merge(train_chunk(&model.field, &model.space, &model.occ, &tasks[tr.clone()], ws, loss_scale, distortion, &groups[gr.clone()]))
                     })
                 })
@@ -534,6 +558,10 @@ impl Trainer {
         self.adam.update_dense(params, &mut grads, b2 + 1..view.start, lr);
         self.adam.update_dense(params, &mut grads, view.start..view.end, view_lr);
         self.adam.update_dense(params, &mut grads, view.end..total, lr);
+        if let Some(a) = &mut self.appearance {
+            let slots: Vec<_> = self.pool.slots.iter().map(|w| w.lock().unwrap_or_else(|e| e.into_inner())).collect();
+            a.step(slots.iter().map(|w| w.appearance.grad()), crate::appearance::LR * s);
+        }
         let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
         if self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4)) {
@@ -596,4 +624,9 @@ impl Trainer {
         }
         occ.refresh_bits();
     }
+}
+
+/// Each view's file name (for the per-photo records).
+fn view_names(views: &[View]) -> Vec<String> {
+    views.iter().map(|v| v.path.file_name().map_or_else(|| v.path.display().to_string(), |n| n.to_string_lossy().into_owned())).collect()
 }
