@@ -8,7 +8,7 @@ use clap::Args;
 use indicatif::ProgressBar;
 use serde_json::Value;
 use snerf_files::guard::{check_output, Input as GuardInput};
-use snerf_trainer::data::capture::{self, CaptureOptions, Event, Input, Matcher};
+use snerf_trainer::data::capture::{self, Backend, CaptureOptions, Event, Input, Matcher};
 
 use crate::args::bar;
 
@@ -26,8 +26,10 @@ Photos COLMAP cannot place are listed; below --min-registered (default 0.8) of t
 writes nothing. Good photos: 30-200 of them, sharp, each part of the scene seen from 3 or more places, \
 60-80% overlap between neighbours, fixed focus and exposure if the phone allows, walking around the object \
 or through the room rather than turning on the spot.\n\n\
-Needs COLMAP: Debian's `colmap` package (or $SNERF_COLMAP naming the binary); `bash scripts/setup-capture.sh` \
-installs it and ffmpeg (for --video).";
+Needs COLMAP: PyPI's pycolmap in the setup step's virtual environment (the default when present: it \
+mapped 5.7x faster than Debian's COLMAP 3.8 at the same registration, BENCH.md 2d; $SNERF_PYCOLMAP may name \
+another Python with pycolmap), or Debian's `colmap` package (--colmap colmap; $SNERF_COLMAP may name the \
+binary); `bash scripts/setup-capture.sh` installs both and ffmpeg (for --video).";
 
 #[derive(Args, Debug)]
 pub struct CaptureArgs {
@@ -76,6 +78,15 @@ pub struct CaptureArgs {
     /// camera (the loader then bends the rays; SIMPLE_RADIAL, RADIAL and OPENCV only).
     #[arg(long)]
     pub keep_distortion: bool,
+    /// Which COLMAP: auto (pycolmap when the setup step installed it, else `colmap`), colmap
+    /// (Debian's 3.8 binary, or $SNERF_COLMAP) or pycolmap (PyPI's 4.x in the setup step's
+    /// virtual environment, or the Python $SNERF_PYCOLMAP names).
+    #[arg(long, default_value = "auto")]
+    pub colmap: Backend,
+    /// pycolmap's mapper seed: the same seed and photos give the same poses (Debian's COLMAP 3.8
+    /// takes no seed, and its runs differ).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
 }
 
 /// A fraction in [0, 1].
@@ -112,6 +123,8 @@ pub fn capture_cmd(a: &CaptureArgs, threads: Option<usize>) -> Result<Value> {
         single_camera: !a.camera_per_photo,
         undistort: !a.keep_distortion,
         threads: threads.unwrap_or(cores),
+        backend: a.colmap,
+        seed: Some(a.seed),
     };
     let mut pb: Option<ProgressBar> = None;
     let report = capture::capture(&opts, &mut |ev| match ev {

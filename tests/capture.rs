@@ -41,6 +41,21 @@ fn tools_ready() -> bool {
     false
 }
 
+/// Whether the setup step's pycolmap is here; panics when it must be (CI) and is not.
+fn pycolmap_ready() -> bool {
+    let python = std::env::var_os("SNERF_PYCOLMAP")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target/capture-venv/bin/python"));
+    let ready = Command::new(&python).args(["-c", "import pycolmap"]).output().is_ok_and(|o| o.status.success());
+    if !ready && std::env::var_os("SNERF_REQUIRE_PYCOLMAP").is_some() {
+        panic!("SNERF_REQUIRE_PYCOLMAP is set but {} cannot import pycolmap", python.display());
+    }
+    if !ready {
+        eprintln!("pycolmap part skipped: {} cannot import pycolmap (bash scripts/setup-capture.sh)", python.display());
+    }
+    ready
+}
+
 fn ok(out: Output) -> Value {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "command failed: {stderr}");
@@ -75,7 +90,15 @@ fn real_visp_cube_frames_register_and_load() {
     let photos = d.join("photos");
     pick(CUBE, &names, &photos);
     let out = d.join("cube");
-    let r = ok(snerf().args(["--json", "capture"]).arg(&photos).arg("--out").arg(&out).args(["--matcher", "sequential"]).output().unwrap());
+    let r = ok(snerf()
+        .args(["--json", "capture"])
+        .arg(&photos)
+        .arg("--out")
+        .arg(&out)
+        .args(["--matcher", "sequential", "--colmap", "colmap"])
+        .output()
+        .unwrap());
+    assert_eq!(r["backend"], "colmap");
     let frac = r["registered_fraction"].as_f64().unwrap();
     assert!(frac >= 0.95, "registered {frac} of the cube frames: {r}");
     assert_eq!(r["photos"], 16);
@@ -98,6 +121,22 @@ fn real_visp_cube_frames_register_and_load() {
     let s = ok(snerf().args(["--json", "data"]).arg(&out).output().unwrap());
     assert_eq!(s["format"], "colmap");
     assert!(s["detection_note"].as_str().unwrap().starts_with("forward"));
+
+    // The same frames through pycolmap (the default backend when the setup step installed it).
+    if pycolmap_ready() {
+        let out2 = d.join("cube-py");
+        let p = ok(snerf().args(["--json", "capture"]).arg(&photos).arg("--out").arg(&out2).args(["--matcher", "sequential"]).output().unwrap());
+        assert_eq!(p["backend"], "pycolmap", "auto picks pycolmap when installed: {p}");
+        assert!(p["colmap_version"].as_str().unwrap().starts_with("pycolmap 4."), "{p}");
+        let frac = p["registered_fraction"].as_f64().unwrap();
+        assert!(frac >= 0.95, "pycolmap registered {frac} of the cube frames: {p}");
+        let reproj = p["mean_reprojection_error_px"].as_f64().unwrap();
+        assert!(reproj > 0.0 && reproj < 1.0, "pycolmap: mean reprojection error {reproj} px");
+        let ds = data::load(&out2, &LoadOptions::default()).unwrap();
+        assert_eq!(ds.train.len() + ds.test.len(), p["registered"].as_u64().unwrap() as usize);
+        assert!(ds.all_views().all(|v| v.intrinsics.distortion == [0.0; 4]), "undistorted to a pinhole camera");
+        std::fs::remove_dir_all(&out2).unwrap();
+    }
 
     // A second capture into the same folder replaces it (snerf wrote it); a folder with a user's
     // file in it is refused and left as it was.
@@ -221,9 +260,40 @@ fn too_few_registered_photos_or_no_colmap_write_nothing() {
     only(&d, &["photos"]);
 
     // No COLMAP: the message names the setup step.
-    let o = snerf().arg("capture").arg(&photos).arg("--out").arg(&out).env("SNERF_COLMAP", d.join("no-colmap")).output().unwrap();
+    let o = snerf()
+        .arg("capture")
+        .arg(&photos)
+        .arg("--out")
+        .arg(&out)
+        .args(["--colmap", "colmap"])
+        .env("SNERF_COLMAP", d.join("no-colmap"))
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("setup-capture.sh"), "{err}");
+    // No pycolmap: the same, and `auto` with neither names both.
+    let o = snerf()
+        .arg("capture")
+        .arg(&photos)
+        .arg("--out")
+        .arg(&out)
+        .args(["--colmap", "pycolmap"])
+        .env("SNERF_PYCOLMAP", d.join("no-python"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("setup-capture.sh") && err.contains("no-python"), "{err}");
+    let o = snerf()
+        .arg("capture")
+        .arg(&photos)
+        .arg("--out")
+        .arg(&out)
+        .env("SNERF_PYCOLMAP", d.join("no-python"))
+        .env("SNERF_COLMAP", d.join("no-colmap"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("no-python") && err.contains("no-colmap"), "{err}");
     // A video without ffmpeg on PATH says so.
     let video = d.join("clip.mp4");
     std::fs::write(&video, b"not a video").unwrap();

@@ -24,6 +24,7 @@
 
 mod model;
 mod photos;
+pub mod pycolmap;
 mod tool;
 mod video;
 
@@ -55,6 +56,49 @@ pub enum Event {
     Done(u64),
     /// A line worth showing the user.
     Note(String),
+}
+
+/// Which COLMAP runs the capture: Debian's `colmap` binary (3.8) or PyPI's pycolmap (4.x, in
+/// the setup step's virtual environment). `Auto` takes pycolmap when it is installed (it mapped
+/// 5.7× faster at the same registration, BENCH.md §2d), else `colmap`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    Auto,
+    Colmap,
+    Pycolmap,
+}
+
+impl std::str::FromStr for Backend {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Backend::Auto),
+            "colmap" | "debian" => Ok(Backend::Colmap),
+            "pycolmap" => Ok(Backend::Pycolmap),
+            _ => Err(format!("'{s}': use auto, colmap or pycolmap")),
+        }
+    }
+}
+
+/// The COLMAP a capture runs.
+enum Tool {
+    Colmap(PathBuf),
+    Py(pycolmap::Pycolmap),
+}
+
+fn resolve(backend: Backend) -> Result<(Tool, Backend)> {
+    Ok(match backend {
+        Backend::Colmap => (Tool::Colmap(find_colmap()?), Backend::Colmap),
+        Backend::Pycolmap => (Tool::Py(pycolmap::find()?), Backend::Pycolmap),
+        Backend::Auto => match pycolmap::find() {
+            Ok(p) => (Tool::Py(p), Backend::Pycolmap),
+            Err(py) => match find_colmap() {
+                Ok(c) => (Tool::Colmap(c), Backend::Colmap),
+                Err(e) => bail!("{e:#} (and pycolmap: {py:#})"),
+            },
+        },
+    })
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -111,12 +155,18 @@ pub struct CaptureOptions {
     /// Resample to a pinhole camera (see the module docs).
     pub undistort: bool,
     pub threads: usize,
+    /// Which COLMAP (see [`Backend`]).
+    pub backend: Backend,
+    /// pycolmap's mapper seed (the same seed and photos give the same capture); Debian's
+    /// COLMAP 3.8 takes none.
+    pub seed: Option<u64>,
 }
 
 /// What `capture` did, also written to `DATA/capture.json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct CaptureReport {
     pub out: String,
+    pub backend: Backend,
     pub colmap: String,
     pub colmap_version: String,
     pub photos: usize,
@@ -143,7 +193,7 @@ pub struct CaptureReport {
 /// Runs the whole capture (see the module docs); `progress` receives phases and steps.
 pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result<CaptureReport> {
     let t_all = Instant::now();
-    let colmap = find_colmap()?;
+    let (tool, backend) = resolve(opts.backend)?;
     if !(0.0..=1.0).contains(&opts.min_registered) {
         bail!(
             "the registration floor must be in [0, 1], not {}",
@@ -159,8 +209,9 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     std::fs::create_dir_all(&input_dir)
         .with_context(|| format!("{}: cannot create", input_dir.display()))?;
     let mut seconds: Vec<(String, f64)> = Vec::new();
-    let mut timed =
-        |name: &str, t: Instant| seconds.push((name.to_string(), t.elapsed().as_secs_f64()));
+    let timed = |seconds: &mut Vec<(String, f64)>, name: &str, t: Instant| {
+        seconds.push((name.to_string(), t.elapsed().as_secs_f64()))
+    };
 
     // Photos in.
     let t = Instant::now();
@@ -183,130 +234,165 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     if from_video {
         let _ = std::fs::remove_dir_all(work.join("frames"));
     }
-    timed("photos", t);
+    timed(&mut seconds, "photos", t);
     let n = staged.len();
 
     // COLMAP: features, matches, mapping.
-    let version = colmap_version(&colmap);
+    let (matcher, matcher_reason) = choose_matcher(opts.matcher, n, from_video);
+    progress(Event::Note(format!("matching: {matcher_reason}")));
     let threads = opts.threads.max(1).to_string();
     let db = work.join("database.db");
-    let t = Instant::now();
-    let mut cmd = Command::new(&colmap);
-    cmd.arg("feature_extractor")
-        .arg("--database_path")
-        .arg(&db)
-        .arg("--image_path")
-        .arg(&input_dir)
-        .args(["--ImageReader.camera_model", &opts.camera_model])
-        .args([
-            "--ImageReader.single_camera",
-            if opts.single_camera { "1" } else { "0" },
-        ])
-        .args(["--SiftExtraction.use_gpu", "0"])
-        .args(["--SiftExtraction.num_threads", &threads])
-        .args([
-            "--SiftExtraction.max_num_features",
-            &opts.max_features.to_string(),
-        ]);
-    if opts.max_size > 0 {
-        cmd.args([
-            "--SiftExtraction.max_image_size",
-            &opts.max_size.to_string(),
-        ]);
-    }
-    if let Some(f) = opts.focal_px {
-        let params = known_camera(
+    let sparse = work.join("sparse");
+    std::fs::create_dir_all(&sparse)
+        .with_context(|| format!("{}: cannot create", sparse.display()))?;
+    let camera_params = match opts.focal_px {
+        Some(f) => Some(known_camera(
             f,
             &opts.camera_model,
             &list[0],
             &input_dir.join(&staged[0].name),
-        )?;
-        cmd.args(["--ImageReader.camera_params", &params]);
-    }
-    phase(progress, "features", n as u64);
-    tool::run("COLMAP feature extraction", cmd, progress, &mut |l, p| {
-        if let Some((i, _)) = tool::bracket_count(l, "Processed file") {
-            p(Event::Done(i));
-        }
-    })?;
-    timed("features", t);
-
-    let (matcher, matcher_reason) = choose_matcher(opts.matcher, n, from_video);
-    progress(Event::Note(format!("matching: {matcher_reason}")));
-    let t = Instant::now();
-    let mut cmd = Command::new(&colmap);
-    match matcher {
-        Matcher::Exhaustive => cmd.arg("exhaustive_matcher"),
-        _ => cmd
-            .arg("sequential_matcher")
-            .args(["--SequentialMatching.overlap", &opts.overlap.to_string()]),
+        )?),
+        None => None,
     };
-    cmd.arg("--database_path")
-        .arg(&db)
-        .args(["--SiftMatching.use_gpu", "0"])
-        .args(["--SiftMatching.num_threads", &threads]);
-    if matcher == Matcher::Exhaustive {
-        // Blocks of 10 images: the bar moves every block instead of once.
-        cmd.args(["--ExhaustiveMatching.block_size", "10"]);
-    }
-    let blocks = n.div_ceil(10) as u64;
-    phase(
-        progress,
-        "matching",
-        if matcher == Matcher::Exhaustive {
-            blocks * blocks
-        } else {
-            n as u64
-        },
-    );
-    tool::run("COLMAP feature matching", cmd, progress, &mut |l, p| {
-        if let Some((i, _)) = tool::bracket_count(l, "Matching image") {
-            p(Event::Done(i));
-        } else if let Some((i, nb)) = tool::bracket_count(l, "Matching block") {
-            // "Matching block [i/nb, j/nb]": j is the inner loop.
-            let j = l
-                .split(',')
-                .nth(1)
-                .and_then(|s| s.trim().split('/').next())
-                .and_then(|s| s.trim().parse::<u64>().ok())
-                .unwrap_or(1);
-            p(Event::Done((i - 1) * nb + j));
+    let (colmap_name, version, mapped) = match &tool {
+        Tool::Py(py) => {
+            let args = serde_json::json!({
+                "step": "map",
+                "photos": n,
+                "database": db,
+                "images": input_dir,
+                "sparse": sparse,
+                "camera_model": opts.camera_model,
+                "camera_params": camera_params,
+                "single_camera": opts.single_camera,
+                "threads": opts.threads.max(1),
+                "max_features": opts.max_features,
+                "max_size": opts.max_size,
+                "matcher": if matcher == Matcher::Exhaustive { "exhaustive" } else { "sequential" },
+                "overlap": opts.overlap,
+                "seed": opts.seed,
+            });
+            let mapped = py.run(&work, &args, progress).map(|(log, secs)| {
+                seconds.extend(secs);
+                log
+            });
+            (py.python.display().to_string(), py.version.clone(), mapped)
         }
-    })?;
-    timed("matching", t);
-
-    let t = Instant::now();
-    let sparse = work.join("sparse");
-    std::fs::create_dir_all(&sparse)
-        .with_context(|| format!("{}: cannot create", sparse.display()))?;
-    let mut cmd = Command::new(&colmap);
-    cmd.arg("mapper")
-        .arg("--database_path")
-        .arg(&db)
-        .arg("--image_path")
-        .arg(&input_dir)
-        .arg("--output_path")
-        .arg(&sparse)
-        .args(["--Mapper.num_threads", &threads]);
-    if opts.focal_px.is_some() {
-        cmd.args(["--Mapper.ba_refine_focal_length", "0"]);
-    }
-    phase(progress, "mapping", n as u64);
-    let mut best = 0u64;
-    let mapped = tool::run("COLMAP mapping", cmd, progress, &mut |l, p| {
-        // "Registering image #12 (7)": the 7th image of the model is being registered.
-        if let Some(rest) = l.trim_start().strip_prefix("Registering image #") {
-            if let Some(k) = rest
-                .split('(')
-                .nth(1)
-                .and_then(|s| s.trim_end_matches(')').trim().parse::<u64>().ok())
-            {
-                best = best.max(k);
-                p(Event::Done(best));
+        Tool::Colmap(colmap) => {
+            let version = colmap_version(colmap);
+            let t = Instant::now();
+            let mut cmd = Command::new(colmap);
+            cmd.arg("feature_extractor")
+                .arg("--database_path")
+                .arg(&db)
+                .arg("--image_path")
+                .arg(&input_dir)
+                .args(["--ImageReader.camera_model", &opts.camera_model])
+                .args([
+                    "--ImageReader.single_camera",
+                    if opts.single_camera { "1" } else { "0" },
+                ])
+                .args(["--SiftExtraction.use_gpu", "0"])
+                .args(["--SiftExtraction.num_threads", &threads])
+                .args([
+                    "--SiftExtraction.max_num_features",
+                    &opts.max_features.to_string(),
+                ]);
+            if opts.max_size > 0 {
+                cmd.args([
+                    "--SiftExtraction.max_image_size",
+                    &opts.max_size.to_string(),
+                ]);
             }
+            if let Some(params) = &camera_params {
+                cmd.args(["--ImageReader.camera_params", params]);
+            }
+            phase(progress, "features", n as u64);
+            tool::run("COLMAP feature extraction", cmd, progress, &mut |l, p| {
+                if let Some((i, _)) = tool::bracket_count(l, "Processed file") {
+                    p(Event::Done(i));
+                }
+            })?;
+            timed(&mut seconds, "features", t);
+
+            let t = Instant::now();
+            let mut cmd = Command::new(colmap);
+            match matcher {
+                Matcher::Exhaustive => cmd.arg("exhaustive_matcher"),
+                _ => cmd
+                    .arg("sequential_matcher")
+                    .args(["--SequentialMatching.overlap", &opts.overlap.to_string()]),
+            };
+            cmd.arg("--database_path")
+                .arg(&db)
+                .args(["--SiftMatching.use_gpu", "0"])
+                .args(["--SiftMatching.num_threads", &threads]);
+            if matcher == Matcher::Exhaustive {
+                // Blocks of 10 images: the bar moves every block instead of once.
+                cmd.args(["--ExhaustiveMatching.block_size", "10"]);
+            }
+            let blocks = n.div_ceil(10) as u64;
+            phase(
+                progress,
+                "matching",
+                if matcher == Matcher::Exhaustive {
+                    blocks * blocks
+                } else {
+                    n as u64
+                },
+            );
+            tool::run("COLMAP feature matching", cmd, progress, &mut |l, p| {
+                if let Some((i, _)) = tool::bracket_count(l, "Matching image") {
+                    p(Event::Done(i));
+                } else if let Some((i, nb)) = tool::bracket_count(l, "Matching block") {
+                    // "Matching block [i/nb, j/nb]": j is the inner loop.
+                    let j = l
+                        .split(',')
+                        .nth(1)
+                        .and_then(|s| s.trim().split('/').next())
+                        .and_then(|s| s.trim().parse::<u64>().ok())
+                        .unwrap_or(1);
+                    p(Event::Done((i - 1) * nb + j));
+                }
+            })?;
+            timed(&mut seconds, "matching", t);
+
+            let t = Instant::now();
+            let mut cmd = Command::new(colmap);
+            cmd.arg("mapper")
+                .arg("--database_path")
+                .arg(&db)
+                .arg("--image_path")
+                .arg(&input_dir)
+                .arg("--output_path")
+                .arg(&sparse)
+                .args(["--Mapper.num_threads", &threads]);
+            if opts.focal_px.is_some() {
+                cmd.args(["--Mapper.ba_refine_focal_length", "0"]);
+            }
+            phase(progress, "mapping", n as u64);
+            let mut best = 0u64;
+            let mapped = tool::run("COLMAP mapping", cmd, progress, &mut |l, p| {
+                // "Registering image #12 (7)": the 7th image of the model is being registered.
+                if let Some(rest) = l.trim_start().strip_prefix("Registering image #") {
+                    if let Some(k) = rest
+                        .split('(')
+                        .nth(1)
+                        .and_then(|s| s.trim_end_matches(')').trim().parse::<u64>().ok())
+                    {
+                        best = best.max(k);
+                        p(Event::Done(best));
+                    }
+                }
+            });
+            timed(&mut seconds, "mapping", t);
+            (colmap.display().to_string(), version, mapped)
         }
-    });
-    timed("mapping", t);
+    };
+    let map_reproj = mapped
+        .as_ref()
+        .ok()
+        .and_then(|l| parse_reprojection_error(l));
 
     // The largest model, against the floor. COLMAP exits with an error when it built none,
     // which `model::largest` explains better than its log does.
@@ -351,12 +437,15 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
             }
         );
     }
-    let reproj = {
-        let mut cmd = Command::new(&colmap);
-        cmd.arg("model_analyzer").arg("--path").arg(&model.dir);
-        tool::run("COLMAP model analysis", cmd, &mut |_| {}, &mut |_, _| {})
-            .ok()
-            .and_then(|log| parse_reprojection_error(&log))
+    let reproj = match &tool {
+        Tool::Py(_) => map_reproj,
+        Tool::Colmap(colmap) => {
+            let mut cmd = Command::new(colmap);
+            cmd.arg("model_analyzer").arg("--path").arg(&model.dir);
+            tool::run("COLMAP model analysis", cmd, &mut |_| {}, &mut |_, _| {})
+                .ok()
+                .and_then(|log| parse_reprojection_error(&log))
+        }
     };
 
     // Undistort (or keep the distorted model), then lay the dataset out.
@@ -364,21 +453,35 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     let final_sparse = root.join("sparse").join("0");
     if opts.undistort {
         let und = work.join("undistorted");
-        let mut cmd = Command::new(&colmap);
-        cmd.arg("image_undistorter")
-            .arg("--image_path")
-            .arg(&input_dir)
-            .arg("--input_path")
-            .arg(&model.dir)
-            .arg("--output_path")
-            .arg(&und)
-            .args(["--output_type", "COLMAP"]);
-        phase(progress, "undistortion", registered as u64);
-        tool::run("COLMAP undistortion", cmd, progress, &mut |l, p| {
-            if let Some((i, _)) = tool::bracket_count(l, "Undistorting image") {
-                p(Event::Done(i));
+        match &tool {
+            Tool::Py(py) => {
+                let args = serde_json::json!({
+                    "step": "undistort",
+                    "output": und,
+                    "model": model.dir,
+                    "images": input_dir,
+                    "threads": opts.threads.max(1),
+                });
+                py.run(&work, &args, progress)?;
             }
-        })?;
+            Tool::Colmap(colmap) => {
+                let mut cmd = Command::new(colmap);
+                cmd.arg("image_undistorter")
+                    .arg("--image_path")
+                    .arg(&input_dir)
+                    .arg("--input_path")
+                    .arg(&model.dir)
+                    .arg("--output_path")
+                    .arg(&und)
+                    .args(["--output_type", "COLMAP"]);
+                phase(progress, "undistortion", registered as u64);
+                tool::run("COLMAP undistortion", cmd, progress, &mut |l, p| {
+                    if let Some((i, _)) = tool::bracket_count(l, "Undistorting image") {
+                        p(Event::Done(i));
+                    }
+                })?;
+            }
+        }
         move_path(&und.join("images"), &root.join("images"))?;
         std::fs::create_dir_all(root.join("sparse"))?;
         move_path(&und.join("sparse"), &final_sparse)?;
@@ -390,7 +493,7 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     // COLMAP 3.8 writes a project.ini beside the model; it names the temp folder.
     let _ = std::fs::remove_file(final_sparse.join("project.ini"));
     std::fs::remove_dir_all(&work).with_context(|| format!("{}: cannot remove", work.display()))?;
-    timed("undistortion", t);
+    timed(&mut seconds, "undistortion", t);
 
     // Load it as training will (all images decoded): detection, and proof that it reads.
     let ds = crate::load(&root, &crate::LoadOptions::default())
@@ -401,7 +504,8 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
         .map(|v| [v.intrinsics.width, v.intrinsics.height]);
     let mut report = CaptureReport {
         out: opts.out.display().to_string(),
-        colmap: colmap.display().to_string(),
+        backend,
+        colmap: colmap_name,
         colmap_version: version,
         photos: n,
         registered,
