@@ -69,12 +69,24 @@ pub struct TrainArgs {
     /// Finest plane resolution (levels are /8, /4, /2, /1 of it).
     #[arg(long, value_parser = crate::args::int_in::<u32>(16, 4096, ""))]
     pub resolution: Option<u32>,
+    /// Finest time-plane resolution of a dynamic scene (levels are /4, /2, /1, /1 of it;
+    /// default: from the data, about 3 training views per time cell, at most the distinct times).
+    #[arg(long, value_parser = crate::args::int_in::<u32>(4, 1024, ""))]
+    pub time_resolution: Option<u32>,
+    /// Weight of the temporal-smoothness prior on the time planes (mean squared second
+    /// difference along time, as in K-Planes; default 0.1 for dynamic scenes).
+    #[arg(long, value_parser = crate::args::non_negative_f32)]
+    pub time_smooth: Option<f32>,
+    /// Weight of the sparse-transients prior on the time planes (mean |1 - value|, as in
+    /// K-Planes; default 1e-4 for dynamic scenes).
+    #[arg(long, value_parser = crate::args::non_negative_f32)]
+    pub time_sparse: Option<f32>,
     /// Per-photo appearance: learn a 3×4 affine colour transform per training photo
     /// (exposure, white balance) with the field, pulled toward identity with this weight; 0 =
     /// off (the default). Held-out photos and every render use the field's own colours.
     #[arg(long, value_parser = crate::args::non_negative_f32)]
     pub appearance: Option<f32>,
-    /// Rays per silhouette pixel: 1, 4, 9 or 16 (default 4 for static objects, 1 otherwise).
+    /// Rays per silhouette pixel: 1, 4, 9 or 16 (default 4 for objects, static or animated, 1 otherwise).
     /// A pixel whose neighbourhood is partly covered is trained and rendered as the mean of
     /// rays spread over its square, as the views were rendered; 1 is one ray through its centre.
     #[arg(long, value_parser = crate::args::int_in::<usize>(1, 16, ""))]
@@ -161,6 +173,16 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     if let Some(w) = a.appearance {
         cfg.appearance = w;
     }
+    if let Some(t) = a.time_resolution {
+        anyhow::ensure!(cfg.field.dynamic(), "--time-resolution applies to dynamic scenes only; {} is static", a.data.display());
+        cfg.field.time_resolutions = train::time_levels(t);
+    }
+    if let Some(w) = a.time_smooth {
+        cfg.time_smooth = w;
+    }
+    if let Some(w) = a.time_sparse {
+        cfg.time_sparse = w;
+    }
     let seconds = match (a.steps, a.minutes) {
         (None, None) => Some(300.0),
         (_, m) => m.map(|m| m * 60.0),
@@ -189,6 +211,9 @@ impl TrainArgs {
             ("--tv", "/tv", self.tv.is_some()),
             ("--pixel-rays", "/pixel_rays", self.pixel_rays.is_some()),
             ("--appearance", "/appearance", self.appearance.is_some()),
+            ("--time-resolution", "/field/time_resolutions", self.time_resolution.is_some()),
+            ("--time-smooth", "/time_smooth", self.time_smooth.is_some()),
+            ("--time-sparse", "/time_sparse", self.time_sparse.is_some()),
             ("--batch", "/batch_rays", self.batch.is_some()),
             ("--batch-samples", "/batch_samples", self.batch_samples.is_some()),
             ("--seed", "/seed", self.seed != 0),

@@ -5,7 +5,11 @@
 //! PSNR and SSIM at the end, train PSNR and the train-test gap, samples/s and peak memory.
 //! Each step is a child `snerf` process (so peak memory is the run's own, and one model that
 //! fails does not stop the rest); finished steps are reused when the command is repeated.
-//! Writes `quality.json`, `quality.md` and `curves.svg` (held-out PSNR against training time).
+//! Animated models are rendered as monocular sequences (one camera, at its own time, per
+//! training view; held-out views at times between them) and also report the worst held-out
+//! view and the held-out PSNR against animation time.
+//! Writes `quality.json`, `quality.md` and `curves.svg` (held-out PSNR against training time),
+//! and for animated models `time.svg` (held-out PSNR against animation time).
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -141,9 +145,7 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
         ])?;
     }
     let info = snerf_json(&["data".into(), s(&data)])?;
-    if info["dynamic"].as_bool() == Some(true) {
-        bail!("animated: the quality benchmark takes static models");
-    }
+    let dynamic = info["dynamic"].as_bool() == Some(true);
     let mut runs = Vec::new();
     for &secs in &a.seconds {
         let run = a.out.join("runs").join(format!("{name}-{secs}s"));
@@ -170,12 +172,19 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
         let curve = metrics["curve"].as_array().cloned().unwrap_or_default();
         let test_psnr = test["report"]["mean_psnr"].as_f64();
         let train_psnr = train["report"]["mean_psnr"].as_f64();
+        let views = test["report"]["views"].as_array().cloned().unwrap_or_default();
+        let worst = views.iter().filter_map(|v| v["psnr"].as_f64()).reduce(f64::min);
+        // an animated model: held-out PSNR against the held-out view's time, in time order
+        let mut by_time: Vec<(f64, f64)> = views.iter().filter_map(|v| Some((v["time"].as_f64()?, v["psnr"].as_f64()?))).collect();
+        by_time.sort_by(|a, b| a.0.total_cmp(&b.0));
         runs.push(json!({
             "seconds": secs,
             "run": pj(&run),
             "psnr_at": AT.iter().filter(|&&t| t <= secs + 0.5).map(|&t| json!({ "t": t, "psnr": psnr_at(&curve, t) })).collect::<Vec<_>>(),
             "eval_psnr": test_psnr,
             "eval_ssim": test["report"]["mean_ssim"].as_f64(),
+            "eval_worst_psnr": worst,
+            "psnr_by_time": by_time.iter().map(|&(t, p)| json!([t, p])).collect::<Vec<_>>(),
             "train_psnr": train_psnr,
             "gap": train_psnr.zip(test_psnr).map(|(a, b)| a - b),
             "samples_per_second": metrics["samples_per_second"].as_f64(),
@@ -183,7 +192,7 @@ fn one_model(a: &BenchQualityArgs, name: &str, file: &Path) -> Result<Value> {
             "curve": curve.iter().map(|c| json!([c["train_seconds"], c["test_psnr"]])).collect::<Vec<_>>(),
         }));
     }
-    Ok(json!({ "model": name, "file": pj(file), "runs": runs }))
+    Ok(json!({ "model": name, "file": pj(file), "dynamic": dynamic, "runs": runs }))
 }
 
 fn fmt(v: Option<f64>, d: usize) -> String {
@@ -201,15 +210,15 @@ fn mean_spread(xs: &[f64]) -> String {
 
 /// The Markdown table: one row per model and budget, then the mean with its range.
 fn table(models: &[Value], baseline: Option<&Value>) -> String {
-    let mut md = String::from("| model | budget | PSNR@10s | @30s | @60s | @300s | eval PSNR | SSIM | train PSNR | gap | samples/s | peak MB |");
+    let mut md = String::from("| model | budget | PSNR@10s | @30s | @60s | @300s | eval PSNR | worst view | SSIM | train PSNR | gap | samples/s | peak MB |");
     if baseline.is_some() {
         md.push_str(" Δ eval vs baseline |");
     }
     md.push('\n');
-    md.push_str(&"|---".repeat(12 + baseline.is_some() as usize));
+    md.push_str(&"|---".repeat(13 + baseline.is_some() as usize));
     md.push_str("|\n");
-    // per budget: (eval PSNR, gap, Δ vs baseline) of every model
-    type Columns = (Vec<f64>, Vec<f64>, Vec<f64>);
+    // per budget: (eval PSNR, gap, Δ vs baseline, worst view) of every model
+    type Columns = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
     let mut per_budget: std::collections::BTreeMap<i64, Columns> = Default::default();
     for m in models {
         let name = m["model"].as_str().unwrap_or("?");
@@ -236,16 +245,20 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
             if let Some(g) = r["gap"].as_f64() {
                 entry.1.push(g);
             }
+            if let Some(w) = r["eval_worst_psnr"].as_f64() {
+                entry.3.push(w);
+            }
             if let Some(d) = eval.zip(base).map(|(a, b)| a - b) {
                 entry.2.push(d);
             }
             md.push_str(&format!(
-                "| {name} | {secs:.0} s | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {name} | {secs:.0} s | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 fmt(at(10.0), 2),
                 fmt(at(30.0), 2),
                 fmt(at(60.0), 2),
                 fmt(at(300.0), 2),
                 fmt(eval, 2),
+                fmt(r["eval_worst_psnr"].as_f64(), 2),
                 fmt(r["eval_ssim"].as_f64(), 4),
                 fmt(r["train_psnr"].as_f64(), 2),
                 fmt(r["gap"].as_f64(), 2),
@@ -259,11 +272,12 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
         }
     }
     md.push('\n');
-    for (secs, (evals, gaps, deltas)) in &per_budget {
+    for (secs, (evals, gaps, deltas, worst)) in &per_budget {
         md.push_str(&format!(
-            "{secs} s over {} models: eval PSNR mean (min…max) {}; train−test gap {}{}\n",
+            "{secs} s over {} models: eval PSNR mean (min…max) {}; worst view {}; train−test gap {}{}\n",
             evals.len(),
             mean_spread(evals),
+            mean_spread(worst),
             mean_spread(gaps),
             if deltas.is_empty() { String::new() } else { format!("; Δ vs baseline {}", mean_spread(deltas)) }
         ));
@@ -271,37 +285,68 @@ fn table(models: &[Value], baseline: Option<&Value>) -> String {
     md
 }
 
-/// Held-out PSNR against training seconds (log axis), one line per model and budget.
-fn curves_svg(models: &[Value]) -> String {
-    let (w, h, l, r, t, b) = (900.0, 560.0, 60.0, 220.0, 20.0, 50.0);
+/// Every run's points of `key` ([x, PSNR] pairs), one labelled line per model and budget.
+fn lines_of(models: &[Value], key: &str) -> Vec<(String, Vec<(f64, f64)>)> {
     let mut lines = Vec::new();
-    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
     for m in models {
         for run in m["runs"].as_array().into_iter().flatten() {
-            let pts: Vec<(f64, f64)> = run["curve"]
+            let pts: Vec<(f64, f64)> = run[key]
                 .as_array()
                 .into_iter()
                 .flatten()
                 .filter_map(|p| Some((p[0].as_f64()?, p[1].as_f64()?)))
-                .filter(|(t, p)| *t > 0.0 && p.is_finite())
+                .filter(|(_, p)| p.is_finite())
                 .collect();
-            for &(_, p) in &pts {
-                lo = lo.min(p);
-                hi = hi.max(p);
+            if !pts.is_empty() {
+                let label = format!("{} ({:.0} s)", m["model"].as_str().unwrap_or("?"), run["seconds"].as_f64().unwrap_or(0.0));
+                lines.push((label, pts));
             }
-            let label = format!("{} ({:.0} s)", m["model"].as_str().unwrap_or("?"), run["seconds"].as_f64().unwrap_or(0.0));
-            lines.push((label, pts));
+        }
+    }
+    lines
+}
+
+/// Held-out PSNR against training seconds (log axis), one line per model and budget.
+fn curves_svg(models: &[Value]) -> String {
+    let lines = lines_of(models, "curve").into_iter().map(|(n, p)| (n, p.into_iter().filter(|(t, _)| *t > 0.0).collect())).collect();
+    let x_axis = XAxis { label: "training seconds (log)", ticks: &[1.0, 2.0, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0], log: true };
+    plot_svg(lines, &x_axis)
+}
+
+/// Animated models: held-out PSNR against the held-out view's animation time (0..1), one
+/// line per model and budget: where in the animation the field holds and where it breaks.
+fn time_svg(models: &[Value]) -> String {
+    let x_axis = XAxis { label: "animation time of the held-out view", ticks: &[0.0, 0.2, 0.4, 0.6, 0.8, 1.0], log: false };
+    plot_svg(lines_of(models, "psnr_by_time"), &x_axis)
+}
+
+struct XAxis<'a> {
+    label: &'a str,
+    /// First and last are the axis' ends.
+    ticks: &'a [f64],
+    log: bool,
+}
+
+/// A line chart of PSNR (dB) against `x_axis`.
+fn plot_svg(lines: Vec<(String, Vec<(f64, f64)>)>, x_axis: &XAxis) -> String {
+    let (w, h, l, r, t, b) = (900.0, 560.0, 60.0, 220.0, 20.0, 50.0);
+    let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+    for (_, pts) in &lines {
+        for &(_, p) in pts {
+            lo = lo.min(p);
+            hi = hi.max(p);
         }
     }
     if lines.is_empty() || lo > hi {
         return String::from("<svg xmlns=\"http://www.w3.org/2000/svg\"/>");
     }
     let (lo, hi) = ((lo - 1.0).floor(), (hi + 1.0).ceil());
-    let (t0, t1) = (1.0f64.ln(), 600.0f64.ln());
-    let x = |s: f64| l + (s.max(1.0).ln() - t0) / (t1 - t0) * (w - l - r);
+    let f = |s: f64| if x_axis.log { s.max(x_axis.ticks[0]).ln() } else { s };
+    let (t0, t1) = (f(x_axis.ticks[0]), f(*x_axis.ticks.last().unwrap_or(&1.0)));
+    let x = |s: f64| l + (f(s) - t0) / (t1 - t0) * (w - l - r);
     let y = |p: f64| t + (hi - p) / (hi - lo) * (h - t - b);
     let mut svg = format!("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n");
-    for s in [1.0, 2.0, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0] {
+    for &s in x_axis.ticks {
         svg.push_str(&format!("<line x1=\"{0:.1}\" y1=\"{t}\" x2=\"{0:.1}\" y2=\"{1:.1}\" stroke=\"#ddd\"/><text x=\"{0:.1}\" y=\"{2:.1}\" text-anchor=\"middle\">{s}</text>\n", x(s), h - b, h - b + 16.0));
     }
     let mut p = lo;
@@ -309,7 +354,7 @@ fn curves_svg(models: &[Value]) -> String {
         svg.push_str(&format!("<line x1=\"{l}\" y1=\"{0:.1}\" x2=\"{1:.1}\" y2=\"{0:.1}\" stroke=\"#ddd\"/><text x=\"{2:.1}\" y=\"{3:.1}\" text-anchor=\"end\">{p}</text>\n", y(p), w - r, l - 6.0, y(p) + 4.0));
         p += if hi - lo > 20.0 { 5.0 } else { 1.0 };
     }
-    svg.push_str(&format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">training seconds (log)</text>\n", (l + w - r) / 2.0, h - 8.0));
+    svg.push_str(&format!("<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text>\n", (l + w - r) / 2.0, h - 8.0, x_axis.label));
     svg.push_str(&format!("<text x=\"14\" y=\"{:.1}\" transform=\"rotate(-90 14 {:.1})\" text-anchor=\"middle\">held-out PSNR (dB)</text>\n", h / 2.0, h / 2.0));
     for (i, (label, pts)) in lines.iter().enumerate() {
         let hue = (i * 137) % 360;
@@ -361,6 +406,9 @@ pub fn run(a: &BenchQualityArgs) -> Result<Value> {
     let md = table(&results, baseline.as_ref());
     snerf_files::write_atomic(&a.out.join("quality.md"), md.as_bytes())?;
     snerf_files::write_atomic(&a.out.join("curves.svg"), curves_svg(&results).as_bytes())?;
+    if results.iter().any(|m| m["dynamic"].as_bool() == Some(true)) {
+        snerf_files::write_atomic(&a.out.join("time.svg"), time_svg(&results).as_bytes())?;
+    }
     eprintln!("{md}");
     Ok(json!({ "command": "bench quality", "out": pj(&a.out), "models": results, "table": md }))
 }

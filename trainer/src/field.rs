@@ -419,6 +419,50 @@ impl Field {
         loss as f32
     }
 
+    /// K-Planes' two priors on the time planes (xt, yt, zt), as in that paper: temporal
+    /// smoothness, the mean squared second difference along t (`smooth`: motion is
+    /// continuous, so a time cell seen by few cameras borrows from its neighbours instead of
+    /// fitting those cameras alone), and sparse transients, the mean |1 − value| (`sparse`:
+    /// time planes start at 1, the static field, and move only where the scene changes).
+    /// Each plane's means are weighted and summed over planes and levels; the gradient is
+    /// added to `grad`, every time-plane cell is marked in `touched`. Returns the loss.
+    pub fn time_priors_backward(&self, smooth: f32, sparse: f32, grad: &mut [f32], touched: &mut [u8]) -> f32 {
+        let mut loss = 0.0f64;
+        for level in &self.layout.planes {
+            for p in level.iter().filter(|p| p.axes.1 == 3) {
+                let (ru, rv) = (p.ru, p.rv);
+                let n = ru * rv * C;
+                let plane = &self.params[p.offset..p.offset + n];
+                let g = &mut grad[p.offset..p.offset + n];
+                if sparse > 0.0 {
+                    let w = sparse / n as f32;
+                    for (gi, &x) in g.iter_mut().zip(plane) {
+                        let d = x - 1.0;
+                        loss += (w * d.abs()) as f64;
+                        // subgradient 0 at 1: an untouched time plane stays where it started
+                        *gi += if d > 0.0 { w } else if d < 0.0 { -w } else { 0.0 };
+                    }
+                }
+                if smooth > 0.0 && rv >= 3 {
+                    let w = smooth / (ru * (rv - 2) * C) as f32;
+                    // cell (u, v) at (v * ru + u) * C: v is the time index
+                    for v in 1..rv - 1 {
+                        for k in 0..ru * C {
+                            let (a, b, c) = ((v - 1) * ru * C + k, v * ru * C + k, (v + 1) * ru * C + k);
+                            let s = plane[a] - 2.0 * plane[b] + plane[c];
+                            loss += (w * s * s) as f64;
+                            g[a] += 2.0 * w * s;
+                            g[b] -= 4.0 * w * s;
+                            g[c] += 2.0 * w * s;
+                        }
+                    }
+                }
+                touched[p.offset / C..p.offset / C + ru * rv].fill(1);
+            }
+        }
+        loss as f32
+    }
+
     /// Decoder forward on `n` samples: `feat` is n x input (row per sample); writes the
     /// post-ReLU hidden layer `hid` (n x hidden) and the raw outputs `out` (n x OUT).
     pub fn decode_forward(&self, n: usize, feat: &[f32], hid: &mut [f32], out: &mut [f32]) {

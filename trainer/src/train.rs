@@ -78,6 +78,14 @@ pub struct TrainConfig {
     /// centres is free between them, where a new view's rays fall (docs/stylize-notebook.md §5s, §5u).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub area_rays: bool,
+    /// Weight of K-Planes' temporal-smoothness prior on the time planes (mean squared second
+    /// difference along t, [`Field::time_priors_backward`]); 0 = off, and in runs from before
+    /// it existed.
+    #[serde(default)]
+    pub time_smooth: f32,
+    /// Weight of K-Planes' sparse-transients prior on the time planes (mean |1 − value|).
+    #[serde(default)]
+    pub time_sparse: f32,
     /// Per-photo colour transforms learnt with the field (`appearance`): the weight of their
     /// pull toward identity; 0 = off.
     #[serde(default, skip_serializing_if = "is_zero")]
@@ -103,7 +111,9 @@ impl TrainConfig {
             // single pixel, only by how pixels of different views happen to overlap, and the
             // field fills them with detail that fits the training views and no other (on
             // unseen models: train 43.7 dB against held-out 37.9 dB at two cells per pixel).
-            (SceneKind::Object, false, Some(px)) => ((px / 16.0).ceil() as u32 * 16).clamp(64, 512),
+            // An animated object's spatial planes are seen by every view at every time, so the
+            // same rule holds for them.
+            (SceneKind::Object, _, Some(px)) => ((px / 16.0).ceil() as u32 * 16).clamp(64, 512),
             // About two plane cells per pixel across the object / the contracted inner cube;
             // forward-facing NDC spans exactly the image, so one cell per pixel.
             _ => {
@@ -112,13 +122,7 @@ impl TrainConfig {
             }
         };
         let resolutions = vec![finest / 8, finest / 4, finest / 2, finest];
-        let time_resolutions = if data.dynamic {
-            let frames = data.train.len().clamp(8, 400) as u32;
-            let tmax = (frames / 3).clamp(8, 64);
-            vec![(tmax / 4).max(4), (tmax / 2).max(4), tmax, tmax]
-        } else {
-            Vec::new()
-        };
+        let time_resolutions = if data.dynamic { time_levels(finest_time_resolution(data)) } else { Vec::new() };
         TrainConfig {
             batch_rays: 4096,
             batch_samples: 1 << 16,
@@ -136,10 +140,14 @@ impl TrainConfig {
             freeze_view: false,
             seed: 0,
             field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
-            // Static objects only: forward, unbounded and dynamic scenes were not re-measured.
-            pixel_rays: if data.kind == SceneKind::Object && !data.dynamic { 4 } else { 1 },
-            pixel_footprint: if data.kind == SceneKind::Object && !data.dynamic { train_pixel_footprint(data) } else { None },
+            // Objects on transparent film, static or animated: forward and unbounded scenes
+            // were not re-measured.
+            pixel_rays: if data.kind == SceneKind::Object { 4 } else { 1 },
+            pixel_footprint: if data.kind == SceneKind::Object { train_pixel_footprint(data) } else { None },
             area_rays: false,
+            // K-Planes' weights for its monocular (D-NeRF) scenes.
+            time_smooth: if data.dynamic { TIME_SMOOTH } else { 0.0 },
+            time_sparse: if data.dynamic { TIME_SPARSE } else { 0.0 },
             appearance: 0.0,
         }
     }
@@ -166,6 +174,8 @@ impl TrainConfig {
         pos("lr_final", self.lr_final)?;
         nonneg("distortion", self.distortion)?;
         nonneg("tv", self.tv)?;
+        nonneg("time_smooth", self.time_smooth)?;
+        nonneg("time_sparse", self.time_sparse)?;
         count("batch_rays", self.batch_rays, 1 << 20)?;
         count("max_batch_rays", self.max_batch_rays, 1 << 20)?;
         anyhow::ensure!(self.batch_samples <= 1 << 24, "training setting batch_samples must be at most {} (is {})", 1 << 24, self.batch_samples);
@@ -188,6 +198,34 @@ impl TrainConfig {
         anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden.is_multiple_of(4), "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
         Ok(())
     }
+}
+
+/// Default weight of the temporal-smoothness prior on dynamic scenes (K-Planes, D-NeRF scenes).
+pub const TIME_SMOOTH: f32 = 0.1;
+/// Default weight of the sparse-transients prior on dynamic scenes (K-Planes, D-NeRF scenes).
+pub const TIME_SPARSE: f32 = 1e-4;
+
+/// Training views a time cell of the finest time planes should hold (see
+/// [`finest_time_resolution`]).
+pub const VIEWS_PER_TIME_CELL: usize = 3;
+
+/// The finest time-plane resolution for a dynamic dataset: the static rule's principle
+/// applied to time. A cell is no finer than the data constrain it: no finer than the
+/// distinct training times (a cell between two instants is seen by no camera), and holding
+/// about [`VIEWS_PER_TIME_CELL`] training views, so that what a time cell stores is pinned by
+/// cameras from several directions rather than fitted to one or two of them (a monocular
+/// sequence has one camera per instant). Clamped to 4..=64.
+pub fn finest_time_resolution(data: &Dataset) -> u32 {
+    let mut times: Vec<f32> = data.train.iter().filter_map(|v| v.time).collect();
+    times.sort_by(f32::total_cmp);
+    times.dedup_by(|a, b| (*a - *b).abs() < 1e-6);
+    let cells = (data.train.len() / VIEWS_PER_TIME_CELL).min(times.len());
+    (cells as u32).clamp(4, 64)
+}
+
+/// Time resolutions of the four levels from the finest: /4, /2, /1, /1 (at least 4).
+pub fn time_levels(finest: u32) -> Vec<u32> {
+    vec![(finest / 4).max(4), (finest / 2).max(4), finest.max(2), finest.max(2)]
 }
 
 /// Most rays a training pixel may take (a 4x4 grid).
@@ -538,6 +576,9 @@ impl Trainer {
         let (mut grads, mut flags) = self.pool.grads();
         if self.cfg.tv > 0.0 {
             self.model.field.tv_backward(self.cfg.tv, grads[0], flags[0]);
+        }
+        if self.cfg.time_smooth > 0.0 || self.cfg.time_sparse > 0.0 {
+            self.model.field.time_priors_backward(self.cfg.time_smooth, self.cfg.time_sparse, grads[0], flags[0]);
         }
         let params = &mut self.model.field.params;
         let plane_end = self.model.field.layout.plane_end;

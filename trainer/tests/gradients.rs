@@ -317,3 +317,58 @@ fn total_variation_gradient_matches_finite_differences() {
         assert_close(&format!("tv param {i}"), grad[i] as f64, num, 2e-2, 1e-6);
     }
 }
+
+#[test]
+fn time_priors_gradient_matches_finite_differences() {
+    // time resolutions 3 and 5: the second difference exists at every level
+    let f = small_field(true);
+    let (smooth, sparse) = (0.7f32, 0.3f32);
+    let mut grad = vec![0.0f32; f.params.len()];
+    let mut touched = vec![0u8; f.params.len() / 8];
+    let l0 = f.time_priors_backward(smooth, sparse, &mut grad, &mut touched);
+    assert!(l0 > 0.0);
+    let loss = |f: &Field| -> f64 {
+        let mut g = vec![0.0f32; f.params.len()];
+        let mut t = vec![0u8; f.params.len() / 8];
+        f.time_priors_backward(smooth, sparse, &mut g, &mut t) as f64
+    };
+    // spatial planes are not touched; every time-plane cell is
+    for level in &f.layout.planes {
+        for p in level {
+            let cells = &touched[p.offset / 8..p.offset / 8 + p.ru * p.rv];
+            let g = &grad[p.offset..p.offset + p.ru * p.rv * 8];
+            if p.axes.1 == 3 {
+                assert!(cells.iter().all(|&t| t == 1), "time-plane cells are marked for the optimizer");
+                assert!(g.iter().any(|&x| x != 0.0));
+            } else {
+                assert!(cells.iter().all(|&t| t == 0) && g.iter().all(|&x| x == 0.0), "spatial planes carry no time prior");
+            }
+        }
+    }
+    let mut checked = 0;
+    for level in &f.layout.planes {
+        for p in level.iter().filter(|p| p.axes.1 == 3) {
+            for i in (p.offset..p.offset + p.ru * p.rv * 8).step_by(5) {
+                // |1 - x| has a kink at 1: step only where the difference stays on one side
+                let h = 1e-3f32;
+                if (f.params[i] - 1.0).abs() < 2.0 * h {
+                    continue;
+                }
+                let mut a = f.clone();
+                a.params[i] += h;
+                let mut b = f.clone();
+                b.params[i] -= h;
+                let num = (loss(&a) - loss(&b)) / (2.0 * h as f64);
+                assert_close(&format!("time prior param {i}"), grad[i] as f64, num, 2e-2, 2e-5);
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 50, "only {checked} parameters checked");
+    // a field whose time planes sit at 1 (its start) pays nothing and gets no gradient
+    let start = Field::new(f.cfg.clone(), 7).unwrap();
+    let mut g = vec![0.0f32; start.params.len()];
+    let mut t = vec![0u8; start.params.len() / 8];
+    assert_eq!(start.time_priors_backward(smooth, sparse, &mut g, &mut t), 0.0);
+    assert!(g.iter().all(|&x| x == 0.0));
+}
