@@ -90,6 +90,9 @@ pub struct BakeReport {
     pub static_frame_bytes: u64,
     /// Blocks stored beyond one per cell (dynamic scenes).
     pub extra_blocks: usize,
+    /// (cell, sample) pairs whose cell points at another non-empty block in the next sample:
+    /// where playback between the two fetches and blends two blocks.
+    pub blended_entries: usize,
     /// What the codebook leaves unexplained (sum of `temporal` errors over cells and samples).
     pub codebook_error: f64,
     pub seconds_codebook: f64,
@@ -287,6 +290,7 @@ pub fn bake(
         report.codebook_error += bk.error as f64;
     }
     report.extra_blocks = books.iter().map(|bk| bk.stored.len().saturating_sub(1)).sum();
+    report.blended_entries = temporal::blended_entries(&grids, EMPTY);
     drop(samples);
     let atlas_blocks = atlas.len() / (block_voxels * 8);
     if atlas_blocks == 0 {

@@ -237,6 +237,12 @@ pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codeboo
         .collect()
 }
 
+/// Entries playback fetches two blocks for: (cell, sample) pairs where the cell points at
+/// two different non-empty blocks in this sample and the next.
+pub fn blended_entries(grids: &[Vec<u32>], empty: u32) -> usize {
+    grids.windows(2).map(|w| w[0].iter().zip(&w[1]).filter(|p| p.0 != p.1 && *p.0 != empty && *p.1 != empty).count()).sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -309,5 +315,15 @@ mod tests {
         assert_eq!(b[1].error, 0.0);
         let shown: Vec<u8> = b[1].assign.iter().map(|&j| [0u8, 0, 250, 0, 250, 0][j]).collect();
         assert_eq!(shown, vec![0, 0, 250, 0, 250, 0]);
+    }
+
+    #[test]
+    fn blended_entries_count_cells_pointing_at_two_blocks_across_a_sample_boundary() {
+        let e = u32::MAX;
+        // cell 0 keeps its block, cell 1 changes (counted), cell 2 appears (one side empty:
+        // one fetch), cell 3 changes twice over three samples (counted twice)
+        let grids = [vec![1, 2, e, 5], vec![1, 3, 4, 6], vec![1, 3, 4, 5]];
+        assert_eq!(blended_entries(&grids, e), 3);
+        assert_eq!(blended_entries(&grids[..1], e), 0);
     }
 }
