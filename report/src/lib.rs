@@ -3,7 +3,8 @@
 //! The numbers a user wants to see while choosing a budget live in JSON records written by
 //! the other commands: `metrics.json` of a training run (held-out PSNR against training
 //! seconds), `stylize.json` of a stylization run (style distance and consistency per
-//! round), bake summaries (faithfulness and size per resolution) and `quality.json` of the
+//! round), bake summaries (faithfulness and size per resolution; for 4D bakes, bytes per
+//! second of animation against fidelity at held-out times) and `quality.json` of the
 //! quality benchmark. This crate reads any of them ([`sources`]), turns them into plots with
 //! the exact numbers behind them ([`plots`]), draws the plots as PNG and SVG with a font
 //! compiled into the binary so a headless machine needs nothing installed ([`draw`]), and

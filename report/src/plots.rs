@@ -296,7 +296,34 @@ fn bake_plots(sources: &[Source], colors: &mut Colors) -> Vec<Plot> {
     }
     // one table serves both plots
     drop.table = Table::default();
-    vec![faith, drop]
+    vec![faith, drop, time_plot(sources, colors)]
+}
+
+/// 4D bakes: bytes per second of animation against fidelity at the held-out views' own times
+/// (between the time samples), one point per bake (e.g. per `--time-budget`).
+fn time_plot(sources: &[Source], colors: &mut Colors) -> Plot {
+    let mut p = Plot::new("bake_4d", "4D bakes: size per second of animation against fidelity at held-out times", "MB per second of animation (log)", "baked vs field at held-out times (dB)", true);
+    p.table.header = ["run", "time samples", "× static frame", "MB/s", "baked vs field (dB)", "blended entries"].map(String::from).to_vec();
+    for s in sources.iter().filter(|s| s.kind == SourceKind::Bake) {
+        let mut bakes: Vec<&Value> = s.data["bakes"].as_array().into_iter().flatten().filter(|b| num(&b["asset"]["bytes_per_second"]["total"]).is_some()).collect();
+        if bakes.is_empty() {
+            continue;
+        }
+        bakes.sort_by(|a, b| num(&a["asset"]["bytes_per_second"]["total"]).partial_cmp(&num(&b["asset"]["bytes_per_second"]["total"])).unwrap_or(std::cmp::Ordering::Equal));
+        let pts: Vec<[f64; 2]> = bakes.iter().filter_map(|b| Some([num(&b["asset"]["bytes_per_second"]["total"])? / 1e6, num(&b["faithfulness"]["mean_baked_vs_field"])?])).collect();
+        p.series.push(series(&s.label, "mean_baked_vs_field", s.label.clone(), colors.of(&s.label), false, true, pts));
+        for b in bakes {
+            p.table.rows.push(vec![
+                s.label.clone(),
+                fmt(num(&b["asset"]["frames"]), 0),
+                fmt(num(&b["asset"]["size_vs_static_frame"]), 2),
+                fmt(num(&b["asset"]["bytes_per_second"]["total"]).map(|x| x / 1e6), 2),
+                fmt(num(&b["faithfulness"]["mean_baked_vs_field"]), 2),
+                fmt(num(&b["report"]["blended_entries"]), 0),
+            ]);
+        }
+    }
+    p
 }
 
 #[cfg(test)]
@@ -363,5 +390,24 @@ mod tests {
         assert_eq!(rows("stylize_style_terms")[2], vec!["s", "2 (discarded)", "20.0", "0.1000", "0.2100"]);
         assert_eq!(rows("stylize_consistency")[2], vec!["s", "2 (discarded)", "20.0", "0.00400", "0.00700"]);
         assert_eq!(rows("stylize_fit").len(), 2, "one fit per round");
+    }
+
+    /// 4D bakes at several budgets: one curve of MB per second of animation against the
+    /// fidelity at held-out times; static bakes are not on it.
+    #[test]
+    fn four_d_bakes_plot_rate_against_held_out_time_fidelity() {
+        let bake = |total: Option<f64>, x: f64, db: f64| {
+            json!({ "report": { "res": 192, "blended_entries": 7 }, "asset": { "frames": 24, "size_vs_static_frame": x, "bytes": { "total": 1e6 * x }, "bytes_per_second": total.map(|t| json!({ "total": t })) }, "faithfulness": { "mean_baked_vs_field": db, "drop_db": 0.5 } })
+        };
+        let four_d = Source::bakes("skin", Path::new("skin"), vec![bake(Some(3.0e6), 2.5, 31.0), bake(Some(1.8e6), 1.5, 28.0)]);
+        let still = Source::bakes("still", Path::new("still"), vec![bake(None, 1.0, 35.0)]);
+        let plots = build(&[four_d, still]);
+        let p = plots.iter().find(|p| p.id == "bake_4d").unwrap();
+        assert_eq!(p.series.len(), 1);
+        assert_eq!(p.series[0].points, vec![[1.8, 28.0], [3.0, 31.0]]);
+        assert_eq!(p.table.rows[0], vec!["skin", "24", "1.50", "1.80", "28.00", "7"]);
+        // static bakes alone: no such plot
+        let plots = build(&[Source::bakes("still", Path::new("still"), vec![bake(None, 1.0, 35.0)])]);
+        assert!(plots.iter().all(|p| p.id != "bake_4d"));
     }
 }
