@@ -166,9 +166,10 @@ pub struct StylizeArgs {
     /// on its own stylization).
     #[arg(long, default_value_t = defaults().fuse_views, value_parser = crate::args::int_in::<usize>(0, 32, ""))]
     pub fuse_views: usize,
-    /// What the stylizer paints: render (the current field's render, every round: the paper's
-    /// loop) or realistic (the realistic field's renders, once; later rounds reconcile those
-    /// stylizations across views: the one-pass variant). BENCH.md §5 measures both.
+    /// What the stylizer paints: render (the default, the paper's loop: the current field's
+    /// renders, every round, each round's targets moved toward them by 1/t²) or realistic (the
+    /// realistic field's renders, once; later rounds reconcile those stylizations across
+    /// views: the one-pass variant). BENCH.md §5 measures both.
     #[arg(long, default_value = snerf_loop::DEFAULT_CONTENT.as_str(), value_parser = ["render", "realistic"])]
     pub content: String,
     /// Seed of the rays each training step draws (default: the realistic run's own): run two

@@ -153,14 +153,21 @@ fn every_scene_kind_is_detected_and_trains() {
 fn demo_writes_pictures_and_a_summary() {
     let d = tmp("demo");
     let out = d.join("demo");
-    let s = ok(snerf()
+    let run = snerf()
         .args(["--json", "demo", "--out"])
         .arg(&out)
         .args(["--minutes", "0.15", "--views", "20", "--size", "32x32", "--frames", "4"])
-        .args(["--rounds", "1", "--steps-per-round", "20"])
+        .args(["--rounds", "2", "--steps-per-round", "10"])
         .output()
-        .unwrap());
+        .unwrap();
+    let banner = String::from_utf8_lossy(&run.stderr).to_string();
+    let s = ok(run);
     assert!(s["eval"]["mean_psnr"].as_f64().unwrap() > 12.0);
+    // the banner says what ran: the paper's loop, the stylizer painting every view each round
+    assert!(banner.contains("SNeRF: 2 rounds of render -> stylize ("), "{banner}");
+    let record: serde_json::Value = serde_json::from_slice(&std::fs::read(out.join("stylized/stylize.json")).unwrap()).unwrap();
+    let painted: Vec<u64> = record["records"].as_array().unwrap().iter().map(|r| r["stylized_views"].as_u64().unwrap()).collect();
+    assert!(painted.len() == 2 && painted.iter().all(|&n| n > 0 && n == painted[0]), "views the stylizer painted in each round: {painted:?}");
     // stylized, measured, baked, rendered and exported
     assert!(out.join("stylized/consistency.md").exists());
     assert!(out.join("baked_turntable/preview.png").exists());

@@ -4,16 +4,18 @@
 //! 1. **renders** every training view from the current field (`steps::render_views`),
 //! 2. **stylizes** views with an image stylizer (`steps::stylize_views`; an object's views
 //!    in the object's box, `stylize_view::stylize_region`): with `Content::Render` (the
-//!    paper's loop) the current field's renders, every round; with `Content::Realistic` (the
-//!    default, the one-pass variant) the realistic field's renders, in round 1 only,
+//!    default, the paper's loop) the current field's renders, every round; with
+//!    `Content::Realistic` (the one-pass variant) the realistic field's renders, in round 1
+//!    only,
 //! 3. makes the **targets** (`steps::fuse`, `steps::running_mean`): fresh stylizations give
 //!    every surface point the colour its nearest painter gave it (`fusion::fuse_owner`,
-//!    reprojected through the field's depth); round t's target is the running mean of the
-//!    rounds' fused images (`target_t = target_{t−1} + (fused_t − target_{t−1}) / t`). A
-//!    consensus step reconciles the views (`steps::reconcile`: the per-pixel median over a
-//!    view and its neighbours, after mapping the colours back onto the first fusion's
-//!    distribution, `palette`): with `Render` on the running mean each round, with
-//!    `Realistic` on the previous round's fused images, which are round t's,
+//!    reprojected through the field's depth); round t's target is the last round's moved
+//!    toward this round's fused images by `StylizeOptions::step_of_round` (1/t² in the
+//!    paper's loop, 1/t in the one-pass variant). A consensus step reconciles the views
+//!    (`steps::reconcile`: the per-pixel median over a view and its neighbours, after
+//!    mapping the colours back onto the first fusion's distribution, `palette`): with
+//!    `Render` on the stepped targets each round, with `Realistic` on the previous round's
+//!    fused images, which are round t's,
 //! 4. **trains** the field on random rays across the targets (`steps::train`), most of the
 //!    steps in round 1 (`StylizeOptions::steps_of_round`, in proportion to 1/t) under one
 //!    learning-rate decay over the whole run, the targets moved by the colour offsets the
@@ -24,30 +26,33 @@
 //!    selected on them: every round's field is the next round's start and the last one is
 //!    the run's. `snerf consistency` scores another path.
 //!
-//! **Why it converges.** Write a round as `x_t = x_{t−1} + (F(x_{t−1}) − x_{t−1})/t`, where x
-//! is the targets and F renders the field trained on them, stylizes and fuses. A feed-forward
-//! stylizer is no contraction (it adds texture to whatever it is given, its own output
-//! included), so the paper's full step `x_t = F(x_{t−1})` has no fixed point to approach:
-//! every round adds detail the views disagree on. With the step 1/t the loop is a Mann
-//! iteration: the targets change by at most 1/t of the colour range from one round to the
-//! next, so the rounds settle whatever the stylizer does, and what the rounds' stylizations
-//! disagree on is averaged instead of accumulated. The consensus step is a fixed point for
-//! texture the views agree on and pulls texture they disagree on toward the neighbours', so
-//! the targets grow more consistent round by round. The field follows them: its steps shrink
-//! with 1/t and its learning rate decays over the run, so round t moves it by O(1/t).
+//! **Why it converges.** Write a round as `x_t = C(x_{t−1} + a_t (S(x_{t−1}) − x_{t−1}))`,
+//! where x is the targets, S renders the field trained on them, stylizes the renders and
+//! fuses them, and C is the consensus step. A feed-forward stylizer has no fixed point: it
+//! adds texture to whatever it is given, its own output included. So the paper's full step
+//! (`a_t = 1`) adds detail the views disagree on every round, and so does a running mean
+//! (`a_t = 1/t`): its steps shrink, but they add up without bound (Σ 1/t diverges), and
+//! measured, the long-range warp error crept up round after round (BENCH.md §5). With
+//! `a_t = 1/t²` the stylizer's say is summable: whatever it paints, it can move a target
+//! value by at most `Σ_{k>t} 1/k² < 1/t` after round t, so the targets settle (a Cauchy
+//! sequence) whatever the stylizer does, while every round still paints the current field
+//! and adds, in a shrinking dose, what the earlier rounds' paintings missed. The consensus
+//! step is a fixed point for texture the views agree on and pulls texture they disagree on
+//! toward the neighbours', so the settling targets grow more consistent round by round; it
+//! reads the neighbours bilinearly (`Content::consensus_read`), a small blur each round that
+//! the next round's fresh painting restores (read pixel by pixel, the warp errors rose for
+//! two rounds before they fell; BENCH.md §5b). The field follows them: its training steps
+//! shrink with 1/t and its learning rate decays over the run. The rounds' scores are not
+//! guaranteed to fall: a painting whose colours the blur takes can end a little farther
+//! from the style than round 1 (BENCH.md §5e names the pairs). An optimizing stylizer
+//! whose steps shrink as the render approaches the style (L-BFGS on `gatys`) would have a
+//! fixed point of its own; at about 12 s a 256² view for 100 steps on 2 cores it is not the
+//! default.
 //!
-//! With `Content::Realistic`, F depends on the field only through the depth the fusion
-//! reprojects with, so the rounds approach one set of targets; that is why it is the
-//! default: the last round is no worse than round 1 on both warp errors and the style
-//! distance. With `Content::Render` each round adds a fresh stylization of a render that
-//! already holds the painting: it takes more of the painting (BENCH.md §5: the style distance
-//! falls round after round, below per-frame stylization's) and the long-range warp error
-//! creeps up by a shrinking amount each round. Without the consensus step (a plain running
-//! mean) the paper's loop lost consistency every round. An optimizing stylizer whose steps
-//! shrink as the render approaches the style would have a fixed point of its own; with
-//! Adam's normalized steps (`gatys`) it has none (every pixel moves by about the learning
-//! rate whatever the gradient), and its cost (about 12 s a 256² view for 100 steps on 2
-//! cores) keeps it out of a loop that paints every view every round.
+//! With `Content::Realistic`, S depends on the field only through the depth the fusion
+//! reprojects with, so the rounds approach one set of targets (a running mean, steps 1/t,
+//! of repeated consensus steps on one stylization); the stylizer runs once. BENCH.md §5
+//! measures the two side by side.
 //!
 //! The stylizing trainer: the view MLP's output is zeroed (a painting has no highlights that
 //! move with the viewer, so the stylized field is diffuse), no total-variation smoothing of
@@ -371,12 +376,17 @@ mod tests {
         assert!(format!("{e:#}").contains("earlier snerf release"), "{e:#}");
     }
 
-    /// The schedule: running-mean steps 1/t, training steps in proportion to them, one
-    /// learning-rate decay, and calibrations spread over the steps.
+    /// The schedule: target steps 1/t² (the paper's loop, the default) or 1/t (the one-pass
+    /// variant's running mean), training steps in proportion to 1/t, one learning-rate
+    /// decay, and calibrations spread over the steps.
     #[test]
     fn the_schedule_follows_the_running_mean() {
         let o = StylizeOptions { rounds: 5, steps_per_round: 100, ..StylizeOptions::default() };
-        assert_eq!((1..=5).map(|r| o.step_of_round(r)).collect::<Vec<_>>(), [1.0, 0.5, 1.0 / 3.0, 0.25, 0.2]);
+        assert_eq!(o.content, Content::Render, "the paper's loop is the default");
+        assert_eq!((1..=5).map(|r| o.step_of_round(r)).collect::<Vec<_>>(), [1.0, 0.25, 1.0 / 9.0, 1.0 / 16.0, 1.0 / 25.0]);
+        let one_pass = StylizeOptions { content: Content::Realistic, ..o.clone() };
+        assert_eq!((1..=5).map(|r| one_pass.step_of_round(r)).collect::<Vec<_>>(), [1.0, 0.5, 1.0 / 3.0, 0.25, 0.2]);
+        assert_eq!((1..=5).map(|r| one_pass.steps_of_round(r)).collect::<Vec<_>>(), (1..=5).map(|r| o.steps_of_round(r)).collect::<Vec<_>>());
         let steps: Vec<u64> = (1..=5).map(|r| o.steps_of_round(r)).collect();
         assert_eq!(steps, [219, 109, 73, 55, 44]);
         assert_eq!(steps.iter().sum::<u64>(), 500);

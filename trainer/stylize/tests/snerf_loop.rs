@@ -242,7 +242,8 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
         let s = snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &dir.join(format!("{content:?}")), &mut Quiet).unwrap();
         assert_eq!(s.rounds_done, 3);
         let steps: Vec<f32> = s.records.iter().map(|r| r.target_step.unwrap()).collect();
-        assert_eq!(steps, vec![1.0, 0.5, 1.0 / 3.0]);
+        let expected = if content == snerf_loop::Content::Render { vec![1.0, 0.25, 1.0 / 9.0] } else { vec![1.0, 0.5, 1.0 / 3.0] };
+        assert_eq!(steps, expected, "{content:?}");
         // the record says how many views the stylizer painted in each round
         let painted: Vec<usize> = s.records.iter().map(|r| r.stylized_views.unwrap()).collect();
         let expected = if content == snerf_loop::Content::Render { vec![12; 3] } else { vec![12, 0, 0] };
@@ -258,6 +259,57 @@ fn realistic_content_is_stylized_once_and_render_content_every_round() {
     let first: f64 = means[..views].iter().sum::<f64>() / views as f64;
     let last: f64 = means[2 * views..].iter().sum::<f64>() / views as f64;
     assert!(last > first + 0.01, "render content did not see the field change: round 1 mean {first:.4}, round 3 {last:.4}");
+}
+
+/// Paints its whole input one flat grey, a different one each round (`levels[round]`, the
+/// round counted from its calls): a stylizer with no fixed point at all.
+struct Flat {
+    calls: std::sync::atomic::AtomicUsize,
+    views: usize,
+    levels: Vec<f32>,
+}
+
+impl stylizer::Stylizer for Flat {
+    fn name(&self) -> String {
+        "flat".into()
+    }
+    fn stylize(&self, content: &Image) -> anyhow::Result<Image> {
+        let round = self.calls.fetch_add(1, std::sync::atomic::Ordering::SeqCst) / self.views;
+        let v = self.levels[round.min(self.levels.len() - 1)];
+        Ok(Image::filled(content.width, content.height, [v; 3]))
+    }
+}
+
+/// The paper's loop (the default) moves its targets toward each round's stylization by
+/// 1/t²: with a stylizer that paints 0.2, then 0.8, then 0.5 (no fixed point), the painted
+/// pixels' targets are 0.2, 0.2 + 0.6/4 = 0.35 and 0.35 + 0.15/9 ≈ 0.367 (a running mean,
+/// steps 1/t, would give 0.2, 0.5, 0.5).
+#[test]
+fn the_papers_loop_steps_its_targets_by_one_over_t_squared() {
+    let Fixture { dir, data, run, style, source, style_img } = fixture("one_over_t2");
+    let out = dir.join("srun");
+    let mut o = options(&run, &data.root, &style, 3, false);
+    assert_eq!(o.content, snerf_loop::Content::Render);
+    (o.steps_per_round, o.consistency_frames, o.fuse_views) = (10, 0, 0);
+    let st = Flat { calls: Default::default(), views: 12, levels: vec![0.2, 0.8, 0.5] };
+    snerf_loop::run(&o, &data, &source, &st, &StyleMeters::default(), &style_img, &out, &mut Quiet).unwrap();
+    assert_eq!(st.calls.into_inner(), 36, "the stylizer runs on every view every round");
+    let read = |round: usize, i: usize| stylizer::image_from_png(&out.join(format!("targets/round_{round}/view_{i:03}.png"))).unwrap().data;
+    let q = |v: f32| (v * 255.0).round() / 255.0;
+    let (mut values, mut checked) = (0, 0);
+    for i in 0..12 {
+        let (r2, r3) = (read(2, i), read(3, i));
+        // the pixels the stylizer painted: the object's box; outside it the render stays
+        for (p, &t2) in r2.iter().enumerate() {
+            values += 1;
+            if (t2 - q(0.35)).abs() > 1.5 / 255.0 {
+                continue;
+            }
+            checked += 1;
+            assert!((r3[p] - q(q(0.35) + (0.5 - q(0.35)) / 9.0)).abs() <= 1.0 / 255.0, "view {i} value {p}: round 3 {} after {t2}", r3[p]);
+        }
+    }
+    assert!(checked * 10 > values, "only {checked} of {values} target values at round 2 are 0.2 + (0.8 - 0.2)/4");
 }
 
 /// `Targets::Consensus`: each round fuses the last round's fused targets; they are saved per

@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
+use crate::fusion::Read;
+
 /// What a stylization run was asked to do (fixed for the life of the run directory). Its
 /// `Default` is the command line's.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -38,15 +40,15 @@ pub struct StylizeOptions {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Content {
-    /// The current field's render, every round: the paper's loop.
+    /// The current field's render, every round: the paper's loop (the default).
     Render,
     /// The realistic field's renders, stylized once; later rounds reconcile those
     /// stylizations across views (the one-pass variant).
     Realistic,
 }
 
-/// The default `Content` (BENCH.md §5 compares the two).
-pub const DEFAULT_CONTENT: Content = Content::Realistic;
+/// The default `Content`: the paper's loop (BENCH.md §5 compares the two).
+pub const DEFAULT_CONTENT: Content = Content::Render;
 
 impl Default for Content {
     fn default() -> Content {
@@ -60,6 +62,18 @@ impl Content {
         match self {
             Content::Render => "render",
             Content::Realistic => "realistic",
+        }
+    }
+
+    /// How the consensus step reads the other views' colours (`fusion::Read`): the paper's
+    /// loop mixes the four pixels around a point (a small blur each round, which the next
+    /// round's fresh painting restores), the one-pass variant copies the pixel (its
+    /// consensus compounds over the rounds on one stylization, with no fresh painting to
+    /// restore what a blur takes).
+    pub const fn consensus_read(self) -> Read {
+        match self {
+            Content::Render => Read::Bilinear,
+            Content::Realistic => Read::Nearest,
         }
     }
 }
@@ -86,15 +100,22 @@ impl Default for StylizeOptions {
 }
 
 impl StylizeOptions {
-    /// The step of round `round`'s running mean (1-based): `1/t`, so round t's target is the
-    /// mean of the first t rounds' fused stylizations.
+    /// The step of round `round`'s targets toward the round's fused images (1-based). The
+    /// paper's loop (`Content::Render`): `1/t²`, so what the stylizer can still change after
+    /// round t is bounded by `Σ_{k>t} 1/k² < 1/t`, whatever it paints (`snerf_loop`'s module
+    /// doc says why). The one-pass variant: `1/t`, the running mean of the rounds'
+    /// consensus images.
     pub fn step_of_round(&self, round: usize) -> f32 {
-        1.0 / round.max(1) as f32
+        let t = round.max(1) as f32;
+        match self.content {
+            Content::Render => 1.0 / (t * t),
+            Content::Realistic => 1.0 / t,
+        }
     }
 
-    /// Training steps of round `round` (1-based), in proportion to its step `1/t` (the same
-    /// total as `steps_per_round` every round; at least 1): most of them in round 1, where the
-    /// style is taken, and later rounds, whose targets move by O(1/t), refine.
+    /// Training steps of round `round` (1-based), in proportion to `1/t` (the same total as
+    /// `steps_per_round` every round; at least 1): most of them in round 1, where the style
+    /// is taken, and later rounds, whose targets move less and less, refine.
     pub fn steps_of_round(&self, round: usize) -> u64 {
         let rounds = self.rounds.max(1);
         let total = self.steps_per_round.max(1) * rounds as u64;

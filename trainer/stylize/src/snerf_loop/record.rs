@@ -14,10 +14,10 @@ use crate::style_metric::StyleScore;
 /// The run's record; its name is part of the run directory's layout ([`RunDir`]).
 pub const STATE_FILE: &str = RunDir::STYLIZE_RECORD;
 
-/// The loop a record was written by. Records without it (the releases before it: their
-/// loop had a dozen options to reproduce earlier runs, and could discard rounds) are read,
-/// but not resumed.
-pub const LOOP_VERSION: u32 = 2;
+/// The loop a record was written by. Records of another loop are read, but not resumed:
+/// without it (a dozen options to reproduce earlier runs, rounds that could be discarded),
+/// 2 (the paper's loop stepped its targets by 1/t, and the one-pass variant was the default).
+pub const LOOP_VERSION: u32 = 3;
 
 /// One finished round.
 #[derive(Clone, Debug, Serialize, Deserialize)]

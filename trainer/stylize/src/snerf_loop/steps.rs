@@ -167,22 +167,23 @@ fn fuse(s: &Setup, carry: &mut Carry, stylized: &[Image], fresh: bool, geoms: &[
 
 /// One consensus step: the targets mapped back onto the first fusion's colour distribution,
 /// then each pixel the median of what its view and `fuse_views` neighbours hold at that
-/// surface point (through the current depth). Texture the views agree on is a fixed point;
+/// surface point (through the current depth; read as `Content::consensus_read` says). Texture the views agree on is a fixed point;
 /// texture they disagree on moves toward what the neighbours hold.
 fn reconcile(s: &Setup, carry: &mut Carry, targets: &[Image], geoms: &[ViewGeometry]) -> Result<(Vec<Image>, f64)> {
     if carry.palette.is_none() {
         carry.palette = Some(palette::load(s.out)?);
     }
     let kept = palette::map_onto(targets, geoms, carry.palette.as_ref().expect("loaded above"));
-    Ok(fusion::fuse(&kept, geoms, s.opts.fuse_views, Read::Nearest))
+    Ok(fusion::fuse(&kept, geoms, s.opts.fuse_views, s.opts.content.consensus_read()))
 }
 
-/// Step 3b: round t's target is the last round's plus 1/t of the way to this round's fused
-/// stylization: the running mean of the rounds' fused stylizations. In the paper's loop
-/// (`Content::Render`) the mean is reconciled across views once more (`reconcile`), as the
-/// one-pass variant's consensus is: each round's fresh stylization brings texture the views
-/// do not yet agree on. A resumed run reads the last round's targets back; without them, the
-/// field's colours stand for them.
+/// Step 3b: round t's target is the last round's plus `step_of_round(t)` of the way to this
+/// round's fused images: 1/t² of the way to the fresh stylization in the paper's loop
+/// (`Content::Render`), 1/t to the consensus in the one-pass variant (the running mean). In
+/// the paper's loop the stepped targets are reconciled across views once more
+/// (`reconcile`), as the one-pass variant's consensus is: each round's fresh stylization
+/// brings texture the views do not yet agree on. A resumed run reads the last round's
+/// targets back; without them, the field's colours stand for them.
 fn running_mean(s: &Setup, carry: &mut Carry, rendered: &Rendered, fused: Vec<Image>, round: usize) -> Result<Vec<Image>> {
     if round == 1 {
         return Ok(fused);
