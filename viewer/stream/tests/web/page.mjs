@@ -47,7 +47,9 @@ try {
     // What the canvas shows (the presented frame), as the browser composited it.
     if (r.state === want && (await page.locator('#view').isVisible())) {
       await page.evaluate(() => { document.getElementById('stats').style.display = 'none'; });
-      r.canvasPng = (await page.locator('#canvas').screenshot()).toString('base64');
+      // Playwright waits for the element to hold still over two animation frames; on a loaded
+      // machine SwiftShader's frames come seconds apart, so allow more than its 30 s default.
+      r.canvasPng = (await page.locator('#canvas').screenshot({ timeout: 120000 })).toString('base64');
     }
     console.log(JSON.stringify(r));
   }
