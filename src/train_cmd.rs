@@ -81,6 +81,11 @@ pub struct TrainArgs {
     /// K-Planes; default 1e-4 for dynamic scenes).
     #[arg(long, value_parser = crate::args::non_negative_f32)]
     pub time_sparse: Option<f32>,
+    /// Dynamic scenes: add a deformation, a canonical shape and how it moves (a low-rank
+    /// motion basis, smooth in space and slow in time; the time planes stay for appearance
+    /// changes). Off by default.
+    #[arg(long)]
+    pub deform: bool,
     /// Per-photo appearance: learn a 3×4 affine colour transform per training photo
     /// (exposure, white balance) with the field, pulled toward identity with this weight; 0 =
     /// off (the default). Held-out photos and every render use the field's own colours.
@@ -177,6 +182,11 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         anyhow::ensure!(cfg.field.dynamic(), "--time-resolution applies to dynamic scenes only; {} is static", a.data.display());
         cfg.field.time_resolutions = train::time_levels(t);
     }
+    if a.deform {
+        anyhow::ensure!(cfg.field.dynamic(), "--deform applies to dynamic scenes only; {} is static", a.data.display());
+        let finest = cfg.field.time_resolutions.iter().copied().max().unwrap_or(4);
+        cfg.field.deform = Some(snerf_trainer::deform::DeformConfig::for_time_resolution(finest));
+    }
     if let Some(w) = a.time_smooth {
         cfg.time_smooth = w;
     }
@@ -214,6 +224,7 @@ impl TrainArgs {
             ("--time-resolution", "/field/time_resolutions", self.time_resolution.is_some()),
             ("--time-smooth", "/time_smooth", self.time_smooth.is_some()),
             ("--time-sparse", "/time_sparse", self.time_sparse.is_some()),
+            ("--deform", "/field/deform", self.deform),
             ("--batch", "/batch_rays", self.batch.is_some()),
             ("--batch-samples", "/batch_samples", self.batch_samples.is_some()),
             ("--seed", "/seed", self.seed != 0),

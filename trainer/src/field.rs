@@ -12,14 +12,20 @@
 //! Decoder: h = relu(W1 f + b1), o = W2 h + b2, then σ = exp(o0) (truncated), rgb and features
 //! = sigmoid(o1..7). The decoder runs on whole batches of samples with `matrixmultiply`.
 //!
-//! All parameters (planes, decoder, view MLP) live in one flat `Vec<f32>` so the optimizer,
-//! checkpoints and per-thread gradient buffers are single contiguous arrays.
+//! A dynamic field may also carry a [`crate::deform`]ation (off unless asked for): the planes
+//! are then read at the deformed point g + offset(g, τ), so the spatial planes hold a
+//! canonical shape; [`Field::warp`] is the one place that applies it, for training,
+//! rendering and baking alike.
+//!
+//! All parameters (planes, decoder, view MLP, deformation) live in one flat `Vec<f32>` so the
+//! optimizer, checkpoints and per-thread gradient buffers are single contiguous arrays.
 
 use serde::{Deserialize, Serialize};
 
 // `field::Rng` is where the generator lived before it had a module of its own; users still
 // name it here.
 pub use crate::rng::Rng;
+use crate::deform::{Deform, DeformConfig};
 use crate::view_mlp::ViewLayout;
 
 /// Channels per plane and level.
@@ -40,6 +46,10 @@ pub struct FieldConfig {
     pub time_resolutions: Vec<u32>,
     /// Decoder hidden width (multiple of 4).
     pub hidden: usize,
+    /// A deformation (canonical field + motion) of a dynamic field; absent: none, and in runs
+    /// from before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deform: Option<DeformConfig>,
 }
 
 impl FieldConfig {
@@ -75,8 +85,16 @@ impl FieldConfig {
         let c = C as f64;
         let enc = levels * planes * (4.0 * c * 2.0 + c);
         let dec = 2.0 * (inp * h + h * out);
-        let fwd = enc + dec;
-        let bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
+        let mut fwd = enc + dec;
+        let mut bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
+        if let Some(d) = &self.deform {
+            // warp: 8 corners x 3K FMAs and the K coefficients; backward: twice that, and
+            // per plane the 4 corners' differences for the two derivatives (2 x 4C FMAs).
+            let k = d.modes as f64;
+            let warp = 8.0 * 3.0 * k * 2.0 + 3.0 * k;
+            fwd += warp;
+            bwd += 2.0 * warp + levels * planes * (2.0 * 4.0 * c * 2.0);
+        }
         (fwd, bwd)
     }
     pub fn validate(&self) -> anyhow::Result<()> {
@@ -95,6 +113,10 @@ impl FieldConfig {
             "time resolutions must be in 2..=1024"
         );
         anyhow::ensure!(self.hidden >= 4 && self.hidden.is_multiple_of(4), "hidden width must be a multiple of 4");
+        if let Some(d) = &self.deform {
+            anyhow::ensure!(self.dynamic(), "a deformation needs a dynamic field (time planes)");
+            d.validate()?;
+        }
         Ok(())
     }
 }
@@ -121,6 +143,8 @@ pub struct Layout {
     pub w2: usize,
     pub b2: usize,
     pub view: ViewLayout,
+    /// The deformation's parameters, after the view MLP's (absent: none).
+    pub deform: Option<Deform>,
     pub total: usize,
     pub input: usize,
     pub hidden: usize,
@@ -153,7 +177,11 @@ impl Layout {
         off += OUT;
         let view = ViewLayout::new(off);
         off = view.end;
-        Layout { planes, plane_end, w1, b1, w2, b2, view, total: off, input, hidden }
+        let deform = cfg.deform.as_ref().map(|d| Deform::new(d, off));
+        if let Some(d) = &deform {
+            off = d.end;
+        }
+        Layout { planes, plane_end, w1, b1, w2, b2, view, deform, total: off, input, hidden }
     }
 }
 
@@ -242,7 +270,21 @@ impl Field {
             *x = s2 * (2.0 * rng.uniform() - 1.0);
         }
         layout.view.init(&mut params, &mut rng);
+        if let Some(d) = &layout.deform {
+            d.init(&mut params, &mut rng);
+        }
         Ok(Field { cfg, layout, params })
+    }
+
+    /// Where point g at time τ is read in the planes: g itself, or with a deformation its
+    /// canonical point g + offset(g, τ). Every evaluation of the field at (g, τ) goes through
+    /// here (training, rendering, occupancy, baking).
+    #[inline]
+    pub fn warp(&self, g: &[f32; 3], t: f32) -> [f32; 3] {
+        match &self.layout.deform {
+            Some(d) => d.warp(&self.params, g, t),
+            None => *g,
+        }
     }
 
     /// Prefetch the plane cells a point will read. Plane lookups are cache misses by nature
@@ -326,6 +368,22 @@ impl Field {
     /// Backward of [`encode_recorded`] from its record.
     #[inline]
     pub fn encode_backward_recorded(&self, hits: &[PlaneHit], d_feat: &[f32], grad: &mut [f32], touched: &mut [u8]) {
+        self.encode_backward_inner::<false>(hits, d_feat, grad, touched, &[0.0; 3]);
+    }
+
+    /// [`Field::encode_backward_recorded`] that also returns dL/dg, the gradient with respect
+    /// to the point `g` the record was made at (what a deformation needs): the spatial
+    /// planes' bilinear derivatives, 0 along an axis where g lies outside [-1,1] (the lookup
+    /// clamps to the border there).
+    #[inline]
+    pub fn encode_backward_recorded_dg(&self, hits: &[PlaneHit], d_feat: &[f32], grad: &mut [f32], touched: &mut [u8], g: &[f32; 3]) -> [f32; 3] {
+        self.encode_backward_inner::<true>(hits, d_feat, grad, touched, g)
+    }
+
+    #[inline(always)]
+    fn encode_backward_inner<const DG: bool>(&self, hits: &[PlaneHit], d_feat: &[f32], grad: &mut [f32], touched: &mut [u8], g: &[f32; 3]) -> [f32; 3] {
+        let mut d_g = [0.0f32; 3];
+        let inside = g.map(|x| x.abs() < 1.0);
         let np = self.cfg.planes();
         for (l, level_hits) in hits.chunks_exact(np).enumerate() {
             let df = &d_feat[l * C..(l + 1) * C];
@@ -345,6 +403,28 @@ impl Field {
                 }
                 let base = hit.idx as usize;
                 let row = hit.row as usize;
+                if DG {
+                    // val = Σ w_j v_j with w from (fu, fv); its derivatives along u and v, and
+                    // u = (g_a + 1) / 2 (res - 1) on a spatial axis (a time plane's v is τ)
+                    let p = &self.layout.planes[l][k];
+                    let (fu, fv) = (hit.wts[1] + hit.wts[3], hit.wts[2] + hit.wts[3]);
+                    let v0 = &self.params[base..base + C];
+                    let v1 = &self.params[base + C..base + 2 * C];
+                    let v2 = &self.params[base + row..base + row + C];
+                    let v3 = &self.params[base + row + C..base + row + 2 * C];
+                    let (mut du, mut dv) = (0.0f32, 0.0f32);
+                    for c in 0..C {
+                        du += d[c] * ((1.0 - fv) * (v1[c] - v0[c]) + fv * (v3[c] - v2[c]));
+                        dv += d[c] * ((1.0 - fu) * (v2[c] - v0[c]) + fu * (v3[c] - v1[c]));
+                    }
+                    let (a, b) = p.axes;
+                    if inside[a] {
+                        d_g[a] += du * 0.5 * (p.ru - 1) as f32;
+                    }
+                    if b != 3 && inside[b] {
+                        d_g[b] += dv * 0.5 * (p.rv - 1) as f32;
+                    }
+                }
                 for (j, off) in [0, C, row, row + C].into_iter().enumerate() {
                     let w = hit.wts[j];
                     touched[(base + off) / C] = 1;
@@ -355,6 +435,7 @@ impl Field {
                 }
             }
         }
+        d_g
     }
 
     /// Total-variation regularizer on the spatial planes (as in K-Planes): the mean squared
@@ -593,10 +674,10 @@ mod tests {
     fn flops_per_sample_match_a_hand_count() {
         // Static, 2 levels, hidden 16: 6 plane lookups of 4 corners x 8 channels (FMA = 2)
         // plus 8 products each = 6 x 72 = 432; decoder (16 x 16 + 16 x 8) FMAs = 768.
-        let cfg = FieldConfig { resolutions: vec![16, 32], time_resolutions: vec![], hidden: 16 };
+        let cfg = FieldConfig { resolutions: vec![16, 32], time_resolutions: vec![], hidden: 16, deform: None };
         assert_eq!(cfg.flops_per_sample(), (432.0 + 768.0, 2.0 * 768.0 + 432.0 + 6.0 * 8.0 * 3.0));
         // Dynamic, 1 level, hidden 8: 6 planes x 72 = 432; decoder (8 x 8 + 8 x 8) FMAs = 256.
-        let cfg = FieldConfig { resolutions: vec![8], time_resolutions: vec![4], hidden: 8 };
+        let cfg = FieldConfig { resolutions: vec![8], time_resolutions: vec![4], hidden: 8, deform: None };
         assert_eq!(cfg.flops_per_sample(), (432.0 + 256.0, 2.0 * 256.0 + 432.0 + 6.0 * 8.0 * 3.0));
     }
 }

@@ -12,7 +12,8 @@
 //! `tests/architecture.rs` checks it):
 //! 1. core: `rng`, `orbit`, `space`, `metrics`, `png`, `adam`, `composite`, `occupancy`,
 //!    `appearance` (per-photo colour transforms the training loss sees);
-//! 2. the field and its rendering: `view_mlp`, `field`, `render`;
+//! 2. the field and its rendering: `view_mlp`, `deform` (a dynamic field's motion), `field`,
+//!    `render`;
 //! 3. `model` (what a renderer needs of a trained field);
 //! 4. `train`, `eval`;
 //! 5. `checkpoint` (a trainer's state on disk), `camera_path` (rendering a path), `run`,
@@ -29,6 +30,7 @@ pub mod appearance;
 pub mod camera_path;
 pub mod checkpoint;
 pub mod composite;
+pub mod deform;
 pub mod eval;
 pub mod field;
 pub mod metrics;

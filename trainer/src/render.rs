@@ -44,6 +44,9 @@ pub struct RayResult {
 pub struct Workspace {
     samples: Vec<Sample>,
     sample_time: Vec<f32>,
+    /// Where each sample is read in the planes when the field has a deformation
+    /// ([`Field::warp`]); empty otherwise.
+    warped: Vec<[f32; 3]>,
     sample_ray: Vec<u32>,
     sigma: Vec<f32>,
     /// Activated rgb + features per sample (computed once in the forward pass).
@@ -129,6 +132,7 @@ impl Workspace {
     fn reset(&mut self, n_rays: usize) {
         self.samples.clear();
         self.sample_time.clear();
+        self.warped.clear();
         self.sample_ray.clear();
         self.sigma.clear();
         self.vals.clear();
@@ -190,18 +194,26 @@ impl Workspace {
             self.feat.resize(end * inp, 0.0);
             self.hid.resize(end * h, 0.0);
             self.out.resize(end * OUT, 0.0);
+            let deformed = field.layout.deform.is_some();
+            if deformed {
+                for k in start..end {
+                    self.warped.push(field.warp(&self.samples[k].g, self.sample_time[k]));
+                }
+            }
+            let (samples, warped) = (&self.samples, &self.warped);
+            let at = |k: usize| if deformed { &warped[k] } else { &samples[k].g };
             const AHEAD: usize = 6;
             for k in start..(start + AHEAD).min(end) {
-                field.prefetch(&self.samples[k].g, self.sample_time[k]);
+                field.prefetch(at(k), self.sample_time[k]);
             }
             if record {
                 self.hits.resize(end * nh, Default::default());
             }
             for k in start..end {
                 if k + AHEAD < end {
-                    field.prefetch(&self.samples[k + AHEAD].g, self.sample_time[k + AHEAD]);
+                    field.prefetch(at(k + AHEAD), self.sample_time[k + AHEAD]);
                 }
-                let (g, t) = (&self.samples[k].g, self.sample_time[k]);
+                let (g, t) = (at(k), self.sample_time[k]);
                 let feat = &mut self.feat[k * inp..(k + 1) * inp];
                 if record {
                     field.encode_recorded(g, t, feat, &mut self.hits[k * nh..(k + 1) * nh]);
@@ -439,12 +451,15 @@ pub fn train_chunk(
             if k + AHEAD < n {
                 prefetch_grad(&ws.hits[(k + AHEAD) * nh..(k + AHEAD + 1) * nh], &ws.grad);
             }
-            field.encode_backward_recorded(
-                &ws.hits[k * nh..(k + 1) * nh],
-                &ws.d_feat[k * inp..(k + 1) * inp],
-                &mut ws.grad,
-                &mut ws.touched,
-            );
+            let (hits, d_feat) = (&ws.hits[k * nh..(k + 1) * nh], &ws.d_feat[k * inp..(k + 1) * inp]);
+            match &field.layout.deform {
+                None => field.encode_backward_recorded(hits, d_feat, &mut ws.grad, &mut ws.touched),
+                Some(d) => {
+                    // through the canonical point back to the motion that put it there
+                    let d_g = field.encode_backward_recorded_dg(hits, d_feat, &mut ws.grad, &mut ws.touched, &ws.warped[k]);
+                    d.warp_backward(&field.params, &ws.samples[k].g, ws.sample_time[k], &d_g, &mut ws.grad);
+                }
+            }
         }
         stats.ns[5] += lap(&mut clock);
     }
@@ -452,7 +467,8 @@ pub fn train_chunk(
 }
 
 /// Decode the field at many grid points, in batches of 1024; `f(k, raw_outputs)` sees each
-/// point's raw decoder outputs (OUT values).
+/// point's raw decoder outputs (OUT values). A deformed field is read at its warped points
+/// ([`Field::warp`]), so occupancy and the baker see the field that renders.
 fn decode_points(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, mut f: impl FnMut(usize, &[f32])) {
     let (inp, h) = (field.layout.input, field.layout.hidden);
     const B: usize = 1024;
@@ -462,7 +478,8 @@ fn decode_points(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Wor
         ws.hid.resize(n * h, 0.0);
         ws.out.resize(n * OUT, 0.0);
         for (k, g) in chunk.iter().enumerate() {
-            field.encode(g, times[bi * B + k], &mut ws.feat[k * inp..(k + 1) * inp]);
+            let t = times[bi * B + k];
+            field.encode(&field.warp(g, t), t, &mut ws.feat[k * inp..(k + 1) * inp]);
         }
         field.decode_forward(n, &ws.feat[..n * inp], &mut ws.hid[..n * h], &mut ws.out[..n * OUT]);
         for k in 0..n {

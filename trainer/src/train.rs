@@ -90,6 +90,15 @@ pub struct TrainConfig {
     /// pull toward identity; 0 = off.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub appearance: f32,
+    /// Put a random background colour behind every training ray of an opaque photo too, not
+    /// only behind transparent pixels. A photo without alpha says that every pixel's light
+    /// came from the scene; behind a fixed black background a foggy field can let light
+    /// through where the photo is dark and still fit it, and every ray then marches to the
+    /// far plane. A random colour makes any light let through cost, so the field turns
+    /// opaque at its surfaces and rays stop there (Instant-NGP draws a random background for
+    /// the same reason). False in runs from before it existed: black behind opaque photos.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub random_background: bool,
 }
 
 fn is_zero(x: &f32) -> bool {
@@ -139,7 +148,7 @@ impl TrainConfig {
             freeze_geometry: false,
             freeze_view: false,
             seed: 0,
-            field: FieldConfig { resolutions, time_resolutions, hidden: 32 },
+            field: FieldConfig { resolutions, time_resolutions, hidden: 32, deform: None },
             // Objects on transparent film, static or animated: forward and unbounded scenes
             // were not re-measured.
             pixel_rays: if data.kind == SceneKind::Object { 4 } else { 1 },
@@ -149,6 +158,7 @@ impl TrainConfig {
             time_smooth: if data.dynamic { TIME_SMOOTH } else { 0.0 },
             time_sparse: if data.dynamic { TIME_SPARSE } else { 0.0 },
             appearance: 0.0,
+            random_background: true,
         }
     }
 }
@@ -196,6 +206,10 @@ impl TrainConfig {
             "training setting field.time_resolutions must be empty or have one entry per level"
         );
         anyhow::ensure!(f.hidden >= 4 && f.hidden <= 1024 && f.hidden.is_multiple_of(4), "training setting field.hidden must be a multiple of 4 in 4..=1024 (is {})", f.hidden);
+        if let Some(d) = &f.deform {
+            anyhow::ensure!(!f.time_resolutions.is_empty(), "training setting field.deform needs a dynamic scene (time planes)");
+            d.validate().map_err(|e| anyhow::anyhow!("training setting field.deform: {e}"))?;
+        }
         Ok(())
     }
 }
@@ -494,7 +508,7 @@ impl Trainer {
             let (x, y) = (local % w, local / w);
             let px = &v.rgba[local * 4..local * 4 + 4];
             let a = px[3] as f32 / 255.0;
-            let bg = if self.has_alpha {
+            let bg = if self.has_alpha || self.cfg.random_background {
                 [self.rng.uniform(), self.rng.uniform(), self.rng.uniform()]
             } else {
                 [0.0; 3]
@@ -598,7 +612,8 @@ impl Trainer {
         self.adam.update_dense(params, &mut grads, b2..b2 + 1, lr * geometry);
         self.adam.update_dense(params, &mut grads, b2 + 1..view.start, lr);
         self.adam.update_dense(params, &mut grads, view.start..view.end, view_lr);
-        self.adam.update_dense(params, &mut grads, view.end..total, lr);
+        // the deformation (what moves the geometry)
+        self.adam.update_dense(params, &mut grads, view.end..total, lr * geometry);
         if let Some(a) = &mut self.appearance {
             let slots: Vec<_> = self.pool.slots.iter().map(|w| w.lock().unwrap_or_else(|e| e.into_inner())).collect();
             a.step(slots.iter().map(|w| w.appearance.grad()), crate::appearance::LR * s);

@@ -3,6 +3,7 @@
 
 use snerf_trainer::composite::{self, V};
 use snerf_trainer::data::SceneKind;
+use snerf_trainer::deform::DeformConfig;
 use snerf_trainer::field::{activate, activate_backward, Field, FieldConfig, Rng, OUT};
 use snerf_trainer::occupancy::Occupancy;
 use snerf_trainer::render::{train_chunk, RayTask, Workspace};
@@ -22,12 +23,30 @@ fn small_field(dynamic: bool) -> Field {
         resolutions: vec![4, 8],
         time_resolutions: if dynamic { vec![3, 5] } else { vec![] },
         hidden: 8,
+        deform: None,
     };
     let mut f = Field::new(cfg, 7).unwrap();
     // Perturb so nothing sits at a symmetric or zero point.
     let mut rng = Rng::new(3);
     for p in f.params.iter_mut() {
         *p += 0.05 * (rng.uniform() - 0.5);
+    }
+    f
+}
+
+/// A small dynamic field with a deformation whose coefficients are far from their start (0),
+/// so offsets are a sizeable part of a plane cell.
+fn small_deformed_field() -> Field {
+    let mut cfg = small_field(true).cfg;
+    cfg.deform = Some(DeformConfig { resolution: 3, modes: 2, time_resolution: 4 });
+    let mut f = Field::new(cfg, 7).unwrap();
+    let mut rng = Rng::new(3);
+    for p in f.params.iter_mut() {
+        *p += 0.05 * (rng.uniform() - 0.5);
+    }
+    let d = f.layout.deform.unwrap();
+    for p in &mut f.params[d.basis..d.end] {
+        *p = 2.0 * rng.uniform() - 1.0;
     }
     f
 }
@@ -156,7 +175,7 @@ fn view_mlp_backward_matches_finite_differences() {
     let mut rng = Rng::new(2);
     // non-zero last layer so every weight matters
     for p in &mut f.params[view.w3..view.end] {
-        *p = rng.uniform() - 0.5;
+        *p = 2.0 * rng.uniform() - 1.0;
     }
     let mut df = [0.0f32; 8];
     for x in df.iter_mut() {
@@ -194,8 +213,8 @@ fn view_mlp_backward_matches_finite_differences() {
 /// pixels of 3 rays whose mean is compared to the pixel's target.
 #[test]
 fn fused_training_chunk_gradient_matches_finite_differences() {
-    for (dynamic, k) in [(false, 1), (true, 1), (false, 3)] {
-        let mut field = small_field(dynamic);
+    for (dynamic, k, deformed) in [(false, 1, false), (true, 1, false), (false, 3, false), (true, 1, true)] {
+        let mut field = if deformed { small_deformed_field() } else { small_field(dynamic) };
         // moderate densities so rays neither terminate early nor stay empty
         field.params[field.layout.b2] = 1.0;
         let space = SceneSpace::identity(SceneKind::Object, dynamic);
@@ -239,6 +258,11 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
         let mut checks: Vec<usize> = plane_touched.iter().step_by((plane_touched.len() / 12).max(1)).cloned().collect();
         checks.extend((l.w1..l.b2 + 8).step_by(17));
         checks.extend((l.view.w1..l.view.end).step_by(37));
+        if let Some(d) = l.deform {
+            checks.extend((d.basis..d.coeffs).step_by(5));
+            checks.extend(d.coeffs..d.end);
+            assert!(grad[d.basis..d.end].iter().filter(|g| g.abs() > 1e-4).count() > 20, "the deformation gets gradient");
+        }
         let mut checked = 0;
         for i in checks {
             let h = 2e-3f32;
@@ -247,7 +271,7 @@ fn fused_training_chunk_gradient_matches_finite_differences() {
             let mut fb = field.clone();
             fb.params[i] -= h;
             let num = (loss_of(&fa) - loss_of(&fb)) / (2.0 * h as f64);
-            assert_close(&format!("param {i} (dynamic={dynamic}, rays per pixel {k})"), grad[i] as f64, num, 5e-2, 5e-4);
+            assert_close(&format!("param {i} (dynamic={dynamic}, rays per pixel {k}, deformed={deformed})"), grad[i] as f64, num, 5e-2, 5e-4);
             checked += 1;
         }
         assert!(checked > 20);
@@ -371,4 +395,64 @@ fn time_priors_gradient_matches_finite_differences() {
     let mut t = vec![0u8; start.params.len() / 8];
     assert_eq!(start.time_priors_backward(smooth, sparse, &mut g, &mut t), 0.0);
     assert!(g.iter().all(|&x| x == 0.0));
+}
+
+/// The deformation's backward: dL/d(point) through the canonical field's planes
+/// (`encode_backward_recorded_dg`), and from there into the motion basis and its time
+/// coefficients (`Deform::warp_backward`), against finite differences of
+/// L = w · encode(warp(g, τ), τ); points inside the box and outside it (clamped: no gradient
+/// along that axis).
+#[test]
+fn deformation_backward_matches_finite_differences() {
+    let f = small_deformed_field();
+    let d = f.layout.deform.unwrap();
+    let inp = f.layout.input;
+    let mut rng = Rng::new(5);
+    let w: Vec<f32> = (0..inp).map(|_| rng.uniform() - 0.5).collect();
+    let nh = f.hits_per_point();
+    let loss_at = |f: &Field, p: &Vec3, t: f32| -> f64 {
+        let mut feat = vec![0.0; inp];
+        f.encode(p, t, &mut feat);
+        feat.iter().zip(&w).map(|(a, b)| (a * b) as f64).sum()
+    };
+    let mut checked = 0;
+    for (g, t) in [([0.31f32, -0.47, 0.63], 0.37f32), ([-0.12, 0.58, -0.33], 0.81), ([1.4, 0.2, -0.1], 0.1)] {
+        let gw = f.warp(&g, t);
+        assert!((0..3).map(|a| (gw[a] - g[a]).abs()).sum::<f32>() > 0.05, "the offset is not negligible: {g:?} -> {gw:?}");
+        let mut feat = vec![0.0; inp];
+        let mut hits = vec![Default::default(); nh];
+        f.encode_recorded(&gw, t, &mut feat, &mut hits);
+        let mut grad = vec![0.0f32; f.params.len()];
+        let d_g = f.encode_backward_recorded_dg(&hits, &w, &mut grad, &mut vec![0u8; f.params.len() / 8], &gw);
+        // dL/d(point) of the canonical field
+        for a in 0..3 {
+            let h = 1e-3f32;
+            let (mut pa, mut pb) = (gw, gw);
+            pa[a] += h;
+            pb[a] -= h;
+            let num = (loss_at(&f, &pa, t) - loss_at(&f, &pb, t)) / (2.0 * h as f64);
+            let num = if gw[a].abs() + h >= 1.0 { 0.0 } else { num }; // clamped: the border holds
+            assert_close(&format!("dL/dg'[{a}] at {g:?} -> {gw:?}"), d_g[a] as f64, num, 2e-2, 1e-5);
+        }
+        // the rest of the plane gradient is unchanged by asking for d_g
+        let mut plain = vec![0.0f32; f.params.len()];
+        f.encode_backward_recorded(&hits, &w, &mut plain, &mut vec![0u8; f.params.len() / 8]);
+        assert_eq!(plain, grad);
+        // into the basis and the coefficients
+        let mut grad = vec![0.0f32; f.params.len()];
+        d.warp_backward(&f.params, &g, t, &d_g, &mut grad);
+        assert!(grad[..d.basis].iter().all(|&x| x == 0.0));
+        let loss = |f: &Field| loss_at(f, &f.warp(&g, t), t);
+        for i in (d.basis..d.end).filter(|&i| grad[i] != 0.0) {
+            let h = 1e-3f32;
+            let mut fa = f.clone();
+            fa.params[i] += h;
+            let mut fb = f.clone();
+            fb.params[i] -= h;
+            let num = (loss(&fa) - loss(&fb)) / (2.0 * h as f64);
+            assert_close(&format!("deformation param {i} at {g:?}"), grad[i] as f64, num, 3e-2, 2e-5);
+            checked += 1;
+        }
+    }
+    assert!(checked > 60, "only {checked} parameters checked");
 }
