@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use serde_json::{json, Value};
 use snerf_trainer::data::LoadOptions;
@@ -99,6 +99,9 @@ pub struct BenchTrainArgs {
     /// 32 f32 FLOP per cycle — two 256-bit FMA pipes, as on this machine's Zen 4 cores).
     #[arg(long, default_value_t = 166.4, value_parser = crate::args::positive)]
     pub peak_gflops: f64,
+    /// Train with a deformation (`snerf train --deform`; dynamic scenes only).
+    #[arg(long)]
+    pub deform: bool,
 }
 
 pub fn run(cmd: &BenchCmd) -> Result<Value> {
@@ -195,7 +198,10 @@ fn stylize(a: &BenchStylizeArgs) -> Result<Value> {
 
 fn train(a: &BenchTrainArgs) -> Result<Value> {
     let data = snerf_trainer::data::load(&a.data, &LoadOptions::default())?;
-    let cfg = TrainConfig::for_dataset(&data);
+    let mut cfg = TrainConfig::for_dataset(&data);
+    if a.deform {
+        cfg.enable_deform().with_context(|| format!("--deform: {}", a.data.display()))?;
+    }
     let mut t = Trainer::new(&data, cfg)?;
     eprintln!("warming up for {} steps ...", a.warmup);
     for _ in 0..a.warmup {

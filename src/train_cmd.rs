@@ -183,9 +183,7 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         cfg.field.time_resolutions = train::time_levels(t);
     }
     if a.deform {
-        anyhow::ensure!(cfg.field.dynamic(), "--deform applies to dynamic scenes only; {} is static", a.data.display());
-        let finest = cfg.field.time_resolutions.iter().copied().max().unwrap_or(4);
-        cfg.field.deform = Some(snerf_trainer::deform::DeformConfig::for_time_resolution(finest));
+        cfg.enable_deform().with_context(|| format!("--deform: {}", a.data.display()))?;
     }
     if let Some(w) = a.time_smooth {
         cfg.time_smooth = w;

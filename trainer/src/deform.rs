@@ -25,8 +25,12 @@
 //! planes (xy, xz, yz). The time planes stay: they carry what motion cannot explain
 //! (appearance changes, shapes appearing), under K-Planes' priors.
 //!
-//! Initialization: B small random, c = 0, so a run starts as the plain time-conditioned
-//! field (no motion) and c moves first (the gradient of B is c).
+//! Initialization: c = 0, so a run starts as the plain time-conditioned field (no motion).
+//! The first three modes start as the unit translations along x, y and z (the same vector in
+//! every cell), the others small random: a shift of the whole body is then three numbers per
+//! knot from the first step, which Adam's bounded steps reach in tens of steps, where a
+//! small random basis would need its coefficients to grow large first (the gradient of B is
+//! c, so B learns local motion once c moves).
 
 use serde::{Deserialize, Serialize};
 
@@ -86,18 +90,25 @@ pub struct Deform {
 /// Most modes (a fixed-size scratch array holds the coefficients).
 const MAX_MODES: usize = 32;
 
-/// Trilinear corners of g on a r³ grid: 8 (flat cell index, weight), and per axis whether
-/// g lies strictly inside (outside the clamp holds the border, its derivative is 0).
+/// Continuous cell coordinate u ∈ [0, res − 1] to the lower corner index and the fraction
+/// towards the next one (for the planes' lookups and this grid's). Out-of-range and NaN
+/// coordinates clamp to the border.
+#[inline(always)]
+pub(crate) fn corner(u: f32, res: usize) -> (usize, f32) {
+    let max = (res - 1) as f32;
+    let u = if u >= 0.0 { u.min(max) } else { 0.0 }; // NaN lands here too
+    let i = (u as usize).min(res - 2);
+    (i, u - i as f32)
+}
+
+/// Trilinear corners of g ∈ [-1,1]³ on a r³ grid: 8 (flat cell index, weight); outside the
+/// box the border holds.
 #[inline(always)]
 fn corners(g: &[f32; 3], r: usize) -> [(usize, f32); 8] {
     let mut i = [0usize; 3];
     let mut f = [0f32; 3];
-    let max = (r - 1) as f32;
     for a in 0..3 {
-        let u = (g[a] + 1.0) * 0.5 * max;
-        let u = if u >= 0.0 { u.min(max) } else { 0.0 }; // NaN lands here too
-        i[a] = (u as usize).min(r - 2);
-        f[a] = u - i[a] as f32;
+        (i[a], f[a]) = corner((g[a] + 1.0) * 0.5 * (r - 1) as f32, r);
     }
     let mut out = [(0usize, 0f32); 8];
     for (n, o) in out.iter_mut().enumerate() {
@@ -113,11 +124,7 @@ fn corners(g: &[f32; 3], r: usize) -> [(usize, f32); 8] {
 /// Linear knot of τ ∈ [0,1] in a table of n: (lower knot, fraction). Clamped.
 #[inline(always)]
 fn knot(t: f32, n: usize) -> (usize, f32) {
-    let max = (n - 1) as f32;
-    let u = t * max;
-    let u = if u >= 0.0 { u.min(max) } else { 0.0 };
-    let j = (u as usize).min(n - 2);
-    (j, u - j as f32)
+    corner(t * (n - 1) as f32, n)
 }
 
 impl Deform {
@@ -128,10 +135,15 @@ impl Deform {
         Deform { basis, coeffs, end: coeffs + times * modes, res, modes, times }
     }
 
-    /// Start values: basis uniform in ±0.1, coefficients 0 (no motion).
+    /// Start values: modes 0-2 the unit translations, the others uniform in ±0.1;
+    /// coefficients 0 (no motion).
     pub fn init(&self, params: &mut [f32], rng: &mut Rng) {
-        for x in &mut params[self.basis..self.coeffs] {
-            *x = 0.1 * (2.0 * rng.uniform() - 1.0);
+        let m3 = self.modes * 3;
+        for cell in params[self.basis..self.coeffs].chunks_exact_mut(m3) {
+            for (j, x) in cell.iter_mut().enumerate() {
+                let (k, a) = (j / 3, j % 3);
+                *x = if k < 3 { if k == a { 1.0 } else { 0.0 } } else { 0.1 * (2.0 * rng.uniform() - 1.0) };
+            }
         }
         params[self.coeffs..self.end].fill(0.0);
     }
@@ -148,19 +160,29 @@ impl Deform {
         (c, j, f)
     }
 
+    /// The basis at g: Σ_corners w B(corner), all K modes' 3-vectors (3K floats).
+    #[inline(always)]
+    fn basis_at(&self, params: &[f32], g: &[f32; 3]) -> [f32; 3 * MAX_MODES] {
+        let m3 = self.modes * 3;
+        let mut q = [0f32; 3 * MAX_MODES];
+        for (cell, w) in corners(g, self.res) {
+            let b = &params[self.basis + cell * m3..self.basis + (cell + 1) * m3];
+            for (qj, bj) in q[..m3].iter_mut().zip(b) {
+                *qj += w * bj;
+            }
+        }
+        q
+    }
+
     /// The deformed point g + offset(g, τ).
     #[inline]
     pub fn warp(&self, params: &[f32], g: &[f32; 3], t: f32) -> [f32; 3] {
         let (c, _, _) = self.coeffs_at(params, t);
-        let m3 = self.modes * 3;
+        let q = self.basis_at(params, g);
         let mut o = *g;
-        for (cell, w) in corners(g, self.res) {
-            let b = &params[self.basis + cell * m3..self.basis + (cell + 1) * m3];
-            for k in 0..self.modes {
-                let s = w * c[k];
-                for a in 0..3 {
-                    o[a] += s * b[k * 3 + a];
-                }
+        for k in 0..self.modes {
+            for a in 0..3 {
+                o[a] += c[k] * q[k * 3 + a];
             }
         }
         o
@@ -172,19 +194,24 @@ impl Deform {
     pub fn warp_backward(&self, params: &[f32], g: &[f32; 3], t: f32, d_warp: &[f32; 3], grad: &mut [f32]) {
         let (c, j, f) = self.coeffs_at(params, t);
         let m3 = self.modes * 3;
-        // dL/dc_k = Σ_corners w (B_k · d_warp)
-        let mut dc = [0f32; MAX_MODES];
-        for (cell, w) in corners(g, self.res) {
-            let off = self.basis + cell * m3;
-            for k in 0..self.modes {
-                let b = &params[off + k * 3..off + k * 3 + 3];
-                dc[k] += w * (b[0] * d_warp[0] + b[1] * d_warp[1] + b[2] * d_warp[2]);
-                let s = w * c[k];
-                let gb = &mut grad[off + k * 3..off + k * 3 + 3];
-                for a in 0..3 {
-                    gb[a] += s * d_warp[a];
-                }
+        // dL/dB_k(corner) = w c_k d_warp: one 3K-vector s scaled per corner
+        let mut s = [0f32; 3 * MAX_MODES];
+        for k in 0..self.modes {
+            for a in 0..3 {
+                s[k * 3 + a] = c[k] * d_warp[a];
             }
+        }
+        for (cell, w) in corners(g, self.res) {
+            let gb = &mut grad[self.basis + cell * m3..self.basis + (cell + 1) * m3];
+            for (gj, sj) in gb.iter_mut().zip(&s[..m3]) {
+                *gj += w * sj;
+            }
+        }
+        // dL/dc_k = B_k(g) · d_warp
+        let q = self.basis_at(params, g);
+        let mut dc = [0f32; MAX_MODES];
+        for k in 0..self.modes {
+            dc[k] = q[k * 3] * d_warp[0] + q[k * 3 + 1] * d_warp[1] + q[k * 3 + 2] * d_warp[2];
         }
         let (lo, hi) = (self.coeffs + j * self.modes, self.coeffs + (j + 1) * self.modes);
         for k in 0..self.modes {

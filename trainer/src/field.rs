@@ -185,15 +185,8 @@ impl Layout {
     }
 }
 
-/// Continuous grid coordinate x ∈ [-1,1] (or τ ∈ [0,1]) to the lower corner index and the
-/// fraction towards the next one. Out-of-range and NaN coordinates clamp to the border.
-#[inline(always)]
-fn corner(u: f32, res: usize) -> (usize, f32) {
-    let max = (res - 1) as f32;
-    let u = if u >= 0.0 { u.min(max) } else { 0.0 }; // NaN lands here too
-    let i = (u as usize).min(res - 2);
-    (i, u - i as f32)
-}
+// The lookups of the planes and of the deformation's grid clamp the same way.
+use crate::deform::corner;
 
 #[inline(always)]
 fn plane_coord(g: &[f32; 3], t: f32, axis: usize, res: usize) -> (usize, f32) {
@@ -382,8 +375,8 @@ impl Field {
 
     #[inline(always)]
     fn encode_backward_inner<const DG: bool>(&self, hits: &[PlaneHit], d_feat: &[f32], grad: &mut [f32], touched: &mut [u8], g: &[f32; 3]) -> [f32; 3] {
-        let mut d_g = [0.0f32; 3];
-        let inside = g.map(|x| x.abs() < 1.0);
+        // dL/dg per axis and channel, summed over channels once at the end (vector work)
+        let mut d_gc = [[0.0f32; C]; 3];
         let np = self.cfg.planes();
         for (l, level_hits) in hits.chunks_exact(np).enumerate() {
             let df = &d_feat[l * C..(l + 1) * C];
@@ -412,17 +405,16 @@ impl Field {
                     let v1 = &self.params[base + C..base + 2 * C];
                     let v2 = &self.params[base + row..base + row + C];
                     let v3 = &self.params[base + row + C..base + row + 2 * C];
-                    let (mut du, mut dv) = (0.0f32, 0.0f32);
-                    for c in 0..C {
-                        du += d[c] * ((1.0 - fv) * (v1[c] - v0[c]) + fv * (v3[c] - v2[c]));
-                        dv += d[c] * ((1.0 - fu) * (v2[c] - v0[c]) + fu * (v3[c] - v1[c]));
-                    }
                     let (a, b) = p.axes;
-                    if inside[a] {
-                        d_g[a] += du * 0.5 * (p.ru - 1) as f32;
+                    let su = 0.5 * (p.ru - 1) as f32;
+                    for c in 0..C {
+                        d_gc[a][c] += su * d[c] * ((1.0 - fv) * (v1[c] - v0[c]) + fv * (v3[c] - v2[c]));
                     }
-                    if b != 3 && inside[b] {
-                        d_g[b] += dv * 0.5 * (p.rv - 1) as f32;
+                    if b != 3 {
+                        let sv = 0.5 * (p.rv - 1) as f32;
+                        for c in 0..C {
+                            d_gc[b][c] += sv * d[c] * ((1.0 - fu) * (v2[c] - v0[c]) + fu * (v3[c] - v1[c]));
+                        }
                     }
                 }
                 for (j, off) in [0, C, row, row + C].into_iter().enumerate() {
@@ -435,7 +427,8 @@ impl Field {
                 }
             }
         }
-        d_g
+        // outside [-1,1] along an axis the lookup holds the border: no gradient there
+        [0, 1, 2].map(|a| if DG && g[a].abs() < 1.0 { d_gc[a].iter().sum() } else { 0.0 })
     }
 
     /// Total-variation regularizer on the spatial planes (as in K-Planes): the mean squared

@@ -449,7 +449,12 @@ pub fn train_chunk(
         const AHEAD: usize = 4;
         for k in 0..n {
             if k + AHEAD < n {
-                prefetch_grad(&ws.hits[(k + AHEAD) * nh..(k + AHEAD + 1) * nh], &ws.grad);
+                let ahead = &ws.hits[(k + AHEAD) * nh..(k + AHEAD + 1) * nh];
+                prefetch_grad(ahead, &ws.grad);
+                if field.layout.deform.is_some() {
+                    // the backward through a deformation reads the planes' corners again
+                    prefetch_grad(ahead, &field.params);
+                }
             }
             let (hits, d_feat) = (&ws.hits[k * nh..(k + 1) * nh], &ws.d_feat[k * inp..(k + 1) * inp]);
             match &field.layout.deform {
@@ -503,7 +508,8 @@ pub fn values_batch(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut 
     });
 }
 
-/// Prefetch the gradient cells a recorded point will scatter into.
+/// Prefetch the cells (of the gradient, or of the parameters) a recorded point's backward
+/// will touch.
 #[inline]
 fn prefetch_grad(hits: &[crate::field::PlaneHit], grad: &[f32]) {
     #[cfg(target_arch = "x86_64")]

@@ -90,15 +90,6 @@ pub struct TrainConfig {
     /// pull toward identity; 0 = off.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub appearance: f32,
-    /// Put a random background colour behind every training ray of an opaque photo too, not
-    /// only behind transparent pixels. A photo without alpha says that every pixel's light
-    /// came from the scene; behind a fixed black background a foggy field can let light
-    /// through where the photo is dark and still fit it, and every ray then marches to the
-    /// far plane. A random colour makes any light let through cost, so the field turns
-    /// opaque at its surfaces and rays stop there (Instant-NGP draws a random background for
-    /// the same reason). False in runs from before it existed: black behind opaque photos.
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub random_background: bool,
 }
 
 fn is_zero(x: &f32) -> bool {
@@ -158,12 +149,20 @@ impl TrainConfig {
             time_smooth: if data.dynamic { TIME_SMOOTH } else { 0.0 },
             time_sparse: if data.dynamic { TIME_SPARSE } else { 0.0 },
             appearance: 0.0,
-            random_background: true,
         }
     }
 }
 
 impl TrainConfig {
+    /// Add a deformation ([`crate::deform`]) to a dynamic scene's field, its knots over time
+    /// following the time planes' finest resolution.
+    pub fn enable_deform(&mut self) -> Result<()> {
+        anyhow::ensure!(self.field.dynamic(), "a deformation applies to dynamic scenes only");
+        let finest = self.field.time_resolutions.iter().copied().max().unwrap_or(4);
+        self.field.deform = Some(crate::deform::DeformConfig::for_time_resolution(finest));
+        Ok(())
+    }
+
     /// Reject settings no run can use (a hand-edited or foreign checkpoint, a bad flag), so
     /// they fail with a message instead of a panic deep inside a step.
     pub fn validate(&self) -> Result<()> {
@@ -508,7 +507,7 @@ impl Trainer {
             let (x, y) = (local % w, local / w);
             let px = &v.rgba[local * 4..local * 4 + 4];
             let a = px[3] as f32 / 255.0;
-            let bg = if self.has_alpha || self.cfg.random_background {
+            let bg = if self.has_alpha {
                 [self.rng.uniform(), self.rng.uniform(), self.rng.uniform()]
             } else {
                 [0.0; 3]
