@@ -87,6 +87,10 @@ fn dataset(n: usize) -> Dataset {
 #[test]
 fn the_learnt_deformation_recovers_a_known_translation() {
     let data = dataset(120);
+    // a static scene has nothing to deform: a clear error, not a field that ignores it
+    let still = Dataset { dynamic: false, ..data.clone() };
+    let e = TrainConfig::for_dataset(&still).enable_deform().unwrap_err().to_string();
+    assert!(e.contains("dynamic scenes only"), "{e}");
     let mut cfg = TrainConfig::for_dataset(&data);
     cfg.field.resolutions = vec![16, 32];
     cfg.field.time_resolutions = vec![4, 8];
