@@ -194,7 +194,8 @@ impl Progress for Bars {
     fn phase(&mut self, round: usize, rounds: usize, phase: &str, total: u64) {
         self.pb.set_length(total);
         self.pb.set_position(0);
-        self.pb.set_prefix(format!("round {round}/{rounds} {phase:<8}"));
+        // Round 0: the work before the first round (the measurement path's renders).
+        self.pb.set_prefix(if round == 0 { phase.to_string() } else { format!("round {round}/{rounds} {phase:<8}") });
     }
     fn tick(&mut self, done: u64, message: &str) {
         self.pb.set_position(done);

@@ -81,6 +81,13 @@ fn scene_train_eval_resume_on_the_object_scene() {
     let ssim = e["report"]["mean_ssim"].as_f64().unwrap();
     assert!(psnr > 18.0 && ssim > 0.5 && ssim <= 1.0, "psnr {psnr} ssim {ssim}");
     assert_eq!(e["report"]["views"].as_array().unwrap().len(), 4);
+    // The march's cost per view: some samples on every view (the object is in each), and no
+    // more than a ray through the whole box at every one of a silhouette pixel's 4 rays.
+    for v in e["report"]["views"].as_array().unwrap() {
+        let spp = v["samples_per_pixel"].as_f64().unwrap();
+        assert!(spp > 1.0 && spp < 512.0 * 4.0, "samples per pixel {spp}");
+    }
+    assert!(e["report"]["pixels_per_second"].as_f64().unwrap() > 0.0);
     let img = image::open(run.join("eval/r_000.png")).unwrap();
     assert_eq!((img.width(), img.height()), (48 * 3, 48), "prediction | truth | depth");
 }

@@ -113,6 +113,8 @@ pub struct ViewScore {
     pub psnr: f64,
     pub ssim: f64,
     pub time: Option<f32>,
+    /// Field samples per pixel (the march's cost: what the render time follows).
+    pub samples_per_pixel: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -121,6 +123,8 @@ pub struct EvalReport {
     pub mean_psnr: f64,
     pub mean_ssim: f64,
     pub seconds: f64,
+    /// Pixels rendered per second over all views (with the threads given).
+    pub pixels_per_second: f64,
 }
 
 /// Background used for evaluation: white for objects on transparent background (the
@@ -144,6 +148,7 @@ pub fn evaluate(
     let t0 = std::time::Instant::now();
     let bg = eval_background(has_alpha);
     let mut scores = Vec::new();
+    let mut pixels = 0usize;
     for (i, v) in views.iter().enumerate() {
         let r = render_camera(model, pool, &v.c2w, &v.intrinsics, v.time, bg);
         let gt = ground_truth(v, bg);
@@ -156,7 +161,9 @@ pub fn evaluate(
             crate::png::write_png_atomic(&dir.join(format!("{name}.png")), &img)
                 .with_context(|| format!("writing evaluation image for {name}"))?;
         }
-        scores.push(ViewScore { name, psnr: p, ssim: s, time: v.time });
+        pixels += r.width * r.height;
+        let samples_per_pixel = r.samples as f64 / (r.width * r.height).max(1) as f64;
+        scores.push(ViewScore { name, psnr: p, ssim: s, time: v.time, samples_per_pixel });
     }
     let n = scores.len().max(1) as f64;
     Ok(EvalReport {
@@ -164,6 +171,7 @@ pub fn evaluate(
         mean_ssim: scores.iter().map(|s| s.ssim).sum::<f64>() / n,
         views: scores,
         seconds: t0.elapsed().as_secs_f64(),
+        pixels_per_second: pixels as f64 / t0.elapsed().as_secs_f64().max(1e-9),
     })
 }
 

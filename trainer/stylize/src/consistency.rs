@@ -95,10 +95,22 @@ impl PathGeometry {
     /// The loop's own path (its per-round measurement): `frames` cameras 5° apart on the
     /// preview orbit, and the style ring around it.
     pub fn new(realistic: &Model, pool: &WorkspacePool, data: &Dataset, frames: usize) -> Result<PathGeometry> {
+        Self::new_with_progress(realistic, pool, data, frames, &mut |_, _| {})
+    }
+
+    /// [`PathGeometry::new`], calling `frame_done(done, total)` after each camera it renders
+    /// (a forward-facing capture at full size takes minutes: the command line draws a bar).
+    pub fn new_with_progress(
+        realistic: &Model,
+        pool: &WorkspacePool,
+        data: &Dataset,
+        frames: usize,
+        frame_done: &mut dyn FnMut(usize, usize),
+    ) -> Result<PathGeometry> {
         anyhow::ensure!(frames >= 2, "a consistency path needs at least 2 frames");
         let orbit = preview(&realistic.space, data);
         let what = format!("the loop's path: {frames} frames 5° apart on the preview orbit, and {STYLE_RING} style frames 45° apart around it");
-        Self::on_orbit(realistic, pool, data, &orbit, frames, what)
+        Self::on_orbit(realistic, pool, data, &orbit, frames, what, frame_done)
     }
 
     /// The evaluation path `snerf consistency` scores by default: as `new`, on an orbit at
@@ -110,7 +122,7 @@ impl PathGeometry {
         let what = format!(
             "the evaluation path: {frames} frames 5° apart on an orbit {change} than the loop's (no frame shared with its per-round measurement), and {STYLE_RING} style frames 45° apart around it"
         );
-        Self::on_orbit(realistic, pool, data, &orbit, frames, what)
+        Self::on_orbit(realistic, pool, data, &orbit, frames, what, &mut |_, _| {})
     }
 
     /// A path of the user's (nerfstudio `camera_path.json`, read with
@@ -131,10 +143,18 @@ impl PathGeometry {
         c2w.extend(ring.iter().map(|&k| cams[k].cam.c2w));
         let time = cams[0].time.or(data.dynamic.then_some(0.5));
         let what = format!("camera path {name}: {n} frames, style scored on {} of them evenly spaced", ring.len());
-        Self::with_cameras(realistic, pool, data, c2w, n, intr, time, what)
+        Self::with_cameras(realistic, pool, data, c2w, n, intr, time, what, &mut |_, _| {})
     }
 
-    fn on_orbit(realistic: &Model, pool: &WorkspacePool, data: &Dataset, orbit: &Orbit, frames: usize, what: String) -> Result<PathGeometry> {
+    fn on_orbit(
+        realistic: &Model,
+        pool: &WorkspacePool,
+        data: &Dataset,
+        orbit: &Orbit,
+        frames: usize,
+        what: String,
+        frame_done: &mut dyn FnMut(usize, usize),
+    ) -> Result<PathGeometry> {
         let turn = PATH_STEPS_PER_TURN.max(frames);
         let mut cams: Vec<_> = orbit.path(turn).into_iter().take(frames).collect();
         cams.extend(orbit.path(2 * STYLE_RING).into_iter().skip(1).step_by(2));
@@ -142,7 +162,7 @@ impl PathGeometry {
         intr.distortion = [0.0; 4];
         // Dynamic scenes: the path holds time still (mid-sequence), so reprojection is exact.
         let time = data.dynamic.then_some(0.5);
-        Self::with_cameras(realistic, pool, data, cams, frames, intr, time, what)
+        Self::with_cameras(realistic, pool, data, cams, frames, intr, time, what, frame_done)
     }
 
     /// The realistic field's renders and geometry at `cams` (the first `frames` the path,
@@ -157,6 +177,7 @@ impl PathGeometry {
         intr: Intrinsics,
         time: Option<f32>,
         description: String,
+        frame_done: &mut dyn FnMut(usize, usize),
     ) -> Result<PathGeometry> {
         let silhouette = views_have_alpha(&data.train);
         let bg = eval_background(silhouette);
@@ -168,6 +189,7 @@ impl PathGeometry {
             points.push(surface_points(realistic, c2w, &intr, time, &r));
             images.push(Image { width: r.width, height: r.height, data: r.rgb });
             opacity.push(r.opacity);
+            frame_done(images.len(), cams.len());
         }
         let surface = off_silhouette(&points, &opacity, intr.width as usize, intr.height as usize);
         Ok(PathGeometry { path_frames: frames, cams, intr, time, bg, realistic: images, points, surface, opacity, silhouette, description })

@@ -145,7 +145,7 @@ pub fn run(
         Some(s) => (s, trainer_from(source.clone(), data, opts)?),
         None => (StylizeState::new(opts), trainer_from(source.clone(), data, opts)?),
     };
-    let setup = Setup::new(opts, data, source, stylizer, meters, style, out)?;
+    let setup = Setup::new(opts, data, source, stylizer, meters, style, out, progress)?;
     let mut carry = Carry::default();
     let mut wall = state.records.last().map(|r| r.wall_seconds).unwrap_or(0.0);
     for round in state.rounds_done + 1..=opts.rounds {
@@ -202,6 +202,7 @@ fn finish_round(out: &Path, state: &mut StylizeState, record: RoundRecord, train
 }
 
 impl<'a> Setup<'a> {
+    #[allow(clippy::too_many_arguments)]
     fn new(
         opts: &'a StylizeOptions,
         data: &'a Dataset,
@@ -210,13 +211,16 @@ impl<'a> Setup<'a> {
         meters: &'a StyleMeters,
         style: &Image,
         out: &'a Path,
+        progress: &mut dyn Progress,
     ) -> Result<Setup<'a>> {
         let realistic = source.model.clone();
         let pool = WorkspacePool::new(realistic.field.params.len());
         let has_alpha = views_have_alpha(&data.train);
         // The geometry of the loop's path comes from the realistic field, once.
         let path = if opts.consistency_frames > 1 {
-            let p = PathGeometry::new(&realistic, &pool, data, opts.consistency_frames)?;
+            let total = (opts.consistency_frames + crate::consistency::STYLE_RING) as u64;
+            progress.phase(0, opts.rounds, "measure path", total);
+            let p = PathGeometry::new_with_progress(&realistic, &pool, data, opts.consistency_frames, &mut |done, _| progress.tick(done as u64, ""))?;
             let targets = meters.targets(&p, style)?;
             Some((p, targets))
         } else {

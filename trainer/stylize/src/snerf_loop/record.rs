@@ -140,6 +140,7 @@ pub fn differing_options(recorded: &StylizeOptions, asked: &StylizeOptions) -> V
 
 /// Progress callbacks, so the command line can draw bars without this crate knowing how.
 pub trait Progress {
+    /// `round` 0 is the work before the first round (rendering the measurement path).
     fn phase(&mut self, round: usize, rounds: usize, phase: &str, total: u64);
     fn tick(&mut self, done: u64, message: &str);
     fn round_done(&mut self, record: &RoundRecord);
