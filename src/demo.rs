@@ -178,6 +178,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             loop_path: false,
             out: None,
             save_frames: false,
+            time_frames: 12,
             opts: DataOpts::default(),
         },
         true,

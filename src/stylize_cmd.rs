@@ -379,8 +379,43 @@ pub struct ConsistencyArgs {
     /// style ring the style distances pool.
     #[arg(long)]
     pub save_frames: bool,
+    /// Animated (4D) scenes: also score temporal flicker on this many instants spread over the
+    /// animation, seen from one camera held still: the change between neighbouring instants on
+    /// the pixels the realistic frames show still (0: skip).
+    #[arg(long, default_value_t = 12, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
+    pub time_frames: usize,
     #[command(flatten)]
     pub opts: DataOpts,
+}
+
+/// Temporal flicker of an animated scene (`temporal`): realistic floor, per-frame stylization
+/// and SNeRF on the same still pixels, and SNeRF ÷ per-frame. `None` for static scenes.
+fn temporal_flicker(
+    a: &ConsistencyArgs,
+    data: &snerf_trainer::data::Dataset,
+    realistic: (&snerf_trainer::train::Model, &snerf_trainer::render::WorkspacePool),
+    stylized: (&snerf_trainer::train::Model, &snerf_trainer::render::WorkspacePool),
+    stylizer: &dyn snerf_stylize::stylizer::Stylizer,
+    by_box: bool,
+    style_res: usize,
+) -> Result<Option<Value>> {
+    if !data.dynamic || a.time_frames < 2 {
+        return Ok(None);
+    }
+    let path = snerf_stylize::temporal::TimePath::evaluation(realistic.0, realistic.1, data, a.time_frames)?;
+    let per_frame = path.stylize_frames(stylizer, by_box, style_res)?;
+    let snerf = path.render(stylized.0, stylized.1);
+    let (floor, pf, sn) = (path.flicker(&path.realistic), path.flicker(&per_frame), path.flicker(&snerf));
+    Ok(Some(json!({
+        "path": path.description,
+        "still_fraction": path.still_fraction(),
+        "methods": [
+            {"method": "Realistic field (no stylization)", "flicker": floor},
+            {"method": "Per-frame image stylization", "flicker": pf},
+            {"method": "SNeRF", "flicker": sn},
+        ],
+        "snerf_over_per_frame": sn / pf,
+    })))
 }
 
 /// The path scored as a field that held the run's last training targets exactly would show
@@ -452,7 +487,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         None => style_reference(stylizer.as_ref())?,
     };
 
-    let pb = bar(4, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
+    let pb = bar(if data.dynamic && a.time_frames >= 2 { 5 } else { 4 }, "{spinner} consistency {bar:30} {pos}/{len} [{elapsed}] {msg}");
     pb.set_message("realistic geometry");
     let path = scored_path(a, &realistic, &pool, &data)?;
     let targets = meters.targets(&path, &style_img)?;
@@ -483,6 +518,11 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     pb.set_message("targets carried to the path");
     let carried = carried_targets(&a.srun, &state, &data, (&stylized, &spool), &path, &snerf_frames, &meters, &targets)?;
     pb.inc(1);
+    pb.set_message("temporal flicker");
+    let temporal = temporal_flicker(a, &data, (&realistic, &pool), (&stylized, &spool), stylizer.as_ref(), by_box, o.style_res)?;
+    if temporal.is_some() {
+        pb.inc(1);
+    }
     pb.finish_and_clear();
 
     let out = a.out.clone().unwrap_or_else(|| a.srun.clone());
@@ -576,6 +616,19 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         separation(realistic_over_per_frame),
         if one_round_frames.is_some() { " | 1 round" } else { "" },
     );
+    let md = match &temporal {
+        Some(t) => format!(
+            "{md}\nTemporal flicker ({}; mean squared change between neighbouring instants on the {:.0}% of scene pixels the realistic frames show still): \
+             realistic {:.2e}, per-frame {:.2e}, SNeRF {:.2e}; SNeRF / per-frame {:.3}×.\n",
+            t["path"].as_str().unwrap_or(""),
+            100.0 * t["still_fraction"].as_f64().unwrap_or(0.0),
+            t["methods"][0]["flicker"].as_f64().unwrap_or(f64::NAN),
+            t["methods"][1]["flicker"].as_f64().unwrap_or(f64::NAN),
+            t["methods"][2]["flicker"].as_f64().unwrap_or(f64::NAN),
+            t["snerf_over_per_frame"].as_f64().unwrap_or(f64::NAN),
+        ),
+        None => md,
+    };
     std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;
     let v = json!({
         "command": "consistency",
@@ -591,6 +644,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         "style_metric_realistic_over_per_frame": realistic_over_per_frame,
         "style_gram_realistic_over_per_frame": gram_realistic_over_per_frame,
         "rounds": state.records,
+        "temporal": temporal,
         "seconds": t0.elapsed().as_secs_f64(),
         "table": table,
     });

@@ -157,6 +157,39 @@ fn every_scene_kind_is_detected_and_trains() {
 }
 
 #[test]
+fn an_animated_scene_is_scored_for_temporal_flicker_and_a_static_one_is_not() {
+    let d = tmp("flicker");
+    let data = d.join("data");
+    scene("avatar", &data, 16, "40x32");
+    let run = d.join("run");
+    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "40"]).output().unwrap());
+    // a style picture of strong colours, so colour transfer moves every frame's colours
+    let style = d.join("style.png");
+    image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([(x * 16) as u8, (y * 16) as u8, 200])).save(&style).unwrap();
+    let srun = d.join("styl");
+    ok(snerf()
+        .args(["--json", "stylize"])
+        .arg(&run)
+        .arg("--out")
+        .arg(&srun)
+        .arg("--style")
+        .arg(&style)
+        .args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "5", "--consistency-frames", "0"])
+        .output()
+        .unwrap());
+    let c = ok(snerf().args(["--json", "consistency"]).arg(&srun).args(["--frames", "4", "--time-frames", "5"]).output().unwrap());
+    let t = &c["temporal"];
+    let flicker: Vec<f64> = t["methods"].as_array().unwrap().iter().map(|m| m["flicker"].as_f64().unwrap()).collect();
+    assert_eq!(flicker.len(), 3, "{t}");
+    let still = t["still_fraction"].as_f64().unwrap();
+    assert!(still > 0.0 && still < 1.0, "{t}");
+    // the realistic frames change by less than STILL on the pixels scored; colour transfer
+    // of each instant on its own changes them by more
+    assert!(flicker[0] < 0.02 * 0.02 && flicker[1] > flicker[0], "{t}");
+    assert!(std::fs::read_to_string(srun.join("consistency.md")).unwrap().contains("Temporal flicker"));
+}
+
+#[test]
 fn demo_writes_pictures_and_a_summary() {
     let d = tmp("demo");
     let out = d.join("demo");

@@ -183,6 +183,7 @@ fn report_of_real_train_stylize_and_bake_runs() {
     same(&points(&rep, "stylize_consistency", "styl", "short_range"), &recorded(&st["records"], "wall_seconds", "short_range"), "short");
     same(&points(&rep, "stylize_consistency", "styl", "long_range"), &recorded(&st["records"], "wall_seconds", "long_range"), "long");
     let cons = read(&srun.join("consistency.json"));
+    assert!(cons["temporal"].is_null(), "a static scene has no temporal flicker to score");
     let hl = &rep["plots"].as_array().unwrap().iter().find(|p| p["id"] == "stylize_consistency").unwrap()["hlines"];
     for m in cons["methods"].as_array().unwrap().iter().filter(|m| m["method"].as_str().unwrap().starts_with("Per-frame") || m["method"].as_str().unwrap().starts_with("Realistic")) {
         for f in ["short_range", "long_range"] {

@@ -345,7 +345,7 @@ impl PathGeometry {
 }
 
 /// The capture's preview orbit (the one turntables and the viewer start on).
-fn preview(space: &snerf_trainer::space::SceneSpace, data: &Dataset) -> Orbit {
+pub(crate) fn preview(space: &snerf_trainer::space::SceneSpace, data: &Dataset) -> Orbit {
     space.orbit.unwrap_or_else(|| {
         let refs: Vec<&snerf_data::View> = data.train.iter().collect();
         snerf_trainer::orbit::preview_orbit(space.kind, &space.frame, &refs, None)

@@ -9,6 +9,8 @@
 //! - `style_metric`: a weight-free style distance (how much of the painting's palette the scene
 //!   covers, in Oklab, and sliced Wasserstein over texture patches, each in units of the
 //!   painting's own variation) that no stylizer aims at.
+//! - `temporal`: a 4D scene's flicker at a fixed camera between neighbouring times, on the
+//!   pixels the realistic frames show still, for SNeRF and the per-frame baseline.
 //! - `style_gram`: a style distance on Gram matrices of ImageNet features (independent of
 //!   every stylizer but `gatys`, which minimizes it).
 //! - `fusion`: multi-view fusion of the stylized targets through the field's depth (a median
@@ -38,5 +40,6 @@ pub mod reproject;
 pub mod snerf_loop;
 pub mod style_gram;
 pub mod style_metric;
+pub mod temporal;
 pub mod stylize_view;
 pub mod stylizer;
