@@ -83,8 +83,9 @@ pub struct CaptureArgs {
     /// virtual environment, or the Python $SNERF_PYCOLMAP names).
     #[arg(long, default_value = "auto")]
     pub colmap: Backend,
-    /// pycolmap's mapper seed: the same seed and photos give the same poses (Debian's COLMAP 3.8
-    /// takes no seed, and its runs differ).
+    /// pycolmap's mapper seed: the same seed and photos give the same poses with `--threads 1`
+    /// (with more threads COLMAP's mapping order, and so its poses, differ from run to run;
+    /// Debian's COLMAP 3.8 takes no seed, and its runs differ).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
 }

@@ -157,8 +157,8 @@ pub struct CaptureOptions {
     pub threads: usize,
     /// Which COLMAP (see [`Backend`]).
     pub backend: Backend,
-    /// pycolmap's mapper seed (the same seed and photos give the same capture); Debian's
-    /// COLMAP 3.8 takes none.
+    /// pycolmap's mapper seed (the same seed and photos give the same capture when `threads`
+    /// is 1; with more, the mapping differs from run to run); Debian's COLMAP 3.8 takes none.
     pub seed: Option<u64>,
 }
 
