@@ -12,6 +12,7 @@ use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters, 
 use snerf_stylize::fusion::Read;
 use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
+use snerf_stylize::temporal::{TemporalScores, TimePath};
 use snerf_stylize::stylizer::{self, Image, Stylizer, StylizerOptions};
 use snerf_trainer::checkpoint;
 
@@ -388,8 +389,8 @@ pub struct ConsistencyArgs {
     pub opts: DataOpts,
 }
 
-/// Temporal flicker of an animated scene (`temporal`): realistic floor, per-frame stylization
-/// and SNeRF on the same still pixels, and SNeRF ÷ per-frame. `None` for static scenes.
+/// Temporal flicker of an animated scene (`temporal`); `None` for static scenes or
+/// `--time-frames 0`.
 fn temporal_flicker(
     a: &ConsistencyArgs,
     data: &snerf_trainer::data::Dataset,
@@ -398,24 +399,12 @@ fn temporal_flicker(
     stylizer: &dyn snerf_stylize::stylizer::Stylizer,
     by_box: bool,
     style_res: usize,
-) -> Result<Option<Value>> {
+) -> Result<Option<TemporalScores>> {
     if !data.dynamic || a.time_frames < 2 {
         return Ok(None);
     }
-    let path = snerf_stylize::temporal::TimePath::evaluation(realistic.0, realistic.1, data, a.time_frames)?;
-    let per_frame = path.stylize_frames(stylizer, by_box, style_res)?;
-    let snerf = path.render(stylized.0, stylized.1);
-    let (floor, pf, sn) = (path.flicker(&path.realistic), path.flicker(&per_frame), path.flicker(&snerf));
-    Ok(Some(json!({
-        "path": path.description,
-        "still_fraction": path.still_fraction(),
-        "methods": [
-            {"method": "Realistic field (no stylization)", "flicker": floor},
-            {"method": "Per-frame image stylization", "flicker": pf},
-            {"method": "SNeRF", "flicker": sn},
-        ],
-        "snerf_over_per_frame": sn / pf,
-    })))
+    let path = TimePath::evaluation(realistic.0, realistic.1, data, a.time_frames)?;
+    TemporalScores::measure(&path, stylized.0, stylized.1, stylizer, by_box, style_res).map(Some)
 }
 
 /// The path scored as a field that held the run's last training targets exactly would show
@@ -617,16 +606,7 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
         if one_round_frames.is_some() { " | 1 round" } else { "" },
     );
     let md = match &temporal {
-        Some(t) => format!(
-            "{md}\nTemporal flicker ({}; mean squared change between neighbouring instants on the {:.0}% of scene pixels the realistic frames show still): \
-             realistic {:.2e}, per-frame {:.2e}, SNeRF {:.2e}; SNeRF / per-frame {:.3}×.\n",
-            t["path"].as_str().unwrap_or(""),
-            100.0 * t["still_fraction"].as_f64().unwrap_or(0.0),
-            t["methods"][0]["flicker"].as_f64().unwrap_or(f64::NAN),
-            t["methods"][1]["flicker"].as_f64().unwrap_or(f64::NAN),
-            t["methods"][2]["flicker"].as_f64().unwrap_or(f64::NAN),
-            t["snerf_over_per_frame"].as_f64().unwrap_or(f64::NAN),
-        ),
+        Some(t) => format!("{md}\n{}", t.markdown()),
         None => md,
     };
     std::fs::write(out.join("consistency.md"), &md).with_context(|| format!("{}: cannot write", out.display()))?;

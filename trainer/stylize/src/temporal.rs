@@ -50,6 +50,48 @@ pub struct Flicker {
     pub flicker: f64,
 }
 
+/// What `snerf consistency` reports of an animated scene: the realistic floor, per-frame
+/// stylization and SNeRF on the same still pixels.
+#[derive(Clone, Debug, Serialize)]
+pub struct TemporalScores {
+    pub path: String,
+    pub still_fraction: f64,
+    pub methods: Vec<Flicker>,
+    pub snerf_over_per_frame: f64,
+}
+
+impl TemporalScores {
+    /// Score a stylized model against the per-frame baseline along `path`.
+    pub fn measure(path: &TimePath, stylized: &Model, pool: &WorkspacePool, stylizer: &dyn Stylizer, by_box: bool, res: usize) -> Result<TemporalScores> {
+        let per_frame = path.stylize_frames(stylizer, by_box, res)?;
+        let snerf = path.render(stylized, pool);
+        let methods: Vec<Flicker> = [("Realistic field (no stylization)", &path.realistic), ("Per-frame image stylization", &per_frame), ("SNeRF", &snerf)]
+            .into_iter()
+            .map(|(method, frames)| Flicker { method: method.into(), flicker: path.flicker(frames) })
+            .collect();
+        Ok(TemporalScores {
+            path: path.description.clone(),
+            still_fraction: path.still_fraction(),
+            snerf_over_per_frame: methods[2].flicker / methods[1].flicker,
+            methods,
+        })
+    }
+
+    /// One Markdown line for `consistency.md`.
+    pub fn markdown(&self) -> String {
+        format!(
+            "Temporal flicker ({}; mean squared change between neighbouring instants on the {:.0}% of scene pixels the realistic frames show still): \
+             realistic {:.2e}, per-frame {:.2e}, SNeRF {:.2e}; SNeRF / per-frame {:.3}×.\n",
+            self.path,
+            100.0 * self.still_fraction,
+            self.methods[0].flicker,
+            self.methods[1].flicker,
+            self.methods[2].flicker,
+            self.snerf_over_per_frame,
+        )
+    }
+}
+
 impl TimePath {
     /// `frames` instants evenly spread over the animation, (k + ½) / frames, seen from the
     /// first camera of `snerf consistency`'s evaluation orbit.
