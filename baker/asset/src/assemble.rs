@@ -7,8 +7,8 @@ use anyhow::{anyhow, bail, ensure, Result};
 
 use crate::asset::{Asset, EMPTY};
 use crate::chunk::{
-    check_preamble, le_u32, parse_chunk_at, tag_name, ChunkIter, MAX_HEAD_LEN, PREAMBLE_LEN, TAG_BLKS, TAG_END,
-    TAG_GRID, TAG_HEAD, TAG_VMLP,
+    check_preamble, le_u32, parse_chunk_at, tag_name, ChunkIter, CHUNK_HEADER_LEN, MAX_HEAD_LEN, PREAMBLE_LEN,
+    TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_SCOL, TAG_SMLP, TAG_VMLP,
 };
 use crate::header::Header;
 use crate::mlp::{ViewMlp, MLP_FLOATS};
@@ -24,6 +24,9 @@ pub struct Assembler {
     end: Option<u32>,
     /// File mode: the chunk sequence is the file's, so order and duplicates are checked.
     strict: bool,
+    /// A multi-style file's style chunks (index, tag, payload), decoded by `layers` once
+    /// the geometry they colour has been read.
+    pub(crate) style_chunks: Vec<(usize, [u8; 4], Vec<u8>)>,
 }
 
 /// Parse and validate a `HEAD` payload.
@@ -43,6 +46,10 @@ impl Assembler {
         let head = parse_chunk_at(bytes, PREAMBLE_LEN, 0)?;
         ensure!(head.tag == TAG_HEAD, "chunk 0 is {}, expected HEAD", tag_name(&head.tag));
         let header = parse_head(&bytes[head.payload.clone()])?;
+        ensure!(
+            header.styles.is_none(),
+            "a multi-style asset (version 3) cannot be streamed yet; bake one style to stream it"
+        );
         let mut asm = Assembler::with_header(header, version, false)?;
         for c in ChunkIter::new(bytes, head.range.end, 1) {
             let c = c?;
@@ -76,6 +83,27 @@ impl Assembler {
             atlas + grids,
             remaining
         );
+        if let Some(styles) = &header.styles {
+            // every style needs a colour chunk per block (a layer holds a copy of the atlas)
+            let n = styles.len() as u64;
+            let colours = n * header.atlas_blocks as u64 * (CHUNK_HEADER_LEN as u64 + 12);
+            ensure!(
+                atlas + grids + colours <= remaining,
+                "header claims {} styles of {} blocks but only {} bytes follow",
+                n,
+                header.atlas_blocks,
+                remaining
+            );
+            let layers = (n + 1) * header.atlas_blocks as u64 * header.block_bytes() as u64;
+            ensure!(
+                layers <= crate::header::MAX_ATLAS_BYTES,
+                "header claims {} styles of {} blocks: {} bytes in memory (max {})",
+                n,
+                header.atlas_blocks,
+                layers,
+                crate::header::MAX_ATLAS_BYTES
+            );
+        }
         let mut asm = Assembler::with_header(header, version, true)?;
         for c in iter {
             let c = c?;
@@ -90,18 +118,29 @@ impl Assembler {
         header.validate()?;
         ensure!(
             version >= header.file_version(),
-            "the header says diffuse, which a version {} file cannot be (needs version {})",
+            "the header says {}, which a version {} file cannot be (needs version {})",
+            if header.styles.is_some() { "multi-style" } else { "diffuse" },
             version,
             header.file_version()
         );
         let n = header.atlas_blocks as usize;
         let frames = header.num_frames();
         let atlas = vec![0u8; n * header.block_bytes()];
-        // a diffuse asset's view MLP is zero and has no chunk: it is there from the start
-        let have_mlp = header.diffuse;
+        // a diffuse asset's view MLP is zero and has no chunk: it is there from the start (a
+        // multi-style asset's are per style, in SMLP chunks)
+        let have_mlp = header.diffuse || header.styles.is_some();
         let asset =
             Asset { mlp: ViewMlp::zeros(), grids: vec![Vec::new(); frames], atlas, present: vec![false; n], header };
-        Ok(Assembler { asset, have_mlp, have_grid: vec![false; frames], missing: n, seen: 1, end: None, strict })
+        Ok(Assembler {
+            asset,
+            have_mlp,
+            have_grid: vec![false; frames],
+            missing: n,
+            seen: 1,
+            end: None,
+            strict,
+            style_chunks: Vec::new(),
+        })
     }
 
     /// Accept one whole encoded chunk (checks its framing and CRC).
@@ -127,6 +166,11 @@ impl Assembler {
             TAG_GRID => self.push_grid(payload),
             TAG_BLKS => self.push_blocks(payload),
             TAG_END => self.push_end(payload, index),
+            TAG_SMLP | TAG_SCOL if self.asset.header.styles.is_some() => {
+                self.style_chunks.push((index, tag, payload.to_vec()));
+                Ok(())
+            }
+            TAG_SMLP | TAG_SCOL => Err(anyhow!("a style chunk in an asset that lists no styles")),
             _ => Err(anyhow!("unknown chunk tag")),
         };
         r.map_err(|e| anyhow!("chunk {} ({}): {:#}", index, name, e))?;
@@ -135,6 +179,7 @@ impl Assembler {
     }
 
     fn push_mlp(&mut self, p: &[u8]) -> Result<()> {
+        ensure!(self.asset.header.styles.is_none(), "a multi-style asset keeps its view MLPs per style (SMLP)");
         ensure!(!self.asset.header.diffuse, "a diffuse asset has no view MLP");
         ensure!(!self.have_mlp, "duplicate VMLP");
         ensure!(

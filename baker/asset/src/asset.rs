@@ -102,21 +102,37 @@ impl Asset {
         Asset::from_bytes(&bytes).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
     }
 
-    /// Decode a whole file. Requires every frame's grid, every block and the END chunk.
+    /// Decode a whole file. Requires every frame's grid, every block and the END chunk. A
+    /// multi-style file (`layers`) reads as its first style; `LayeredAsset` reads them all.
     pub fn from_bytes(bytes: &[u8]) -> Result<Asset> {
+        if crate::chunk::check_preamble(bytes)? >= 3 {
+            return crate::layers::LayeredAsset::from_bytes(bytes)?.into_style(0);
+        }
+        Asset::geometry_from_bytes(bytes).map(|(a, _)| a)
+    }
+
+    /// Decode a whole file's header, grids, blocks (and MLP); with a multi-style file's style
+    /// chunks, undecoded.
+    pub(crate) fn geometry_from_bytes(bytes: &[u8]) -> Result<(Asset, Vec<(usize, [u8; 4], Vec<u8>)>)> {
         let mut asm = Assembler::from_file_bytes(bytes)?;
         let missing = asm.missing_blocks();
         let frames = asm.missing_frames();
         ensure!(asm.has_mlp(), "file has no VMLP chunk");
         ensure!(frames.is_empty(), "file has no GRID chunk for frame {}", frames[0]);
         ensure!(missing.is_empty(), "file lacks {} atlas blocks (first: block {})", missing.len(), missing[0]);
-        Ok(asm.take_asset())
+        let styles = std::mem::take(&mut asm.style_chunks);
+        Ok((asm.take_asset(), styles))
     }
 
     /// Encode: preamble, HEAD, VMLP, one GRID per frame, one BLKS per block, END. Blocks not
     /// present and grids not arrived are left out (such a file reads back as incomplete). A
     /// diffuse asset is version 2, without VMLP and with 4 bytes a voxel.
     pub fn to_bytes(&self) -> Vec<u8> {
+        self.encode(&[])
+    }
+
+    /// `to_bytes` with `extra` chunks (a multi-style asset's styles) before END.
+    pub(crate) fn encode(&self, extra: &[([u8; 4], Vec<u8>)]) -> Vec<u8> {
         let mut out =
             Vec::with_capacity(64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>());
         let diffuse = self.header.diffuse;
@@ -128,7 +144,7 @@ impl Asset {
         };
         let head = serde_json::to_vec(&self.header).expect("header serializes");
         put(&mut out, TAG_HEAD, &head);
-        if !diffuse {
+        if !diffuse && self.header.styles.is_none() {
             let mlp: Vec<u8> = self.mlp.to_flat().iter().flat_map(|x| x.to_le_bytes()).collect();
             put(&mut out, TAG_VMLP, &mlp);
         }
@@ -154,6 +170,9 @@ impl Asset {
             store_voxels(block, fc, &mut p);
             put(&mut out, TAG_BLKS, &p);
         }
+        for (tag, payload) in extra {
+            put(&mut out, *tag, payload);
+        }
         let count = n;
         out.extend_from_slice(&encode_chunk(TAG_END, &count.to_le_bytes()));
         out
@@ -172,7 +191,13 @@ impl Asset {
         let h = &self.header;
         h.validate()?;
         self.mlp.validate()?;
-        if h.diffuse {
+        if h.styles.is_some() {
+            // the shared geometry of a multi-style asset: density only (`layers`)
+            ensure!(self.mlp == ViewMlp::zeros(), "a multi-style asset's geometry has no view MLP (its styles have)");
+            if let Some(v) = self.atlas.chunks_exact(CHANNELS).position(|v| v[1..].iter().any(|&b| b != 0)) {
+                anyhow::bail!("a multi-style asset's geometry voxel {} has colour (its styles hold colour)", v);
+            }
+        } else if h.diffuse {
             // what the file leaves out must be what a reader puts back
             ensure!(self.mlp == ViewMlp::zeros(), "a diffuse asset's view MLP must be zero (its file has none)");
             let fc = h.file_channels();

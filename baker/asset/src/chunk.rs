@@ -6,10 +6,10 @@ use anyhow::{bail, ensure, Result};
 use std::ops::Range;
 
 pub const MAGIC: [u8; 8] = *b"SNERFAST";
-/// The newest version this reader knows. Version 2 is version 1 plus `diffuse` assets
-/// (FORMAT.md); a writer uses the lowest version that holds its asset, so readers from
-/// before version 2 still read every asset that is not diffuse.
-pub const VERSION: u32 = 2;
+/// The newest version this reader knows. Version 2 is version 1 plus `diffuse` assets,
+/// version 3 adds multi-style assets (FORMAT.md); a writer uses the lowest version that
+/// holds its asset, so older readers still read every asset of their versions.
+pub const VERSION: u32 = 3;
 pub const PREAMBLE_LEN: usize = 16;
 /// tag (4) + length (4) + CRC-32 (4).
 pub const CHUNK_HEADER_LEN: usize = 12;
@@ -23,6 +23,10 @@ pub const TAG_VMLP: [u8; 4] = *b"VMLP";
 pub const TAG_GRID: [u8; 4] = *b"GRID";
 pub const TAG_BLKS: [u8; 4] = *b"BLKS";
 pub const TAG_END: [u8; 4] = *b"END ";
+/// A style's view MLP in a multi-style asset (version 3).
+pub const TAG_SMLP: [u8; 4] = *b"SMLP";
+/// A style's colours of one block in a multi-style asset (version 3).
+pub const TAG_SCOL: [u8; 4] = *b"SCOL";
 
 /// The preamble of a version 1 file (every asset that is not diffuse).
 pub fn preamble() -> [u8; PREAMBLE_LEN] {
@@ -34,7 +38,7 @@ pub fn preamble_of(version: u32) -> [u8; PREAMBLE_LEN] {
     let mut p = [0u8; PREAMBLE_LEN];
     p[..8].copy_from_slice(&MAGIC);
     p[8..12].copy_from_slice(&version.to_le_bytes());
-    // bytes 12..16: flags, 0 in versions 1 and 2
+    // bytes 12..16: flags, 0 in versions 1 to 3
     p
 }
 

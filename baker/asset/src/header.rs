@@ -113,6 +113,28 @@ pub struct Header {
     /// Needs file version 2; absent (false) in every other asset.
     #[serde(default, skip_serializing_if = "is_false")]
     pub diffuse: bool,
+    /// A multi-style asset (version 3, `layers`): one shared geometry (grids and every
+    /// voxel's density) and one colour part per style, named here in file order. Absent in
+    /// every single-style asset. `diffuse` then says whether every style is diffuse.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub styles: Option<Vec<StyleInfo>>,
+}
+
+/// Largest number of styles in one asset.
+pub const MAX_STYLES: usize = 64;
+
+/// One style of a multi-style asset: its name (the painting's key, what a client lists and
+/// a renderer is asked for) and what a menu can show before any of its colour arrives.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StyleInfo {
+    /// Unique in the asset; 1..=64 printable characters.
+    pub name: String,
+    /// The style image it was painted after, as the stylization was given it (a file name or
+    /// `painting:KEY`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
+    /// Mean colour of the style's occupied voxels (RGB in [0,1]): a swatch for a menu.
+    pub swatch: [f32; 3],
 }
 
 fn is_false(b: &bool) -> bool {
@@ -161,6 +183,7 @@ impl Header {
             pixel_rays: 1,
             train_pixel: None,
             diffuse: false,
+            styles: None,
         }
     }
 
@@ -216,23 +239,43 @@ impl Header {
         self.voxels_per_block().saturating_mul(self.file_channels())
     }
 
-    /// The lowest file version that holds this asset: 2 for a `diffuse` one, else 1 (so
-    /// readers from before version 2 read every other asset).
+    /// The lowest file version that holds this asset: 3 for a multi-style one, 2 for a
+    /// `diffuse` one, else 1 (so older readers read every asset they can).
     pub fn file_version(&self) -> u32 {
-        if self.diffuse {
+        if self.styles.is_some() {
+            3
+        } else if self.diffuse {
             2
         } else {
             1
         }
     }
 
-    /// Channels a voxel has in the file (8, or 4 in a `diffuse` asset).
+    /// Channels a voxel has in the file's `BLKS` chunks: 8, 4 in a `diffuse` asset, 1 (the
+    /// density; colours are in the styles' `SCOL` chunks) in a multi-style asset.
     pub fn file_channels(&self) -> usize {
-        if self.diffuse {
+        if self.styles.is_some() {
+            1
+        } else if self.diffuse {
             DIFFUSE_CHANNELS
         } else {
             crate::quantize::CHANNELS
         }
+    }
+
+    /// Colour channels a voxel of a style holds in a multi-style file: diffuse RGB, and the
+    /// four specular features unless every style is diffuse.
+    pub fn style_channels(&self) -> usize {
+        if self.diffuse {
+            DIFFUSE_CHANNELS - 1
+        } else {
+            crate::quantize::CHANNELS - 1
+        }
+    }
+
+    /// The index of the style named `name`.
+    pub fn style_index(&self, name: &str) -> Option<usize> {
+        self.styles.as_ref()?.iter().position(|s| s.name == name)
     }
 
     /// (block+2)^3, the apron included.
@@ -321,6 +364,24 @@ impl Header {
             ensure!(ok, "header view {:?} needs finite values, unit directions and a positive radius", o);
         }
         ensure!(self.floor.is_none_or(f32::is_finite), "header floor {:?} is not finite", self.floor);
+        if let Some(styles) = &self.styles {
+            ensure!(
+                !styles.is_empty() && styles.len() <= MAX_STYLES,
+                "header lists {} styles (must be 1..={})",
+                styles.len(),
+                MAX_STYLES
+            );
+            for (i, s) in styles.iter().enumerate() {
+                ensure!(
+                    !s.name.is_empty() && s.name.chars().count() <= 64 && !s.name.chars().any(char::is_control),
+                    "header style {} has the name {:?} (1..=64 printable characters)",
+                    i,
+                    s.name
+                );
+                ensure!(styles[..i].iter().all(|o| o.name != s.name), "header names style {:?} twice", s.name);
+                ensure!(s.swatch.iter().all(|x| x.is_finite()), "header style {:?} has a non-finite swatch", s.name);
+            }
+        }
         match (&self.time_range, &self.frames) {
             (None, None) => {}
             (Some(r), Some(frames)) => {

@@ -13,6 +13,10 @@
 //!   (validates every size before allocating) -> `Asset` -> `sample` / `render` / `summary`.
 //! - streaming: the server splits a file with `chunks()` and sends HEAD first; the client
 //!   feeds an `Assembler` whatever arrives and renders the partial asset meanwhile.
+//! - styles as layers (`layers`, format version 3): one shared geometry (grids, density)
+//!   and one colour part per style (view MLP, colours of the live voxels);
+//!   `LayeredAsset` holds every style as a single-style `Asset`, and `Asset::read` of such a
+//!   file gives its first style.
 //!
 //! Depends on nothing from the trainer so a headset client can read assets without it; the
 //! renderer reproduces the trainer's march so a GPU shader can be checked against it.
@@ -27,6 +31,7 @@ pub mod atomic;
 pub mod builder;
 pub mod chunk;
 pub mod header;
+pub mod layers;
 pub mod mlp;
 pub mod quantize;
 pub mod render;
@@ -37,7 +42,8 @@ pub use assemble::{parse_head, Assembler};
 pub use asset::{Asset, EMPTY};
 pub use builder::AssetBuilder;
 pub use chunk::{chunks, encode_chunk, preamble, ChunkRef};
-pub use header::{DensityRange, Header, Keyframe, Kind, March, MlpShape, Ndc, Space};
+pub use header::{DensityRange, Header, Keyframe, Kind, March, MlpShape, Ndc, Space, StyleInfo};
+pub use layers::{LayeredAsset, StyleBytes};
 pub use mlp::ViewMlp;
 pub use quantize::{decode_density, encode_density, encode_voxel, quantize_unit};
 pub use render::{contact_strip, orbit, render, render_pixel, render_ray, write_png, Camera, Frame, PixelResult};

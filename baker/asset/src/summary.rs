@@ -55,6 +55,10 @@ pub struct Summary {
     pub animation_seconds: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bytes_per_second: Option<PartRates>,
+    /// A multi-style asset's styles, each with the bytes of its colour part (`bytes` above
+    /// is then the shared geometry's, and `total` the whole file's).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub styles: Vec<crate::layers::StyleBytes>,
 }
 
 /// Bytes per second of animation of each part of a dynamic asset.
@@ -98,7 +102,7 @@ impl Asset {
         }
         let present_blocks = self.present.iter().filter(|&&p| p).count() as u64;
         let head = PREAMBLE_LEN as u64 + CHUNK_HEADER_LEN as u64 + head_len;
-        let mlp = if h.diffuse { 0 } else { CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64 };
+        let mlp = if h.diffuse || h.styles.is_some() { 0 } else { CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64 };
         let grids_bytes = self.grids.iter().filter(|g| !g.is_empty()).count() as u64 * grid_chunk;
         let blocks_bytes = present_blocks * block_chunk;
         let mean_occupied = occupied.iter().sum::<u64>() as f64 / occupied.len().max(1) as f64;
@@ -137,6 +141,7 @@ impl Asset {
             cells_occupied_any_frame,
             animation_seconds,
             bytes_per_second,
+            styles: Vec::new(),
         }
     }
 }

@@ -1,0 +1,371 @@
+//! Multi-style assets (format version 3): styles as layers of one asset.
+//!
+//! A scene stylized after several paintings with its geometry frozen (`snerf stylize
+//! --appearance-only`) differs between styles only in colour. Such an asset stores what the
+//! styles share once and each style's colour apart:
+//!
+//! - **geometry** (shared): the header (its `styles` list names the layers), every frame's
+//!   `GRID` and, in the `BLKS` chunks, every voxel's density code (1 byte a voxel);
+//! - **colour** (one part per style): the style's view MLP (`SMLP`, none when every style is
+//!   diffuse) and per block one `SCOL` chunk with the diffuse RGB (and the four specular
+//!   features unless every style is diffuse) of the block's *live* voxels only.
+//!
+//! A voxel is live when some voxel of its 3×3×3 neighbourhood in the block (apron included)
+//! has a density code above 0. A trilinear sample reads the 8 voxels around it: if one of
+//! them has density, all 8 are live, so every sample with any density above the code-0 floor
+//! reads exactly the colours the style was baked with. Samples whose 8 voxels are all at the
+//! floor (σ·step = 1e-5 in the baker's range) read colour 0 instead of the baked colour; that
+//! is the only difference to a single-style bake of the same style (tested: within 1/255 of
+//! its CPU reference). Dynamic assets blend voxels of two blocks, so there every voxel is
+//! live. What the file leaves out reads back as colour 0, so `LayeredAsset::new` clears it too
+//! and a round trip is exact.
+//!
+//! Each `SCOL` carries the CRC-32 of the density codes of the block it colours: a colour part
+//! spliced from an asset of another geometry is refused by name, not drawn on the wrong
+//! surface. Readers that only want one style (`Asset::read`) get the first.
+
+use anyhow::{anyhow, bail, ensure, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+use crate::asset::Asset;
+use crate::atomic::write_atomic;
+use crate::chunk::{check_preamble, le_u32, tag_name, CHUNK_HEADER_LEN, TAG_SCOL, TAG_SMLP};
+use crate::header::{Header, StyleInfo};
+use crate::mlp::{ViewMlp, MLP_FLOATS};
+use crate::quantize::CHANNELS;
+
+/// Every style of a multi-style asset as a complete single-style asset (in the header's
+/// order). All share the header (but for `styles`), the grids and every voxel's density.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayeredAsset {
+    pub styles: Vec<StyleInfo>,
+    pub layers: Vec<Asset>,
+}
+
+/// Encoded bytes of one style's colour part (its `SMLP` and `SCOL` chunks, headers included).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StyleBytes {
+    pub name: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
+    pub swatch: [f32; 3],
+    pub bytes: u64,
+}
+
+/// Whether a file's bytes are a multi-style asset (version 3 preamble).
+pub fn is_layered(bytes: &[u8]) -> bool {
+    check_preamble(bytes).is_ok_and(|v| v >= 3)
+}
+
+/// Live voxels of one block (module doc) from its density codes ((block+2)³, x fastest).
+pub fn live_voxels(header: &Header, density: &[u8]) -> Vec<bool> {
+    if header.is_dynamic() {
+        return vec![true; density.len()];
+    }
+    let e = header.block as usize + 2;
+    // separable 3-wide max along x, then y, then z
+    let mut a: Vec<bool> = density.iter().map(|&d| d > 0).collect();
+    for stride in [1, e, e * e] {
+        let b = a.clone();
+        for (i, v) in a.iter_mut().enumerate() {
+            let k = (i / stride) % e;
+            *v = b[i] || (k > 0 && b[i - stride]) || (k + 1 < e && b[i + stride]);
+        }
+    }
+    a
+}
+
+/// Mean diffuse colour of an asset's voxels with density above the floor: a style's swatch.
+pub fn swatch(asset: &Asset) -> [f32; 3] {
+    let (mut sum, mut n) = ([0f64; 3], 0u64);
+    for v in asset.atlas.chunks_exact(CHANNELS).filter(|v| v[0] > 0) {
+        for c in 0..3 {
+            sum[c] += v[1 + c] as f64;
+        }
+        n += 1;
+    }
+    sum.map(|s| (s / n.max(1) as f64 / 255.0) as f32)
+}
+
+/// The first difference between two assets' geometry (header but `diffuse`/`styles`, grids,
+/// density codes), or None when they share it.
+pub fn geometry_difference(a: &Asset, b: &Asset) -> Option<String> {
+    let plain = |h: &Header| {
+        let mut h = h.clone();
+        h.diffuse = false;
+        h.styles = None;
+        serde_json::to_value(h).unwrap_or_default()
+    };
+    let (ha, hb) = (plain(&a.header), plain(&b.header));
+    if ha != hb {
+        let keys: Vec<String> = ha
+            .as_object()
+            .into_iter()
+            .flatten()
+            .filter(|(k, v)| hb.get(k.as_str()) != Some(v))
+            .map(|(k, _)| k.clone())
+            .collect();
+        return Some(format!("its header differs ({})", keys.join(", ")));
+    }
+    if let Some(f) = (0..a.grids.len().max(b.grids.len())).find(|&f| a.grids.get(f) != b.grids.get(f)) {
+        return Some(format!("frame {f}'s grid differs"));
+    }
+    let bb = a.block_bytes();
+    let differs = |i: usize| {
+        let (x, y) = (&a.atlas[i * bb..(i + 1) * bb], &b.atlas[i * bb..(i + 1) * bb]);
+        x.chunks_exact(CHANNELS).zip(y.chunks_exact(CHANNELS)).filter(|(p, q)| p[0] != q[0]).count()
+    };
+    let blocks = a.header.atlas_blocks as usize;
+    let counts: Vec<usize> = (0..blocks).map(differs).collect();
+    let voxels: usize = counts.iter().sum();
+    if voxels > 0 {
+        let first = counts.iter().position(|&c| c > 0).unwrap_or(0);
+        return Some(format!("{voxels} voxels' density differs (first in block {first})"));
+    }
+    None
+}
+
+impl LayeredAsset {
+    /// Styles and their layers (each a complete single-style asset). Fails, naming the
+    /// style, when a layer's geometry is not the first's. Clears the colour of voxels that
+    /// are not live (what the file leaves out), so what is written reads back equal.
+    pub fn new(styles: Vec<StyleInfo>, mut layers: Vec<Asset>) -> Result<LayeredAsset> {
+        ensure!(!layers.is_empty(), "a multi-style asset needs at least one style");
+        ensure!(styles.len() == layers.len(), "{} style names for {} layers", styles.len(), layers.len());
+        for (s, l) in styles.iter().zip(&layers).skip(1) {
+            if let Some(d) = geometry_difference(&layers[0], l) {
+                bail!("style {:?} was baked on another geometry than style {:?}: {d}", s.name, styles[0].name);
+            }
+        }
+        let diffuse = layers.iter().all(|l| l.header.diffuse);
+        let mut file_header = layers[0].header.clone();
+        file_header.diffuse = diffuse;
+        file_header.styles = Some(styles.clone());
+        file_header.validate()?;
+        let bb = file_header.block_bytes();
+        let mut masks = Vec::with_capacity(file_header.atlas_blocks as usize);
+        for blk in layers[0].atlas.chunks_exact(bb) {
+            let density: Vec<u8> = blk.chunks_exact(CHANNELS).map(|v| v[0]).collect();
+            masks.push(live_voxels(&file_header, &density));
+        }
+        for l in &mut layers {
+            l.validate()?;
+            l.header.diffuse = diffuse;
+            l.header.styles = None;
+            for (blk, live) in l.atlas.chunks_exact_mut(bb).zip(&masks) {
+                for (v, &on) in blk.chunks_exact_mut(CHANNELS).zip(live) {
+                    if !on {
+                        v[1..].fill(0);
+                    }
+                }
+            }
+        }
+        Ok(LayeredAsset { styles, layers })
+    }
+
+    /// The file's header (the first layer's, with the styles listed).
+    pub fn header(&self) -> Header {
+        let mut h = self.layers[0].header.clone();
+        h.styles = Some(self.styles.clone());
+        h
+    }
+
+    /// The style named `name` as a single-style asset; the error lists the names there are.
+    pub fn style(&self, name: &str) -> Result<&Asset> {
+        match self.styles.iter().position(|s| s.name == name) {
+            Some(i) => Ok(&self.layers[i]),
+            None => bail!("no style {:?} in this asset (it has {})", name, self.names().join(", ")),
+        }
+    }
+
+    pub fn names(&self) -> Vec<String> {
+        self.styles.iter().map(|s| s.name.clone()).collect()
+    }
+
+    /// Style `i` as a single-style asset.
+    pub fn into_style(mut self, i: usize) -> Result<Asset> {
+        ensure!(i < self.layers.len(), "style {} of {}", i, self.layers.len());
+        Ok(self.layers.swap_remove(i))
+    }
+
+    /// The shared geometry as the file holds it: density only, no MLP.
+    fn geometry(&self) -> Asset {
+        let mut g = self.layers[0].clone();
+        g.header = self.header();
+        g.mlp = ViewMlp::zeros();
+        for v in g.atlas.chunks_exact_mut(CHANNELS) {
+            v[1..].fill(0);
+        }
+        g
+    }
+
+    /// Each style's chunks: its SMLP (unless diffuse), then one SCOL per block.
+    fn style_chunks(&self) -> Vec<Vec<([u8; 4], Vec<u8>)>> {
+        let h = self.header();
+        let (bb, cc) = (h.block_bytes(), h.style_channels());
+        let base = &self.layers[0];
+        let geometry: Vec<(Vec<u8>, Vec<bool>, u32)> = base
+            .atlas
+            .chunks_exact(bb)
+            .map(|blk| {
+                let density: Vec<u8> = blk.chunks_exact(CHANNELS).map(|v| v[0]).collect();
+                let live = live_voxels(&h, &density);
+                let crc = crc32fast::hash(&density);
+                (density, live, crc)
+            })
+            .collect();
+        self.layers
+            .iter()
+            .enumerate()
+            .map(|(s, l)| {
+                let mut out = Vec::new();
+                if !h.diffuse {
+                    let mut p = (s as u32).to_le_bytes().to_vec();
+                    p.extend(l.mlp.to_flat().iter().flat_map(|x| x.to_le_bytes()));
+                    out.push((TAG_SMLP, p));
+                }
+                for (b, (blk, (_, live, crc))) in l.atlas.chunks_exact(bb).zip(&geometry).enumerate() {
+                    let mut p = Vec::with_capacity(12 + live.len() * cc);
+                    for x in [s as u32, b as u32, *crc] {
+                        p.extend_from_slice(&x.to_le_bytes());
+                    }
+                    for (v, _) in blk.chunks_exact(CHANNELS).zip(live).filter(|(_, &on)| on) {
+                        p.extend_from_slice(&v[1..1 + cc]);
+                    }
+                    out.push((TAG_SCOL, p));
+                }
+                out
+            })
+            .collect()
+    }
+
+    /// The file: preamble (version 3), HEAD, GRIDs, the geometry's BLKS (density), then each
+    /// style's colour part in turn (SMLP, one SCOL per block), END.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let extra: Vec<([u8; 4], Vec<u8>)> = self.style_chunks().into_iter().flatten().collect();
+        self.geometry().encode(&extra)
+    }
+
+    /// Encoded bytes of each style's colour part, with its name and swatch.
+    pub fn style_bytes(&self) -> Vec<StyleBytes> {
+        self.style_chunks()
+            .iter()
+            .zip(&self.styles)
+            .map(|(chunks, s)| StyleBytes {
+                name: s.name.clone(),
+                source: s.source.clone(),
+                swatch: s.swatch,
+                bytes: chunks.iter().map(|(_, p)| (CHUNK_HEADER_LEN + p.len()) as u64).sum(),
+            })
+            .collect()
+    }
+
+    /// What `snerf inspect` prints: the geometry's parts (as `Asset::summary`) and every
+    /// style's bytes.
+    pub fn summary(&self, file_bytes: u64) -> crate::summary::Summary {
+        let mut s = self.geometry().summary(file_bytes);
+        s.styles = self.style_bytes();
+        s
+    }
+
+    /// Write atomically (see `Asset::write`).
+    pub fn write(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        self.geometry()
+            .validate()
+            .map_err(|e| anyhow!("{}: refusing to write an invalid asset: {:#}", path.display(), e))?;
+        write_atomic(path, &self.to_bytes())
+    }
+
+    /// Read and validate a multi-style file; errors name the file.
+    pub fn read(path: impl AsRef<Path>) -> Result<LayeredAsset> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
+        LayeredAsset::from_bytes(&bytes).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
+    }
+
+    /// Decode a whole multi-style file: the geometry as `Asset::from_bytes` checks it, then
+    /// every style's colour part, which must be complete and made for this geometry.
+    pub fn from_bytes(bytes: &[u8]) -> Result<LayeredAsset> {
+        let version = check_preamble(bytes)?;
+        ensure!(version >= 3, "a version {version} asset holds one style (multi-style assets are version 3)");
+        let (geometry, chunks) = Asset::geometry_from_bytes(bytes)?;
+        let h = geometry.header.clone();
+        let styles = h.styles.clone().ok_or_else(|| anyhow!("a version 3 asset whose header lists no styles"))?;
+        let (n, nb, bb, cc) = (styles.len(), h.atlas_blocks as usize, h.block_bytes(), h.style_channels());
+        let blocks: Vec<(Vec<bool>, u32)> = geometry
+            .atlas
+            .chunks_exact(bb)
+            .map(|blk| {
+                let density: Vec<u8> = blk.chunks_exact(CHANNELS).map(|v| v[0]).collect();
+                (live_voxels(&h, &density), crc32fast::hash(&density))
+            })
+            .collect();
+        let mut plain = geometry;
+        plain.header.styles = None;
+        let mut layers = vec![plain; n];
+        let mut have_mlp = vec![h.diffuse; n];
+        let mut have = vec![vec![false; nb]; n];
+        for (index, tag, p) in chunks {
+            let name = |s: usize| styles[s].name.clone();
+            let r = (|| -> Result<()> {
+                ensure!(p.len() >= 4, "{} bytes, too short for a style index", p.len());
+                let s = le_u32(&p[..4]) as usize;
+                ensure!(s < n, "for style {} but the asset lists {} styles", s, n);
+                if tag == TAG_SMLP {
+                    ensure!(!h.diffuse, "style {:?}: an asset whose styles are all diffuse has no view MLPs", name(s));
+                    ensure!(!have_mlp[s], "duplicate view MLP of style {:?}", name(s));
+                    ensure!(p.len() == 4 + 4 * MLP_FLOATS, "style {:?}'s view MLP has {} bytes, expected {}", name(s), p.len() - 4, 4 * MLP_FLOATS);
+                    let floats: Vec<f32> = p[4..].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+                    layers[s].mlp = ViewMlp::from_flat(&floats)?;
+                    have_mlp[s] = true;
+                    return Ok(());
+                }
+                ensure!(p.len() >= 12, "{} bytes, too short for style, block and checksum", p.len());
+                let (b, crc) = (le_u32(&p[4..8]) as usize, le_u32(&p[8..12]));
+                ensure!(b < nb, "style {:?} colours block {} but the atlas has {}", name(s), b, nb);
+                ensure!(!have[s][b], "duplicate colour of style {:?} for block {}", name(s), b);
+                let (live, geo_crc) = &blocks[b];
+                ensure!(
+                    crc == *geo_crc,
+                    "style {:?}'s colour of block {} was made for another geometry (the block's density checksum differs): a layer for another geometry",
+                    name(s),
+                    b
+                );
+                let count = live.iter().filter(|&&l| l).count();
+                ensure!(
+                    p.len() - 12 == count * cc,
+                    "style {:?}'s colour of block {} has {} bytes, the block has {} live voxels ({} bytes): a layer for another geometry",
+                    name(s),
+                    b,
+                    p.len() - 12,
+                    count,
+                    count * cc
+                );
+                let atlas = &mut layers[s].atlas[b * bb..(b + 1) * bb];
+                let mut src = p[12..].chunks_exact(cc);
+                for (v, _) in atlas.chunks_exact_mut(CHANNELS).zip(live).filter(|(_, &on)| on) {
+                    v[1..1 + cc].copy_from_slice(src.next().unwrap_or(&[]));
+                }
+                have[s][b] = true;
+                Ok(())
+            })();
+            r.map_err(|e| anyhow!("chunk {} ({}): {:#}", index, tag_name(&tag), e))?;
+        }
+        for s in 0..n {
+            ensure!(have_mlp[s], "style {:?} has no view MLP (SMLP chunk): its colour part is missing", styles[s].name);
+            let missing: Vec<usize> = (0..nb).filter(|&b| !have[s][b]).collect();
+            if let Some(&b) = missing.first() {
+                bail!(
+                    "style {:?} has no colour for {} of {} blocks (first: block {}): its colour part is missing",
+                    styles[s].name,
+                    missing.len(),
+                    nb,
+                    b
+                );
+            }
+        }
+        Ok(LayeredAsset { styles, layers })
+    }
+}
