@@ -169,27 +169,8 @@ pub fn bake(
             .par_iter()
             .map(|&c| {
                 let r = pool.with(|ws| {
-                    let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
-                    let mut pts = Vec::with_capacity(block_voxels);
-                    for z in 0..bb {
-                        for y in 0..bb {
-                            for x in 0..bb {
-                                let idx = [cx * b as usize + x, cy * b as usize + y, cz * b as usize + z];
-                                pts.push(idx.map(|i| -1.0 + (i as f32 - 0.5) * 2.0 / res as f32));
-                            }
-                        }
-                    }
-                    let times = vec![tau; pts.len()];
-                    let mut vals = vec![[0.0f32; 8]; pts.len()];
-                    values_batch(&model.field, &pts, &times, ws, &mut vals);
-                    // The trainer never samples cells its occupancy grid marks empty, so
-                    // whatever density the field holds there was never seen (or corrected)
-                    // by training: bake it as empty, or it shows up as floaters.
-                    for (p, v) in pts.iter().zip(vals.iter_mut()) {
-                        if model.occ.cell(p).is_some_and(|i| model.occ.occ[i] == 0) {
-                            v[0] = snerf_trainer::field::SIGMA_LOGIT_MIN;
-                        }
-                    }
+                    let pts = block_points(c, g, b as usize, res as usize);
+                    let vals = block_values(model, model, &pts, tau, ws);
                     // keep if some interior voxel is opaque enough over one march step
                     let mut max_alpha = 0.0f32;
                     for z in 1..bb - 1 {
@@ -385,6 +366,40 @@ fn visibility(cells: &[usize], kept: &[Option<Vec<u8>>], samples: &[CellSamples]
             v
         })
         .collect()
+}
+
+/// Grid points of the voxels of the block at coarse cell `c` (index (z*g + y)*g + x), apron
+/// included, in the asset's voxel order (x fastest).
+pub(crate) fn block_points(c: usize, g: usize, b: usize, res: usize) -> Vec<Vec3> {
+    let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+    let bb = b + 2;
+    let mut pts = Vec::with_capacity(bb * bb * bb);
+    for z in 0..bb {
+        for y in 0..bb {
+            for x in 0..bb {
+                let idx = [cx * b + x, cy * b + y, cz * b + z];
+                pts.push(idx.map(|i| -1.0 + (i as f32 - 0.5) * 2.0 / res as f32));
+            }
+        }
+    }
+    pts
+}
+
+/// `model`'s values (density logit, RGB, features) at `pts` at field time `tau`, with the
+/// density of points `occupancy`'s grid marks empty set to the floor: the trainer never
+/// samples those cells, so whatever density the field holds there was never seen (or
+/// corrected) by training; baked, it would show up as floaters.
+pub(crate) fn block_values(model: &Model, occupancy: &Model, pts: &[Vec3], tau: f32, ws: &mut snerf_trainer::render::Workspace) -> Vec<[f32; 8]> {
+    let times = vec![tau; pts.len()];
+    let mut vals = vec![[0.0f32; 8]; pts.len()];
+    values_batch(&model.field, pts, &times, ws, &mut vals);
+    let occ = &occupancy.occ;
+    for (p, v) in pts.iter().zip(vals.iter_mut()) {
+        if occ.cell(p).is_some_and(|i| occ.occ[i] == 0) {
+            v[0] = snerf_trainer::field::SIGMA_LOGIT_MIN;
+        }
+    }
+    vals
 }
 
 /// What became of one candidate block.

@@ -1,0 +1,62 @@
+//! Style layers on a small trained field: a layer of the same field bakes exactly the
+//! first bake, a layer trained further with its geometry frozen (the trainer's own
+//! `freeze_geometry`, what `snerf stylize --appearance-only` sets) bakes onto the same
+//! geometry and round-trips as a two-style asset, and a layer whose geometry moved is refused.
+
+use snerf_asset::{LayeredAsset, StyleInfo};
+use snerf_baker::bake::{bake, BakeOptions};
+use snerf_baker::layers::bake_colour;
+use snerf_data::{load, LoadOptions};
+use snerf_trainer::eval::eval_background;
+use snerf_trainer::train::{views_have_alpha, TrainConfig, Trainer};
+
+fn style(name: &str) -> StyleInfo {
+    StyleInfo { name: name.into(), source: None, swatch: [0.0; 3] }
+}
+
+#[test]
+fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
+    let dir = snerf_files::ScratchDir::new("snerf-bake-layers", "object").unwrap();
+    let source = snerf_scene::Source::parse("object").unwrap();
+    let mut spec = snerf_scene::SceneSpec::default_for(source);
+    (spec.train_views, spec.test_views, spec.width, spec.height, spec.supersample) = (24, 2, 48, 48, 1);
+    snerf_scene::write_dataset(&spec, &dir.join("data"), &|_, _| {}).unwrap();
+    let data = load(&dir.join("data"), &LoadOptions::default()).unwrap();
+    let cfg = TrainConfig::for_dataset(&data);
+    let mut t = Trainer::new(&data, cfg.clone()).unwrap();
+    for s in 0..120 {
+        t.step(s as f64 / 120.0);
+    }
+    let bg = eval_background(views_have_alpha(&data.train));
+    let opts = BakeOptions { res: 64, visibility_views: 8, ..Default::default() };
+    let (first, _) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
+
+    // the same field as a layer: exactly the bake
+    let (same, report) = bake_colour(&t.model, &t.pool, &t.model, &first).unwrap();
+    assert_eq!(same, first, "{report:?}");
+
+    // further training with the geometry frozen: same density, other colours
+    let train_on = |freeze: bool| {
+        let mut c = cfg.clone();
+        c.freeze_geometry = freeze;
+        let adam = snerf_trainer::adam::Adam::new(t.model.field.params.len());
+        let mut l = Trainer::from_parts(&data, c, t.model.clone(), adam).unwrap();
+        for s in 0..30 {
+            l.step(s as f64 / 30.0);
+        }
+        l
+    };
+    let frozen = train_on(true);
+    let (second, report) = bake_colour(&frozen.model, &frozen.pool, &t.model, &first).unwrap();
+    assert_eq!(report.density_mismatches, 0);
+    assert_eq!(second.grids, first.grids);
+    assert!(second.atlas != first.atlas, "the frozen layer's colours moved");
+    let two = LayeredAsset::new(vec![style("a"), style("b")], vec![first.clone(), second]).unwrap();
+    let back = LayeredAsset::from_bytes(&two.to_bytes()).unwrap();
+    assert_eq!(back, two);
+
+    // training that moves the geometry gives a layer the bake refuses
+    let moved = train_on(false);
+    let e = bake_colour(&moved.model, &moved.pool, &t.model, &first).unwrap_err().to_string();
+    assert!(e.contains("density differs from the geometry's"), "{e}");
+}
