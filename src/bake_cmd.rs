@@ -8,17 +8,20 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde_json::{json, Value};
 use snerf_asset::render::{self as asset_render, Camera};
-use snerf_asset::Asset;
+use snerf_asset::{Asset, LayeredAsset, StyleInfo};
 use snerf_baker::bake::{bake, BakeOptions};
 use snerf_trainer::{eval, train};
 
 use crate::args::{bar, parse_size, peak_rss_mb, pj, DataOpts};
+use snerf_stylize::layers::LayersRecord;
 use snerf_trainer::run_dir::RunDir;
 use snerf_files::guard::{check_output, Input};
 
 #[derive(Args, Debug)]
 pub struct BakeArgs {
-    /// A run directory (from `snerf train` or `snerf stylize`).
+    /// A run directory (from `snerf train` or `snerf stylize`). A run stylized after several
+    /// paintings (`snerf stylize --style A --style B`) bakes into one asset: the geometry once,
+    /// from its first layer, and each layer's colour (every layer must share that geometry).
     pub run: PathBuf,
     /// The asset file to write (written to a temporary file, then renamed).
     #[arg(long)]
@@ -84,6 +87,9 @@ impl BakeArgs {
 
 pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     let wall = Instant::now();
+    if let Some(record) = LayersRecord::read(&a.run)? {
+        return bake_layers(a, &record, wall);
+    }
     let data_path = match &a.data {
         Some(d) => d.clone(),
         None => RunDir::new(&a.run).dataset()?,
@@ -134,6 +140,122 @@ fn label(run: &Path) -> String {
     p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into())
 }
 
+/// A layered stylize run (`snerf_stylize::layers`) into one multi-style asset: the first
+/// layer baked as usual, every further layer's colour baked onto that geometry
+/// (`snerf_baker::layers`), refused by name when its geometry is another.
+fn bake_layers(a: &BakeArgs, record: &LayersRecord, wall: Instant) -> Result<Value> {
+    if !a.sweep.is_empty() {
+        bail!("--sweep bakes one style; bake a layer's own run (RUN/layers/NAME) to sweep it");
+    }
+    let dirs: Vec<PathBuf> = record.layers.iter().map(|l| LayersRecord::dir(&a.run, &l.name)).collect();
+    for (l, d) in record.layers.iter().zip(&dirs) {
+        if !RunDir::new(d).checkpoint().exists() {
+            bail!("{}: layer {:?} has no checkpoint (its stylization has not finished; run the same `snerf stylize` again)", d.display(), l.name);
+        }
+    }
+    let data_path = match &a.data {
+        Some(d) => d.clone(),
+        None => RunDir::new(&dirs[0]).dataset()?,
+    };
+    let data = a.opts.load(&data_path)?;
+    crate::args::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
+    let bg = eval::eval_background(train::views_have_alpha(&data.train));
+    let (model0, pool0) = RunDir::new(&dirs[0]).load_model()?;
+    let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
+    let t0 = Instant::now();
+    let (first, report) = bake(&model0, &pool0, &data.train, bg, &bake_options(a, a.resolution), &|what, done, total| {
+        pb.set_message(format!("{}: {what}", record.layers[0].name));
+        pb.set_length(total);
+        pb.set_position(done);
+    })?;
+    pb.finish_and_clear();
+    let mut seconds = vec![t0.elapsed().as_secs_f64()];
+    let mut models = vec![(model0, pool0)];
+    let mut assets = vec![first];
+    for (l, d) in record.layers.iter().zip(&dirs).skip(1) {
+        let (m, p) = RunDir::new(d).load_model()?;
+        let (asset, lr) = snerf_baker::layers::bake_colour(&m, &p, &models[0].0, &assets[0]).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: layer {:?} was trained on another geometry than layer {:?} ({:#}); stylize every layer from the same run with --appearance-only",
+                d.display(),
+                l.name,
+                record.layers[0].name,
+                e
+            )
+        })?;
+        seconds.push(lr.seconds);
+        models.push((m, p));
+        assets.push(asset);
+    }
+    let styles: Vec<StyleInfo> = record
+        .layers
+        .iter()
+        .zip(&assets)
+        .map(|(l, asset)| StyleInfo { name: l.name.clone(), source: Some(l.source.clone()), swatch: snerf_asset::layers::swatch(asset) })
+        .collect();
+    let layered = LayeredAsset::new(styles, assets)?;
+    layered.write(&a.out)?;
+    let file_bytes = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
+    let summary = layered.summary(file_bytes);
+    let geometry = file_bytes - summary.styles.iter().map(|s| s.bytes).sum::<u64>();
+    eprintln!(
+        "baked {} style layers of {} -> {}: {:.2} MB, geometry {:.2} MB ({} blocks of {}³ at {}³), {:.1} s, peak memory {:.0} MB",
+        layered.layers.len(),
+        a.run.display(),
+        a.out.display(),
+        file_bytes as f64 / 1e6,
+        geometry as f64 / 1e6,
+        report.atlas_blocks,
+        a.block,
+        a.resolution,
+        wall.elapsed().as_secs_f64(),
+        peak_rss_mb().unwrap_or(f64::NAN)
+    );
+    let mut faith = Vec::new();
+    for ((s, secs), ((m, p), asset)) in summary.styles.iter().zip(&seconds).zip(models.iter().zip(&layered.layers)) {
+        let f = if a.eval_views > 0 {
+            let views = if data.test.is_empty() { &data.train } else { &data.test };
+            Some(snerf_baker::faithfulness::measure(m, p, asset, views, a.eval_views)?)
+        } else {
+            None
+        };
+        eprintln!(
+            "  style {:<12} {:>9} bytes ({:.3} of the file), baked in {:.1} s{}",
+            s.name,
+            s.bytes,
+            s.bytes as f64 / file_bytes.max(1) as f64,
+            secs,
+            f.as_ref().map(|f| format!(", baked vs field {:.2} dB", f.mean_baked_vs_field)).unwrap_or_default()
+        );
+        faith.push(f);
+    }
+    Ok(json!({
+        "command": "bake",
+        "run": pj(&a.run),
+        "out": pj(&a.out),
+        "bake_seconds": wall.elapsed().as_secs_f64(),
+        "layer_seconds": seconds,
+        "peak_rss_mb": peak_rss_mb(),
+        "report": report,
+        "asset": summary,
+        "faithfulness": faith,
+    }))
+}
+
+/// The bake's options from the command line, at `res` voxels per axis.
+fn bake_options(a: &BakeArgs, res: u32) -> BakeOptions {
+    BakeOptions {
+        res,
+        block: a.block,
+        keyframes: a.keyframes,
+        min_alpha: a.min_alpha,
+        visibility_views: a.visibility_views,
+        reuse_tolerance: a.reuse_tolerance,
+        time_budget: a.time_budget,
+        up: a.up,
+    }
+}
+
 /// One bake of `model` at `res` voxels per axis into `out`; the bake's JSON summary.
 fn bake_one(
     a: &BakeArgs,
@@ -145,16 +267,7 @@ fn bake_one(
     wall: Instant,
 ) -> Result<Value> {
     let bg = eval::eval_background(train::views_have_alpha(&data.train));
-    let opts = BakeOptions {
-        res,
-        block: a.block,
-        keyframes: a.keyframes,
-        min_alpha: a.min_alpha,
-        visibility_views: a.visibility_views,
-        reuse_tolerance: a.reuse_tolerance,
-        time_budget: a.time_budget,
-        up: a.up,
-    };
+    let opts = bake_options(a, res);
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
     let (asset, report) = bake(model, pool, &data.train, bg, &opts, &|what, done, total| {
         pb.set_message(what.to_string());
@@ -237,9 +350,9 @@ pub struct InspectArgs {
 }
 
 pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
-    let asset = Asset::read(&a.file)?;
     let bytes = std::fs::metadata(&a.file).map(|m| m.len()).unwrap_or(0);
-    let sum = asset.summary(bytes);
+    let layered = std::fs::read(&a.file).is_ok_and(|b| snerf_asset::layers::is_layered(&b));
+    let sum = if layered { LayeredAsset::read(&a.file)?.summary(bytes) } else { Asset::read(&a.file)?.summary(bytes) };
     let s = serde_json::to_value(&sum)?;
     if !quiet {
         eprintln!(
@@ -255,6 +368,19 @@ pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
                 "animation {:.3} s: {:.0} bytes/s (header {:.0}, mlp {:.0}, grids {:.0}, blocks {:.0}); {} of {} cells change over time",
                 secs, r.total, r.header, r.mlp, r.grids, r.blocks, sum.cells_changing, sum.cells_occupied_any_frame
             );
+        }
+        if !sum.styles.is_empty() {
+            let styles: u64 = sum.styles.iter().map(|s| s.bytes).sum();
+            eprintln!("{} styles; shared geometry {} bytes", sum.styles.len(), bytes - styles);
+            for st in &sum.styles {
+                eprintln!(
+                    "  {:<12} {:>10} bytes ({:.3} of the file){}",
+                    st.name,
+                    st.bytes,
+                    st.bytes as f64 / bytes.max(1) as f64,
+                    st.source.as_deref().map(|s| format!("  after {s}")).unwrap_or_default()
+                );
+            }
         }
         eprintln!("{}", serde_json::to_string_pretty(&s)?);
     }
@@ -283,6 +409,25 @@ pub struct RenderArgs {
     /// adapter it says so and falls back to the CPU reference renderer.
     #[arg(long)]
     pub gpu: bool,
+    /// The style to draw, by name, of an asset with several (`snerf inspect` lists them;
+    /// default: the first).
+    #[arg(long)]
+    pub style: Option<String>,
+}
+
+/// The asset of `file`, as style `style` of a multi-style asset (default: its first).
+pub fn read_style(file: &Path, style: Option<&str>) -> Result<Asset> {
+    let Some(name) = style else { return Asset::read(file) };
+    let layered = std::fs::read(file).is_ok_and(|b| snerf_asset::layers::is_layered(&b));
+    if !layered {
+        bail!("{}: --style {name}: this asset holds one style (no named styles)", file.display());
+    }
+    let l = LayeredAsset::read(file)?;
+    let i = l.styles.iter().position(|s| s.name == name);
+    match i {
+        Some(i) => l.into_style(i),
+        None => bail!("{}: no style {name:?} (it has {})", file.display(), l.names().join(", ")),
+    }
 }
 
 /// The cameras (and times) of `--path`.
@@ -316,7 +461,7 @@ fn camera_path_json(cams: &[(Camera, f32)], dynamic: bool) -> String {
 const MAX_RENDER_PIXELS: u64 = 1 << 28;
 
 pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
-    let asset = Asset::read(&a.file)?;
+    let asset = read_style(&a.file, a.style.as_deref())?;
     let cams = render_path(&asset, &a.path, a.frames, parse_size(&a.size)?)?;
     let pixels: u64 = cams.iter().map(|(c, _)| c.width as u64 * c.height as u64).sum();
     if pixels > MAX_RENDER_PIXELS {
@@ -374,6 +519,7 @@ pub fn render_cmd(a: &RenderArgs) -> Result<Value> {
         "camera_path": pj(&path_file),
         "seconds": secs,
         "renderer": renderer,
+        "style": a.style,
     }))
 }
 

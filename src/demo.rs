@@ -143,7 +143,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
     eprintln!("[5/8] SNeRF: {loop_text}");
     let s_args = |rounds: usize, out: PathBuf| crate::stylize_cmd::StylizeArgs {
         run: run_dir.clone(),
-        style: style.clone(),
+        style: style.clone().into_iter().collect(),
         out,
         data: Some(data_dir.clone()),
         rounds,
@@ -203,6 +203,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         size: a.size.clone(),
         out: a.out.join("baked_turntable"),
         gpu: false,
+        style: None,
     })?;
     eprintln!("[8/8] exporting a glTF mesh");
     let glb = a.out.join("stylized.glb");

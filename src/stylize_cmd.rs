@@ -10,6 +10,7 @@ use indicatif::ProgressBar;
 use serde_json::{json, Value};
 use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters, StyleTargets};
 use snerf_stylize::fusion::Read;
+use snerf_stylize::layers::LayersRecord;
 use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
 use snerf_stylize::temporal::{TemporalScores, TimePath};
@@ -131,8 +132,12 @@ pub struct StylizeArgs {
     pub run: PathBuf,
     /// The style image (PNG, JPEG or WebP), or `painting:KEY` for a painting installed by
     /// `bash scripts/setup-styles.sh` (vangogh, renoir, kandinsky, greatwave, cassatt, bazille).
+    /// Given more than once, each style is a layer of one asset: OUT/layers/NAME/ is an
+    /// appearance-only stylization per style (NAME: the painting's key or the file's stem),
+    /// OUT/layers.json lists them, and `snerf bake OUT` writes one asset with the geometry
+    /// once and a colour part per style.
     #[arg(long)]
-    pub style: Option<PathBuf>,
+    pub style: Vec<PathBuf>,
     /// The stylized run directory (resumes when it holds a run with the same options).
     #[arg(long)]
     pub out: PathBuf,
@@ -152,7 +157,8 @@ pub struct StylizeArgs {
     /// Use this many training views, evenly spaced (0: all).
     #[arg(long, default_value_t = 0, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub views: usize,
-    /// Freeze density and the shared layers; stylize colour only (the paper's ablation).
+    /// Freeze density and the shared layers; stylize colour only (the paper's ablation; always
+    /// on with several --style).
     #[arg(long)]
     pub appearance_only: bool,
     /// Frames of the loop's own path for the per-round warp errors (0: skip the per-round
@@ -252,14 +258,57 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 }
 
 pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
+    if a.style.len() > 1 {
+        return stylize_layers(a, quiet);
+    }
+    stylize_one(a, a.style.first().map(PathBuf::as_path), &a.out, a.appearance_only, quiet)
+}
+
+/// Several `--style`: one appearance-only stylization per style in OUT/layers/NAME/ (each a
+/// whole stylized run, resumable as one), recorded in OUT/layers.json (`snerf_stylize::layers`).
+fn stylize_layers(a: &StylizeArgs, quiet: bool) -> Result<Value> {
+    let specs: Vec<String> = a
+        .style
+        .iter()
+        .map(|p| p.to_str().map(str::to_string).ok_or_else(|| anyhow::anyhow!("--style {}: not a UTF-8 name; rename it", p.display())))
+        .collect::<Result<_>>()?;
+    let mut record = LayersRecord::new(&absolute(&a.run), &specs)?;
+    if !a.appearance_only {
+        eprintln!("{} styles as layers of one asset share one geometry: stylizing with --appearance-only", specs.len());
+    }
+    let mut layers = Vec::new();
+    for i in 0..record.layers.len() {
+        let (name, spec) = (record.layers[i].name.clone(), a.style[i].clone());
+        let dir = LayersRecord::dir(&a.out, &name);
+        if !quiet {
+            eprintln!("layer {}/{}: {name} ({}) -> {}", i + 1, specs.len(), spec.display(), dir.display());
+        }
+        std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        let t0 = Instant::now();
+        let v = stylize_one(a, Some(&spec), &dir, true, quiet)?;
+        record.layers[i].seconds = Some(t0.elapsed().as_secs_f64());
+        // after every layer: a record on disk names what is done
+        record.write(&a.out)?;
+        layers.push(json!({ "name": name, "dir": crate::args::pj(&dir), "seconds": record.layers[i].seconds, "state": v["state"] }));
+    }
+    if !quiet {
+        let secs: Vec<String> = record.layers.iter().map(|l| format!("{} {:.0} s", l.name, l.seconds.unwrap_or(0.0))).collect();
+        eprintln!("{} style layers in {} ({}); bake them into one asset with `snerf bake {}`", layers.len(), a.out.display(), secs.join(", "), a.out.display());
+    }
+    Ok(json!({ "command": "stylize", "out": crate::args::pj(&a.out), "layers": layers, "record": record }))
+}
+
+/// One stylization of `a.run` after `style` into `out`.
+fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_only: bool, quiet: bool) -> Result<Value> {
     let data_path = match &a.data {
         Some(d) => d.clone(),
         None => RunDir::new(&a.run).dataset()?,
     };
     let data = a.opts.load(&data_path)?;
-    let style = a.style.as_deref().map(paintings::resolve_style).transpose()?;
+    let style = style.map(paintings::resolve_style).transpose()?;
     // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.
-    for (what, p) in [("RUN", Some(&a.run)), ("--out", Some(&a.out)), ("--style", style.as_ref()), ("--data", Some(&data_path))] {
+    let out = &out.to_path_buf();
+    for (what, p) in [("RUN", Some(&a.run)), ("--out", Some(out)), ("--style", style.as_ref()), ("--data", Some(&data_path))] {
         if let Some(p) = p.filter(|p| p.to_str().is_none()) {
             bail!("{what} {}: the stylized run records this path, and its JSON holds UTF-8 names only; rename it", p.display());
         }
@@ -270,7 +319,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     if let Some(s) = &style {
         inputs.push(Input::File(s));
     }
-    check_output("--out", &a.out, &inputs)?;
+    check_output("--out", out, &inputs)?;
     let ck_path = RunDir::new(&a.run).checkpoint();
     if !ck_path.exists() {
         bail!("{}: no checkpoint here; run `snerf train` first", a.run.display());
@@ -292,7 +341,7 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         steps_per_round: a.steps_per_round,
         style_res: a.style_res,
         views: a.views,
-        appearance_only: a.appearance_only,
+        appearance_only,
         consistency_frames: a.consistency_frames,
         fuse_views: a.fuse_views,
         content: option_enum("--content", &a.content)?,
@@ -302,27 +351,27 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     let mut bars = Bars {
         pb: bar(1, "{spinner} {prefix} {bar:30} {pos}/{len} [{elapsed}] {msg}"),
         quiet,
-        out: a.out.clone(),
+        out: out.clone(),
         live: snerf_report::live::LiveReport::new(),
     };
-    let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), &meters, &style_img, &a.out, &mut bars)?;
+    let state = snerf_loop::run(&opts, &data, &source, stylizer.as_ref(), &meters, &style_img, out, &mut bars)?;
     bars.pb.finish_and_clear();
-    bars.live.stylize(&a.out, serde_json::to_value(&state)?);
+    bars.live.stylize(out, serde_json::to_value(&state)?);
     if !quiet {
         eprintln!(
             "stylized run in {} ({} rounds, {:.0} s); per-round images in {}",
-            a.out.display(),
+            out.display(),
             state.rounds_done,
             wall.elapsed().as_secs_f64(),
-            a.out.join("rounds").display()
+            out.join("rounds").display()
         );
     }
     Ok(json!({
         "command": "stylize",
-        "out": crate::args::pj(&a.out),
+        "out": crate::args::pj(out),
         "state": state,
         "wall_seconds": wall.elapsed().as_secs_f64(),
-        "report": { "dir": crate::args::pj(a.out.join(snerf_report::live::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
+        "report": { "dir": crate::args::pj(out.join(snerf_report::live::RUN_REPORT_DIR)), "writes": bars.live.writes, "seconds": bars.live.seconds },
     }))
 }
 

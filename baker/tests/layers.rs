@@ -51,9 +51,24 @@ fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
     assert_eq!(report.density_mismatches, 0);
     assert_eq!(second.grids, first.grids);
     assert!(second.atlas != first.atlas, "the frozen layer's colours moved");
-    let two = LayeredAsset::new(vec![style("a"), style("b")], vec![first.clone(), second]).unwrap();
-    let back = LayeredAsset::from_bytes(&two.to_bytes()).unwrap();
+    let two = LayeredAsset::new(vec![style("a"), style("b")], vec![first.clone(), second.clone()]).unwrap();
+    let bytes = two.to_bytes();
+    let back = LayeredAsset::from_bytes(&bytes).unwrap();
     assert_eq!(back, two);
+    // each style draws what its own single-style bake draws (the file keeps only the live
+    // voxels' colours, and the apron's where no neighbour holds them)
+    for (single, layer) in [(&first, &back.layers[0]), (&second, &back.layers[1])] {
+        for i in 0..2 {
+            let cam = snerf_asset::orbit(&single.header, 2, i, 40, 40, 40.0);
+            let (a, b) = (snerf_asset::render(single, &cam, 0.0), snerf_asset::render(layer, &cam, 0.0));
+            let d = a.rgb.iter().zip(&b.rgb).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
+            assert!(d <= 1.0 / 255.0, "view {i}: {d}");
+        }
+    }
+    let layer_bytes = back.style_bytes()[1].bytes as f64;
+    let whole = second.to_bytes().len() as f64;
+    eprintln!("a layer is {:.3} of a single-style asset ({} of {} bytes)", layer_bytes / whole, layer_bytes, whole);
+    assert!(layer_bytes / whole < 0.5);
 
     // training that moves the geometry gives a layer the bake refuses
     let moved = train_on(false);

@@ -108,7 +108,8 @@ fn two_styles_round_trip_and_render_like_their_single_style_assets() {
         assert_eq!(parts, bytes.len() as u64, "{:?}", s);
         let whole = singles[1].to_bytes().len() as f64;
         let ratio = s.styles[1].bytes as f64 / whole;
-        assert!(ratio < 0.75, "diffuse {diffuse}: a layer is {ratio:.3} of a whole asset");
+        eprintln!("diffuse {diffuse}: a layer is {ratio:.3} of a whole asset");
+        assert!(ratio < 0.35, "diffuse {diffuse}: a layer is {ratio:.3} of a whole asset");
     }
 }
 
@@ -235,7 +236,7 @@ fn mutated_multi_style_files_never_panic() {
         seed ^= seed << 17;
         seed
     };
-    for _ in 0..3000 {
+    for _ in 0..1500 {
         // flip a byte of one chunk's payload and fix its CRC, so the semantic checks see it
         let c = &list[next() as usize % list.len()];
         let mut m = bytes.clone();

@@ -23,6 +23,8 @@
 //! - `colour_offsets`: what a field trained on painted views falls short of, per colour, so
 //!   that the targets make it up.
 //! - `paintings`: the real paintings used as styles by tests and benchmarks.
+//! - `layers`: a run stylized after several paintings, one appearance-only stylized run per
+//!   style under one directory, which `snerf bake` turns into one multi-style asset.
 //!
 //! The stylizer and the field never hold the machine at once: a round renders, then
 //! stylizes, then trains, each phase with every core.
@@ -34,6 +36,7 @@
 pub mod colour_offsets;
 pub mod consistency;
 pub mod fusion;
+pub mod layers;
 pub mod paintings;
 pub mod palette;
 pub mod reproject;
