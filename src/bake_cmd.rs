@@ -561,6 +561,9 @@ pub struct ExportGltfArgs {
     /// Validate the file with the Khronos glTF validator (node + npm gltf-validator).
     #[arg(long)]
     pub validate: bool,
+    /// The style to export, by name, of an asset with several (default: the first).
+    #[arg(long)]
+    pub style: Option<String>,
     #[command(flatten)]
     pub opts: DataOpts,
 }
@@ -587,7 +590,7 @@ pub fn export_gltf_cmd(a: &ExportGltfArgs) -> Result<Value> {
     inputs.extend(check_files.iter().map(|f| Input::File(f)));
     check_output("--out", &a.out, &inputs)?;
     let t0 = Instant::now();
-    let asset = Asset::read(&a.file)?;
+    let asset = read_style(&a.file, a.style.as_deref())?;
     let (report, meshes) = snerf_baker::mesh_export::export_glb(&asset, a.iso, &a.out)?;
     let secs = t0.elapsed().as_secs_f64();
     eprintln!(
@@ -626,7 +629,7 @@ fn export_splats_cmd(a: &ExportGltfArgs) -> Result<Value> {
     }
     check_output("--out", &a.out, &[Input::File(&a.file)])?;
     let t0 = Instant::now();
-    let asset = Asset::read(&a.file)?;
+    let asset = read_style(&a.file, a.style.as_deref())?;
     if a.sh_degree.is_some_and(|d| d > 3) {
         bail!("--sh-degree {}: KHR_gaussian_splatting stores degrees 0 to 3", a.sh_degree.unwrap_or(0));
     }

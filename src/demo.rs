@@ -225,6 +225,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
             check: None,
             data: None,
             validate: false,
+            style: None,
             opts: DataOpts::default(),
         })
     };
