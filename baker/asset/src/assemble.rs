@@ -26,8 +26,11 @@ pub struct Assembler {
     strict: bool,
     /// A multi-style file's style chunks (index, tag, payload), decoded by `layers` once
     /// the geometry they colour has been read.
-    pub(crate) style_chunks: Vec<(usize, [u8; 4], Vec<u8>)>,
+    pub(crate) style_chunks: Vec<StyleChunk>,
 }
+
+/// A multi-style file's SMLP or SCOL chunk, undecoded: its index, tag and payload.
+pub(crate) type StyleChunk = (usize, [u8; 4], Vec<u8>);
 
 /// Parse and validate a `HEAD` payload.
 pub fn parse_head(payload: &[u8]) -> Result<Header> {

@@ -113,7 +113,7 @@ impl Asset {
 
     /// Decode a whole file's header, grids, blocks (and MLP); with a multi-style file's style
     /// chunks, undecoded.
-    pub(crate) fn geometry_from_bytes(bytes: &[u8]) -> Result<(Asset, Vec<(usize, [u8; 4], Vec<u8>)>)> {
+    pub(crate) fn geometry_from_bytes(bytes: &[u8]) -> Result<(Asset, Vec<crate::assemble::StyleChunk>)> {
         let mut asm = Assembler::from_file_bytes(bytes)?;
         let missing = asm.missing_blocks();
         let frames = asm.missing_frames();
