@@ -273,6 +273,12 @@ fn stylize_layers(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         .map(|p| p.to_str().map(str::to_string).ok_or_else(|| anyhow::anyhow!("--style {}: not a UTF-8 name; rename it", p.display())))
         .collect::<Result<_>>()?;
     let mut record = LayersRecord::new(&absolute(&a.run), &specs)?;
+    // before anything is written: OUT is never the run, inside it or inside its dataset
+    let data_path = match &a.data {
+        Some(d) => d.clone(),
+        None => RunDir::new(&a.run).dataset()?,
+    };
+    check_output("--out", &a.out, &[Input::Tree(&a.run), Input::Tree(&data_path)])?;
     if !a.appearance_only {
         eprintln!("{} styles as layers of one asset share one geometry: stylizing with --appearance-only", specs.len());
     }

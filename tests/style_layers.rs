@@ -54,6 +54,9 @@ fn two_styles_stylize_bake_inspect_and_render_as_layers_of_one_asset() {
     image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([200 + (x * 3) as u8, 90 + (y * 4) as u8, 20])).save(&warm).unwrap();
     image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([20, 60 + (x * 4) as u8, 180 + (y * 3) as u8])).save(&cold).unwrap();
 
+    // several styles are refused inside the run, before anything is written there
+    fails(stylize(&run, &run.join("styles"), &[&warm, &cold], &[]), &["--out"]);
+    assert!(!run.join("styles").exists());
     let srun = d.join("srun");
     let s = ok(stylize(&run, &srun, &[&warm, &cold], &[]));
     let layers = s["layers"].as_array().unwrap();
