@@ -354,7 +354,9 @@ pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
     let layered = std::fs::read(&a.file).is_ok_and(|b| snerf_asset::layers::is_layered(&b));
     let sum = if layered { LayeredAsset::read(&a.file)?.summary(bytes) } else { Asset::read(&a.file)?.summary(bytes) };
     let s = serde_json::to_value(&sum)?;
-    if !quiet {
+    if !quiet && !sum.styles.is_empty() {
+        eprintln!("{}: {:.2} MB, {} styles over one geometry, {} frame(s)", a.file.display(), bytes as f64 / 1e6, sum.styles.len(), sum.frames);
+    } else if !quiet {
         eprintln!(
             "{}: {:.2} MB, {:.2}x one static frame ({:.2} MB), {} frame(s)",
             a.file.display(),
@@ -363,6 +365,8 @@ pub fn inspect_cmd(a: &InspectArgs, quiet: bool) -> Result<Value> {
             sum.static_frame_bytes as f64 / 1e6,
             sum.frames
         );
+    }
+    if !quiet {
         if let (Some(secs), Some(r)) = (sum.animation_seconds, &sum.bytes_per_second) {
             eprintln!(
                 "animation {:.3} s: {:.0} bytes/s (header {:.0}, mlp {:.0}, grids {:.0}, blocks {:.0}); {} of {} cells change over time",

@@ -56,7 +56,8 @@ pub struct Summary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bytes_per_second: Option<PartRates>,
     /// A multi-style asset's styles, each with the bytes of its colour part (`bytes` above
-    /// is then the shared geometry's, and `total` the whole file's).
+    /// is then the shared geometry's, and `total` the whole file's; `static_frame_bytes`
+    /// counts the geometry alone).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub styles: Vec<crate::layers::StyleBytes>,
 }
