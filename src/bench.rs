@@ -9,6 +9,7 @@ use snerf_trainer::data::LoadOptions;
 use snerf_trainer::render::PHASES;
 use snerf_trainer::train::{StepStats, TrainConfig, Trainer};
 
+mod capture_depth;
 mod publish;
 mod quality;
 mod snerf_grid;
@@ -56,6 +57,10 @@ pub enum BenchCmd {
     /// p50/p99 times, origin requests per viewer, hit ratio), and the same viewers against
     /// `snerf serve`. Needs caddy and varnish (`bash .ci/run` installs them).
     Publish(publish::BenchPublishArgs),
+    /// A capture's geometry against the depth sensor that filmed it (the castel sequence of
+    /// visp-images-data): the metres per COLMAP unit, each point's depth against the sensor's,
+    /// and whether one scale holds for every camera.
+    CaptureDepth(capture_depth::BenchCaptureDepthArgs),
 }
 
 #[derive(Args, Debug)]
@@ -116,6 +121,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::Web(a) => web::run(a),
         BenchCmd::Publish(a) => publish::run(a),
         BenchCmd::Report(a) => report(a),
+        BenchCmd::CaptureDepth(a) => capture_depth::run(a),
     }
 }
 

@@ -42,6 +42,8 @@ pub(crate) struct Camera {
 
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Image {
+    /// The id points3D tracks refer to.
+    pub id: u32,
     pub qvec: [f64; 4],
     pub tvec: [f64; 3],
     pub camera_id: u32,
@@ -142,7 +144,7 @@ pub(crate) fn load(model_dir: &Path, opts: &LoadOptions) -> Result<RawDataset> {
     let near_far = if points_path.is_file() {
         let pts = read_points_bin(&read_bytes(&points_path)?)
             .map_err(|e| anyhow!("{}: {e}", points_path.display()))?;
-        near_far(&pts, &bound_cams)
+        near_far(&pts.iter().map(|p| p.xyz).collect::<Vec<_>>(), &bound_cams)
     } else {
         None
     };
@@ -327,6 +329,7 @@ pub(crate) fn read_images_txt(text: &str) -> Result<Vec<Image>> {
         let camera_id: u32 = num(Some(toks[8]), ln, "camera id")?;
         let name = toks[9..].join(" ");
         out.push(Image {
+            id: num(Some(toks[0]), ln, "image id")?,
             qvec,
             tvec,
             camera_id,
@@ -430,7 +433,7 @@ pub(crate) fn read_images_bin(buf: &[u8]) -> Result<Vec<Image>> {
     let n = r.count(4 + 56 + 4 + 1 + 8, "number of images")?;
     let mut out = Vec::with_capacity(n);
     for _ in 0..n {
-        let _id = r.u32("image id")?;
+        let id = r.u32("image id")?;
         let mut q = [0.0; 4];
         for v in &mut q {
             *v = r.f64("image quaternion")?;
@@ -452,6 +455,7 @@ pub(crate) fn read_images_bin(buf: &[u8]) -> Result<Vec<Image>> {
         let npts = r.count(24, &format!("number of 2D points of image '{name}'"))?;
         r.take(npts * 24, "2D points")?;
         out.push(Image {
+            id,
             qvec: q,
             tvec: t,
             camera_id,

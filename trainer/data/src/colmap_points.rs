@@ -6,9 +6,18 @@
 
 use anyhow::{bail, Result};
 
-/// xyz of every point in `points3D.bin`: u64 count; per point u64 id, f64 xyz[3], u8 rgb[3],
-/// f64 error, u64 track length, then (i32 image id, i32 point2D index) per track element.
-pub(crate) fn read_points_bin(buf: &[u8]) -> Result<Vec<[f64; 3]>> {
+/// One sparse point: where it is and the images that observed it.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct SparsePoint {
+    pub xyz: [f64; 3],
+    /// Image ids of its track (an image may appear more than once).
+    pub seen_by: Vec<u32>,
+}
+
+/// Every point in `points3D.bin` with a finite position: u64 count; per point u64 id, f64
+/// xyz[3], u8 rgb[3], f64 error, u64 track length, then (i32 image id, i32 point2D index) per
+/// track element.
+pub(crate) fn read_points_bin(buf: &[u8]) -> Result<Vec<SparsePoint>> {
     let mut pos = 0usize;
     let mut take = |n: usize, what: &str| -> Result<&[u8]> {
         if buf.len() - pos < n {
@@ -42,9 +51,10 @@ pub(crate) fn read_points_bin(buf: &[u8]) -> Result<Vec<[f64; 3]>> {
         if bytes > (buf.len() as u128) {
             bail!("corrupt file: track length {len} exceeds the file");
         }
-        take(bytes as usize, "track")?;
+        let track = take(bytes as usize, "track")?;
         if p.iter().all(|v| v.is_finite()) {
-            out.push(p);
+            let seen_by = track.chunks_exact(8).map(|e| u32::from_le_bytes(e[..4].try_into().unwrap())).collect();
+            out.push(SparsePoint { xyz: p, seen_by });
         }
     }
     Ok(out)
@@ -117,8 +127,11 @@ mod tests {
         b.extend([10u8, 20, 30]);
         b.extend(0.5f64.to_le_bytes());
         b.extend(2u64.to_le_bytes());
-        b.extend([0u8; 16]);
-        assert_eq!(read_points_bin(&b).unwrap(), vec![[1.0, 2.0, 3.0]]);
+        for (image, point2d) in [(3i32, 0i32), (5, 1)] {
+            b.extend(image.to_le_bytes());
+            b.extend(point2d.to_le_bytes());
+        }
+        assert_eq!(read_points_bin(&b).unwrap(), vec![SparsePoint { xyz: [1.0, 2.0, 3.0], seen_by: vec![3, 5] }]);
         assert!(read_points_bin(&b[..b.len() - 1]).is_err());
         assert!(read_points_bin(&u64::MAX.to_le_bytes()).is_err());
     }

@@ -22,6 +22,7 @@
 //! Nothing half-written is left: all work happens in a temp folder beside the output
 //! (`.NAME.PID.snerf-tmp`, removed on failure and Ctrl-C), renamed into place at the end.
 
+pub mod known_depth;
 mod model;
 mod photos;
 pub mod pycolmap;
