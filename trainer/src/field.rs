@@ -560,6 +560,20 @@ impl Field {
         gemm(1.0, Mat(hid, n, h, h, 1), Mat(w2, h, OUT, 1, h), 1.0, out, (OUT, 1));
     }
 
+    /// The output layer's part of [`Field::decode_backward`]: dW2 and db2 only (what learns
+    /// while the geometry is frozen).
+    pub fn decode_backward_output(&self, n: usize, hid: &[f32], d_out: &[f32], grad: &mut [f32]) {
+        let h = self.layout.hidden;
+        let l = &self.layout;
+        // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
+        gemm(1.0, Mat(d_out, OUT, n, 1, OUT), Mat(hid, n, h, h, 1), 1.0, &mut grad[l.w2..l.b2], (h, 1));
+        for r in 0..n {
+            for k in 0..OUT {
+                grad[l.b2 + k] += d_out[r * OUT + k];
+            }
+        }
+    }
+
     /// Decoder backward on `n` samples. `d_out` (n x OUT) is dL/d(raw outputs); `d_hid` is
     /// scratch (n x hidden); accumulates weight gradients into `grad` and writes dL/d(features)
     /// into `d_feat` (n x input).
@@ -578,13 +592,7 @@ impl Field {
         let p = &self.params;
         let l = &self.layout;
         let (w1, w2) = (&p[l.w1..l.b1], &p[l.w2..l.b2]);
-        // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
-        gemm(1.0, Mat(d_out, OUT, n, 1, OUT), Mat(hid, n, h, h, 1), 1.0, &mut grad[l.w2..l.b2], (h, 1));
-        for r in 0..n {
-            for k in 0..OUT {
-                grad[l.b2 + k] += d_out[r * OUT + k];
-            }
-        }
+        self.decode_backward_output(n, hid, d_out, grad);
         // d_hid (n x h) = d_out (n x OUT) * W2 (OUT x h), masked by ReLU.
         gemm(1.0, Mat(d_out, n, OUT, OUT, 1), Mat(w2, OUT, h, h, 1), 0.0, d_hid, (h, 1));
         for (d, &x) in d_hid[..n * h].iter_mut().zip(&hid[..n * h]) {

@@ -327,9 +327,40 @@ pub fn train_chunk(
     distortion: f32,
     groups: &[u16],
 ) -> ChunkStats {
+    train_chunk_with(field, space, occ, tasks, ws, loss_scale, distortion, groups, Backward::Full)
+}
+
+/// How far a training chunk's backward pass goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backward {
+    /// Into every parameter (planes, decoder, view MLP, deformation).
+    Full,
+    /// Into what learns while the geometry is frozen (`TrainConfig::freeze_geometry`): the
+    /// decoder's output layer (whose colour rows and biases learn), the view MLP and the
+    /// photos' colour transforms. The shared hidden layer, the planes and the deformation
+    /// get no gradient: their learning rate is zero then, and the pass through them (the
+    /// larger part of a step's backward) would be thrown away.
+    OutputLayer,
+}
+
+/// [`train_chunk`] with the backward pass cut at `backward`. The gradients it does compute
+/// are the full pass's, bit for bit (trainer/tests/gradients.rs).
+#[allow(clippy::too_many_arguments)]
+pub fn train_chunk_with(
+    field: &Field,
+    space: &SceneSpace,
+    occ: &Occupancy,
+    tasks: &[RayTask],
+    ws: &mut Workspace,
+    loss_scale: f32,
+    distortion: f32,
+    groups: &[u16],
+    backward: Backward,
+) -> ChunkStats {
     let pixels = if groups.is_empty() { tasks.len() } else { groups.len() };
     let mut stats = ChunkStats { rays: tasks.len() as u64, pixels: pixels as u64, ..Default::default() };
-    ws.forward_field(field, space, occ, tasks, true, &mut stats.ns);
+    // the planes' corners are recorded only for a backward pass into the planes
+    ws.forward_field(field, space, occ, tasks, backward == Backward::Full, &mut stats.ns);
     let mut clock = std::time::Instant::now();
     let n = ws.samples.len();
     stats.samples = n as u64;
@@ -440,7 +471,10 @@ pub fn train_chunk(
         }
     }
     stats.ns[3] += lap(&mut clock);
-    if n > 0 {
+    if n > 0 && backward == Backward::OutputLayer {
+        field.decode_backward_output(n, &ws.hid[..n * h], &ws.d_out, &mut ws.grad);
+        stats.ns[4] += lap(&mut clock);
+    } else if n > 0 {
         ws.d_hid.resize(n * h, 0.0);
         ws.d_feat.resize(n * inp, 0.0);
         field.decode_backward(n, &ws.feat[..n * inp], &ws.hid[..n * h], &ws.d_out, &mut ws.d_hid, &mut ws.d_feat, &mut ws.grad);

@@ -14,7 +14,7 @@ use crate::adam::Adam;
 use crate::appearance::Appearance;
 use crate::field::{Field, FieldConfig};
 use crate::occupancy::Occupancy;
-use crate::render::{density_batch, train_chunk, ChunkStats, RayTask, WorkspacePool};
+use crate::render::{density_batch, train_chunk_with, Backward, ChunkStats, RayTask, WorkspacePool};
 use crate::rng::Rng;
 use crate::space::SceneSpace;
 
@@ -549,6 +549,7 @@ impl Trainer {
         let distortion = self.cfg.distortion;
         let transforms = self.appearance.as_ref().map_or(&[][..], |a| &a.transforms[..]);
         let task_images = &self.task_images;
+        let backward = if self.cfg.freeze_geometry { Backward::OutputLayer } else { Backward::Full };
         // chunks of about `chunk_rays` rays that never split a pixel's rays
         let mut chunks = Vec::new();
         let (mut start, mut g0) = (0usize, 0usize);
@@ -577,7 +578,7 @@ impl Trainer {
                     ws.appearance.begin(transforms);
                     chunks.iter().skip(slot).step_by(n).fold(ChunkStats::default(), |acc, (tr, gr)| {
                         ws.appearance.set_images(&task_images[tr.clone()]);
-                        acc.merge(train_chunk(&model.field, &model.space, &model.occ, &tasks[tr.clone()], ws, loss_scale, distortion, &groups[gr.clone()]))
+                        acc.merge(train_chunk_with(&model.field, &model.space, &model.occ, &tasks[tr.clone()], ws, loss_scale, distortion, &groups[gr.clone()], backward))
                     })
                 })
             })
@@ -619,7 +620,9 @@ impl Trainer {
         }
         let t_adam = t0.elapsed().as_secs_f64() - t_chunks;
         self.step += 1;
-        if self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4)) {
+        // a frozen geometry's density does not move: its occupancy stays as it is
+        let refresh = self.step.is_multiple_of(self.cfg.occupancy_every) || (self.step < 64 && self.step.is_multiple_of(4));
+        if refresh && !self.cfg.freeze_geometry {
             self.update_occupancy();
         }
         let secs = t0.elapsed().as_secs_f64();

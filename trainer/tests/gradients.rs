@@ -6,7 +6,7 @@ use snerf_trainer::data::SceneKind;
 use snerf_trainer::deform::DeformConfig;
 use snerf_trainer::field::{activate, activate_backward, Field, FieldConfig, Rng, OUT};
 use snerf_trainer::occupancy::Occupancy;
-use snerf_trainer::render::{train_chunk, RayTask, Workspace};
+use snerf_trainer::render::{train_chunk, train_chunk_with, Backward, RayTask, Workspace};
 use snerf_trainer::space::{SceneSpace, Vec3};
 use snerf_trainer::view_mlp::{ViewLayout, VIN, VOUT};
 
@@ -455,4 +455,54 @@ fn deformation_backward_matches_finite_differences() {
         }
     }
     assert!(checked > 60, "only {checked} parameters checked");
+}
+
+/// The frozen-geometry backward (`Backward::OutputLayer`): the gradients it computes (the
+/// decoder's output layer, the view MLP) are the full pass's bit for bit, and it leaves the
+/// planes, the shared hidden layer and the deformation without any.
+#[test]
+fn output_layer_backward_is_the_full_pass_cut_short() {
+    for (dynamic, k, deformed) in [(false, 1, false), (false, 4, false), (true, 1, true)] {
+        let mut field = if deformed { small_deformed_field() } else { small_field(dynamic) };
+        field.params[field.layout.b2] = 1.0;
+        let space = SceneSpace::identity(SceneKind::Object, dynamic);
+        let occ = Occupancy::new(8, 24);
+        let mut rng = Rng::new(29);
+        let tasks: Vec<RayTask> = (0..8 * k)
+            .map(|i| {
+                let o = [3.0 * (i as f32 * 0.7).cos(), 0.3 * i as f32 - 1.0, 3.0 * (i as f32 * 0.7).sin()];
+                let d = snerf_trainer::space::normalize([-o[0] + 0.1, -o[1] * 0.5, -o[2]]);
+                RayTask {
+                    ray: space.world_ray(o, d, Some(i as f32 / 9.0)),
+                    bg: [rng.uniform(), rng.uniform(), rng.uniform()],
+                    target: [rng.uniform(), rng.uniform(), rng.uniform()],
+                    jitter: 0.3,
+                }
+            })
+            .collect();
+        let groups = vec![k as u16; tasks.len() / k];
+        let run = |backward| {
+            let mut ws = Workspace::new(field.params.len());
+            let s = train_chunk_with(&field, &space, &occ, &tasks, &mut ws, 0.5, 0.0, &groups, backward);
+            (s, ws.grad.clone())
+        };
+        let (full_stats, full) = run(Backward::Full);
+        let (cut_stats, cut) = run(Backward::OutputLayer);
+        assert!(full_stats.samples > 50, "rays must cross the field ({} samples)", full_stats.samples);
+        assert_eq!((full_stats.loss_sum, full_stats.samples), (cut_stats.loss_sum, cut_stats.samples), "the same forward pass");
+        let l = &field.layout;
+        let kept: Vec<std::ops::Range<usize>> = vec![l.w2..l.b2 + OUT, l.view.w1..l.view.end];
+        let mut compared = 0;
+        for (i, (&a, &b)) in full.iter().zip(&cut).enumerate() {
+            if kept.iter().any(|r| r.contains(&i)) {
+                assert_eq!(a.to_bits(), b.to_bits(), "parameter {i}: full {a}, cut {b}");
+                compared += (a != 0.0) as usize;
+            } else {
+                assert_eq!(b, 0.0, "parameter {i} (outside the output layer and view MLP) got a gradient");
+            }
+        }
+        // the colour rows and biases do carry gradient, and the full pass reaches the planes
+        assert!(compared > 8, "only {compared} non-zero output-layer gradients");
+        assert!(full[..l.plane_end].iter().any(|&g| g != 0.0));
+    }
 }
