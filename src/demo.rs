@@ -147,13 +147,13 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<Value> {
         out,
         data: Some(data_dir.clone()),
         rounds,
-        steps_per_round: a.steps_per_round,
+        steps_per_round: Some(a.steps_per_round),
         style_res: 0,
-        views: 0,
+        views: Some(0),
         appearance_only: false,
         // as many frames as the consistency step below, so the per-round curve and the
         // per-frame baseline are measured on the same path
-        consistency_frames: CONSISTENCY_FRAMES,
+        consistency_frames: Some(CONSISTENCY_FRAMES),
         fuse_views: snerf_stylize::snerf_loop::StylizeOptions::default().fuse_views,
         content: snerf_stylize::snerf_loop::DEFAULT_CONTENT.as_str().into(),
         seed: None,

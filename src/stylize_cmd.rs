@@ -10,7 +10,7 @@ use indicatif::ProgressBar;
 use serde_json::{json, Value};
 use snerf_stylize::consistency::{self, MethodScores, PathGeometry, StyleMeters, StyleTargets};
 use snerf_stylize::fusion::Read;
-use snerf_stylize::layers::LayersRecord;
+use snerf_stylize::layers::{LayerPlan, LayersRecord, TimeSplit, LAYER_DEFAULTS};
 use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeOptions};
 use snerf_stylize::temporal::{TemporalScores, TimePath};
@@ -148,15 +148,17 @@ pub struct StylizeArgs {
     #[arg(long, default_value_t = defaults().rounds, value_parser = crate::args::int_in::<usize>(1, 100, ""))]
     pub rounds: usize,
     /// Training steps per round, on average: the run trains ROUNDS × this many steps, in
-    /// proportion to 1/t over the rounds (most in round 1).
-    #[arg(long, default_value_t = defaults().steps_per_round, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
-    pub steps_per_round: u64,
+    /// proportion to 1/t over the rounds (most in round 1). Default 300; with several
+    /// --style 100 (a layer learns colour only).
+    #[arg(long, value_parser = crate::args::int_in::<u64>(1, 10000000, ""))]
+    pub steps_per_round: Option<u64>,
     /// Longer side of the images handed to the stylizer (0: the training resolution).
     #[arg(long, default_value_t = 0, value_parser = crate::args::int_in::<usize>(0, 4096, "0 = the training resolution; the stylizer holds the whole image in memory"))]
     pub style_res: usize,
-    /// Use this many training views, evenly spaced (0: all).
-    #[arg(long, default_value_t = 0, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
-    pub views: usize,
+    /// Use this many training views, evenly spaced (0: all). Default all; with several
+    /// --style 24 (a layer's colour sits on a fixed geometry that fewer views cover).
+    #[arg(long, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
+    pub views: Option<usize>,
     /// Freeze density and the shared layers; stylize colour only (the paper's ablation; always
     /// on with several --style).
     #[arg(long)]
@@ -164,9 +166,10 @@ pub struct StylizeArgs {
     /// Frames of the loop's own path for the per-round warp errors (0: skip the per-round
     /// measurement); the per-round style distances are scored on 8 more frames, 45° apart
     /// around the whole orbit. Nothing is selected on these: `snerf consistency` scores
-    /// another path.
-    #[arg(long, default_value_t = defaults().consistency_frames, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
-    pub consistency_frames: usize,
+    /// another path. Default 16; with several --style 0 (`snerf consistency OUT/layers/NAME`
+    /// scores a layer afterwards).
+    #[arg(long, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
+    pub consistency_frames: Option<usize>,
     /// Fusion: each surface point takes the colour its nearest painter gave it, and each
     /// consensus step takes the per-pixel median over a view and this many nearest training
     /// views, reprojected through the field's depth; 0: no fusion at all (each view trains
@@ -261,7 +264,24 @@ pub fn stylize_cmd(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     if a.style.len() > 1 {
         return stylize_layers(a, quiet);
     }
-    stylize_one(a, a.style.first().map(PathBuf::as_path), &a.out, a.appearance_only, quiet)
+    stylize_one(a, a.style.first().map(PathBuf::as_path), &a.out, a.appearance_only, a.plan(false), quiet)
+}
+
+impl StylizeArgs {
+    /// Views, steps and measurement frames: as given, else the single-style defaults, or a
+    /// layer's (`layers::LAYER_DEFAULTS`) when `layer`.
+    fn plan(&self, layer: bool) -> LayerPlan {
+        let d = if layer {
+            LAYER_DEFAULTS
+        } else {
+            LayerPlan { views: defaults().views, steps_per_round: defaults().steps_per_round, consistency_frames: defaults().consistency_frames }
+        };
+        LayerPlan {
+            views: self.views.unwrap_or(d.views),
+            steps_per_round: self.steps_per_round.unwrap_or(d.steps_per_round),
+            consistency_frames: self.consistency_frames.unwrap_or(d.consistency_frames),
+        }
+    }
 }
 
 /// Several `--style`: one appearance-only stylization per style in OUT/layers/NAME/ (each a
@@ -282,6 +302,16 @@ fn stylize_layers(a: &StylizeArgs, quiet: bool) -> Result<Value> {
     if !a.appearance_only {
         eprintln!("{} styles as layers of one asset share one geometry: stylizing with --appearance-only", specs.len());
     }
+    let plan = a.plan(true);
+    if !quiet {
+        eprintln!(
+            "each layer: {} rounds × {} steps on {} views, per-round measurement {}",
+            a.rounds,
+            plan.steps_per_round,
+            if plan.views == 0 { "all".to_string() } else { plan.views.to_string() },
+            if plan.consistency_frames > 1 { format!("on {} frames", plan.consistency_frames) } else { "off".into() }
+        );
+    }
     let mut layers = Vec::new();
     for i in 0..record.layers.len() {
         let (name, spec) = (record.layers[i].name.clone(), a.style[i].clone());
@@ -291,21 +321,27 @@ fn stylize_layers(a: &StylizeArgs, quiet: bool) -> Result<Value> {
         }
         std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
         let t0 = Instant::now();
-        let v = stylize_one(a, Some(&spec), &dir, true, quiet)?;
-        record.layers[i].seconds = Some(t0.elapsed().as_secs_f64());
+        let v = stylize_one(a, Some(&spec), &dir, true, plan, quiet)?;
+        let secs = t0.elapsed().as_secs_f64();
+        record.layers[i].seconds = Some(secs);
         // after every layer: a record on disk names what is done
         record.write(&a.out)?;
-        layers.push(json!({ "name": name, "dir": crate::args::pj(&dir), "seconds": record.layers[i].seconds, "state": v["state"] }));
+        let state: snerf_loop::StylizeState = serde_json::from_value(v["state"].clone())?;
+        let split = TimeSplit::of(&state, secs);
+        if !quiet {
+            eprintln!("layer {name}: {}", split.line());
+        }
+        layers.push(json!({ "name": name, "dir": crate::args::pj(&dir), "seconds": secs, "time": split, "state": v["state"] }));
     }
     if !quiet {
         let secs: Vec<String> = record.layers.iter().map(|l| format!("{} {:.0} s", l.name, l.seconds.unwrap_or(0.0))).collect();
         eprintln!("{} style layers in {} ({}); bake them into one asset with `snerf bake {}`", layers.len(), a.out.display(), secs.join(", "), a.out.display());
     }
-    Ok(json!({ "command": "stylize", "out": crate::args::pj(&a.out), "layers": layers, "record": record }))
+    Ok(json!({ "command": "stylize", "out": crate::args::pj(&a.out), "plan": plan, "layers": layers, "record": record }))
 }
 
 /// One stylization of `a.run` after `style` into `out`.
-fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_only: bool, quiet: bool) -> Result<Value> {
+fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_only: bool, plan: LayerPlan, quiet: bool) -> Result<Value> {
     let data_path = match &a.data {
         Some(d) => d.clone(),
         None => RunDir::new(&a.run).dataset()?,
@@ -344,11 +380,11 @@ fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_onl
         stylizer: a.s.stylizer.clone(),
         strength: a.s.strength,
         rounds: a.rounds,
-        steps_per_round: a.steps_per_round,
+        steps_per_round: plan.steps_per_round,
         style_res: a.style_res,
-        views: a.views,
+        views: plan.views,
         appearance_only,
-        consistency_frames: a.consistency_frames,
+        consistency_frames: plan.consistency_frames,
         fuse_views: a.fuse_views,
         content: option_enum("--content", &a.content)?,
         seed: a.seed,

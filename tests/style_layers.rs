@@ -38,7 +38,7 @@ fn stylize(run: &Path, out: &Path, styles: &[&Path], extra: &[&str]) -> Output {
         c.arg("--style").arg(s);
     }
     // colour transfer and no style meters (no model directory): seconds a stylization
-    c.args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "5", "--consistency-frames", "0", "--views", "8"]);
+    c.args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "5", "--consistency-frames", "0"]);
     c.arg("--models").arg(out.with_extension("no-models")).args(extra);
     c.output().unwrap()
 }
@@ -62,9 +62,20 @@ fn two_styles_stylize_bake_inspect_and_render_as_layers_of_one_asset() {
     let layers = s["layers"].as_array().unwrap();
     assert_eq!(layers.iter().map(|l| l["name"].as_str().unwrap()).collect::<Vec<_>>(), ["warm", "cold"], "{s}");
     assert!(layers.iter().all(|l| l["seconds"].as_f64().unwrap() > 0.0));
+    // where each layer's time went: render, stylize and train, within its wall time
+    for l in layers {
+        let t = &l["time"];
+        let parts: Vec<f64> = ["render_seconds", "stylize_seconds", "train_seconds", "other_seconds"].iter().map(|k| t[k].as_f64().unwrap()).collect();
+        assert!(parts[..3].iter().all(|&x| x > 0.0), "{t}");
+        assert!((parts.iter().sum::<f64>() - t["wall_seconds"].as_f64().unwrap()).abs() < 1e-6, "{t}");
+    }
+    // a layer's defaults where the command line gives none (--views), what it gives elsewhere
+    let plan = serde_json::json!({ "views": snerf_stylize::layers::LAYER_DEFAULTS.views, "steps_per_round": 5, "consistency_frames": 0 });
+    assert_eq!(s["plan"], plan, "{s}");
     for name in ["warm", "cold"] {
         let rec: serde_json::Value = serde_json::from_slice(&std::fs::read(srun.join("layers").join(name).join("stylize.json")).unwrap()).unwrap();
         assert_eq!(rec["options"]["appearance_only"], true, "several styles are always appearance-only: {rec}");
+        assert_eq!((&rec["options"]["views"], &rec["options"]["steps_per_round"]), (&plan["views"], &plan["steps_per_round"]), "{rec}");
     }
 
     let asset = d.join("styles.snerf");

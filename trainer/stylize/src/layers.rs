@@ -82,6 +82,62 @@ impl LayersRecord {
     }
 }
 
+/// What a layer's stylization does where the command line does not say (several `--style`):
+/// only the work an appearance-only layer needs. Its geometry is frozen, so the only thing
+/// a layer learns is the decoder's colour outputs (a few hundred numbers) over a fixed set
+/// of surface points: fewer views cover those points (a realistic run's 100 views see the
+/// object from every side several times over), fewer steps fit them, and the per-round
+/// measurement on the loop's own path (16 frames a round) is work for a comparison of
+/// rounds, not for the layer; `snerf consistency` scores the layer afterwards.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LayerPlan {
+    /// Training views the rounds render, paint and train on (evenly spaced).
+    pub views: usize,
+    /// Training steps per round on average.
+    pub steps_per_round: u64,
+    /// Frames of the per-round measurement (0: none).
+    pub consistency_frames: usize,
+}
+
+/// A layer's defaults (`LayerPlan`): BENCH.md "Style layers" measures them against the
+/// single-style defaults.
+pub const LAYER_DEFAULTS: LayerPlan = LayerPlan { views: 24, steps_per_round: 100, consistency_frames: 0 };
+
+/// Where a stylization's time went, from its rounds' records: render, stylize and train
+/// summed over the rounds, and the rest of the wall time (loading, the per-round
+/// measurement, saving).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TimeSplit {
+    pub render_seconds: f64,
+    pub stylize_seconds: f64,
+    pub train_seconds: f64,
+    pub other_seconds: f64,
+    pub wall_seconds: f64,
+}
+
+impl TimeSplit {
+    /// The split of a run whose command took `wall` seconds.
+    pub fn of(state: &crate::snerf_loop::StylizeState, wall: f64) -> TimeSplit {
+        let sum = |f: fn(&crate::snerf_loop::RoundRecord) -> f64| state.records.iter().map(f).sum::<f64>();
+        let (render, stylize, train) = (sum(|r| r.render_seconds), sum(|r| r.stylize_seconds), sum(|r| r.train_seconds));
+        TimeSplit {
+            render_seconds: render,
+            stylize_seconds: stylize,
+            train_seconds: train,
+            other_seconds: (wall - render - stylize - train).max(0.0),
+            wall_seconds: wall,
+        }
+    }
+
+    /// `52 s: render 9 s, stylize 14 s, train 21 s, other 8 s`.
+    pub fn line(&self) -> String {
+        format!(
+            "{:.1} s: render {:.1} s, stylize {:.1} s, train {:.1} s, other {:.1} s (loading, measurement, saving)",
+            self.wall_seconds, self.render_seconds, self.stylize_seconds, self.train_seconds, self.other_seconds
+        )
+    }
+}
+
 /// A style's name: the key of `painting:KEY`, else the file's stem; lowercased, anything but
 /// letters, digits, `-` and `_` made `-`, at most 64 characters ("style" if nothing is left).
 pub fn style_name(spec: &str) -> String {
