@@ -2,13 +2,14 @@
 //! chunk table, and for every BLKS chunk where its blocks sit in the world and which
 //! keyframes use them, so the blocks can be ordered for a client's pose.
 
-use anyhow::{anyhow, ensure, Result};
+use anyhow::{anyhow, ensure, Context, Result};
 use bytes::Bytes;
 use sha2::{Digest, Sha256};
 use snerf_asset::chunk::{
     chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP,
 };
-use snerf_asset::{Asset, Header, EMPTY};
+use snerf_asset::layers::is_layered;
+use snerf_asset::{Asset, Header, LayeredAsset, EMPTY};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
@@ -43,17 +44,96 @@ pub struct ServedAsset {
     pub end: u32,
     /// World-space centre of the grid (priority origin without a pose).
     pub origin: [f32; 3],
+    /// A multi-style file (version 3): its styles, and which one these bytes are.
+    pub styles: Option<ServedStyle>,
+}
+
+/// The style served from a multi-style file. Streaming sends one style per asset name: the
+/// file's first style as the file's name (`scene`), every style as `scene.STYLE`; each is
+/// that style's single-style asset (`LayeredAsset::into_style`), which every client reads.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ServedStyle {
+    /// The file's styles, in its header's order.
+    pub names: Vec<String>,
+    /// The served one (an index into `names`).
+    pub served: usize,
+}
+
+impl ServedStyle {
+    /// What the server says when it loads such a file.
+    pub fn message(&self, file: &Path, stem: &str) -> String {
+        format!(
+            "{}: a multi-style asset ({}); streaming sends one style per asset name: {} is {}, {}",
+            file.display(),
+            self.names.join(", "),
+            stem,
+            self.names[0],
+            self.names.iter().map(|n| format!("{stem}.{n}")).collect::<Vec<_>>().join(", ")
+        )
+    }
+}
+
+/// The error of a name asking for a style its multi-style file does not have.
+#[derive(Debug)]
+pub struct NoSuchStyle(pub String);
+
+impl std::fmt::Display for NoSuchStyle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for NoSuchStyle {}
+
+/// A multi-style file's bytes as the single-style asset of `style` (None: the first).
+fn single_style(raw: &[u8], style: Option<&str>) -> Result<(Vec<u8>, ServedStyle)> {
+    let layered = LayeredAsset::from_bytes(raw)?;
+    let names = layered.names();
+    let served = match style {
+        None => 0,
+        Some(s) => names.iter().position(|n| n == s).ok_or_else(|| {
+            NoSuchStyle(format!("no style {:?} in this multi-style asset (it has {})", s, names.join(", ")))
+        })?,
+    };
+    let bytes = layered.into_style(served)?.to_bytes();
+    Ok((bytes, ServedStyle { names, served }))
 }
 
 impl ServedAsset {
     /// Read and fully validate a file (framing, CRCs, semantics), then index it.
     pub fn load(name: &str, path: &Path) -> Result<ServedAsset> {
+        Self::load_style(name, path, None)
+    }
+
+    /// `load` of one style of a multi-style file (`from_bytes_style`).
+    pub fn load_style(name: &str, path: &Path, style: Option<&str>) -> Result<ServedAsset> {
         let raw =
             std::fs::read(path).map_err(|e| anyhow!("{}: cannot read: {}", path.display(), e))?;
-        Self::from_bytes(name, path, raw).map_err(|e| anyhow!("{}: {:#}", path.display(), e))
+        // context, not a new error: a missing style stays a `NoSuchStyle` underneath
+        Self::from_bytes_style(name, path, raw, style)
+            .with_context(|| path.display().to_string())
     }
 
     pub fn from_bytes(name: &str, path: &Path, raw: Vec<u8>) -> Result<ServedAsset> {
+        Self::from_bytes_style(name, path, raw, None)
+    }
+
+    /// `from_bytes` of one style: a multi-style file (version 3) is served as the
+    /// single-style asset of `style` (None: its first; `ServedStyle`); a single-style file
+    /// has no styles to pick from.
+    pub fn from_bytes_style(
+        name: &str,
+        path: &Path,
+        raw: Vec<u8>,
+        style: Option<&str>,
+    ) -> Result<ServedAsset> {
+        let (raw, styles) = if is_layered(&raw) {
+            let (bytes, s) = single_style(&raw, style)?;
+            (bytes, Some(s))
+        } else {
+            ensure!(style.is_none(), "a single-style asset has no style {:?}", style.unwrap_or(""));
+            (raw, None)
+        };
         // Full validation once, so no client is ever streamed a broken asset.
         let asset = Asset::from_bytes(&raw)?;
         let header = asset.header.clone();
@@ -128,6 +208,7 @@ impl ServedAsset {
             blks,
             end,
             origin,
+            styles,
         })
     }
 

@@ -203,6 +203,7 @@ impl Manifest {
                 })
                 .collect(),
             end: self.end,
+            styles: None,
             origin: self.origin,
         })
     }

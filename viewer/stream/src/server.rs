@@ -352,7 +352,10 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
             );
         }
         // Validate a single file up front: refusing to start beats failing every client.
-        ServedAsset::load(&name, &opts.path)?;
+        let a = ServedAsset::load(&name, &opts.path)?;
+        if let (Some(st), false) = (&a.styles, opts.quiet) {
+            eprintln!("snerf serve: {}", st.message(&opts.path, &name));
+        }
         Source::File {
             name,
             path: opts.path.clone(),

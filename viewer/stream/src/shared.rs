@@ -53,6 +53,13 @@ pub(crate) fn log(shared: &Shared, who: SocketAddr, msg: &str) {
 }
 
 /// Name an asset is served under: the file name without `.snerf`.
+/// The style an asset name asks of the file at `path`: `scene.renoir` of the multi-style
+/// file `scene.snerf` (`plan::ServedStyle`).
+pub fn style_in_name<'a>(name: &'a str, path: &Path) -> Option<&'a str> {
+    let stem = asset_name(path);
+    name.strip_prefix(stem.as_str())?.strip_prefix('.').filter(|s| !s.is_empty())
+}
+
 pub fn asset_name(path: &Path) -> String {
     let f = path
         .file_name()
@@ -132,6 +139,10 @@ impl Shared {
         match (&self.source, asked) {
             (Source::File { name, path }, None) => Ok((name.clone(), path.clone())),
             (Source::File { name, path }, Some(a)) if a == name => Ok((name.clone(), path.clone())),
+            // a style of a multi-style file (`plan::style_in_name`)
+            (Source::File { path, .. }, Some(a)) if style_in_name(a, path).is_some() => {
+                Ok((a.to_string(), path.clone()))
+            }
             (Source::File { name, .. }, Some(a)) => Err(Close(
                 code::NOT_FOUND,
                 format!("no asset {:?} (this server serves {:?})", a, name),
@@ -162,7 +173,14 @@ impl Shared {
                     ));
                 }
                 let p = d.join(format!("{}.snerf", a));
+                // `STEM.STYLE`: a style of the multi-style file STEM.snerf
+                let styled = a
+                    .rsplit_once('.')
+                    .map(|(stem, _)| d.join(format!("{}.snerf", stem)))
+                    .filter(|p| p.is_file());
                 if p.is_file() {
+                    Ok((a.to_string(), p))
+                } else if let Some(p) = styled {
                     Ok((a.to_string(), p))
                 } else {
                     Err(Close(code::NOT_FOUND, format!("no asset {:?}", a)))
@@ -183,10 +201,14 @@ impl Shared {
             return Ok(a);
         }
         let (n, p) = (name.to_string(), path.to_path_buf());
-        let a = tokio::task::spawn_blocking(move || ServedAsset::load(&n, &p))
+        let style = style_in_name(name, path).map(str::to_string);
+        let a = tokio::task::spawn_blocking(move || ServedAsset::load_style(&n, &p, style.as_deref()))
             .await
             .map_err(|e| Close(code::INTERNAL, format!("loading {}: {}", name, e)))?
             .map_err(|e| {
+                if let Some(n) = e.downcast_ref::<crate::plan::NoSuchStyle>() {
+                    return Close(code::NOT_FOUND, format!("asset {:?}: {}", name, n));
+                }
                 if !self.quiet {
                     eprintln!("snerf serve: cannot serve {}: {:#}", path.display(), e);
                 }
@@ -195,6 +217,9 @@ impl Shared {
                     format!("asset {:?} cannot be served (invalid file)", name),
                 )
             })?;
+        if let (Some(st), false) = (&a.styles, self.quiet) {
+            eprintln!("snerf serve: {}", st.message(path, &asset_name(path)));
+        }
         let a = Arc::new(a);
         self.cached(|c| c.insert(name, mtime, len, &a));
         Ok(a)
