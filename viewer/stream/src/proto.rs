@@ -217,6 +217,10 @@ pub struct ListEntry {
     /// The start view, when the client asked for thumbnails and the file could be rendered.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub thumb: Option<Thumb>,
+    /// A multi-style asset's styles as its header lists them (name, source, swatch colour):
+    /// `name` streams the first, `name.STYLE` each (`plan::ServedStyle`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub styles: Option<Vec<snerf_asset::StyleInfo>>,
 }
 
 /// A small picture: `width` x `height` RGB8 pixels, row-major from the top, base64.

@@ -68,9 +68,9 @@ pub fn asset_name(path: &Path) -> String {
     f.strip_suffix(".snerf").map(str::to_string).unwrap_or(f)
 }
 
-/// The scene kind named in an asset file's header (HEAD chunk), read without loading the
-/// file; None when the file does not start with a readable header.
-fn header_kind(path: &Path) -> Option<String> {
+/// The scene kind and the styles named in an asset file's header (HEAD chunk), read without
+/// loading the file; None when the file does not start with a readable header.
+fn header_kind(path: &Path) -> Option<(String, Option<Vec<snerf_asset::StyleInfo>>)> {
     use std::io::Read;
     let mut f = std::fs::File::open(path).ok()?;
     let mut head = [0u8; 28];
@@ -86,7 +86,17 @@ fn header_kind(path: &Path) -> Option<String> {
     let mut json = vec![0u8; len];
     f.read_exact(&mut json).ok()?;
     let v: serde_json::Value = serde_json::from_slice(&json).ok()?;
-    v.get("kind")?.as_str().map(str::to_string)
+    let styles = v.get("styles").and_then(|s| serde_json::from_value(s.clone()).ok());
+    Some((v.get("kind")?.as_str()?.to_string(), styles))
+}
+
+/// The listing of the asset file at `path`.
+fn entry(name: String, size: u64, path: &Path) -> ListEntry {
+    let (kind, styles) = match header_kind(path) {
+        Some((k, s)) => (Some(k), s),
+        None => (None, None),
+    };
+    ListEntry { name, size, kind, thumb: None, styles }
 }
 
 impl Shared {
@@ -94,12 +104,7 @@ impl Shared {
         match &self.source {
             Source::File { name, path } => {
                 let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-                vec![ListEntry {
-                    name: name.clone(),
-                    size,
-                    kind: header_kind(path),
-                    thumb: None,
-                }]
+                vec![entry(name.clone(), size, path)]
             }
             Source::Dir(d) => {
                 let mut out = Vec::new();
@@ -110,12 +115,7 @@ impl Shared {
                         if p.extension().is_some_and(|x| x == "snerf") && valid_asset_name(&name) {
                             if let Ok(m) = e.metadata() {
                                 if m.is_file() {
-                                    out.push(ListEntry {
-                                        name,
-                                        size: m.len(),
-                                        kind: header_kind(&p),
-                                        thumb: None,
-                                    });
+                                    out.push(entry(name, m.len(), &p));
                                 }
                             }
                         }

@@ -1,11 +1,12 @@
 //! Multi-style assets (format version 3) over the loopback: the file's name streams its first
 //! style and `NAME.STYLE` any style, each as that style's single-style asset byte for byte
-//! (what every client reads); a style the file does not have is refused by name.
+//! (what every client reads); the listing names the styles; a style the file does not have is
+//! refused by name.
 
 mod common;
 use common::*;
 use snerf_asset::{Asset, LayeredAsset, StyleInfo};
-use snerf_stream::fetch;
+use snerf_stream::{fetch, list};
 use snerf_stream::plan::ServedAsset;
 
 fn style(name: &str) -> StyleInfo {
@@ -47,6 +48,10 @@ fn a_multi_style_file_streams_one_style_per_name() {
 
     let server = start_server(&assets, &dir.join("state"), Default::default());
     let rt = runtime();
+    // the listing names the styles and their swatches, from the header
+    let listed = rt.block_on(list(&server.url(""), server.fingerprint(), server.token())).unwrap();
+    let styles = listed.iter().find(|e| e.name == "scene").and_then(|e| e.styles.clone()).unwrap();
+    assert_eq!(styles, LayeredAsset::read(&file).unwrap().styles, "{listed:?}");
     for (name, want) in [("scene", &warm), ("scene.warm", &warm), ("scene.cold", &cold)] {
         let out = dir.join(&format!("{name}.fetched.snerf"));
         rt.block_on(fetch(&server.url(name), server.fingerprint(), server.token(), &out)).unwrap();
