@@ -5,25 +5,9 @@
 
 mod common;
 use common::*;
-use snerf_asset::{Asset, LayeredAsset, StyleInfo};
+use snerf_asset::{Asset, LayeredAsset};
 use snerf_stream::{fetch, list};
 use snerf_stream::plan::ServedAsset;
-
-fn style(name: &str) -> StyleInfo {
-    StyleInfo { name: name.into(), source: Some(format!("painting:{name}")), swatch: [0.5, 0.5, 0.5] }
-}
-
-/// Two styles of one geometry: the second's colour and features are the first's inverted.
-fn two_styles() -> LayeredAsset {
-    let a = static_asset(48, 8, 0.9, 7);
-    let mut b = a.clone();
-    for v in b.atlas.chunks_exact_mut(8) {
-        for c in &mut v[1..] {
-            *c = 255 - *c;
-        }
-    }
-    LayeredAsset::new(vec![style("warm"), style("cold")], vec![a, b]).unwrap()
-}
 
 #[test]
 fn a_multi_style_file_streams_one_style_per_name() {

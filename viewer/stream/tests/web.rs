@@ -1488,3 +1488,26 @@ fn a_still_view_is_redrawn_at_full_resolution_once_the_asset_is_in() {
     assert!(r["firstFrame"]["width"].as_u64().unwrap_or(0) < f["width"].as_u64().unwrap(), "{} vs {f}", r["firstFrame"]);
     h.shutdown();
 }
+
+/// A multi-style asset: the page lists its styles as swatches, streams `scene.cold` (that
+/// style's single-style asset, byte for byte) and knows the styles its keys 1..9 switch to.
+#[test]
+fn the_page_lists_a_multi_style_assets_styles_and_streams_one() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-styles");
+    let state = TempDir::new("web-styles-state");
+    let file = dir.join("scene.snerf");
+    two_styles().write(&file).unwrap();
+    let cold = snerf_asset::LayeredAsset::read(&file).unwrap().into_style(1).unwrap().to_bytes();
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene.cold")]));
+    let r = page(&b, &[&url, "done"]);
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+    assert_eq!(r["state"], "done");
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&cold)).as_str());
+    let listed: Vec<&str> = r["listing"][0]["styles"].as_array().unwrap().iter().map(|s| s["name"].as_str().unwrap()).collect();
+    assert_eq!(listed, ["warm", "cold"]);
+    assert_eq!(r["styles"], serde_json::json!(["scene.warm", "scene.cold"]));
+    h.shutdown();
+}

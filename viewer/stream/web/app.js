@@ -1460,12 +1460,42 @@ function showListing(assets) {
     }
     const b = document.createElement('button');
     b.textContent = 'view';
-    b.onclick = () => { location.hash = new URLSearchParams({ ...Object.fromEntries(frag), asset: a.name }).toString(); location.reload(); };
+    b.onclick = () => viewAsset(a.name);
     const td2 = document.createElement('td'); td2.appendChild(b); tr.appendChild(td2);
+    // A multi-style asset: a swatch per style (its header's mean colour); the server streams
+    // style S of asset A as `A.S`. Keys 1..9 switch the asset on screen to its styles.
+    if (a.styles) {
+      const td3 = document.createElement('td');
+      a.styles.forEach((st, i) => {
+        const sw = document.createElement('button');
+        sw.className = 'swatch'; sw.textContent = String(i + 1); sw.title = st.name;
+        sw.style.background = `rgb(${st.swatch.map((c) => Math.round(255 * Math.min(Math.max(c, 0), 1))).join(',')})`;
+        sw.onclick = () => viewAsset(`${a.name}.${st.name}`);
+        td3.appendChild(sw);
+      });
+      tr.appendChild(td3);
+      const shown = frag.get('asset');
+      if (shown === a.name || (shown && shown.startsWith(a.name + '.') && a.styles.some((st) => shown === `${a.name}.${st.name}`))) {
+        report.styles = a.styles.map((st) => `${a.name}.${st.name}`);
+      }
+    }
     tbody.appendChild(tr);
   }
   return assets;
 }
+
+// Open asset `name` (a reload with it in the fragment).
+function viewAsset(name) {
+  location.hash = new URLSearchParams({ ...Object.fromEntries(frag), asset: name }).toString();
+  location.reload();
+}
+
+// Keys 1..9: the shown asset's styles, when it has several (`report.styles`, from the listing).
+window.addEventListener('keydown', (e) => {
+  if (e.target.tagName === 'INPUT' || !report.styles) return;
+  const n = Number(e.key);
+  if (Number.isInteger(n) && n >= 1 && n <= report.styles.length) viewAsset(report.styles[n - 1]);
+});
 
 // The GPU: WebGPU where the browser has it, else WebGL2 (headset browsers without WebGPU),
 // the same march translated to GLSL. `cfg`: a promise of /config.json; `draw`: an asset will

@@ -334,3 +334,18 @@ pub async fn start_relay(server: SocketAddr, cfg: RelayConfig) -> Relay {
 pub fn mb(bytes: u64) -> f64 {
     bytes as f64 / (1 << 20) as f64
 }
+
+/// A multi-style asset of two styles, `warm` and `cold`, on one geometry (`static_asset`):
+/// the second's colour and features are the first's inverted.
+#[allow(dead_code)]
+pub fn two_styles() -> snerf_asset::LayeredAsset {
+    let a = static_asset(48, 8, 0.9, 7);
+    let mut b = a.clone();
+    for v in b.atlas.chunks_exact_mut(8) {
+        for c in &mut v[1..] {
+            *c = 255 - *c;
+        }
+    }
+    let style = |name: &str| snerf_asset::StyleInfo { name: name.into(), source: Some(format!("painting:{name}")), swatch: [0.5, 0.5, 0.5] };
+    snerf_asset::LayeredAsset::new(vec![style("warm"), style("cold")], vec![a, b]).unwrap()
+}
