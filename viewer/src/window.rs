@@ -124,26 +124,56 @@ pub trait AssetSource {
     fn status(&self) -> Option<String> {
         None
     }
+    /// Show style `i` (0-based) of a multi-style asset; its name when there is such a style
+    /// and it was not already shown (keys 1..9).
+    fn select_style(&mut self, _i: usize) -> Option<String> {
+        None
+    }
 }
 
-/// A whole asset, yielded once.
+/// A whole asset, yielded once; of a multi-style file, its first style, and another whole
+/// asset (same geometry, so the view stays where it is) each time a style is selected.
 pub struct FileSource {
     asset: Option<Asset>,
+    /// A multi-style file's styles (name, single-style asset); empty for other files.
+    styles: Vec<(String, Asset)>,
+    shown: usize,
 }
 
 impl FileSource {
     pub fn new(asset: Asset) -> FileSource {
-        FileSource { asset: Some(asset) }
+        FileSource { asset: Some(asset), styles: Vec::new(), shown: 0 }
     }
     /// Read and validate an asset file (errors name the file).
     pub fn open(path: impl AsRef<Path>) -> Result<FileSource> {
-        Ok(FileSource::new(Asset::read(path)?))
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read", path.display()))?;
+        if !snerf_asset::layers::is_layered(&bytes) {
+            return Ok(FileSource::new(Asset::read(path)?));
+        }
+        let l = snerf_asset::LayeredAsset::read(path)?;
+        let styles: Vec<(String, Asset)> = l.names().into_iter().zip(l.layers).collect();
+        let names: Vec<&str> = styles.iter().map(|(n, _)| n.as_str()).collect();
+        eprintln!("snerf view: {}: styles {} (keys 1..{} switch)", path.display(), names.join(", "), names.len().min(9));
+        Ok(FileSource { asset: Some(styles[0].1.clone()), styles, shown: 0 })
+    }
+    /// The styles of a multi-style file, in its order (empty for other files).
+    pub fn style_names(&self) -> Vec<&str> {
+        self.styles.iter().map(|(n, _)| n.as_str()).collect()
     }
 }
 
 impl AssetSource for FileSource {
     fn poll(&mut self) -> Option<AssetUpdate> {
         self.asset.take().map(|a| AssetUpdate::Whole(Box::new(a)))
+    }
+    fn select_style(&mut self, i: usize) -> Option<String> {
+        if i == self.shown || i >= self.styles.len() {
+            return None;
+        }
+        self.shown = i;
+        self.asset = Some(self.styles[i].1.clone());
+        Some(self.styles[i].0.clone())
     }
 }
 
@@ -204,7 +234,23 @@ pub fn keys_help() -> &'static str {
     "mouse: left drag orbit | right drag look around (fly) | shift+left or middle drag pan | wheel zoom\n\
      keys:  W/A/S/D fly forward/left/back/right | Q/E down/up | shift: 4x faster | R reset view\n\
      \x20      P or space play/pause | [ and ] scrub time | F12 or Ctrl+S screenshot | V vsync on/off\n\
-     \x20      H print these keys | Esc quit"
+     \x20      1..9 style of a multi-style asset | H print these keys | Esc quit"
+}
+
+/// The style a key selects (Digit1..Digit9: 0..8).
+fn style_key(code: KeyCode) -> Option<usize> {
+    const KEYS: [KeyCode; 9] = [
+        KeyCode::Digit1,
+        KeyCode::Digit2,
+        KeyCode::Digit3,
+        KeyCode::Digit4,
+        KeyCode::Digit5,
+        KeyCode::Digit6,
+        KeyCode::Digit7,
+        KeyCode::Digit8,
+        KeyCode::Digit9,
+    ];
+    KEYS.iter().position(|&k| k == code)
 }
 
 const SHORT_KEYS: &str =
@@ -895,7 +941,13 @@ impl App {
             }
             KeyCode::F12 => self.request_shot(),
             KeyCode::KeyS if ctrl => self.request_shot(),
-            _ => {}
+            _ => {
+                if let Some(i) = style_key(code) {
+                    if let Some(name) = self.source.select_style(i) {
+                        eprintln!("snerf view: style {} ({name})", i + 1);
+                    }
+                }
+            }
         }
     }
 
