@@ -473,7 +473,7 @@ pub struct ConsistencyArgs {
     pub save_frames: bool,
     /// Animated (4D) scenes: also score temporal flicker on this many instants spread over the
     /// animation, seen from one camera held still: the change between neighbouring instants on
-    /// the pixels the realistic frames show still (0: skip).
+    /// the pixels the realistic frames show still (0: skip; 1 is refused).
     #[arg(long, default_value_t = 12, value_parser = crate::args::int_in::<usize>(0, 1000, ""))]
     pub time_frames: usize,
     #[command(flatten)]
@@ -541,6 +541,7 @@ fn scored_path(a: &ConsistencyArgs, realistic: &snerf_trainer::train::Model, poo
 }
 
 pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
+    anyhow::ensure!(a.time_frames != 1, "--time-frames 1: flicker compares neighbouring instants, so it needs 2 or more (0 skips it)");
     let t0 = Instant::now();
     let st_path = snerf_loop::state_path(&a.srun);
     let state: snerf_loop::StylizeState = serde_json::from_slice(

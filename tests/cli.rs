@@ -187,6 +187,8 @@ fn an_animated_scene_is_scored_for_temporal_flicker_and_a_static_one_is_not() {
     // of each instant on its own changes them by more
     assert!(flicker[0] < 0.02 * 0.02 && flicker[1] > flicker[0], "{t}");
     assert!(std::fs::read_to_string(srun.join("consistency.md")).unwrap().contains("Temporal flicker"));
+    // one instant has no neighbour to compare with: refused, not silently skipped
+    fails(snerf().args(["consistency"]).arg(&srun).args(["--time-frames", "1"]).output().unwrap(), &["--time-frames 1", "2 or more"]);
 }
 
 #[test]
