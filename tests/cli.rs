@@ -2,35 +2,16 @@
 //! what bad input gets (a clear error naming the file, a non-zero exit, nothing lost).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use snerf_files::ScratchDir;
 
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
+mod common;
+use common::{fails, ok, snerf};
 
 /// This test's directory: removed when it passes, kept (and named) when it fails.
 fn tmp(name: &str) -> ScratchDir {
     ScratchDir::new("snerf-cli", name).unwrap()
-}
-
-fn ok(out: Output) -> serde_json::Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
-
-fn fails(out: Output, needles: &[&str]) -> String {
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(!out.status.success(), "expected failure, got success: {stderr}");
-    assert!(!stderr.contains("panicked"), "must not panic: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "error should mention {n:?}: {stderr}");
-    }
-    stderr
 }
 
 fn scene(name: &str, dir: &Path, views: usize, size: &str) -> serde_json::Value {

@@ -5,31 +5,12 @@
 //! the layer and the problem named.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use snerf_files::ScratchDir;
 
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
-
-fn ok(out: Output) -> serde_json::Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
-
-fn fails(out: Output, needles: &[&str]) -> String {
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(!out.status.success(), "expected failure, got success: {stderr}");
-    assert!(!stderr.contains("panicked"), "must not panic: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "error should mention {n:?}: {stderr}");
-    }
-    stderr
-}
+mod common;
+use common::{fails, ok, snerf};
 
 fn stylize(run: &Path, out: &Path, styles: &[&Path], extra: &[&str]) -> Output {
     let mut c = snerf();

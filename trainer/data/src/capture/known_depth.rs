@@ -184,6 +184,15 @@ pub fn agreement(model_dir: &Path, rig: &Rig, depth_of: impl Fn(&str) -> Option<
     let pp = model_dir.join("points3D.bin");
     let points = read_points_bin(&std::fs::read(&pp).with_context(|| format!("{}: cannot read", pp.display()))?).map_err(|e| anyhow!("{}: {e}", pp.display()))?;
     let by_id: HashMap<u32, usize> = images.iter().enumerate().map(|(i, im)| (im.id, i)).collect();
+    // the points each image observed (a track may name an image twice)
+    let mut seen: Vec<Vec<usize>> = vec![Vec::new(); images.len()];
+    for (k, p) in points.iter().enumerate() {
+        for i in p.seen_by.iter().filter_map(|id| by_id.get(id)) {
+            if seen[*i].last() != Some(&k) {
+                seen[*i].push(k);
+            }
+        }
+    }
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); images.len()];
     for (i, im) in images.iter().enumerate() {
         let Some(path) = depth_of(&im.name) else { continue };
@@ -192,7 +201,7 @@ pub fn agreement(model_dir: &Path, rig: &Rig, depth_of: impl Fn(&str) -> Option<
         let (w, h) = (dw, dh);
         let z = depth_in_colour(rig, dw, dh, &units, w, h);
         let r = quat_to_mat(im.qvec).ok_or_else(|| anyhow!("{}: image '{}' has a zero rotation", ip.display(), im.name))?;
-        for p in points.iter().filter(|p| p.seen_by.iter().any(|&id| by_id.get(&id) == Some(&i))) {
+        for p in seen[i].iter().map(|&k| &points[k]) {
             let c: [f64; 3] = std::array::from_fn(|k| r[k][0] * p.xyz[0] + r[k][1] * p.xyz[1] + r[k][2] * p.xyz[2] + im.tvec[k]);
             if c[2] <= 0.0 {
                 continue;
