@@ -8,8 +8,9 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use serde_json::{json, Value};
 use snerf_asset::render::{self as asset_render, Camera};
-use snerf_asset::{Asset, LayeredAsset, StyleInfo};
+use snerf_asset::{Asset, LayeredAsset};
 use snerf_baker::bake::{bake, BakeOptions};
+use snerf_baker::layers::{bake_layered, Layer, LayeredBake};
 use snerf_trainer::{eval, train};
 
 use crate::args::{bar, parse_size, peak_rss_mb, pj, DataOpts};
@@ -140,9 +141,8 @@ fn label(run: &Path) -> String {
     p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "run".into())
 }
 
-/// A layered stylize run (`snerf_stylize::layers`) into one multi-style asset: the first
-/// layer baked as usual, every further layer's colour baked onto that geometry
-/// (`snerf_baker::layers`), refused by name when its geometry is another.
+/// A layered stylize run (`snerf_stylize::layers`) into one multi-style asset
+/// (`snerf_baker::layers::bake_layered`), with a line per style and its faithfulness.
 fn bake_layers(a: &BakeArgs, record: &LayersRecord, wall: Instant) -> Result<Value> {
     if !a.sweep.is_empty() {
         bail!("--sweep bakes one style; bake a layer's own run (RUN/layers/NAME) to sweep it");
@@ -160,40 +160,23 @@ fn bake_layers(a: &BakeArgs, record: &LayersRecord, wall: Instant) -> Result<Val
     let data = a.opts.load(&data_path)?;
     crate::args::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let bg = eval::eval_background(train::views_have_alpha(&data.train));
-    let (model0, pool0) = RunDir::new(&dirs[0]).load_model()?;
-    let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
-    let t0 = Instant::now();
-    let (first, report) = bake(&model0, &pool0, &data.train, bg, &bake_options(a, a.resolution), &|what, done, total| {
-        pb.set_message(format!("{}: {what}", record.layers[0].name));
-        pb.set_length(total);
-        pb.set_position(done);
-    })?;
-    pb.finish_and_clear();
-    let mut seconds = vec![t0.elapsed().as_secs_f64()];
-    let mut models = vec![(model0, pool0)];
-    let mut assets = vec![first];
-    for (l, d) in record.layers.iter().zip(&dirs).skip(1) {
-        let (m, p) = RunDir::new(d).load_model()?;
-        let (asset, lr) = snerf_baker::layers::bake_colour(&m, &p, &models[0].0, &assets[0]).map_err(|e| {
-            anyhow::anyhow!(
-                "{}: layer {:?} was trained on another geometry than layer {:?} ({:#}); stylize every layer from the same run with --appearance-only",
-                d.display(),
-                l.name,
-                record.layers[0].name,
-                e
-            )
-        })?;
-        seconds.push(lr.seconds);
-        models.push((m, p));
-        assets.push(asset);
-    }
-    let styles: Vec<StyleInfo> = record
+    let loaded = dirs.iter().map(|d| RunDir::new(d).load_model()).collect::<Result<Vec<_>>>()?;
+    let layers: Vec<Layer> = record
         .layers
         .iter()
-        .zip(&assets)
-        .map(|(l, asset)| StyleInfo { name: l.name.clone(), source: Some(l.source.clone()), swatch: snerf_asset::layers::swatch(asset) })
+        .zip(&loaded)
+        .map(|(l, (model, pool))| Layer { name: &l.name, source: &l.source, model, pool })
         .collect();
-    let layered = LayeredAsset::new(styles, assets)?;
+    let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
+    let first = record.layers[0].name.clone();
+    let baked = bake_layered(&layers, &data.train, bg, &bake_options(a, a.resolution), &|what, done, total| {
+        pb.set_message(format!("{first}: {what}"));
+        pb.set_length(total);
+        pb.set_position(done);
+    })
+    .with_context(|| format!("{}: baking its style layers", a.run.display()))?;
+    pb.finish_and_clear();
+    let LayeredBake { asset: layered, report, seconds } = baked;
     layered.write(&a.out)?;
     let file_bytes = std::fs::metadata(&a.out).map(|m| m.len()).unwrap_or(0);
     let summary = layered.summary(file_bytes);
@@ -212,7 +195,7 @@ fn bake_layers(a: &BakeArgs, record: &LayersRecord, wall: Instant) -> Result<Val
         peak_rss_mb().unwrap_or(f64::NAN)
     );
     let mut faith = Vec::new();
-    for ((s, secs), ((m, p), asset)) in summary.styles.iter().zip(&seconds).zip(models.iter().zip(&layered.layers)) {
+    for ((s, secs), ((m, p), asset)) in summary.styles.iter().zip(&seconds).zip(loaded.iter().zip(&layered.layers)) {
         let f = if a.eval_views > 0 {
             let views = if data.test.is_empty() { &data.train } else { &data.test };
             Some(snerf_baker::faithfulness::measure(m, p, asset, views, a.eval_views)?)

@@ -96,3 +96,54 @@ pub fn bake_colour(model: &Model, pool: &WorkspacePool, geometry_model: &Model, 
     asset.validate()?;
     Ok((asset, report))
 }
+
+/// One style layer to bake: its name, the painting it came from and its trained field.
+pub struct Layer<'a> {
+    pub name: &'a str,
+    pub source: &'a str,
+    pub model: &'a Model,
+    pub pool: &'a WorkspacePool,
+}
+
+/// A multi-style bake: the asset, the first layer's bake report (the geometry's), and each
+/// layer's bake time in seconds (the first's includes the geometry).
+pub struct LayeredBake {
+    pub asset: snerf_asset::LayeredAsset,
+    pub report: crate::bake::BakeReport,
+    pub seconds: Vec<f64>,
+}
+
+/// Every layer of an appearance-only stylization as one multi-style asset: the first layer
+/// baked as usual (it fixes the geometry), every further layer's colour baked onto it
+/// (`bake_colour`). A layer whose density is not the first's is refused by name.
+pub fn bake_layered(
+    layers: &[Layer],
+    views: &[snerf_trainer::data::View],
+    bg: [f32; 3],
+    opts: &crate::bake::BakeOptions,
+    progress: &(dyn Fn(&str, u64, u64) + Sync),
+) -> Result<LayeredBake> {
+    let Some(first) = layers.first() else { bail!("no style layers to bake") };
+    let t0 = std::time::Instant::now();
+    let (geometry, report) = crate::bake::bake(first.model, first.pool, views, bg, opts, progress)?;
+    let mut seconds = vec![t0.elapsed().as_secs_f64()];
+    let mut assets = vec![geometry];
+    for l in &layers[1..] {
+        let (asset, lr) = bake_colour(l.model, l.pool, first.model, &assets[0]).map_err(|e| {
+            anyhow::anyhow!(
+                "layer {:?} was trained on another geometry than layer {:?} ({:#}); stylize every layer from the same run with --appearance-only",
+                l.name,
+                first.name,
+                e
+            )
+        })?;
+        seconds.push(lr.seconds);
+        assets.push(asset);
+    }
+    let styles = layers
+        .iter()
+        .zip(&assets)
+        .map(|(l, a)| snerf_asset::StyleInfo { name: l.name.to_string(), source: Some(l.source.to_string()), swatch: snerf_asset::layers::swatch(a) })
+        .collect();
+    Ok(LayeredBake { asset: snerf_asset::LayeredAsset::new(styles, assets)?, report, seconds })
+}
