@@ -96,6 +96,13 @@ pub struct TrainArgs {
     /// rays spread over its square, as the views were rendered; 1 is one ray through its centre.
     #[arg(long, value_parser = crate::args::int_in::<usize>(1, 16, ""))]
     pub pixel_rays: Option<usize>,
+    /// Free-space carving for COLMAP captures (`snerf capture` output): each sparse point's
+    /// observations are lines of sight, and occupancy cells that several of them cross
+    /// (stopping 10% short of the point, never next to a point) are marked empty for good, so
+    /// the field cannot grow fog there and rendering skips them. Only datasets with a
+    /// sparse/0/points3D.bin have the points; every other dataset is unaffected. Default: off.
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    pub sparse_carving: Option<bool>,
     /// Write a checkpoint at least every this many seconds of training (a killed run loses
     /// at most this much).
     #[arg(long, default_value_t = 30.0, value_parser = crate::args::non_negative)]
@@ -178,6 +185,9 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
     if let Some(w) = a.appearance {
         cfg.appearance = w;
     }
+    if let Some(c) = a.sparse_carving {
+        cfg.sparse_carving = c;
+    }
     if let Some(t) = a.time_resolution {
         anyhow::ensure!(cfg.field.dynamic(), "--time-resolution applies to dynamic scenes only; {} is static", a.data.display());
         cfg.field.time_resolutions = train::time_levels(t);
@@ -219,6 +229,7 @@ impl TrainArgs {
             ("--tv", "/tv", self.tv.is_some()),
             ("--pixel-rays", "/pixel_rays", self.pixel_rays.is_some()),
             ("--appearance", "/appearance", self.appearance.is_some()),
+            ("--sparse-carving", "/sparse_carving", self.sparse_carving.is_some()),
             ("--time-resolution", "/field/time_resolutions", self.time_resolution.is_some()),
             ("--time-smooth", "/time_smooth", self.time_smooth.is_some()),
             ("--time-sparse", "/time_sparse", self.time_sparse.is_some()),
@@ -281,6 +292,15 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
             trainer.model.field.params.len(),
             100.0 * trainer.model.occ.occupied_fraction()
         );
+        if let Some(c) = &trainer.sparse_carve {
+            eprintln!(
+                "free-space carving: {} sparse points, {} lines of sight, {} cells carved ({:.1}% of the grid stays allowed)",
+                c.points,
+                c.segments,
+                c.carved_cells,
+                100.0 * c.allowed_fraction
+            );
+        }
     }
     let pb = bar(1000, "{spinner} {bar:30} {percent:>3}% [{elapsed}<{eta}] {msg}");
     let mut ema: Option<(f64, f64)> = None;
@@ -333,6 +353,7 @@ pub fn train_run(data: &Dataset, cfg: train::TrainConfig, opts: &run::RunOptions
         "train_psnr": last.map(|c| c.train_psnr),
         "train_minus_held_out_db": last.and_then(|c| c.test_psnr.map(|t| c.train_psnr - t)),
         "appearance": trainer.appearance.as_ref().map(|a| a.summary()["max_distance_from_identity"].clone()),
+        "sparse_carving": trainer.sparse_carve,
         "metrics": metrics,
     }))
 }

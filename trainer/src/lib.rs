@@ -11,7 +11,8 @@
 //! Modules are layered, each naming only modules of its own layer or below (no cycles;
 //! `tests/architecture.rs` checks it):
 //! 1. core: `rng`, `orbit`, `space`, `metrics`, `png`, `adam`, `composite`, `occupancy`,
-//!    `appearance` (per-photo colour transforms the training loss sees);
+//!    `appearance` (per-photo colour transforms the training loss sees), `free_space`
+//!    (carving the occupancy grid along the lines of sight of a capture's sparse points);
 //! 2. the field and its rendering: `view_mlp`, `deform` (a dynamic field's motion), `field`,
 //!    `render`;
 //! 3. `model` (what a renderer needs of a trained field);
@@ -33,6 +34,7 @@ pub mod composite;
 pub mod deform;
 pub mod eval;
 pub mod field;
+pub mod free_space;
 pub mod metrics;
 pub mod model;
 pub mod occupancy;

@@ -201,6 +201,6 @@ fn grid_dir(space: &SceneSpace, ray: &Ray) -> Vec3 {
 
 /// Grid units travelled per unit of ray parameter.
 #[inline]
-fn grid_speed(space: &SceneSpace, ray: &Ray) -> f32 {
+pub(crate) fn grid_speed(space: &SceneSpace, ray: &Ray) -> f32 {
     crate::space::norm(grid_dir(space, ray)).max(1e-12)
 }

@@ -177,6 +177,24 @@ impl SceneSpace {
         self.march_point_to_world(add(ray.o, scale(ray.d, t)))
     }
 
+    /// A world point in march space (inverse of [`SceneSpace::march_point_to_world`]); `None`
+    /// for a forward scene's point that is not in front of the reference camera's plane,
+    /// which NDC cannot hold.
+    pub fn world_to_march(&self, p: Vec3) -> Option<Vec3> {
+        let m = self.to_model(p);
+        match (self.kind, self.frame.ndc.as_ref()) {
+            (SceneKind::Forward, Some(n)) => {
+                if !(m[2] < -1e-6) {
+                    return None;
+                }
+                // NeRF's ndc_rays applied to a point: the projection `Ndc::unproject` undoes.
+                let (ax, ay) = (-n.fx / (n.width * 0.5), -n.fy / (n.height * 0.5));
+                Some([ax * m[0] / m[2], ay * m[1] / m[2], 1.0 + 2.0 * n.near / m[2]])
+            }
+            _ => Some(m),
+        }
+    }
+
     /// A march-space point (model space, or NDC for forward-facing scenes) in world space.
     pub fn march_point_to_world(&self, p: Vec3) -> Vec3 {
         self.frame.march_to_world(self.kind, p)

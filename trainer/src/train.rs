@@ -90,6 +90,11 @@ pub struct TrainConfig {
     /// pull toward identity; 0 = off.
     #[serde(default, skip_serializing_if = "is_zero")]
     pub appearance: f32,
+    /// Carve the occupancy grid along the lines of sight of the capture's sparse points
+    /// ([`crate::free_space`]) when the run starts; only COLMAP models with `points3D.bin`
+    /// have them, every other dataset is untouched. Off in runs from before it existed.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub sparse_carving: bool,
 }
 
 fn is_zero(x: &f32) -> bool {
@@ -149,6 +154,7 @@ impl TrainConfig {
             time_smooth: if data.dynamic { TIME_SMOOTH } else { 0.0 },
             time_sparse: if data.dynamic { TIME_SPARSE } else { 0.0 },
             appearance: 0.0,
+            sparse_carving: false,
         }
     }
 }
@@ -336,6 +342,9 @@ pub struct Trainer {
     /// Per-photo colour transforms (`cfg.appearance` > 0) and the photo of each ray of a step.
     pub appearance: Option<Appearance>,
     task_images: Vec<u32>,
+    /// What free-space carving did when this run started (`cfg.sparse_carving` and a dataset
+    /// with sparse points).
+    pub sparse_carve: Option<crate::free_space::CarveStats>,
 }
 
 /// Statistics of one step.
@@ -372,7 +381,18 @@ impl Trainer {
         if t.model.space.kind == SceneKind::Object && t.has_alpha {
             t.carve();
         }
+        if t.cfg.sparse_carving {
+            t.sparse_carve = t.carve_free_space(data)?;
+        }
         Ok(t)
+    }
+
+    /// Free-space carving from the dataset's sparse points (none: nothing happens).
+    fn carve_free_space(&mut self, data: &Dataset) -> Result<Option<crate::free_space::CarveStats>> {
+        let Some(tracks) = snerf_data::sparse_tracks(data)? else { return Ok(None) };
+        let cameras: Vec<[f32; 3]> = self.views.iter().map(|v| v.origin()).collect();
+        let m = &mut self.model;
+        Ok(Some(crate::free_space::carve(&mut m.occ, &m.space, &cameras, &tracks.points, crate::free_space::CarveRules::default())))
     }
 
     /// Rebuild a trainer around saved state (resume) and the dataset's training views.
@@ -408,6 +428,7 @@ impl Trainer {
             edge,
             appearance,
             task_images: Vec::new(),
+            sparse_carve: None,
         })
     }
 

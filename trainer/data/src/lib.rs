@@ -15,11 +15,13 @@ mod llff;
 mod npy;
 mod pose;
 mod source;
+mod sparse;
 mod summary;
 mod transforms;
 
 pub use detect::{detect_kind, max_view_angle_deg, transparent_fraction};
 pub use images::{default_cache_dir, CACHE_MIN_PIXELS, DEFAULT_MAX_SIZE};
+pub use sparse::{sparse_tracks, SparseTracks, TrackedPoint};
 pub use summary::summary;
 
 use std::path::Path;
