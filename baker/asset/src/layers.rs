@@ -217,6 +217,124 @@ pub fn geometry_difference(a: &Asset, b: &Asset) -> Option<String> {
     None
 }
 
+/// Writes another style's colour part into a single-style asset of the same multi-style file,
+/// chunk by chunk in any order, as a stream delivers it: what a client holding one style does
+/// when it switches to another (the geometry stays; only `SMLP` and `SCOL` chunks travel).
+/// Each `SCOL` is checked against the block's density (its checksum and its stored-voxel
+/// count), so colour for another geometry is refused; apron voxels held by a neighbour are
+/// copied from it as soon as both blocks hold the new style, so every block is exact once all
+/// have arrived (before that, a block's apron may still show the old style next to a
+/// neighbour that has not arrived).
+pub struct Recolour {
+    /// Per block: (stored mask, density checksum).
+    blocks: Vec<(Vec<bool>, u32)>,
+    /// Per block: (apron voxel, holder block, holder voxel), and the reverse (dependent
+    /// block, its voxel, this block's voxel).
+    from: Vec<Vec<(u32, u32, u32)>>,
+    to: Vec<Vec<(u32, u32, u32)>>,
+    mlp: bool,
+    have: Vec<bool>,
+    diffuse: bool,
+}
+
+impl Recolour {
+    /// For `asset` (a complete single-style asset: its density is what the colour goes on).
+    pub fn new(asset: &Asset) -> Recolour {
+        let h = &asset.header;
+        let bb = h.block_bytes();
+        let owners = Owners::new(h, &asset.grids);
+        let n = h.atlas_blocks as usize;
+        let (mut from, mut to) = (vec![Vec::new(); n], vec![Vec::new(); n]);
+        let blocks = asset
+            .atlas
+            .chunks_exact(bb)
+            .enumerate()
+            .map(|(i, blk)| {
+                let density: Vec<u8> = blk.chunks_exact(CHANNELS).map(|v| v[0]).collect();
+                (owners.stored(i, &live_voxels(h, &density)), crc32fast::hash(&density))
+            })
+            .collect();
+        let voxels = bb / CHANNELS;
+        for blk in 0..n {
+            if owners.cell_of[blk].is_none() {
+                continue;
+            }
+            for v in 0..voxels {
+                if let Some((o, ov)) = owners.owner(blk, v) {
+                    from[blk].push((v as u32, o as u32, ov as u32));
+                    to[o].push((blk as u32, v as u32, ov as u32));
+                }
+            }
+        }
+        Recolour { blocks, from, to, mlp: h.diffuse, have: vec![false; n], diffuse: h.diffuse }
+    }
+
+    /// Blocks of the asset.
+    pub fn blocks(&self) -> usize {
+        self.have.len()
+    }
+
+    /// Whether every block's colour and the view MLP (unless diffuse) have been written.
+    pub fn is_complete(&self) -> bool {
+        self.mlp && self.have.iter().all(|&h| h)
+    }
+
+    /// Write one chunk of a style's colour part (`SMLP` payload or `SCOL` payload, without
+    /// the chunk header) into `asset`. Returns the blocks whose bytes changed (a `SCOL`'s
+    /// block and the neighbours whose aprons it holds); errors say what does not fit.
+    pub fn apply(&mut self, asset: &mut Asset, tag: [u8; 4], p: &[u8]) -> Result<Vec<usize>> {
+        ensure!(p.len() >= 4, "{} bytes, too short for a style index", p.len());
+        if tag == TAG_SMLP {
+            ensure!(!self.diffuse, "a view MLP for a diffuse asset");
+            ensure!(p.len() == 4 + 4 * MLP_FLOATS, "a view MLP of {} bytes, expected {}", p.len() - 4, 4 * MLP_FLOATS);
+            let floats: Vec<f32> = p[4..].chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+            asset.mlp = ViewMlp::from_flat(&floats)?;
+            self.mlp = true;
+            return Ok(Vec::new());
+        }
+        ensure!(tag == TAG_SCOL, "a {} chunk is no part of a style's colour", tag_name(&tag));
+        ensure!(p.len() >= 12, "{} bytes, too short for style, block and checksum", p.len());
+        let (b, crc) = (le_u32(&p[4..8]) as usize, le_u32(&p[8..12]));
+        ensure!(b < self.have.len(), "colour for block {} but the atlas has {}", b, self.have.len());
+        let (stored, geo_crc) = &self.blocks[b];
+        ensure!(crc == *geo_crc, "the colour of block {} was made for another geometry (the block's density checksum differs)", b);
+        let cc = asset.header.style_channels();
+        let count = stored.iter().filter(|&&s| s).count();
+        ensure!(p.len() - 12 == count * cc, "the colour of block {} has {} bytes, the block stores {} voxels ({} bytes)", b, p.len() - 12, count, count * cc);
+        let bb = asset.block_bytes();
+        let blk = &mut asset.atlas[b * bb..(b + 1) * bb];
+        let mut src = p[12..].chunks_exact(cc);
+        for (v, &on) in blk.chunks_exact_mut(CHANNELS).zip(stored) {
+            if on {
+                v[1..1 + cc].copy_from_slice(src.next().unwrap_or(&[]));
+            } else {
+                v[1..].fill(0);
+            }
+        }
+        self.have[b] = true;
+        let copy = |atlas: &mut [u8], dst: (usize, usize), src: (usize, usize)| {
+            let s = src.0 * bb + src.1 * CHANNELS;
+            let colour: [u8; CHANNELS - 1] = atlas[s + 1..s + CHANNELS].try_into().unwrap_or([0; CHANNELS - 1]);
+            let d = dst.0 * bb + dst.1 * CHANNELS;
+            atlas[d + 1..d + CHANNELS].copy_from_slice(&colour);
+        };
+        // its aprons from their holders (whatever style they hold now: exact once they arrive)
+        for &(v, o, ov) in &self.from[b] {
+            copy(&mut asset.atlas, (b, v as usize), (o as usize, ov as usize));
+        }
+        let mut changed = vec![b];
+        for &(d, v, ov) in &self.to[b] {
+            copy(&mut asset.atlas, (d as usize, v as usize), (b, ov as usize));
+            if changed.last() != Some(&(d as usize)) {
+                changed.push(d as usize);
+            }
+        }
+        changed.sort_unstable();
+        changed.dedup();
+        Ok(changed)
+    }
+}
+
 impl LayeredAsset {
     /// Styles and their layers (each a complete single-style asset). Fails, naming the
     /// style, when a layer's geometry is not the first's. Clears the colour of voxels that

@@ -43,7 +43,7 @@ pub use asset::{Asset, EMPTY};
 pub use builder::AssetBuilder;
 pub use chunk::{chunks, encode_chunk, preamble, ChunkRef};
 pub use header::{DensityRange, Header, Keyframe, Kind, March, MlpShape, Ndc, Space, StyleInfo};
-pub use layers::{LayeredAsset, StyleBytes};
+pub use layers::{LayeredAsset, Recolour, StyleBytes};
 pub use mlp::ViewMlp;
 pub use quantize::{decode_density, encode_density, encode_voxel, quantize_unit};
 pub use render::{contact_strip, orbit, render, render_pixel, render_ray, write_png, Camera, Frame, PixelResult};

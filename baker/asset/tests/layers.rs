@@ -254,3 +254,48 @@ fn mutated_multi_style_files_never_panic() {
         assert!(r.is_ok(), "a mutated byte at {at} in chunk {} panicked", c.index);
     }
 }
+
+/// A client holding one style writes another style's colour part into it, chunk by chunk in
+/// any order (as a stream delivers it): the result is that style's single-style asset byte
+/// for byte, diffuse or not; a colour part of another geometry is refused by block.
+#[test]
+fn recolouring_one_style_with_anothers_colour_part_gives_that_style_exactly() {
+    for diffuse in [false, true] {
+        let (l, _) = two_styles(diffuse);
+        let bytes = l.to_bytes();
+        let want = l.clone().into_style(1).unwrap();
+        let mut held = l.clone().into_style(0).unwrap();
+        assert_ne!(held.to_bytes(), want.to_bytes());
+        let mut part: Vec<([u8; 4], Vec<u8>)> = chunks(&bytes)
+            .unwrap()
+            .into_iter()
+            .filter(|c| (c.tag == TAG_SMLP || c.tag == TAG_SCOL) && bytes[c.payload.start] == 1)
+            .map(|c| (c.tag, bytes[c.payload.clone()].to_vec()))
+            .collect();
+        // arrival order: reversed, then every other one (neighbours arrive both before and after)
+        part.reverse();
+        let (even, odd): (Vec<_>, Vec<_>) = part.into_iter().enumerate().partition(|(i, _)| i % 2 == 0);
+        let mut r = snerf_asset::Recolour::new(&held);
+        assert_eq!(r.blocks(), held.header.atlas_blocks as usize);
+        let mut changed_neighbours = false;
+        for (_, (tag, p)) in even.into_iter().chain(odd) {
+            assert!(!r.is_complete());
+            let changed = r.apply(&mut held, tag, &p).unwrap();
+            changed_neighbours |= changed.len() > 1;
+        }
+        assert!(r.is_complete());
+        assert!(changed_neighbours, "aprons were copied into neighbours");
+        assert!(held.to_bytes() == want.to_bytes(), "diffuse {diffuse}: the recoloured asset is not style 1's");
+    }
+    // another geometry: a smaller ball's colour part
+    let other = LayeredAsset::new(vec![info("warm"), info("cold")], vec![ball(0.5, warm, false), ball(0.5, cold, false)]).unwrap();
+    let ob = other.to_bytes();
+    let (l, _) = two_styles(false);
+    let mut held = l.into_style(0).unwrap();
+    let mut r = snerf_asset::Recolour::new(&held);
+    let c = chunks(&ob).unwrap().into_iter().find(|c| c.tag == TAG_SCOL && ob[c.payload.start] == 1).unwrap();
+    let e = r.apply(&mut held, TAG_SCOL, &ob[c.payload.clone()]).unwrap_err().to_string();
+    assert!(e.contains("another geometry") || e.contains("stores"), "{e}");
+    let e = r.apply(&mut held, *b"BLKS", &[0; 16]).unwrap_err().to_string();
+    assert!(e.contains("BLKS"), "{e}");
+}

@@ -108,6 +108,8 @@ pub struct Session {
     pub resumed: bool,
     pub sending_chunks: u32,
     pub sending_bytes: u64,
+    /// The welcome answered a style switch (`ClientMsg::Hello::colour_of`).
+    pub colour_only: bool,
     pub started: Instant,
     verifier: Arc<PinVerifier>,
     max_message: usize,
@@ -239,6 +241,7 @@ pub async fn open_session(
         resumed: false,
         sending_chunks: 0,
         sending_bytes: 0,
+        colour_only: false,
         started,
         verifier,
         max_message: opts.max_message,
@@ -259,6 +262,7 @@ pub async fn open_session(
             resumed,
             sending_chunks,
             sending_bytes,
+            colour_only,
         } => {
             ensure!(
                 version == PROTOCOL_VERSION,
@@ -269,6 +273,7 @@ pub async fn open_session(
             s.resumed = resumed;
             s.sending_chunks = sending_chunks;
             s.sending_bytes = sending_bytes;
+            s.colour_only = colour_only;
         }
         other => bail!("server sent {:?} instead of Welcome", other),
     }
@@ -286,6 +291,7 @@ pub async fn list(url: &str, pin: &str, token: &str) -> Result<Vec<ListEntry>> {
         have: vec![],
         resume_id: None,
         pose: None,
+        colour_of: None,
     };
     let mut s = open_session(addr, pin, hello, &ClientOptions::default()).await?;
     let l = s.list().await;
@@ -583,6 +589,7 @@ impl PartLog {
             preamble: to_hex(&h[48..64]),
             atlas_blocks: 0,
             frames: 0,
+            geometry: None,
         };
         let Ok(mut collector) = Collector::new(info.clone()) else {
             return Ok(None);
@@ -734,6 +741,7 @@ pub async fn fetch_with(
         have,
         resume_id,
         pose: opts.pose,
+        colour_of: None,
     };
     let session = open_session(addr, pin, hello, opts).await?;
     let info = session

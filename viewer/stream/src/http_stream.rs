@@ -111,9 +111,17 @@ struct Asked {
 }
 
 async fn asked(shared: &Shared, hello: &ClientMsg) -> Result<Option<Asked>, Close> {
-    let ClientMsg::Hello { asset: Some(name), have, resume_id, pose, .. } = hello else {
+    let ClientMsg::Hello { asset: Some(name), have, resume_id, pose, colour_of, .. } = hello else {
         return Ok(None);
     };
+    // A style switch keeps a session open while its colour part streams; these requests
+    // keep none, and the page switches over HTTPS by asking for the whole style instead.
+    if colour_of.is_some() {
+        return Err(Close(
+            code::PROTOCOL,
+            "a switch of style by colour alone (colour_of) needs QUIC or WebTransport; over HTTPS ask for the whole asset".into(),
+        ));
+    }
     let (name, path) = shared.resolve(Some(name))?;
     let asset = shared.load(&name, &path).await?;
     let (skip, resumed) = crate::plan::skipped(&asset, have, resume_id.as_deref());
@@ -132,9 +140,10 @@ async fn control(shared: &Shared, body: &[u8]) -> Result<Vec<u8>, Close> {
                 resumed: a.resumed,
                 sending_chunks: sending.len() as u32,
                 sending_bytes: crate::plan::records_len(&a.asset, &sending),
+                colour_only: false,
             }
         }
-        None => ServerMsg::Welcome { version: PROTOCOL_VERSION, asset: None, resumed: false, sending_chunks: 0, sending_bytes: 0 },
+        None => ServerMsg::Welcome { version: PROTOCOL_VERSION, asset: None, resumed: false, sending_chunks: 0, sending_bytes: 0, colour_only: false },
     };
     out.extend(encode_frame(&welcome));
     for m in &msgs[1..] {

@@ -5,6 +5,8 @@
 //!   directory of `.snerf` files or one file, token-authenticated, self-signed certificate.
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
+//! - `restyle`: `switch_style` — a style switch by colour alone (a multi-style asset's other
+//!   style, written over the one held).
 //! - `bench`: `snerf bench stream` (QUIC vs TCP side by side, time to first view).
 //! - `web`: the web viewer — its certificate (every name in `lan`), `snerf/1` over
 //!   WebTransport beside the native endpoint (`ServeOptions::web`), and `page`: the page
@@ -44,6 +46,7 @@ pub mod plan;
 pub mod thumbs;
 pub mod proto;
 pub mod publish;
+pub mod restyle;
 pub mod server;
 mod session;
 mod shared;

@@ -100,6 +100,7 @@ impl LiveAsset {
                         have: vec![],
                         resume_id: None,
                         pose: opts.pose,
+                        colour_of: None,
                     };
                     let session = match open_session(addr, &pin, hello, &opts).await {
                         Ok(s) => s,

@@ -46,6 +46,76 @@ pub struct ServedAsset {
     pub origin: [f32; 3],
     /// A multi-style file (version 3): its styles, and which one these bytes are.
     pub styles: Option<ServedStyle>,
+    /// Of a multi-style file: the served style's colour part, for a switch to it.
+    pub colour: Option<ColourPart>,
+}
+
+/// One style's colour part as its multi-style file holds it: what a client that holds
+/// another style of the file is sent to switch to this one (`Hello::colour_of`). The density
+/// stays, so only the view MLP and, per block, the colour of its stored voxels travel.
+pub struct ColourPart {
+    /// Hex SHA-256 of the multi-style file: the geometry its styles share.
+    pub geometry: String,
+    /// The style's `SMLP` and `SCOL` chunks, headers included, as the file has them.
+    pub bytes: Bytes,
+    /// The `SMLP` chunk's range in `bytes` and the `VMLP` chunk it rewrites (none when the
+    /// styles are diffuse).
+    pub mlp: Option<(Range<usize>, u32)>,
+    /// Per entry of `ServedAsset::blks`: the range in `bytes` of its block's `SCOL` chunk.
+    pub blocks: Vec<Range<usize>>,
+}
+
+impl ColourPart {
+    /// Bytes the records of the whole colour part take on the wire (each a u32 index and
+    /// the chunk).
+    pub fn records_len(&self) -> u64 {
+        let chunks = self.blocks.len() + self.mlp.is_some() as usize;
+        (self.bytes.len() + 4 * chunks) as u64
+    }
+
+    /// Records the whole colour part takes.
+    pub fn records(&self) -> u32 {
+        (self.blocks.len() + self.mlp.is_some() as usize) as u32
+    }
+
+    pub fn block_bytes(&self, b: u32) -> Bytes {
+        self.bytes.slice(self.blocks[b as usize].clone())
+    }
+
+    pub fn record_len(&self, b: u32) -> u64 {
+        (self.blocks[b as usize].len() + 4) as u64
+    }
+}
+
+/// Style `served`'s chunks of a multi-style file: its SMLP (if any) and its SCOLs by block.
+struct RawColour {
+    geometry: String,
+    bytes: Vec<u8>,
+    mlp: Option<Range<usize>>,
+    /// (block index, range in `bytes`)
+    scol: Vec<(u32, Range<usize>)>,
+}
+
+fn raw_colour(raw: &[u8], served: usize) -> Result<RawColour> {
+    use snerf_asset::chunk::{TAG_SCOL, TAG_SMLP};
+    let mut out = RawColour { geometry: to_hex(&Sha256::digest(raw)), bytes: Vec::new(), mlp: None, scol: Vec::new() };
+    for c in chunks(raw)? {
+        if c.tag != TAG_SMLP && c.tag != TAG_SCOL {
+            continue;
+        }
+        let p = &raw[c.payload.clone()];
+        if le_u32(&p[..4]) as usize != served {
+            continue;
+        }
+        let at = out.bytes.len()..out.bytes.len() + c.range.len();
+        out.bytes.extend_from_slice(&raw[c.range.clone()]);
+        if c.tag == TAG_SMLP {
+            out.mlp = Some(at);
+        } else {
+            out.scol.push((le_u32(&p[4..8]), at));
+        }
+    }
+    Ok(out)
 }
 
 /// The style served from a multi-style file. Streaming sends one style per asset name: the
@@ -86,7 +156,7 @@ impl std::fmt::Display for NoSuchStyle {
 impl std::error::Error for NoSuchStyle {}
 
 /// A multi-style file's bytes as the single-style asset of `style` (None: the first).
-fn single_style(raw: &[u8], style: Option<&str>) -> Result<(Vec<u8>, ServedStyle)> {
+fn single_style(raw: &[u8], style: Option<&str>) -> Result<(Vec<u8>, ServedStyle, RawColour)> {
     let layered = LayeredAsset::from_bytes(raw)?;
     let names = layered.names();
     let served = match style {
@@ -96,7 +166,8 @@ fn single_style(raw: &[u8], style: Option<&str>) -> Result<(Vec<u8>, ServedStyle
         })?,
     };
     let bytes = layered.into_style(served)?.to_bytes();
-    Ok((bytes, ServedStyle { names, served }))
+    let colour = raw_colour(raw, served)?;
+    Ok((bytes, ServedStyle { names, served }, colour))
 }
 
 impl ServedAsset {
@@ -127,12 +198,12 @@ impl ServedAsset {
         raw: Vec<u8>,
         style: Option<&str>,
     ) -> Result<ServedAsset> {
-        let (raw, styles) = if is_layered(&raw) {
-            let (bytes, s) = single_style(&raw, style)?;
-            (bytes, Some(s))
+        let (raw, styles, colour) = if is_layered(&raw) {
+            let (bytes, s, c) = single_style(&raw, style)?;
+            (bytes, Some(s), Some(c))
         } else {
             ensure!(style.is_none(), "a single-style asset has no style {:?}", style.unwrap_or(""));
-            (raw, None)
+            (raw, None, None)
         };
         // Full validation once, so no client is ever streamed a broken asset.
         let asset = Asset::from_bytes(&raw)?;
@@ -168,6 +239,8 @@ impl ServedAsset {
         let mut blks = Vec::new();
         let mut ranges = Vec::with_capacity(list.len());
         let mut end = None;
+        // block index -> entry of `blks` (the writer puts one block in each BLKS chunk)
+        let mut blk_of_block = vec![u32::MAX; n];
         let last_frame = header.num_frames().saturating_sub(1) as u32;
         for c in &list {
             let idx = c.index as u32;
@@ -176,6 +249,10 @@ impl ServedAsset {
                 TAG_HEAD | TAG_VMLP | TAG_GRID => meta.push(idx),
                 TAG_BLKS => {
                     let first = le_u32(&raw[c.payload.start..c.payload.start + 4]) as usize;
+                    let count = le_u32(&raw[c.payload.start + 4..c.payload.start + 8]) as usize;
+                    if count == 1 && first < n {
+                        blk_of_block[first] = blks.len() as u32;
+                    }
                     let (centre, radius) = match first_cell.get(first).copied().flatten() {
                         Some(cell) => cell_centre_radius(&header, g, cell),
                         None => (origin, 0.0),
@@ -197,6 +274,27 @@ impl ServedAsset {
             }
         }
         let end = end.ok_or_else(|| anyhow!("no END chunk"))?;
+        let colour = match colour {
+            None => None,
+            Some(c) => {
+                let vmlp = list.iter().find(|c| c.tag == TAG_VMLP).map(|c| c.index as u32);
+                let mut blocks = vec![0..0; blks.len()];
+                let mut seen = vec![false; blks.len()];
+                for (b, r) in c.scol {
+                    let e = blk_of_block.get(b as usize).copied().unwrap_or(u32::MAX);
+                    ensure!(e != u32::MAX, "style colour for block {} that no chunk of its own holds", b);
+                    blocks[e as usize] = r;
+                    seen[e as usize] = true;
+                }
+                ensure!(seen.iter().all(|&s| s), "a style without colour for every block");
+                let mlp = match (c.mlp, vmlp) {
+                    (Some(r), Some(v)) => Some((r, v)),
+                    (None, None) => None,
+                    _ => anyhow::bail!("a style's view MLP and the served asset's disagree"),
+                };
+                Some(ColourPart { geometry: c.geometry, bytes: Bytes::from(c.bytes), mlp, blocks })
+            }
+        };
         Ok(ServedAsset {
             name: name.to_string(),
             path: path.to_path_buf(),
@@ -209,6 +307,7 @@ impl ServedAsset {
             end,
             origin,
             styles,
+            colour,
         })
     }
 
@@ -235,6 +334,7 @@ impl ServedAsset {
             preamble: to_hex(&self.bytes[..PREAMBLE_LEN]),
             atlas_blocks: self.header.atlas_blocks,
             frames: self.header.num_frames() as u32,
+            geometry: self.colour.as_ref().map(|c| c.geometry.clone()),
         }
     }
 

@@ -198,6 +198,11 @@ pub enum ClientMsg {
         resume_id: Option<String>,
         #[serde(default)]
         pose: Option<Pose>,
+        /// A style switch: the client holds a complete style of the multi-style file whose
+        /// `AssetInfo::geometry` this is, and asks for `asset`'s colour part only (its view
+        /// MLP and per block its colour), which it writes over the colour it holds.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        colour_of: Option<String>,
     },
     /// Ask for the asset list (after Hello); with `thumbs`, each entry carries a thumbnail.
     List {
@@ -245,6 +250,11 @@ pub struct AssetInfo {
     pub preamble: String,
     pub atlas_blocks: u32,
     pub frames: u32,
+    /// One style of a multi-style file: the hex SHA-256 of that file, the geometry its
+    /// styles share. A client holding this asset may switch to another of its styles by
+    /// colour alone (`Hello::colour_of`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<String>,
 }
 
 /// Server -> client control messages.
@@ -264,6 +274,10 @@ pub enum ServerMsg {
         /// Their record bytes.
         #[serde(default)]
         sending_bytes: u64,
+        /// The answer to a `colour_of` hello: the records are the style's colour part
+        /// (`SMLP`, `SCOL` chunks) under the index of the chunk each rewrites, no END.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        colour_only: bool,
     },
     Listing {
         assets: Vec<ListEntry>,
@@ -279,6 +293,7 @@ pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
         have,
         resume_id,
         pose,
+        colour_of,
         ..
     } = &m
     {
@@ -306,6 +321,9 @@ pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
         );
         if let Some(r) = resume_id {
             ensure!(r.len() <= 128, "resume_id too long");
+        }
+        if let Some(g) = colour_of {
+            ensure!(g.len() <= 128, "colour_of too long");
         }
         if let Some(p) = pose {
             p.validate()?;
@@ -519,6 +537,7 @@ mod tests {
             have: vec![[0, 3]],
             resume_id: None,
             pose: Some(Pose::new([1.0, 2.0, 3.0], [0.0, 0.0, -1.0])),
+            colour_of: None,
         };
         let f = encode_frame(&m);
         let (payload, rest) = split_frame(&f, 1024).unwrap().unwrap();

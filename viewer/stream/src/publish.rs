@@ -204,6 +204,7 @@ impl Manifest {
                 .collect(),
             end: self.end,
             styles: None,
+            colour: None,
             origin: self.origin,
         })
     }

@@ -53,6 +53,7 @@ struct Hello {
     have: Vec<[u32; 2]>,
     resume_id: Option<String>,
     pose: Option<Pose>,
+    colour_of: Option<String>,
 }
 
 /// An authenticated client's slot (`Limits::max_clients`), held while its session lasts.
@@ -162,6 +163,7 @@ async fn read_hello(
             have,
             resume_id,
             pose,
+            colour_of,
         } => {
             if version != PROTOCOL_VERSION {
                 return Err(Close(
@@ -180,6 +182,7 @@ async fn read_hello(
                 have,
                 resume_id,
                 pose,
+                colour_of,
             };
             Ok((send, recv, hello))
         }
@@ -203,9 +206,35 @@ async fn session(
         have,
         resume_id,
         pose,
+        colour_of,
     } = hello;
     let mut asset_task = false;
-    if let Some(name) = asset {
+    if colour_of.is_some() && asset.is_none() {
+        return Err(Close(code::MALFORMED, "colour_of without an asset: name the style to switch to".into()));
+    }
+    if let (Some(name), Some(geometry)) = (&asset, &colour_of) {
+        let (name, path) = shared.resolve(Some(name))?;
+        let a = shared.load(&name, &path).await?;
+        let part = colour_part(&name, &a, geometry)?;
+        let (records, bytes) = (part.records(), part.records_len());
+        send_msg(
+            &mut send,
+            &ServerMsg::Welcome {
+                version: PROTOCOL_VERSION,
+                asset: Some(a.info()),
+                resumed: false,
+                sending_chunks: records,
+                sending_bytes: bytes,
+                colour_only: true,
+            },
+        )
+        .await?;
+        log(shared, who, &format!("switching to {} by colour ({} records, {} bytes)", name, records, bytes));
+        let (view_tx, view_rx) = watch::channel(pose.filter(|p| p.validate().is_ok()));
+        tasks.spawn(read_poses(conn.clone(), view_tx, shared.stats.clone()));
+        tasks.spawn(stream_asset(conn.clone(), a, Sending::Colour, view_rx, shared.clone()));
+        asset_task = true;
+    } else if let Some(name) = asset {
         let (name, path) = shared.resolve(Some(&name))?;
         let a = shared.load(&name, &path).await?;
         let n = a.chunk_count() as usize;
@@ -220,6 +249,7 @@ async fn session(
                 resumed,
                 sending_chunks: sending.len() as u32,
                 sending_bytes,
+                colour_only: false,
             },
         )
         .await?;
@@ -237,7 +267,7 @@ async fn session(
         );
         let (view_tx, view_rx) = watch::channel(pose.filter(|p| p.validate().is_ok()));
         tasks.spawn(read_poses(conn.clone(), view_tx, shared.stats.clone()));
-        tasks.spawn(stream_asset(conn.clone(), a, skip, view_rx, shared.clone()));
+        tasks.spawn(stream_asset(conn.clone(), a, Sending::Whole(skip), view_rx, shared.clone()));
         asset_task = true;
     } else {
         send_msg(
@@ -248,6 +278,7 @@ async fn session(
                 resumed: false,
                 sending_chunks: 0,
                 sending_bytes: 0,
+                colour_only: false,
             },
         )
         .await?;
@@ -339,18 +370,56 @@ async fn open_stream(conn: &Conn, stall: Duration) -> Result<Send, Close> {
     }
 }
 
+/// The colour part a `colour_of` hello may have: the asked style's, when the client's
+/// geometry is that style's file's.
+fn colour_part<'a>(name: &str, a: &'a ServedAsset, geometry: &str) -> Result<&'a crate::plan::ColourPart, Close> {
+    let Some(part) = a.colour.as_ref() else {
+        return Err(Close(
+            code::NOT_FOUND,
+            format!("asset {:?} has a single style: there is no other style's colour to switch to (ask for it without colour_of)", name),
+        ));
+    };
+    if part.geometry != geometry {
+        return Err(Close(
+            code::NOT_FOUND,
+            format!(
+                "colour_of {:?} is not the geometry of {:?} (the file changed, or it is another asset's): ask for the whole asset",
+                geometry, name
+            ),
+        ));
+    }
+    Ok(part)
+}
+
+/// What a session streams: the asset's chunks but those the client holds, or (a style
+/// switch) the style's colour part, each record under the index of the chunk it rewrites.
+enum Sending {
+    Whole(Vec<bool>),
+    Colour,
+}
+
+impl Sending {
+    /// The record of block `b` (an index into `blks`): (chunk index, chunk bytes).
+    fn block(&self, a: &ServedAsset, b: u32) -> (u32, Bytes, u64) {
+        let c = a.blks[b as usize].chunk;
+        match (self, &a.colour) {
+            (Sending::Colour, Some(p)) => (c, p.block_bytes(b), p.record_len(b)),
+            _ => (c, a.chunk_bytes(c), a.record_len(c)),
+        }
+    }
+}
+
 async fn write_batch(
     mut s: Send,
-    asset: Arc<ServedAsset>,
-    idx: Vec<u32>,
+    records: Vec<(u32, Bytes)>,
     shared: Arc<Shared>,
 ) -> Result<u64, Close> {
-    let mut bufs = Vec::with_capacity(idx.len() * 2);
+    let mut bufs = Vec::with_capacity(records.len() * 2);
     let mut bytes = 0u64;
-    for &i in &idx {
+    for (i, chunk) in records {
+        bytes += 4 + chunk.len() as u64;
         bufs.push(Bytes::copy_from_slice(&i.to_le_bytes()));
-        bufs.push(asset.chunk_bytes(i));
-        bytes += asset.record_len(i);
+        bufs.push(chunk);
     }
     let stall = shared.limits.stall_timeout;
     shared.stats.streams_started.fetch_add(1, Ordering::Relaxed);
@@ -403,10 +472,16 @@ const MIN_BATCH: u64 = 16 * 1024;
 async fn stream_asset(
     conn: Conn,
     asset: Arc<ServedAsset>,
-    skip: Vec<bool>,
+    sending: Sending,
     mut view_rx: watch::Receiver<Option<Pose>>,
     shared: Arc<Shared>,
 ) -> Result<(), Close> {
+    let whole = |i: u32| (i, asset.chunk_bytes(i));
+    let colour = matches!(sending, Sending::Colour);
+    let skip = match &sending {
+        Sending::Whole(skip) => skip.clone(),
+        Sending::Colour => vec![true; asset.chunk_count() as usize],
+    };
     let limits = shared.limits.clone();
     let max_streams = limits.max_streams.max(1);
     let mut writers: JoinSet<Result<u64, Close>> = JoinSet::new();
@@ -415,21 +490,25 @@ async fn stream_asset(
     let joined = |r: Result<Result<u64, Close>, tokio::task::JoinError>| -> Result<u64, Close> {
         r.map_err(|_| Close(code::INTERNAL, "writer task failed".into()))?
     };
-    let meta: Vec<u32> = asset
-        .meta
-        .iter()
-        .copied()
-        .filter(|&i| !skip[i as usize])
-        .collect();
+    // the small parts first: HEAD, VMLP, GRIDs; of a colour part, its view MLP
+    let meta: Vec<(u32, Bytes)> = match (&sending, &asset.colour) {
+        (Sending::Colour, Some(p)) => p.mlp.iter().map(|(r, v)| (*v, p.bytes.slice(r.clone()))).collect(),
+        _ => asset.meta.iter().copied().filter(|&i| !skip[i as usize]).map(whole).collect(),
+    };
     if !meta.is_empty() {
         let mut s = open_stream(&conn, limits.stall_timeout).await?;
         let _ = s.quic().set_priority(prio);
         prio -= 1;
-        outstanding += crate::plan::records_len(&asset, &meta);
-        writers.spawn(write_batch(s, asset.clone(), meta, shared.clone()));
+        let bytes: u64 = meta.iter().map(|(_, b)| 4 + b.len() as u64).sum();
+        outstanding += bytes;
+        if colour {
+            shared.stats.colour_bytes_sent.fetch_add(bytes, Ordering::Relaxed);
+            shared.stats.colour_records_sent.fetch_add(meta.len() as u64, Ordering::Relaxed);
+        }
+        writers.spawn(write_batch(s, meta, shared.clone()));
     }
     let mut remaining: Vec<u32> = (0..asset.blks.len() as u32)
-        .filter(|&b| !skip[asset.blks[b as usize].chunk as usize])
+        .filter(|&b| colour || !skip[asset.blks[b as usize].chunk as usize])
         .collect();
     let sort = |remaining: &mut Vec<u32>, pose: Option<Pose>| crate::plan::order_blocks(&asset, remaining, pose);
     let p0 = *view_rx.borrow_and_update();
@@ -480,14 +559,19 @@ async fn stream_asset(
             if !batch.is_empty() && bytes >= batch_target {
                 break;
             }
-            let c = asset.blks[b as usize].chunk;
-            bytes += asset.record_len(c);
-            batch.push(c);
+            let (c, chunk, len) = sending.block(&asset, b);
+            bytes += len;
+            batch.push((c, chunk));
             remaining.pop();
+        }
+        if colour {
+            shared.stats.colour_bytes_sent.fetch_add(bytes, Ordering::Relaxed);
+            shared.stats.colour_records_sent.fetch_add(batch.len() as u64, Ordering::Relaxed);
         }
         if limits.log_sends {
             if let Ok(mut log) = shared.stats.send_log.lock() {
-                log.push(SentBatch { pose: pose_now, chunks: batch.clone() });
+                let chunks = batch.iter().map(|r| r.0).collect();
+                log.push(SentBatch { pose: pose_now, chunks, bytes, colour });
             }
         }
         let mut s = open_stream(&conn, limits.stall_timeout).await?;
@@ -495,7 +579,7 @@ async fn stream_asset(
         prio = prio.saturating_sub(1).max(i32::MIN + 1);
         outstanding += bytes;
         paced_bytes += bytes;
-        writers.spawn(write_batch(s, asset.clone(), batch, shared.clone()));
+        writers.spawn(write_batch(s, batch, shared.clone()));
     }
     while let Some(r) = writers.join_next().await {
         joined(r)?;
@@ -503,7 +587,7 @@ async fn stream_asset(
     if !skip[asset.end as usize] {
         let mut s = open_stream(&conn, limits.stall_timeout).await?;
         let _ = s.quic().set_priority(i32::MIN);
-        write_batch(s, asset.clone(), vec![asset.end], shared.clone()).await?;
+        write_batch(s, vec![whole(asset.end)], shared.clone()).await?;
     } else {
         // Nothing more to send; wait for the client to close.
         std::future::pending::<()>().await;

@@ -28,6 +28,10 @@ pub struct ServerStats {
     pub streams_completed: AtomicU64,
     /// Record bytes (chunk index + chunk) handed to QUIC, all clients.
     pub bytes_sent: AtomicU64,
+    /// Of those, the records of style switches (colour parts, `Hello::colour_of`), and how
+    /// many records they were.
+    pub colour_bytes_sent: AtomicU64,
+    pub colour_records_sent: AtomicU64,
     pub bad_datagrams: AtomicU64,
     pub pose_updates: AtomicU64,
     /// Bytes of asset files held in the cache now (gauge, at most `Limits::cache_bytes`).
@@ -48,11 +52,16 @@ pub struct ServerStats {
     pub page_timeouts: AtomicU64,
 }
 
-/// One batch of BLKS chunks committed to a data stream, and the latest pose of the client
+/// One batch of BLKS chunks (or a colour part's block colours) committed to a data stream, and the latest pose of the client
 /// when the batch was chosen (None before any).
 #[derive(Clone, Debug)]
 pub struct SentBatch {
     pub pose: Option<Pose>,
+    /// The chunk index of each record (of a colour part: the chunk each rewrites).
     pub chunks: Vec<u32>,
+    /// Their record bytes.
+    pub bytes: u64,
+    /// A style switch's colour records (`Hello::colour_of`), not the asset's own chunks.
+    pub colour: bool,
 }
 

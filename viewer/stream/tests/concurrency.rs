@@ -77,6 +77,7 @@ fn twenty_clients_and_a_stalled_one() {
                 have: vec![],
                 resume_id: None,
                 pose: None,
+                colour_of: None,
             };
             send.write_all(&encode_frame(&hello)).await.unwrap();
             tokio::time::sleep(Duration::from_millis(50)).await; // let the server start on it
@@ -156,6 +157,7 @@ fn client_limit_refuses_extra_clients() {
             have: vec![],
             resume_id: None,
             pose: None,
+            colour_of: None,
         };
         let c1 = open_session(
             server.addr(),
@@ -256,6 +258,7 @@ fn silent_and_stalled_clients_are_dropped_by_timeouts() {
             have: vec![],
             resume_id: None,
             pose: None,
+            colour_of: None,
         };
         send.write_all(&encode_frame(&hello)).await.unwrap();
         let t0 = Instant::now();

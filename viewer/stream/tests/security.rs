@@ -28,6 +28,7 @@ fn hello(token: &str, asset: Option<&str>) -> ClientMsg {
         have: vec![],
         resume_id: None,
         pose: None,
+        colour_of: None,
     }
 }
 
@@ -388,6 +389,7 @@ fn no_panic_on_arbitrary_network_bytes() {
             have: vec![[0, 5], [9, 12]],
             resume_id: Some("ab".repeat(32)),
             pose: Some(Pose::new([1.0, 2.0, 3.0], [0.0, 0.0, -1.0])),
+            colour_of: None,
         })
         .unwrap(),
         serde_json::to_vec(&ClientMsg::List { thumbs: false }).unwrap(),

@@ -1511,3 +1511,73 @@ fn the_page_lists_a_multi_style_assets_styles_and_streams_one() {
     assert_eq!(r["styles"], serde_json::json!(["scene.warm", "scene.cold"]));
     h.shutdown();
 }
+
+/// Run switch.mjs (URL, then the keys pressed one switch after another); its JSON report.
+fn switch_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, keys: &str) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/switch.mjs");
+    let out = Command::new(&b.0).arg(&script).arg(&b.2).arg(url).arg(keys).env("SNERF_CHROMIUM", &b.1).output().expect("run node");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    if std::env::var_os("SNERF_PAGE_LOG").is_some() {
+        eprintln!("{}", stderr);
+    }
+    assert!(out.status.success(), "switch.mjs failed: {}", stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("page report {:?}: {} (stderr: {})", stdout, e, stderr))
+}
+
+/// A style switch in the page (keys 2, 1, 2 on `scene.warm`): each streams only the new
+/// style's colour part (the page's count and the server's: the style's SMLP and SCOL chunks
+/// and a 4-byte index per record, well below the whole style), the page rebuilds the new
+/// style's file byte for byte (its SHA-256), and its frame at a fixed camera is the CPU
+/// reference's of the style it switched to, not of the one it left.
+#[test]
+fn a_style_switch_in_the_page_streams_only_the_colour_part_and_draws_the_new_style() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-switch");
+    let state = TempDir::new("web-switch-state");
+    let file = dir.join("scene.snerf");
+    let layered = two_styles();
+    layered.write(&file).unwrap();
+    let styles: Vec<Asset> = (0..2).map(|i| layered.clone().into_style(i).unwrap()).collect();
+    let whole: Vec<Vec<u8>> = styles.iter().map(|a| a.to_bytes()).collect();
+    let part: Vec<u64> = layered.style_bytes().iter().map(|s| s.bytes).collect();
+    let records = layered.header().atlas_blocks as u64 + 1;
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    let cam = snerf_asset::orbit(&styles[0].header, 1, 0, 64, 48, 40.0);
+    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene.warm"), ("cam", &cam_json(&cam))]));
+    let r = switch_page(&b, &url, "2,1,2");
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+    let sws = r["switches"].as_array().unwrap();
+    assert_eq!(sws.len(), 3, "{sws:?}");
+    let mut sent = 0;
+    for (sw, to) in sws.iter().zip([1usize, 0, 1]) {
+        assert_eq!(sw["state"], "done", "{sw}");
+        assert_eq!(sw["name"], ["scene.warm", "scene.cold"][to]);
+        let want = part[to] + 4 * records;
+        assert_eq!(sw["bytes"].as_u64(), Some(want), "the page received the colour part and a 4-byte index per record: {sw}");
+        assert_eq!(sw["records"].as_u64(), Some(records));
+        assert!(want * 4 < whole[to].len() as u64 * 3, "{want} bytes is not well below the whole style's {}", whole[to].len());
+        let t = |k: &str| sw[k].as_f64().unwrap_or_else(|| panic!("no {k} in {sw}"));
+        assert!(t("pressAt") <= t("welcomeAt") && t("welcomeAt") <= t("firstRecordAt") && t("firstRecordAt") <= t("firstFrameAt"), "{sw}");
+        assert!(t("firstFrameAt") <= t("completeAt"), "{sw}");
+        sent += want;
+    }
+    // the server's count: the first style whole, then the three colour parts
+    let stats = h.stats();
+    assert_eq!(stats.colour_bytes_sent.load(Ordering::Relaxed), sent);
+    assert_eq!(stats.colour_records_sent.load(Ordering::Relaxed), 3 * records);
+    assert_eq!(stats.bytes_sent.load(Ordering::Relaxed), whole[0].len() as u64 - 16 + 4 * r["asset"]["chunks"].as_u64().unwrap() + sent);
+    // the page's file is the style it switched to, byte for byte, and so is its frame
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&whole[1])).as_str());
+    assert_eq!(r["asset"]["name"], "scene.cold");
+    let fr = &r["lastRender"];
+    assert_eq!(fr["complete"], true);
+    let rgba = fr["rgba"].as_array().unwrap();
+    let d = mean_abs_diff(rgba, &snerf_asset::render(&styles[1], &cam, 0.0));
+    let left = mean_abs_diff(rgba, &snerf_asset::render(&styles[0], &cam, 0.0));
+    eprintln!("after the switches: mean |diff| per channel {d:?} to the new style's CPU reference, {left:?} to the old one's");
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
+    assert!(left.iter().any(|&x| x > 10.0 / 255.0), "the two styles' frames are too alike for the test to mean something: {left:?}");
+    h.shutdown();
+}

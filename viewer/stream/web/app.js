@@ -487,6 +487,97 @@ function orbitOf(h) {
 }
 
 // ---- the renderers (host side of viewer/src/gpu.rs) ----
+// A style switch (PROTOCOL.md, "Style switches"): another style's colour part written over
+// the style held, chunk by chunk as it streams; the density stays. snerf_asset::Recolour in
+// JavaScript (FORMAT.md, multi-style assets): a block's SCOL holds the colour of its *stored*
+// voxels, those that are live (some voxel of their 3x3x3 neighbourhood has density) and not
+// held by a neighbouring block (an apron voxel of a static asset whose blocks each serve one
+// cell is copied from the block of the cell it lies in). `chunks`: the held file's chunks by
+// index (BLKS chunks are rewritten in place); `blkChunk[b]`: the chunk holding block b.
+class Recolour {
+  constructor(h, grid, chunks, blkChunk, voxelBytes) {
+    const b = h.block, e = b + 2, g = h.res / b, nb = h.atlas_blocks, nv = e * e * e, n = voxelBytes;
+    Object.assign(this, { h, chunks, blkChunk, n, nv, nb, have: new Uint8Array(nb) });
+    const data = (k) => chunks[blkChunk[k]].subarray(20);
+    // a static asset's blocks serving exactly one cell: their cell
+    const cellOf = new Int32Array(nb).fill(-1);
+    if (!h.frames) {
+      const uses = new Uint32Array(nb);
+      for (let c = 0; c < grid.length; c++) if (grid[c] !== EMPTY) { uses[grid[c]]++; cellOf[grid[c]] = c; }
+      for (let k = 0; k < nb; k++) if (uses[k] !== 1) cellOf[k] = -1;
+    }
+    // (apron voxel v of block k) -> [holder block, its voxel], or null
+    const owner = (k, v) => {
+      const c = cellOf[k];
+      if (c < 0) return null;
+      const l = [v % e, Math.floor(v / e) % e, Math.floor(v / (e * e))];
+      if (l.every((x) => x >= 1 && x <= b)) return null;
+      const cell = [c % g, Math.floor(c / g) % g, Math.floor(c / (g * g))], oc = [0, 0, 0], ol = [0, 0, 0];
+      for (let a = 0; a < 3; a++) {
+        const gi = cell[a] * b + l[a] - 1;
+        if (gi < 0 || gi >= g * b) return null;
+        oc[a] = Math.floor(gi / b); ol[a] = gi - oc[a] * b + 1;
+      }
+      const o = grid[(oc[2] * g + oc[1]) * g + oc[0]];
+      if (o === EMPTY || cellOf[o] < 0) return null;
+      return [o, (ol[2] * e + ol[1]) * e + ol[0]];
+    };
+    this.stored = []; this.crc = new Uint32Array(nb); this.from = []; this.to = Array.from({ length: nb }, () => []);
+    for (let k = 0; k < nb; k++) {
+      const d = data(k), dens = new Uint8Array(nv);
+      for (let v = 0; v < nv; v++) dens[v] = d[v * n];
+      this.crc[k] = crc32(dens);
+      let live = new Uint8Array(nv);
+      if (h.frames) live.fill(1);
+      else {
+        for (let v = 0; v < nv; v++) live[v] = dens[v] > 0 ? 1 : 0;
+        for (const stride of [1, e, e * e]) {
+          const src = live.slice();
+          for (let i = 0; i < nv; i++) {
+            const q = Math.floor(i / stride) % e;
+            live[i] = src[i] || (q > 0 && src[i - stride]) || (q + 1 < e && src[i + stride]) ? 1 : 0;
+          }
+        }
+      }
+      const from = [];
+      if (cellOf[k] >= 0) {
+        for (let v = 0; v < nv; v++) {
+          const o = owner(k, v);
+          if (o) { from.push(v, o[0], o[1]); this.to[o[0]].push(k, v, o[1]); live[v] = 0; }
+        }
+      }
+      this.stored.push(live);
+      this.from.push(from);
+    }
+  }
+  // One SCOL payload (style, block, density checksum, colours) written; returns the blocks
+  // whose bytes changed (its own and the neighbours whose aprons it holds).
+  apply(p) {
+    const k = u32(p, 4), n = this.n, cc = n - 1;
+    if (k >= this.nb) throw new Error(`colour for block ${k} of ${this.nb}`);
+    if (u32(p, 8) !== this.crc[k]) throw new Error(`the colour of block ${k} was made for another geometry`);
+    const st = this.stored[k];
+    let count = 0;
+    for (let v = 0; v < this.nv; v++) count += st[v];
+    if (p.length - 12 !== count * cc) throw new Error(`the colour of block ${k} has ${p.length - 12} bytes, the block stores ${count} voxels`);
+    const data = (j) => this.chunks[this.blkChunk[j]].subarray(20);
+    const d = data(k);
+    let o = 12;
+    for (let v = 0; v < this.nv; v++) {
+      if (st[v]) { d.set(p.subarray(o, o + cc), v * n + 1); o += cc; } else d.fill(0, v * n + 1, v * n + n);
+    }
+    this.have[k] = 1;
+    const f = this.from[k];
+    for (let i = 0; i < f.length; i += 3) d.set(data(f[i + 1]).subarray(f[i + 2] * n + 1, f[i + 2] * n + n), f[i] * n + 1);
+    const t = this.to[k], changed = [k];
+    for (let i = 0; i < t.length; i += 3) {
+      data(t[i]).set(d.subarray(t[i + 2] * n + 1, t[i + 2] * n + n), t[i + 1] * n + 1);
+      if (changed[changed.length - 1] !== t[i]) changed.push(t[i]);
+    }
+    return [...new Set(changed)];
+  }
+}
+
 // What both renderers (WebGPU, WebGL2) share: the atlas layout, the packed grid, the MLP's
 // layout, the silhouette pass's choice and the params struct (one layout: the WGSL `Params`,
 // a uniform buffer on WebGPU, a std140 uniform block on WebGL2).
@@ -998,6 +1089,8 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   let time = frag.has('time') ? parseFloat(frag.get('time')) : 0;
   let h = null, r = null, orbit = null;
   const chunks = [];
+  // The style switch in progress (switchStyle), if any.
+  let switching = null;
   let finish, abort;
   const complete = new Promise((res, rej) => { finish = res; abort = rej; });
   let seq = 0, dgram = null;
@@ -1068,7 +1161,8 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   const welcome = await readMsg(ctl);
   report.marks.welcome = performance.now();
   if (welcome.type !== 'welcome' || !welcome.asset) throw new Error('no asset in the welcome');
-  const info = welcome.asset;
+  // (another style's once a style switch has written its colour over this one)
+  let info = welcome.asset;
   report.asset = info;
   report.state = 'streaming';
   // Blocks in the order they were applied, and the stream each came on (numbered as the
@@ -1099,12 +1193,20 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
         const dpr = window.devicePixelRatio || 1;
         cv.style.width = `${cam.width / dpr}px`; cv.style.height = `${cam.height / dpr}px`; cv.style.aspectRatio = 'auto';
       }
-      // What this frame shows: the blocks uploaded before it was submitted.
-      const blocks = report.blocks, done = report.chunks === info.chunks;
+      // What this frame shows: the blocks uploaded before it was submitted (and of a style
+      // switch, the colour records written).
+      const sw = switching, applied = sw ? sw.applied : 0;
+      const blocks = report.blocks, done = report.chunks === info.chunks && (!sw || applied === sw.records);
       const ts = performance.now();
       const out = await r.render([{ cam, x: 0, y: 0 }], time, gpu.target(), capture);
       const ms = performance.now() - ts;
       report.frames++;
+      if (sw && applied > 0 && !sw.firstFrameAt) {
+        sw.firstFrameAt = performance.now();
+        sw.firstFrameRecords = applied;
+        fadeOut();
+      }
+      if (sw && applied === sw.records && !sw.completeAt) sw.completeAt = performance.now();
       const first = report.firstFrameMs === null;
       if (first) {
         report.marks.submitted = r.submittedAt;
@@ -1375,6 +1477,134 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   while (!xrActive && (!report.lastFrame || !report.lastFrame.complete || busy || dirty)) await new Promise((res) => setTimeout(res, 10));
   // Benchmarks (snerf bench web): n frames of the current view, each timed from submission
   // to the GPU finishing (ms).
+  // Style switches (PROTOCOL.md, "Style switches"): another style of this multi-style file
+  // by its colour part alone, written over the blocks held (Recolour); the density stays.
+  // The old style's last frame stays on screen over the canvas and fades out over 0.3 s from
+  // the first frame with new colour on, while the rest streams.
+  report.switches = [];
+  let recolour = null;
+  const blkChunk = new Uint32Array(info.atlas_blocks);
+  let oneBlockEach = true;
+  chunks.forEach((ck, i) => {
+    if (td.decode(ck.subarray(0, 4)) !== 'BLKS') return;
+    if (u32(ck, 16) !== 1) oneBlockEach = false; else blkChunk[u32(ck, 12)] = i;
+  });
+  const vmlpChunk = chunks.findIndex((ck) => td.decode(ck.subarray(0, 4)) === 'VMLP');
+  async function switchStyle(name, pressAt) {
+    const sw = { name, pressAt, applied: 0, records: null, bytes: 0, state: 'connecting' };
+    report.switches.push(sw);
+    fadeIn();
+    const c = camera(fixedCam ? 1 : scale);
+    const hello2 = {
+      type: 'hello', version: 1, token, asset: name, have: [], colour_of: info.geometry,
+      pose: { eye: [c.c2w[0][3], c.c2w[1][3], c.c2w[2][3]], forward: [-c.c2w[0][2], -c.c2w[1][2], -c.c2w[2][2]], time, fov_deg: fovOf(c) },
+    };
+    const { wt: w2, ctl: c2 } = await connect(hello2);
+    try {
+      const wel = await readMsg(c2);
+      sw.welcomeAt = performance.now();
+      if (wel.type !== 'welcome' || !wel.colour_only || !wel.asset || wel.asset.geometry !== info.geometry || wel.asset.atlas_blocks !== info.atlas_blocks) {
+        throw new Error(`the server did not answer the switch to ${name} by colour`);
+      }
+      sw.records = wel.sending_chunks;
+      sw.state = 'streaming';
+      if (!recolour) recolour = new Recolour(h, r.grids[0], chunks, blkChunk, r.voxelBytes);
+      switching = sw;
+      dgram = w2.datagrams.writable.getWriter();
+      let done;
+      const all = new Promise((res) => { done = res; });
+      let q = Promise.resolve();
+      const apply = (index, tag, p) => {
+        if (tag === 'SMLP') {
+          if (index !== vmlpChunk || p.length !== 4 + 883 * 4) throw new Error('a view MLP record that does not fit');
+          r.setMlp(p.subarray(4));
+          const ck = new Uint8Array(12 + p.length - 4);
+          ck.set(chunks[index].subarray(0, 8)); ck.set(p.subarray(4), 12);
+          chunks[index] = ck;
+        } else if (tag === 'SCOL') {
+          if (blkChunk[u32(p, 4)] !== index) throw new Error(`colour of block ${u32(p, 4)} under chunk ${index}`);
+          for (const b of recolour.apply(p)) r.setBlocks(b, 1, chunks[blkChunk[b]].subarray(20));
+        } else throw new Error(`a ${tag} record in a switch`);
+        sw.applied++;
+        if (sw.applied === 1) sw.firstRecordAt = performance.now();
+        redraw();
+        if (sw.applied === sw.records) done();
+      };
+      const readColour = async (st) => {
+        const rd = new Reader(st);
+        for (;;) {
+          const head = await rd.take(16);
+          if (!head) return;
+          const index = u32(head, 0), len = u32(head, 8), crc = u32(head, 12);
+          if (index >= info.chunks || len > info.size) throw new Error(`bad record for chunk ${index}`);
+          const p = len ? await rd.take(len) : new Uint8Array(0);
+          if (crc32(p) !== crc) throw new Error(`chunk ${index}: checksum mismatch`);
+          sw.bytes += 16 + len;
+          const tag = td.decode(head.subarray(4, 8));
+          q = q.then(() => apply(index, tag, p));
+        }
+      };
+      const failed = new Promise((_, rej) => {
+        w2.closed.then((i) => rej(new Error(`the server closed the switch (code ${i.closeCode}: ${i.reason})`)), (e) => rej(e));
+        (async () => {
+          const uni = w2.incomingUnidirectionalStreams.getReader();
+          for (;;) {
+            const { value, done: end } = await uni.read();
+            if (end) return;
+            readColour(value).catch(rej);
+          }
+        })().catch(rej);
+      });
+      failed.catch(() => {});
+      if (sw.records > 0) await Promise.race([all, failed]);
+      await q;
+      sw.receivedAt = performance.now();
+      try { w2.close({ closeCode: 0, reason: 'done' }); } catch { /* closed */ }
+      // The new style's file, end to end: its chunks (CRCs of the rewritten ones anew) hash
+      // to the server's SHA-256 of that style.
+      for (let k = 0; k < info.atlas_blocks; k++) {
+        const ck = chunks[blkChunk[k]];
+        new DataView(ck.buffer, ck.byteOffset).setUint32(8, crc32(ck.subarray(12)), true);
+      }
+      if (vmlpChunk >= 0) new DataView(chunks[vmlpChunk].buffer, chunks[vmlpChunk].byteOffset).setUint32(8, crc32(chunks[vmlpChunk].subarray(12)), true);
+      const parts = [unhex(wel.asset.preamble), ...chunks];
+      const file = new Uint8Array(parts.reduce((a, b) => a + b.length, 0));
+      let o = 0;
+      for (const part of parts) { file.set(part, o); o += part.length; }
+      const sha = hex(new Uint8Array(await crypto.subtle.digest('SHA-256', file)));
+      if (sha !== wel.asset.sha256) throw new Error(`after the switch to ${name} the SHA-256 is ${sha}, the server's is ${wel.asset.sha256}`);
+      info = wel.asset;
+      report.asset = info; report.sha256 = sha;
+      sw.state = 'done';
+      setStatus(`${info.name}: switched by its colour (${sw.bytes} bytes), SHA-256 verified`);
+      // the complete view: a frame drawn after the last record
+      redraw();
+      while (!sw.completeAt && !xrActive) await new Promise((res) => setTimeout(res, 5));
+    } catch (e) {
+      sw.state = 'error'; sw.error = String(e.message || e);
+      fadeOut();
+      try { w2.close({ closeCode: 0, reason: 'done' }); } catch { /* closed */ }
+      throw e;
+    } finally {
+      if (switching === sw) switching = null;
+      dgram = null;
+    }
+  }
+  let queued = null, inFlight = false;
+  active = {
+    // Whether `name` is another style of this file that a switch by colour can reach.
+    canSwitch: (name) => !!info.geometry && oneBlockEach && (vmlpChunk >= 0) === !h.diffuse && report.transport === 'webtransport' &&
+      !!report.styles && report.styles.includes(name),
+    current: () => (queued ? queued[0] : switching ? switching.name : info.name),
+    switchTo: async (name) => {
+      const pressAt = performance.now();
+      if (inFlight) { queued = [name, pressAt]; return; }
+      inFlight = true;
+      try {
+        for (let next = [name, pressAt]; next; next = queued, queued = null) await switchStyle(next[0], next[1]);
+      } finally { inFlight = false; }
+    },
+  };
   report.benchFrames = async (n, cam0) => {
     const out = [];
     for (let i = 0; i < n; i++) {
@@ -1484,10 +1714,40 @@ function showListing(assets) {
   return assets;
 }
 
-// Open asset `name` (a reload with it in the fragment).
+// The stream on screen, once complete: whether it can switch to another style of its file
+// by colour alone, and the switch (see `stream`).
+let active = null;
+
+// Open asset `name`: another style of the asset on screen by its colour alone, where the
+// server and the transport allow it; else a reload with it in the fragment.
 function viewAsset(name) {
-  location.hash = new URLSearchParams({ ...Object.fromEntries(frag), asset: name }).toString();
+  const hash = new URLSearchParams({ ...Object.fromEntries(frag), asset: name }).toString();
+  if (active && active.current() === name) return;
+  if (active && active.canSwitch(name)) {
+    history.replaceState(null, '', '#' + hash);
+    active.switchTo(name).catch((e) => {
+      setStatus(`switch to ${name}: ${e.message || e}; loading it whole`);
+      location.reload();
+    });
+    return;
+  }
+  location.hash = hash;
   location.reload();
+}
+
+// The cross-fade of a style switch: the canvas's last frame of the old style, held over it
+// until the first frame with the new colour is drawn, then faded out over 0.3 s.
+function fadeIn() {
+  const cv = $('canvas'), f = $('fade');
+  f.width = cv.width; f.height = cv.height;
+  f.style.width = `${cv.clientWidth}px`; f.style.height = `${cv.clientHeight}px`;
+  f.style.transition = 'none'; f.style.opacity = '1';
+  f.getContext('2d').drawImage(cv, 0, 0);
+}
+function fadeOut() {
+  const f = $('fade');
+  f.style.transition = 'opacity 0.3s linear';
+  f.style.opacity = '0';
 }
 
 // Keys 1..9: the shown asset's styles, when it has several (`report.styles`, from the listing).

@@ -33,6 +33,7 @@ fuzz_target!(|data: &[u8]| {
         preamble: proto::to_hex(&snerf_asset::preamble()),
         atlas_blocks: 4,
         frames: 1,
+        geometry: None,
     };
     let mut c = Collector::new(info).unwrap();
     let mut pos = 0;
