@@ -15,6 +15,7 @@ mod quality;
 mod snerf_grid;
 mod style_metric;
 mod web;
+mod web_switch;
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCmd {
@@ -52,6 +53,12 @@ pub enum BenchCmd {
     /// Quest 3 at its per-eye size, against wgpu (lavapipe without a GPU). Needs Chromium,
     /// Node.js and playwright-core/iwer (`bash .ci/run` installs them).
     Web(web::BenchWebArgs),
+    /// Switch latency between the styles of a multi-style asset on loopback: in headless
+    /// Chromium, key press -> first repainted frame and -> complete view, each switch sending
+    /// the new style's colour part only; beside it the page opening the style whole, and the
+    /// native client's switch by colour and whole fetch. Needs Chromium, Node.js and
+    /// playwright-core (`bash .ci/run` installs them).
+    WebSwitch(web_switch::BenchWebSwitchArgs),
     /// A published scene (`snerf publish`) behind a real CDN edge on loopback (caddy origin,
     /// varnish edge): object sizes compared, N simulated viewers through the edge (byte-identical,
     /// p50/p99 times, origin requests per viewer, hit ratio), and the same viewers against
@@ -119,6 +126,7 @@ pub fn run(cmd: &BenchCmd) -> Result<Value> {
         BenchCmd::Snerf(a) => snerf_grid::run(a),
         BenchCmd::StyleMetric(a) => style_metric::run(a),
         BenchCmd::Web(a) => web::run(a),
+        BenchCmd::WebSwitch(a) => web_switch::run(a),
         BenchCmd::Publish(a) => publish::run(a),
         BenchCmd::Report(a) => report(a),
         BenchCmd::CaptureDepth(a) => capture_depth::run(a),

@@ -55,7 +55,7 @@ fn root() -> PathBuf {
 }
 
 /// (chromium, playwright-core's directory) or a clear error saying how to get them.
-fn browser() -> Result<(PathBuf, PathBuf)> {
+pub(super) fn browser() -> Result<(PathBuf, PathBuf)> {
     let chromium = std::env::var_os("SNERF_CHROMIUM").map(PathBuf::from).unwrap_or_else(|| "/usr/bin/chromium".into());
     let pw = root().join("target/test-assets/playwright");
     if !chromium.exists() {
@@ -83,7 +83,7 @@ fn page_job(chromium: &Path, pw: &Path, job: &Value) -> Result<Value> {
 }
 
 /// The 1-, 5- and 15-minute load averages (Linux), to say how loaded the machine was.
-fn load_average() -> Option<[f64; 3]> {
+pub(super) fn load_average() -> Option<[f64; 3]> {
     let s = std::fs::read_to_string("/proc/loadavg").ok()?;
     let v: Vec<f64> = s.split_whitespace().take(3).filter_map(|x| x.parse().ok()).collect();
     (v.len() == 3).then(|| [v[0], v[1], v[2]])
@@ -101,13 +101,13 @@ fn spread(xs: &[f64]) -> (f64, f64, f64) {
     (m, s[0], s[n - 1])
 }
 
-fn stats(xs: &[f64]) -> Value {
+pub(super) fn stats(xs: &[f64]) -> Value {
     let (m, lo, hi) = spread(xs);
     json!({ "runs": xs, "median": m, "min": lo, "max": hi })
 }
 
 /// "median [min–max]" with `d` decimals.
-fn fmt_spread(xs: &[f64], d: usize) -> String {
+pub(super) fn fmt_spread(xs: &[f64], d: usize) -> String {
     let (m, lo, hi) = spread(xs);
     if xs.len() < 2 {
         return format!("{m:.d$}");
@@ -393,7 +393,7 @@ fn nums(v: &Value) -> Vec<f64> {
     v.as_array().map(|a| a.iter().map(num).collect()).unwrap_or_default()
 }
 
-fn urlencode(s: &str) -> String {
+pub(super) fn urlencode(s: &str) -> String {
     s.bytes()
         .map(|b| match b {
             b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' => (b as char).to_string(),

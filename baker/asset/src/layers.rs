@@ -269,6 +269,13 @@ impl Recolour {
         Recolour { blocks, from, to, mlp: h.diffuse, have: vec![false; n], diffuse: h.diffuse }
     }
 
+    /// Ready for another style's colour part over the same geometry (the tables depend on the
+    /// density alone, so one `Recolour` serves every switch of an asset).
+    pub fn restart(&mut self) {
+        self.have.fill(false);
+        self.mlp = self.diffuse;
+    }
+
     /// Blocks of the asset.
     pub fn blocks(&self) -> usize {
         self.have.len()

@@ -19,7 +19,7 @@ use crate::url::{parse_url, resolve};
 /// What a switch did.
 #[derive(Clone, Debug)]
 pub struct Switched {
-    /// The new style's single-style asset (the held one, recoloured).
+    /// The new style's asset information (the welcome's).
     pub info: AssetInfo,
     /// Record bytes received (chunk index + chunk).
     pub bytes: u64,
@@ -41,7 +41,24 @@ pub async fn switch_style(
     held_info: &AssetInfo,
     pose: Option<Pose>,
 ) -> Result<Switched> {
+    let mut recolour = Recolour::new(held);
+    switch_style_with(url, pin, token, held, held_info, pose, &mut recolour).await
+}
+
+/// `switch_style` with the asset's `Recolour` made beforehand (`Recolour::new(held)`, which
+/// depends on the geometry alone: one serves every switch of that asset).
+pub async fn switch_style_with(
+    url: &str,
+    pin: &str,
+    token: &str,
+    held: &mut Asset,
+    held_info: &AssetInfo,
+    pose: Option<Pose>,
+    recolour: &mut Recolour,
+) -> Result<Switched> {
     let t0 = Instant::now();
+    recolour.restart();
+    ensure!(recolour.blocks() == held.header.atlas_blocks as usize, "a Recolour made for another asset");
     let geometry = held_info
         .geometry
         .clone()
@@ -70,7 +87,6 @@ pub async fn switch_style(
     let (tx, mut rx) = mpsc::channel::<Record>(256);
     let conn = session.conn.clone();
     let recv_task = tokio::spawn(receive(conn.clone(), info.clone(), tx, bytes.clone(), None));
-    let mut recolour = Recolour::new(held);
     let (mut records, mut first_record) = (0u32, None);
     let r = async {
         while records < session.sending_chunks {
@@ -112,7 +128,7 @@ pub async fn switch_style(
     })
 }
 
-/// `switch_style` on a runtime of its own, for synchronous callers.
+/// `switch_style_with` on a runtime of its own, for synchronous callers.
 pub fn switch_style_blocking(
     url: &str,
     pin: &str,
@@ -120,11 +136,12 @@ pub fn switch_style_blocking(
     held: &mut Asset,
     held_info: &AssetInfo,
     pose: Option<Pose>,
+    recolour: &mut Recolour,
 ) -> Result<Switched> {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .map_err(|e| anyhow!("cannot start the tokio runtime: {e}"))?
-        .block_on(switch_style(url, pin, token, held, held_info, pose))
+        .block_on(switch_style_with(url, pin, token, held, held_info, pose, recolour))
 }

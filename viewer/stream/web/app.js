@@ -506,21 +506,21 @@ class Recolour {
       for (let c = 0; c < grid.length; c++) if (grid[c] !== EMPTY) { uses[grid[c]]++; cellOf[grid[c]] = c; }
       for (let k = 0; k < nb; k++) if (uses[k] !== 1) cellOf[k] = -1;
     }
-    // (apron voxel v of block k) -> [holder block, its voxel], or null
-    const owner = (k, v) => {
-      const c = cellOf[k];
-      if (c < 0) return null;
-      const l = [v % e, Math.floor(v / e) % e, Math.floor(v / (e * e))];
-      if (l.every((x) => x >= 1 && x <= b)) return null;
-      const cell = [c % g, Math.floor(c / g) % g, Math.floor(c / (g * g))], oc = [0, 0, 0], ol = [0, 0, 0];
-      for (let a = 0; a < 3; a++) {
-        const gi = cell[a] * b + l[a] - 1;
-        if (gi < 0 || gi >= g * b) return null;
-        oc[a] = Math.floor(gi / b); ol[a] = gi - oc[a] * b + 1;
-      }
-      const o = grid[(oc[2] * g + oc[1]) * g + oc[0]];
+    // Per axis, a block-local index l of cell coordinate c: [holder's cell coordinate, its
+    // local index], or null off the grid.
+    const axis = (c, l) => {
+      const gi = c * b + l - 1;
+      if (gi < 0 || gi >= g * b) return null;
+      const oc = Math.floor(gi / b);
+      return [oc, gi - oc * b + 1];
+    };
+    // apron voxel (x, y, z) of the block of cell c: [holder block, its voxel], or null
+    const owner = (c, x, y, z) => {
+      const ax = axis(c % g, x), ay = axis(Math.floor(c / g) % g, y), az = axis(Math.floor(c / (g * g)), z);
+      if (!ax || !ay || !az) return null;
+      const o = grid[(az[0] * g + ay[0]) * g + ax[0]];
       if (o === EMPTY || cellOf[o] < 0) return null;
-      return [o, (ol[2] * e + ol[1]) * e + ol[0]];
+      return [o, (az[1] * e + ay[1]) * e + ax[1]];
     };
     this.stored = []; this.crc = new Uint32Array(nb); this.from = []; this.to = Array.from({ length: nb }, () => []);
     for (let k = 0; k < nb; k++) {
@@ -541,8 +541,9 @@ class Recolour {
       }
       const from = [];
       if (cellOf[k] >= 0) {
-        for (let v = 0; v < nv; v++) {
-          const o = owner(k, v);
+        for (let z = 0, v = 0; z < e; z++) for (let y = 0; y < e; y++) for (let x = 0; x < e; x++, v++) {
+          if (x >= 1 && x <= b && y >= 1 && y <= b && z >= 1 && z <= b) continue; // interior: its own
+          const o = owner(cellOf[k], x, y, z);
           if (o) { from.push(v, o[0], o[1]); this.to[o[0]].push(k, v, o[1]); live[v] = 0; }
         }
       }
@@ -1089,8 +1090,15 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   let time = frag.has('time') ? parseFloat(frag.get('time')) : 0;
   let h = null, r = null, orbit = null;
   const chunks = [];
-  // The style switch in progress (switchStyle), if any.
+  // The style switch in progress (switchStyle), if any, and the blocks it recoloured that
+  // are not uploaded yet.
   let switching = null;
+  const recoloured = new Set();
+  function flushRecoloured() {
+    if (!recoloured.size) return;
+    for (const b of recoloured) r.setBlocks(b, 1, chunks[blkChunk[b]].subarray(20));
+    recoloured.clear();
+  }
   let finish, abort;
   const complete = new Promise((res, rej) => { finish = res; abort = rej; });
   let seq = 0, dgram = null;
@@ -1195,6 +1203,7 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
       }
       // What this frame shows: the blocks uploaded before it was submitted (and of a style
       // switch, the colour records written).
+      flushRecoloured();
       const sw = switching, applied = sw ? sw.applied : 0;
       const blocks = report.blocks, done = report.chunks === info.chunks && (!sw || applied === sw.records);
       const ts = performance.now();
@@ -1245,7 +1254,8 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
     // resolution) comes once nothing has changed for a moment, and only when it can draw
     // (before the scene is renderable a refinement would be spent on nothing).
     if (moving || dirty) { refined = false; lastScaled = now; frameNow(scale); }
-    else if (!refined && !busy && ready() && now - lastScaled > 250) { refined = true; frameNow(1); }
+    // (not while a style switch streams: a full-resolution march would hold back its frames)
+    else if (!refined && !busy && ready() && !switching && now - lastScaled > 250) { refined = true; frameNow(1); }
   }
   requestAnimationFrame(tick);
 
@@ -1509,6 +1519,7 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
       sw.records = wel.sending_chunks;
       sw.state = 'streaming';
       if (!recolour) recolour = new Recolour(h, r.grids[0], chunks, blkChunk, r.voxelBytes);
+      recolour.have.fill(0);
       switching = sw;
       dgram = w2.datagrams.writable.getWriter();
       let done;
@@ -1523,7 +1534,8 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
           chunks[index] = ck;
         } else if (tag === 'SCOL') {
           if (blkChunk[u32(p, 4)] !== index) throw new Error(`colour of block ${u32(p, 4)} under chunk ${index}`);
-          for (const b of recolour.apply(p)) r.setBlocks(b, 1, chunks[blkChunk[b]].subarray(20));
+          // uploaded once per frame (flushRecoloured): a block's neighbours change with it
+          for (const b of recolour.apply(p)) recoloured.add(b);
         } else throw new Error(`a ${tag} record in a switch`);
         sw.applied++;
         if (sw.applied === 1) sw.firstRecordAt = performance.now();
@@ -1589,6 +1601,14 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
       if (switching === sw) switching = null;
       dgram = null;
     }
+  }
+  // The switch's tables (live and stored voxels, apron holders) depend on the geometry
+  // alone: made once, while the page is idle, rather than after the first press.
+  if (info.geometry && oneBlockEach) {
+    (window.requestIdleCallback || setTimeout)(() => {
+      if (!recolour) recolour = new Recolour(h, r.grids[0], chunks, blkChunk, r.voxelBytes);
+      report.switchReady = true;
+    });
   }
   let queued = null, inFlight = false;
   active = {

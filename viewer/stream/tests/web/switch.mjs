@@ -20,7 +20,15 @@ try {
   const settled = (w) => window.snerf && (window.snerf.state === w || window.snerf.state === 'error');
   await page.waitForFunction(settled, 'done', { timeout: 240000, polling: 50 });
   const presses = keys ? keys.split(',') : [];
+  // As a person looks before pressing: the still view's full-resolution frame drawn (no march
+  // in flight), the switch's tables made (the page does that while idle), the fade over.
+  const idle = () => {
+    const s = window.snerf;
+    return s.state === 'error' || (s.switchReady && s.lastFrame && s.lastFrame.complete && s.lastFrame.scale === 1);
+  };
   for (let i = 0; i < presses.length; i++) {
+    await page.waitForFunction(idle, null, { timeout: 240000, polling: 20 });
+    await page.waitForTimeout(400);
     if (await page.evaluate(() => window.snerf.state === 'error')) break;
     await page.keyboard.press(presses[i]);
     await page.waitForFunction((n) => {
