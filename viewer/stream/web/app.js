@@ -1608,7 +1608,7 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
     (window.requestIdleCallback || setTimeout)(() => {
       if (!recolour) recolour = new Recolour(h, r.grids[0], chunks, blkChunk, r.voxelBytes);
       report.switchReady = true;
-    });
+    }, { timeout: 1000 });
   }
   let queued = null, inFlight = false;
   active = {
