@@ -223,7 +223,7 @@ fn turntable_poses_match_the_rig_up_to_similarity() {
 /// @webrotate360/imagerotator 5.4.0 ships (36 JPEG photos, 950x494, of a shoe on a turntable
 /// before a white backdrop, one photo every 10 degrees of the turntable), fetched and checked by
 /// SHA-256 by scripts/setup-capture.sh. Seen from the shoe, the camera goes round a circle in
-/// equal steps. All 36 register; seen from the normal of their plane, every step turns the same
+/// equal steps. All 36 register; seen along the normal of their ring, every step turns the same
 /// way by 10 +- 1.5 degrees (measured 9.7-10.3) and the 35 steps by 350 +- 5 (350.05); every
 /// centre lies within 3% of the mean radius (in-plane) and off the plane by under 3% of it
 /// (measured 0.5% and 1.1%). `--threads 1`: pycolmap's seeded mapping repeats exactly. The same
@@ -320,10 +320,10 @@ fn castel_depths_agree_with_the_sensor_under_one_scale() {
     assert!(!o.status.success() && err.contains("depth_M_color.txt"), "{err}");
 }
 
-/// A chain of camera centres seen from the normal of their best plane through their centroid:
-/// the signed angle each step turns about that normal (the normal is oriented so that the chain
-/// as a whole turns positively), each centre's distance from the centroid within the plane, and
-/// its distance off the plane. All three are unchanged by a similarity, so COLMAP's arbitrary
+/// A chain of camera centres seen along the normal of the area it sweeps round its centroid (for
+/// a ring, the normal of the ring's plane, oriented so that the chain as a whole turns
+/// positively): the signed angle each step turns about that normal, each centre's distance from
+/// the centroid within the plane, and its distance off the plane. All three are unchanged by a similarity, so COLMAP's arbitrary
 /// frame and scale do not matter.
 struct Ring {
     turns: Vec<f64>,
