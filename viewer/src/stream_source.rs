@@ -1,9 +1,16 @@
 //! A `snerf-stream` live client as a viewer source: the asset is drawn as soon as it can be
 //! (header, grids and view MLP arrived; blocks not yet arrived draw empty), then follows the
 //! stream: changed keyframe grids first, then the blocks as they arrive. The viewer's pose
-//! goes back to the server so the blocks in view come first.
+//! goes back to the server so the blocks in view come first. A style of a multi-style asset
+//! switches to the file's other styles by keys 1..9 once it is complete: each switch streams
+//! the new style's colour part only (`snerf_stream::restyle`), written over the asset held on a
+//! thread of its own; the window then gets the new style whole (same geometry: the view stays).
 
+use snerf_asset::{Asset, Recolour};
+use snerf_stream::proto::AssetInfo;
 use snerf_stream::LiveAsset;
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
 
 use crate::window::{AssetSource, AssetUpdate};
 
@@ -12,16 +19,49 @@ pub struct StreamSource {
     sent: bool,
     grids: Vec<Vec<u32>>,
     generation: u64,
+    styles: Option<Styles>,
+}
+
+/// What switching styles over the stream needs: the server, the file's style names (from its
+/// listing, read in the background), the style held after a switch, and a switch under way.
+struct Styles {
+    /// `quic://HOST:PORT/` of the server, its pin and token.
+    base: String,
+    pin: String,
+    token: String,
+    /// (the file's served name, its style names), once the listing has come.
+    names: Arc<Mutex<Option<(String, Vec<String>)>>>,
+    /// After a switch: the style shown (its asset and information) and its `Recolour`.
+    held: Option<(Asset, AssetInfo, Recolour)>,
+    running: Option<(String, mpsc::Receiver<anyhow::Result<(Asset, AssetInfo, Recolour)>>)>,
 }
 
 impl StreamSource {
     pub fn new(live: LiveAsset) -> StreamSource {
-        StreamSource { live, sent: false, grids: Vec::new(), generation: 0 }
+        StreamSource { live, sent: false, grids: Vec::new(), generation: 0, styles: None }
     }
 
     /// Connect to `quic://HOST:PORT/ASSET` (pinned certificate, access token).
     pub fn connect(url: &str, pin: &str, token: &str) -> anyhow::Result<StreamSource> {
-        Ok(StreamSource::new(LiveAsset::connect(url, pin, token)?))
+        let mut s = StreamSource::new(LiveAsset::connect(url, pin, token)?);
+        let (hp, asset) = snerf_stream::parse_url(url)?;
+        let names = Arc::new(Mutex::new(None));
+        let (n2, base) = (names.clone(), format!("quic://{hp}/"));
+        let (b2, p2, t2) = (base.clone(), pin.to_string(), token.to_string());
+        // The listing says whether the asset is a style of a multi-style file and names its
+        // styles; without it (an older server, an error) there are simply no style keys.
+        std::thread::spawn(move || {
+            let Ok(list) = snerf_stream::list_blocking(&b2, &p2, &t2) else { return };
+            for e in list {
+                let Some(st) = e.styles else { continue };
+                let ours = asset == e.name || st.iter().any(|s| asset == format!("{}.{}", e.name, s.name));
+                if ours {
+                    *n2.lock().unwrap_or_else(|p| p.into_inner()) = Some((e.name, st.into_iter().map(|s| s.name).collect()));
+                }
+            }
+        });
+        s.styles = Some(Styles { base, pin: pin.to_string(), token: token.to_string(), names, held: None, running: None });
+        Ok(s)
     }
 
     /// The client underneath (completion, errors, bytes received).
@@ -32,6 +72,24 @@ impl StreamSource {
 
 impl AssetSource for StreamSource {
     fn poll(&mut self) -> Option<AssetUpdate> {
+        if let Some(st) = &mut self.styles {
+            if let Some((name, rx)) = &st.running {
+                match rx.try_recv() {
+                    Err(mpsc::TryRecvError::Empty) => {}
+                    Err(mpsc::TryRecvError::Disconnected) => st.running = None,
+                    Ok(Err(e)) => {
+                        eprintln!("snerf view: switching to {name}: {e:#}");
+                        st.running = None;
+                    }
+                    Ok(Ok((asset, info, recolour))) => {
+                        st.running = None;
+                        let whole = asset.clone();
+                        st.held = Some((asset, info, recolour));
+                        return Some(AssetUpdate::Whole(Box::new(whole)));
+                    }
+                }
+            }
+        }
         let g = self.live.generation();
         if self.sent && g == self.generation {
             return None;
@@ -70,7 +128,43 @@ impl AssetSource for StreamSource {
         self.live.set_pose(eye, forward);
     }
 
+    fn select_style(&mut self, i: usize) -> Option<String> {
+        let st = self.styles.as_mut()?;
+        let (stem, names) = st.names.lock().unwrap_or_else(|p| p.into_inner()).clone()?;
+        let style = names.get(i)?.clone();
+        let target = format!("{stem}.{style}");
+        let shown = match (&st.running, &st.held) {
+            (Some((n, _)), _) => n.clone(),
+            (None, Some((_, info, _))) => info.name.clone(),
+            (None, None) => self.live.info().name.clone(),
+        };
+        let first = shown == stem && i == 0;
+        if st.running.is_some() || target == shown || first || !self.live.is_complete() {
+            return None;
+        }
+        let (mut asset, info, recolour) = match st.held.take() {
+            Some(h) => h,
+            None => {
+                let a = self.live.with_asset(|a| a.clone())?;
+                let r = Recolour::new(&a);
+                (a, self.live.info().clone(), r)
+            }
+        };
+        let (tx, rx) = mpsc::channel();
+        let (url, pin, token) = (format!("{}{}", st.base, target), st.pin.clone(), st.token.clone());
+        std::thread::spawn(move || {
+            let mut recolour = recolour;
+            let r = snerf_stream::restyle::switch_style_blocking(&url, &pin, &token, &mut asset, &info, None, &mut recolour);
+            let _ = tx.send(r.map(|sw| (asset, sw.info, recolour)));
+        });
+        st.running = Some((target, rx));
+        Some(style)
+    }
+
     fn status(&self) -> Option<String> {
+        if let Some((name, _)) = self.styles.as_ref().and_then(|s| s.running.as_ref()) {
+            return Some(format!("switching to {name}"));
+        }
         if let Some(e) = self.live.error() {
             return Some(format!("stream error: {e}"));
         }

@@ -368,12 +368,16 @@ struct App {
     last_tick: Instant,
     device_recreations: u32,
     vsync: bool,
+    /// A style key pressed (when, the style, whether its asset has arrived): the first frame
+    /// drawn with it is reported with the time since the key (the switch's latency).
+    style_key: Option<(Instant, String, bool)>,
 }
 
 impl App {
     fn new(source: Box<dyn AssetSource>, opts: ViewOptions, poses: Vec<PoseSample>) -> App {
         let now = Instant::now();
         App {
+            style_key: None,
             vsync: opts.vsync,
             opts,
             source,
@@ -570,6 +574,19 @@ impl App {
             let Some(g) = self.gfx.as_ref() else { break };
             match u {
                 AssetUpdate::Whole(asset) => {
+                    if let Some(k) = &mut self.style_key {
+                        k.2 = true;
+                    }
+                    // Another asset of the same header (another style of a multi-style file):
+                    // the renderer stays (its pipeline and buffers fit); only the blocks, grids
+                    // and view MLP are uploaded again.
+                    if let Some(s) = self.scene.as_mut().filter(|s| s.asset.header == asset.header) {
+                        let all: Vec<u32> = (0..asset.header.atlas_blocks).collect();
+                        s.renderer.update_blocks(&asset, &all)?;
+                        s.renderer.update_mlp(&asset.mlp)?;
+                        s.asset = *asset;
+                        continue;
+                    }
                     let controller = match self.scene.take() {
                         Some(s)
                             if s.asset.header.kind == asset.header.kind
@@ -835,6 +852,12 @@ impl App {
         }
         g.ctx.queue.present(frame);
         self.presented += 1;
+        if let (true, Some((at, name, true))) = (marched, &self.style_key) {
+            // the frame's GPU work done, then the time since the key
+            let _ = g.ctx.wait();
+            eprintln!("snerf view: style {name} drawn {:.0} ms after its key", at.elapsed().as_secs_f64() * 1e3);
+            self.style_key = None;
+        }
         self.marched_frames += marched as u64;
         if suboptimal {
             self.reconfigure()?;
@@ -945,6 +968,7 @@ impl App {
                 if let Some(i) = style_key(code) {
                     if let Some(name) = self.source.select_style(i) {
                         eprintln!("snerf view: style {} ({name})", i + 1);
+                        self.style_key = Some((Instant::now(), name, false));
                     }
                 }
             }

@@ -77,3 +77,64 @@ fn a_streamed_asset_is_drawable_early_and_exact_at_the_end() {
 
     server.shutdown();
 }
+
+/// A style of a multi-style asset over the stream: once complete, a style key
+/// (`select_style`) switches by the new style's colour part alone (the server's count: that
+/// part and a 4-byte index a record), and the window gets the new style whole, exactly; then
+/// back. Keys for the style shown or a style the file lacks do nothing.
+#[test]
+fn a_streamed_style_switches_by_its_colour_part() {
+    use snerf_asset::{LayeredAsset, StyleInfo};
+    use snerf_viewer::window::AssetUpdate;
+    let dir = common::tmp("stream-styles");
+    std::fs::create_dir_all(dir.join("assets")).unwrap();
+    let warm = common::object_asset();
+    let mut cold = warm.clone();
+    for v in cold.atlas.chunks_exact_mut(8) {
+        for c in &mut v[1..] {
+            *c = 255 - *c;
+        }
+    }
+    let info = |n: &str| StyleInfo { name: n.into(), source: None, swatch: [0.5; 3] };
+    let layered = LayeredAsset::new(vec![info("warm"), info("cold")], vec![warm, cold]).unwrap();
+    layered.write(dir.join("assets").join("scene.snerf")).unwrap();
+    let server = serve(&dir);
+    let mut src = StreamSource::connect(&server.url("scene.warm"), server.fingerprint(), server.token()).unwrap();
+    let mut held = None;
+    follow(&mut src, &mut held);
+    assert!(held.as_ref() == Some(&layered.layers[0]));
+    let give_up = Instant::now() + Duration::from_secs(60);
+    let switch = |src: &mut StreamSource, i: usize, name: &str| {
+        // the listing (which names the styles) comes in the background
+        let got = loop {
+            if let Some(n) = src.select_style(i) {
+                break n;
+            }
+            assert!(Instant::now() < give_up, "no style keys");
+            std::thread::sleep(Duration::from_millis(5));
+        };
+        assert_eq!(got, name);
+        assert_eq!(src.select_style(i), None, "a switch under way");
+        loop {
+            match src.poll() {
+                Some(AssetUpdate::Whole(a)) => break *a,
+                Some(_) => panic!("a switch yields the style whole"),
+                None => {}
+            }
+            assert!(Instant::now() < give_up, "the switch did not complete: {:?}", src.status());
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    };
+    let stats = server.stats().clone();
+    let before = stats.colour_bytes_sent.load(std::sync::atomic::Ordering::Relaxed);
+    let a = switch(&mut src, 1, "cold");
+    assert!(a == layered.layers[1], "the switched asset is the cold style exactly");
+    let records = layered.header().atlas_blocks as u64 + 1;
+    let sent = stats.colour_bytes_sent.load(std::sync::atomic::Ordering::Relaxed) - before;
+    assert_eq!(sent, layered.style_bytes()[1].bytes + 4 * records);
+    assert_eq!(src.select_style(1), None, "already shown");
+    assert_eq!(src.select_style(5), None, "no sixth style");
+    let a = switch(&mut src, 0, "warm");
+    assert!(a == layered.layers[0], "and back");
+    server.shutdown();
+}

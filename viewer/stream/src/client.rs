@@ -860,6 +860,15 @@ pub async fn fetch_with(
 }
 
 /// Blocking `fetch` on a private runtime.
+/// `list` on a runtime of its own, for synchronous callers.
+pub fn list_blocking(url: &str, pin: &str, token: &str) -> Result<Vec<ListEntry>> {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the tokio runtime")?
+        .block_on(list(url, pin, token))
+}
+
 pub fn fetch_blocking(url: &str, pin: &str, token: &str, out: &Path) -> Result<FetchStats> {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -56,7 +56,7 @@ pub mod url;
 pub mod web;
 mod web_cert;
 
-pub use client::{fetch, fetch_blocking, fetch_with, list, part_path, ClientOptions, FetchStats};
+pub use client::{fetch, fetch_blocking, fetch_with, list, list_blocking, part_path, ClientOptions, FetchStats};
 pub use live::LiveAsset;
 pub use proto::{Pose, ALPN, DEFAULT_PORT, PROTOCOL_VERSION};
 pub use server::{
