@@ -487,3 +487,32 @@ fn silhouette_pixels_match_cpu() {
     check("object, trained on coarser pixels", &a, &mut GpuRenderer::new(&a).unwrap(), &c, 0.0);
     assert_eq!(diff(&snerf_asset::render(&a, &c, 0.0), &one).max, 0.0);
 }
+
+/// Another style over the same geometry into the renderer that drew the first (what the
+/// window does when a style key's asset arrives: every block and the view MLP uploaded again,
+/// no new pipeline): it draws the new style like the CPU reference, not the old one.
+#[test]
+fn another_style_uploaded_into_the_same_renderer_matches_cpu() {
+    if !have_gpu("another_style_uploaded_into_the_same_renderer_matches_cpu") {
+        return;
+    }
+    let warm = object_asset();
+    let mut cold = warm.clone();
+    for v in cold.atlas.chunks_exact_mut(8) {
+        for c in &mut v[1..] {
+            *c = 255 - *c;
+        }
+    }
+    for w in cold.mlp.b3.iter_mut() {
+        *w = -*w;
+    }
+    let c = cams(&warm.header, 3, W, H)[0];
+    let mut r = GpuRenderer::new(&warm).unwrap();
+    check("style 1", &warm, &mut r, &c, 0.0);
+    let all: Vec<u32> = (0..cold.header.atlas_blocks).collect();
+    r.update_blocks(&cold, &all).unwrap();
+    r.update_mlp(&cold.mlp).unwrap();
+    check("style 2 in the same renderer", &cold, &mut r, &c, 0.0);
+    let old = diff(&r.render(&c, 0.0).unwrap(), &snerf_asset::render(&warm, &c, 0.0));
+    assert!(old.mean > 5.0 / 255.0, "the two styles draw alike: the test would not see a stale upload ({})", old.mean);
+}
