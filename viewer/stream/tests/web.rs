@@ -1529,7 +1529,8 @@ fn switch_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, keys: &str) -> serde_
 /// style's colour part (the page's count and the server's: the style's SMLP and SCOL chunks
 /// and a 4-byte index per record, well below the whole style), the page rebuilds the new
 /// style's file byte for byte (its SHA-256), and its frame at a fixed camera is the CPU
-/// reference's of the style it switched to, not of the one it left.
+/// reference's of the style it switched to, not of the one it left. Each switch fades from a
+/// frame of the old style.
 #[test]
 fn a_style_switch_in_the_page_streams_only_the_colour_part_and_draws_the_new_style() {
     let Some(b) = browser() else { return };
@@ -1563,6 +1564,9 @@ fn a_style_switch_in_the_page_streams_only_the_colour_part_and_draws_the_new_sty
         assert!(t("firstFrameAt") <= t("completeAt"), "{sw}");
         sent += want;
     }
+    // each switch faded from a frame of the old style (copied off the WebGPU canvas as drawn)
+    assert_eq!(r["fadeShown"].as_u64(), Some(3));
+    assert!(r["fadeMean"].as_f64().unwrap_or(0.0) > 1.0, "the fade holds an empty frame: {}", r["fadeMean"]);
     // the server's count: the first style whole, then the three colour parts
     let stats = h.stats();
     assert_eq!(stats.colour_bytes_sent.load(Ordering::Relaxed), sent);

@@ -1092,7 +1092,7 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   const chunks = [];
   // The style switch in progress (switchStyle), if any, and the blocks it recoloured that
   // are not uploaded yet.
-  let switching = null;
+  let switching = null, fadeFrom = false, fadeValid = false;
   const recoloured = new Set();
   function flushRecoloured() {
     if (!recoloured.size) return;
@@ -1207,7 +1207,14 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
       const sw = switching, applied = sw ? sw.applied : 0;
       const blocks = report.blocks, done = report.chunks === info.chunks && (!sw || applied === sw.records);
       const ts = performance.now();
-      const out = await r.render([{ cam, x: 0, y: 0 }], time, gpu.target(), capture);
+      const drawn = r.render([{ cam, x: 0, y: 0 }], time, gpu.target(), capture);
+      // What a style switch fades from: the still view's full-resolution frame, kept as it is
+      // drawn (the view a key is pressed on), or, when the view has changed since, the first
+      // frame after the key (still the old style). Copied in this task, while the canvas
+      // holds the frame: a WebGPU canvas reads back empty once presented.
+      if (fadeFrom) { fadeFrom = false; if (!applied) { copyToFade(); showFade(); } }
+      else if (!sw && sc === 1 && done) { copyToFade(); fadeValid = true; } else fadeValid = false;
+      const out = await drawn;
       const ms = performance.now() - ts;
       report.frames++;
       if (sw && applied > 0 && !sw.firstFrameAt) {
@@ -1503,7 +1510,7 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
   async function switchStyle(name, pressAt) {
     const sw = { name, pressAt, applied: 0, records: null, bytes: 0, state: 'connecting' };
     report.switches.push(sw);
-    fadeIn();
+    if (fadeValid) showFade(); else { fadeFrom = true; redraw(); }
     const c = camera(fixedCam ? 1 : scale);
     const hello2 = {
       type: 'hello', version: 1, token, asset: name, have: [], colour_of: info.geometry,
@@ -1755,14 +1762,18 @@ function viewAsset(name) {
   location.reload();
 }
 
-// The cross-fade of a style switch: the canvas's last frame of the old style, held over it
-// until the first frame with the new colour is drawn, then faded out over 0.3 s.
-function fadeIn() {
+// The cross-fade of a style switch: a frame of the old style drawn after the key, held over
+// the canvas until the first frame with the new colour is drawn, then faded out over 0.3 s.
+function copyToFade() {
   const cv = $('canvas'), f = $('fade');
-  f.width = cv.width; f.height = cv.height;
+  if (f.width !== cv.width || f.height !== cv.height) { f.width = cv.width; f.height = cv.height; }
+  f.getContext('2d').drawImage(cv, 0, 0);
+}
+function showFade() {
+  const cv = $('canvas'), f = $('fade');
   f.style.width = `${cv.clientWidth}px`; f.style.height = `${cv.clientHeight}px`;
   f.style.transition = 'none'; f.style.opacity = '1';
-  f.getContext('2d').drawImage(cv, 0, 0);
+  report.fadeShown = (report.fadeShown || 0) + 1;
 }
 function fadeOut() {
   const f = $('fade');

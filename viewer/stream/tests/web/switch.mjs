@@ -40,6 +40,14 @@ try {
   const r = await page.evaluate(() => {
     const s = window.snerf;
     const out = { ...s, lastRender: null, benchFrames: undefined };
+    // what the fade canvas holds (the frame a switch fades from): its mean channel value
+    const f = document.getElementById('fade');
+    if (f.width && f.height) {
+      const d = f.getContext('2d').getImageData(0, 0, f.width, f.height).data;
+      let sum = 0;
+      for (let i = 0; i < d.length; i += 4) sum += d[i] + d[i + 1] + d[i + 2];
+      out.fadeMean = sum / (3 * f.width * f.height);
+    }
     if (s.lastRender) out.lastRender = { width: s.lastRender.width, height: s.lastRender.height, complete: s.lastRender.complete, rgba: Array.from(s.lastRender.rgba) };
     return out;
   });
