@@ -1,10 +1,11 @@
 //! Free-space carving from sparse points: it carves the lines of sight and never the surface
 //! the points lie on, in object, forward-facing (NDC) and unbounded (contracted) space.
 
-use snerf_data::{SceneKind, TrackedPoint};
+use snerf_data::{Dataset, Intrinsics, SceneKind, TrackedPoint, View};
 use snerf_trainer::free_space::{carve, walk_segment, CarveRules};
 use snerf_trainer::occupancy::Occupancy;
 use snerf_trainer::space::{norm, sub, SceneSpace, Vec3};
+use snerf_trainer::train::{TrainConfig, Trainer};
 use snerf_geometry::{Ndc, Space};
 
 /// A small deterministic generator (the tests must not depend on a seed's luck).
@@ -176,4 +177,48 @@ fn carving_without_margins_cuts_into_the_surface() {
     let stats = carve(&mut occ, &space, &cams, &pts, CarveRules { margin: -0.05, min_segments: 1, min_cameras: 1 });
     let (lost, surface, _, _) = surface_and_shell(&occ);
     assert!(lost > 0, "no surface cell lost out of {surface}: {stats:?}");
+}
+
+/// A forward-facing dataset held in memory, in `format`, rooted at `root`.
+fn opaque_dataset(format: &str, root: &std::path::Path) -> Dataset {
+    let view = |x: f32| View {
+        path: root.join("images").join(format!("{x}.png")),
+        intrinsics: Intrinsics { width: 16, height: 12, fx: 14.0, fy: 14.0, cx: 8.0, cy: 6.0, distortion: [0.0; 4] },
+        c2w: [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+        time: None,
+        rgba: [120u8, 80, 40, 255].repeat(16 * 12),
+    };
+    Dataset {
+        root: root.to_path_buf(),
+        format: format.into(),
+        train: vec![view(0.0), view(0.2), view(0.4)],
+        val: Vec::new(),
+        test: vec![view(0.1)],
+        kind: SceneKind::Forward,
+        dynamic: false,
+        near_far: Some((2.0, 8.0)),
+        aabb: None,
+        detection_note: String::new(),
+    }
+}
+
+/// Only COLMAP models with sparse points are carved: a transforms.json dataset (the built-in
+/// scenes), or a COLMAP one without points3D.bin, trains with every cell allowed even with the
+/// option on.
+#[test]
+fn datasets_without_sparse_points_are_not_carved() {
+    let dir = std::env::temp_dir().join(format!("snerf-free-space-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("sparse").join("0")).unwrap();
+    for format in ["blender", "colmap"] {
+        let data = opaque_dataset(format, &dir);
+        let mut cfg = TrainConfig::for_dataset(&data);
+        // on by default for COLMAP models only
+        assert_eq!(cfg.sparse_carving, format == "colmap", "{format}");
+        cfg.field.resolutions = vec![8, 16];
+        cfg.sparse_carving = true;
+        let t = Trainer::new(&data, cfg).unwrap();
+        assert!(t.sparse_carve.is_none(), "{format}: carved without points");
+        assert!(t.model.occ.allowed.iter().all(|&a| a), "{format}: a cell was carved");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
