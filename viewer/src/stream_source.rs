@@ -22,6 +22,11 @@ pub struct StreamSource {
     styles: Option<Styles>,
 }
 
+/// A style shown after a switch: its asset, information and `Recolour`.
+type Held = (Asset, AssetInfo, Recolour);
+/// A multi-style file's served name and its style names.
+type Names = (String, Vec<String>);
+
 /// What switching styles over the stream needs: the server, the file's style names (from its
 /// listing, read in the background), the style held after a switch, and a switch under way.
 struct Styles {
@@ -30,10 +35,10 @@ struct Styles {
     pin: String,
     token: String,
     /// (the file's served name, its style names), once the listing has come.
-    names: Arc<Mutex<Option<(String, Vec<String>)>>>,
+    names: Arc<Mutex<Option<Names>>>,
     /// After a switch: the style shown (its asset and information) and its `Recolour`.
-    held: Option<(Asset, AssetInfo, Recolour)>,
-    running: Option<(String, mpsc::Receiver<anyhow::Result<(Asset, AssetInfo, Recolour)>>)>,
+    held: Option<Held>,
+    running: Option<(String, mpsc::Receiver<anyhow::Result<Held>>)>,
 }
 
 impl StreamSource {

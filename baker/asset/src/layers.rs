@@ -255,13 +255,13 @@ impl Recolour {
             })
             .collect();
         let voxels = bb / CHANNELS;
-        for blk in 0..n {
+        for (blk, links) in from.iter_mut().enumerate() {
             if owners.cell_of[blk].is_none() {
                 continue;
             }
             for v in 0..voxels {
                 if let Some((o, ov)) = owners.owner(blk, v) {
-                    from[blk].push((v as u32, o as u32, ov as u32));
+                    links.push((v as u32, o as u32, ov as u32));
                     to[o].push((blk as u32, v as u32, ov as u32));
                 }
             }

@@ -72,8 +72,7 @@ fn a_switch_of_style_sends_only_the_new_styles_colour_part() {
     let cold = layered.clone().into_style(1).unwrap().to_bytes();
     let colour_part = layered.style_bytes()[1].bytes;
     let blocks = layered.header().atlas_blocks as u64;
-    let mut limits = snerf_stream::Limits::default();
-    limits.log_sends = true;
+    let limits = snerf_stream::Limits { log_sends: true, ..Default::default() };
     let server = start_server(&assets, &dir.join("state"), limits);
     let rt = runtime();
     let out = dir.join("warm.snerf");

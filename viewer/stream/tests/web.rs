@@ -1583,5 +1583,20 @@ fn a_style_switch_in_the_page_streams_only_the_colour_part_and_draws_the_new_sty
     eprintln!("after the switches: mean |diff| per channel {d:?} to the new style's CPU reference, {left:?} to the old one's");
     assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
     assert!(left.iter().any(|&x| x > 10.0 / 255.0), "the two styles' frames are too alike for the test to mean something: {left:?}");
+    // Over HTTPS requests a switch by colour is refused with its reason, nothing sent (the
+    // page loads the whole style there).
+    let geometry = r["asset"]["geometry"].as_str().expect("the welcome names the geometry").to_string();
+    let (addr, hash) = (web.addr, web.cert_hash.clone().unwrap());
+    let host = format!("127.0.0.1:{}", addr.port());
+    let body = snerf_stream::proto::encode_frame(
+        &serde_json::json!({"type": "hello", "version": 1, "token": h.token(), "asset": "scene.warm", "colour_of": geometry}),
+    );
+    let sent_before = stats.bytes_sent.load(Ordering::Relaxed);
+    for part in ["part=data", "part=control"] {
+        let (status, got) = runtime().block_on(post_http(addr, &hash, &host, Some(&format!("https://{host}")), part, &body));
+        assert!(status.starts_with("HTTP/1.1 400"), "{part}: {status}");
+        assert!(String::from_utf8_lossy(&got).contains("colour_of"), "{part}: {}", String::from_utf8_lossy(&got));
+    }
+    assert_eq!(stats.bytes_sent.load(Ordering::Relaxed), sent_before);
     h.shutdown();
 }
