@@ -100,6 +100,7 @@ pub fn run(a: &BenchWebSwitchArgs) -> Result<Value> {
     );
     eprint!("{summary}");
     Ok(json!({
+        "command": "bench web-switch",
         "asset": a.asset.display().to_string(),
         "styles": names,
         "colour_part_bytes": part,
