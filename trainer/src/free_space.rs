@@ -127,7 +127,8 @@ pub fn carve(occ: &mut Occupancy, space: &SceneSpace, cameras: &[Vec3], points: 
 pub fn walk_segment(occ: &Occupancy, space: &SceneSpace, cam: Vec3, point: Vec3, margin: f32, mut mark: impl FnMut(usize)) {
     let along = sub(point, cam);
     let dist = norm(along);
-    if !(dist > 0.0) || !dist.is_finite() {
+    // (a NaN distance fails the finite test too)
+    if !dist.is_finite() || dist <= 0.0 {
         return;
     }
     let dir = scale(along, 1.0 / dist);

@@ -184,7 +184,8 @@ impl SceneSpace {
         let m = self.to_model(p);
         match (self.kind, self.frame.ndc.as_ref()) {
             (SceneKind::Forward, Some(n)) => {
-                if !(m[2] < -1e-6) {
+                // (a NaN depth is refused too)
+                if m[2].is_nan() || m[2] >= -1e-6 {
                     return None;
                 }
                 // NeRF's ndc_rays applied to a point: the projection `Ndc::unproject` undoes.
