@@ -61,7 +61,9 @@ impl StreamSource {
                 let Some(st) = e.styles else { continue };
                 let ours = asset == e.name || st.iter().any(|s| asset == format!("{}.{}", e.name, s.name));
                 if ours {
-                    *n2.lock().unwrap_or_else(|p| p.into_inner()) = Some((e.name, st.into_iter().map(|s| s.name).collect()));
+                    let names: Vec<String> = st.into_iter().map(|s| s.name).collect();
+                    eprintln!("snerf view: styles {} (keys 1..{} switch, by colour alone)", names.join(", "), names.len().min(9));
+                    *n2.lock().unwrap_or_else(|p| p.into_inner()) = Some((e.name, names));
                 }
             }
         });
