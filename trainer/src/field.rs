@@ -50,6 +50,11 @@ pub struct FieldConfig {
     /// from before it existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deform: Option<DeformConfig>,
+    /// A hidden layer of the colour outputs' own (`ColourHead`): a style layer learns colour
+    /// through it while the density's hidden layer and the planes stay frozen. Absent in
+    /// realistic runs and in runs from before it existed.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub colour_head: bool,
 }
 
 impl FieldConfig {
@@ -84,7 +89,10 @@ impl FieldConfig {
         let (inp, h, out) = (self.input_dim() as f64, self.hidden as f64, OUT as f64);
         let c = C as f64;
         let enc = levels * planes * (4.0 * c * 2.0 + c);
-        let dec = 2.0 * (inp * h + h * out);
+        let mut dec = 2.0 * (inp * h + h * out);
+        if self.colour_head {
+            dec += 2.0 * inp * h;
+        }
         let mut fwd = enc + dec;
         let mut bwd = 2.0 * dec + enc + levels * planes * c * 3.0;
         if let Some(d) = &self.deform {
@@ -145,6 +153,9 @@ pub struct Layout {
     pub view: ViewLayout,
     /// The deformation's parameters, after the view MLP's (absent: none).
     pub deform: Option<Deform>,
+    /// The colour head's hidden layer (W1c, then b1c), after everything else (absent: none),
+    /// so adding one to a trained field moves no other parameter.
+    pub colour: Option<ColourHead>,
     pub total: usize,
     pub input: usize,
     pub hidden: usize,
@@ -181,8 +192,35 @@ impl Layout {
         if let Some(d) = &deform {
             off = d.end;
         }
-        Layout { planes, plane_end, w1, b1, w2, b2, view, deform, total: off, input, hidden }
+        let colour = cfg.colour_head.then(|| {
+            let head = ColourHead { w1: off, b1: off + hidden * input };
+            off = head.b1 + hidden;
+            head
+        });
+        Layout { planes, plane_end, w1, b1, w2, b2, view, deform, colour, total: off, input, hidden }
     }
+
+    /// Hidden values a sample keeps between the decoder's forward and backward passes: the
+    /// shared layer's, then the colour head's (if any).
+    pub fn hid_width(&self) -> usize {
+        if self.colour.is_some() {
+            2 * self.hidden
+        } else {
+            self.hidden
+        }
+    }
+}
+
+/// Where a colour head's parameters sit. With it, the decoder is
+///   h = relu(W1 f + b1),  h_c = relu(W1c f + b1c),
+///   σ-logit = W2[0] · h + b2[0],  colour outputs = W2[1..] h_c + b2[1..],
+/// so the colour is a function of the frozen plane features as rich as the density's, while
+/// nothing the density reads changes. It starts as a copy of (W1, b1): the field's outputs
+/// are unchanged until it learns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ColourHead {
+    pub w1: usize,
+    pub b1: usize,
 }
 
 // The lookups of the planes and of the deformation's grid clamp the same way.
@@ -538,35 +576,55 @@ impl Field {
     }
 
     /// Decoder forward on `n` samples: `feat` is n x input (row per sample); writes the
-    /// post-ReLU hidden layer `hid` (n x hidden) and the raw outputs `out` (n x OUT).
+    /// post-ReLU hidden values `hid` (n x `Layout::hid_width`: the shared layer, then the
+    /// colour head's) and the raw outputs `out` (n x OUT).
     pub fn decode_forward(&self, n: usize, feat: &[f32], hid: &mut [f32], out: &mut [f32]) {
-        let (inp, h) = (self.layout.input, self.layout.hidden);
+        let l = &self.layout;
+        let (inp, h, hw) = (l.input, l.hidden, l.hid_width());
         let p = &self.params;
-        let b1 = &p[self.layout.b1..self.layout.b1 + h];
-        for r in 0..n {
-            hid[r * h..(r + 1) * h].copy_from_slice(b1);
+        let mut layer = |w1: usize, b1: usize, col: usize| {
+            for r in 0..n {
+                hid[r * hw + col..r * hw + col + h].copy_from_slice(&p[b1..b1 + h]);
+            }
+            // hid (n x h) += feat (n x inp) * W1^T (inp x h); W1 is stored h x inp.
+            gemm(1.0, Mat(feat, n, inp, inp, 1), Mat(&p[w1..w1 + h * inp], inp, h, 1, inp), 1.0, &mut hid[col..], (hw, 1));
+            for r in 0..n {
+                for x in &mut hid[r * hw + col..r * hw + col + h] {
+                    *x = x.max(0.0);
+                }
+            }
+        };
+        layer(l.w1, l.b1, 0);
+        if let Some(c) = l.colour {
+            layer(c.w1, c.b1, h);
         }
-        // hid (n x h) += feat (n x inp) * W1^T (inp x h); W1 is stored h x inp.
-        let w1 = &p[self.layout.w1..self.layout.b1];
-        gemm(1.0, Mat(feat, n, inp, inp, 1), Mat(w1, inp, h, 1, inp), 1.0, hid, (h, 1));
-        for x in &mut hid[..n * h] {
-            *x = x.max(0.0);
-        }
-        let b2 = &p[self.layout.b2..self.layout.b2 + OUT];
+        let b2 = &p[l.b2..l.b2 + OUT];
         for r in 0..n {
             out[r * OUT..(r + 1) * OUT].copy_from_slice(b2);
         }
-        let w2 = &p[self.layout.w2..self.layout.b2];
-        gemm(1.0, Mat(hid, n, h, h, 1), Mat(w2, h, OUT, 1, h), 1.0, out, (OUT, 1));
+        let w2 = &p[l.w2..l.b2];
+        match l.colour {
+            None => gemm(1.0, Mat(hid, n, h, hw, 1), Mat(w2, h, OUT, 1, h), 1.0, out, (OUT, 1)),
+            Some(_) => {
+                // σ from the shared layer, the colour outputs from the colour head's
+                gemm(1.0, Mat(hid, n, h, hw, 1), Mat(w2, h, 1, 1, h), 1.0, out, (OUT, 1));
+                gemm(1.0, Mat(&hid[h..], n, h, hw, 1), Mat(&w2[h..], h, OUT - 1, 1, h), 1.0, &mut out[1..], (OUT, 1));
+            }
+        }
     }
 
-    /// The output layer's part of [`Field::decode_backward`]: dW2 and db2 only (what learns
-    /// while the geometry is frozen).
-    pub fn decode_backward_output(&self, n: usize, hid: &[f32], d_out: &[f32], grad: &mut [f32]) {
-        let h = self.layout.hidden;
+    /// dW2 and db2 (the output layer) from the hidden values each output row reads.
+    fn output_layer_grad(&self, n: usize, hid: &[f32], d_out: &[f32], grad: &mut [f32]) {
         let l = &self.layout;
-        // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
-        gemm(1.0, Mat(d_out, OUT, n, 1, OUT), Mat(hid, n, h, h, 1), 1.0, &mut grad[l.w2..l.b2], (h, 1));
+        let (h, hw) = (l.hidden, l.hid_width());
+        match l.colour {
+            // dW2 (OUT x h) += d_out^T (OUT x n) * hid (n x h)
+            None => gemm(1.0, Mat(d_out, OUT, n, 1, OUT), Mat(hid, n, h, hw, 1), 1.0, &mut grad[l.w2..l.b2], (h, 1)),
+            Some(_) => {
+                gemm(1.0, Mat(d_out, 1, n, 1, OUT), Mat(hid, n, h, hw, 1), 1.0, &mut grad[l.w2..l.w2 + h], (h, 1));
+                gemm(1.0, Mat(&d_out[1..], OUT - 1, n, 1, OUT), Mat(&hid[h..], n, h, hw, 1), 1.0, &mut grad[l.w2 + h..l.b2], (h, 1));
+            }
+        }
         for r in 0..n {
             for k in 0..OUT {
                 grad[l.b2 + k] += d_out[r * OUT + k];
@@ -574,9 +632,55 @@ impl Field {
         }
     }
 
+    /// dL/d(hidden values) (n x hid_width, into `d_hid`), masked by their ReLU: the shared
+    /// layer's from every output row (only σ's with a colour head), the colour head's from
+    /// the colour rows.
+    fn hidden_grad(&self, n: usize, hid: &[f32], d_out: &[f32], d_hid: &mut [f32]) {
+        let l = &self.layout;
+        let (h, hw) = (l.hidden, l.hid_width());
+        let w2 = &self.params[l.w2..l.b2];
+        match l.colour {
+            // d_hid (n x h) = d_out (n x OUT) * W2 (OUT x h)
+            None => gemm(1.0, Mat(d_out, n, OUT, OUT, 1), Mat(w2, OUT, h, h, 1), 0.0, d_hid, (hw, 1)),
+            Some(_) => {
+                gemm(1.0, Mat(d_out, n, 1, OUT, 1), Mat(w2, 1, h, h, 1), 0.0, d_hid, (hw, 1));
+                gemm(1.0, Mat(&d_out[1..], n, OUT - 1, OUT, 1), Mat(&w2[h..], OUT - 1, h, h, 1), 0.0, &mut d_hid[h..], (hw, 1));
+            }
+        }
+        for (d, &x) in d_hid[..n * hw].iter_mut().zip(&hid[..n * hw]) {
+            if x <= 0.0 {
+                *d = 0.0;
+            }
+        }
+    }
+
+    /// dW1 and db1 of the hidden layer whose values are column `col` of `d_hid`.
+    fn hidden_layer_grad(&self, n: usize, feat: &[f32], d_hid: &[f32], col: usize, (w1, b1): (usize, usize), grad: &mut [f32]) {
+        let l = &self.layout;
+        let (inp, h, hw) = (l.input, l.hidden, l.hid_width());
+        // dW1 (h x inp) += d_hid^T (h x n) * feat (n x inp)
+        gemm(1.0, Mat(&d_hid[col..], h, n, 1, hw), Mat(feat, n, inp, inp, 1), 1.0, &mut grad[w1..w1 + h * inp], (inp, 1));
+        for r in 0..n {
+            for j in 0..h {
+                grad[b1 + j] += d_hid[r * hw + col + j];
+            }
+        }
+    }
+
+    /// The backward pass of what learns while the geometry is frozen: the output layer
+    /// (dW2, db2) and, when the field has one, the colour head (dW1c, db1c). `d_hid` is
+    /// scratch (n x hid_width).
+    pub fn decode_backward_output(&self, n: usize, feat: &[f32], hid: &[f32], d_out: &[f32], d_hid: &mut [f32], grad: &mut [f32]) {
+        self.output_layer_grad(n, hid, d_out, grad);
+        if let Some(c) = self.layout.colour {
+            self.hidden_grad(n, hid, d_out, d_hid);
+            self.hidden_layer_grad(n, feat, d_hid, self.layout.hidden, (c.w1, c.b1), grad);
+        }
+    }
+
     /// Decoder backward on `n` samples. `d_out` (n x OUT) is dL/d(raw outputs); `d_hid` is
-    /// scratch (n x hidden); accumulates weight gradients into `grad` and writes dL/d(features)
-    /// into `d_feat` (n x input).
+    /// scratch (n x hid_width); accumulates weight gradients into `grad` and writes
+    /// dL/d(features) into `d_feat` (n x input).
     #[allow(clippy::too_many_arguments)]
     pub fn decode_backward(
         &self,
@@ -588,27 +692,34 @@ impl Field {
         d_feat: &mut [f32],
         grad: &mut [f32],
     ) {
-        let (inp, h) = (self.layout.input, self.layout.hidden);
-        let p = &self.params;
         let l = &self.layout;
-        let (w1, w2) = (&p[l.w1..l.b1], &p[l.w2..l.b2]);
-        self.decode_backward_output(n, hid, d_out, grad);
-        // d_hid (n x h) = d_out (n x OUT) * W2 (OUT x h), masked by ReLU.
-        gemm(1.0, Mat(d_out, n, OUT, OUT, 1), Mat(w2, OUT, h, h, 1), 0.0, d_hid, (h, 1));
-        for (d, &x) in d_hid[..n * h].iter_mut().zip(&hid[..n * h]) {
-            if x <= 0.0 {
-                *d = 0.0;
-            }
+        let (inp, h, hw) = (l.input, l.hidden, l.hid_width());
+        let p = &self.params;
+        self.output_layer_grad(n, hid, d_out, grad);
+        self.hidden_grad(n, hid, d_out, d_hid);
+        self.hidden_layer_grad(n, feat, d_hid, 0, (l.w1, l.b1), grad);
+        // d_feat (n x inp) = d_hid (n x h) * W1 (h x inp), plus the colour head's
+        gemm(1.0, Mat(d_hid, n, h, hw, 1), Mat(&p[l.w1..l.b1], h, inp, inp, 1), 0.0, d_feat, (inp, 1));
+        if let Some(c) = l.colour {
+            self.hidden_layer_grad(n, feat, d_hid, h, (c.w1, c.b1), grad);
+            gemm(1.0, Mat(&d_hid[h..], n, h, hw, 1), Mat(&p[c.w1..c.b1], h, inp, inp, 1), 1.0, d_feat, (inp, 1));
         }
-        // dW1 (h x inp) += d_hid^T (h x n) * feat (n x inp)
-        gemm(1.0, Mat(d_hid, h, n, 1, h), Mat(feat, n, inp, inp, 1), 1.0, &mut grad[l.w1..l.b1], (inp, 1));
-        for r in 0..n {
-            for j in 0..h {
-                grad[l.b1 + j] += d_hid[r * h + j];
-            }
+    }
+
+    /// This field with a colour head (`ColourHead`) started as a copy of its shared hidden
+    /// layer, so it renders exactly as before; itself when it has one already.
+    pub fn with_colour_head(&self) -> anyhow::Result<Field> {
+        if self.layout.colour.is_some() {
+            return Ok(self.clone());
         }
-        // d_feat (n x inp) = d_hid (n x h) * W1 (h x inp)
-        gemm(1.0, Mat(d_hid, n, h, h, 1), Mat(w1, h, inp, inp, 1), 0.0, d_feat, (inp, 1));
+        let cfg = FieldConfig { colour_head: true, ..self.cfg.clone() };
+        let layout = Layout::new(&cfg);
+        let mut params = self.params.clone();
+        let c = layout.colour.expect("a colour head was asked for");
+        debug_assert_eq!(params.len(), c.w1);
+        params.extend_from_slice(&self.params[self.layout.w1..self.layout.b1 + self.layout.hidden]);
+        anyhow::ensure!(params.len() == layout.total, "colour head layout: {} parameters for {}", params.len(), layout.total);
+        Ok(Field { cfg, layout, params })
     }
 }
 
@@ -675,10 +786,10 @@ mod tests {
     fn flops_per_sample_match_a_hand_count() {
         // Static, 2 levels, hidden 16: 6 plane lookups of 4 corners x 8 channels (FMA = 2)
         // plus 8 products each = 6 x 72 = 432; decoder (16 x 16 + 16 x 8) FMAs = 768.
-        let cfg = FieldConfig { resolutions: vec![16, 32], time_resolutions: vec![], hidden: 16, deform: None };
+        let cfg = FieldConfig { resolutions: vec![16, 32], time_resolutions: vec![], hidden: 16, deform: None, colour_head: false };
         assert_eq!(cfg.flops_per_sample(), (432.0 + 768.0, 2.0 * 768.0 + 432.0 + 6.0 * 8.0 * 3.0));
         // Dynamic, 1 level, hidden 8: 6 planes x 72 = 432; decoder (8 x 8 + 8 x 8) FMAs = 256.
-        let cfg = FieldConfig { resolutions: vec![8], time_resolutions: vec![4], hidden: 8, deform: None };
+        let cfg = FieldConfig { resolutions: vec![8], time_resolutions: vec![4], hidden: 8, deform: None, colour_head: false };
         assert_eq!(cfg.flops_per_sample(), (432.0 + 256.0, 2.0 * 256.0 + 432.0 + 6.0 * 8.0 * 3.0));
     }
 }

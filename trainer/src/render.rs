@@ -170,7 +170,7 @@ impl Workspace {
                 None => self.states.push(MarchState { t: 0.0, done: true }),
             }
         }
-        let (inp, h) = (field.layout.input, field.layout.hidden);
+        let (inp, h) = (field.layout.input, field.layout.hid_width());
         let log_terminate = -T_TERMINATE.ln();
         while !self.live.is_empty() {
             let start = self.samples.len();
@@ -336,8 +336,8 @@ pub enum Backward {
     /// Into every parameter (planes, decoder, view MLP, deformation).
     Full,
     /// Into what learns while the geometry is frozen (`TrainConfig::freeze_geometry`): the
-    /// decoder's output layer (whose colour rows and biases learn), the view MLP and the
-    /// photos' colour transforms. The shared hidden layer, the planes and the deformation
+    /// decoder's output layer (whose colour rows and biases learn), the colour head (if the
+    /// field has one), the view MLP and the photos' colour transforms. The shared hidden layer, the planes and the deformation
     /// get no gradient: their learning rate is zero then, and the pass through them (the
     /// larger part of a step's backward) would be thrown away.
     OutputLayer,
@@ -364,7 +364,7 @@ pub fn train_chunk_with(
     let mut clock = std::time::Instant::now();
     let n = ws.samples.len();
     stats.samples = n as u64;
-    let (inp, h) = (field.layout.input, field.layout.hidden);
+    let (inp, h) = (field.layout.input, field.layout.hid_width());
     ws.d_out.clear();
     ws.d_out.resize(n * OUT, 0.0);
     let view = field.layout.view;
@@ -472,7 +472,8 @@ pub fn train_chunk_with(
     }
     stats.ns[3] += lap(&mut clock);
     if n > 0 && backward == Backward::OutputLayer {
-        field.decode_backward_output(n, &ws.hid[..n * h], &ws.d_out, &mut ws.grad);
+        ws.d_hid.resize(n * h, 0.0);
+        field.decode_backward_output(n, &ws.feat[..n * inp], &ws.hid[..n * h], &ws.d_out, &mut ws.d_hid, &mut ws.grad);
         stats.ns[4] += lap(&mut clock);
     } else if n > 0 {
         ws.d_hid.resize(n * h, 0.0);
@@ -509,7 +510,7 @@ pub fn train_chunk_with(
 /// point's raw decoder outputs (OUT values). A deformed field is read at its warped points
 /// ([`Field::warp`]), so occupancy and the baker see the field that renders.
 fn decode_points(field: &Field, points: &[[f32; 3]], times: &[f32], ws: &mut Workspace, mut f: impl FnMut(usize, &[f32])) {
-    let (inp, h) = (field.layout.input, field.layout.hidden);
+    let (inp, h) = (field.layout.input, field.layout.hid_width());
     const B: usize = 1024;
     for (bi, chunk) in points.chunks(B).enumerate() {
         let n = chunk.len();

@@ -145,7 +145,7 @@ impl TrainConfig {
             freeze_geometry: false,
             freeze_view: false,
             seed: 0,
-            field: FieldConfig { resolutions, time_resolutions, hidden: 32, deform: None },
+            field: FieldConfig { resolutions, time_resolutions, hidden: 32, deform: None, colour_head: false },
             // Objects on transparent film, static or animated: forward and unbounded scenes
             // were not re-measured.
             pixel_rays: if data.kind == SceneKind::Object { 4 } else { 1 },
@@ -636,8 +636,10 @@ impl Trainer {
         self.adam.update_dense(params, &mut grads, b2..b2 + 1, lr * geometry);
         self.adam.update_dense(params, &mut grads, b2 + 1..view.start, lr);
         self.adam.update_dense(params, &mut grads, view.start..view.end, view_lr);
-        // the deformation (what moves the geometry)
-        self.adam.update_dense(params, &mut grads, view.end..total, lr * geometry);
+        // the deformation (what moves the geometry), then the colour head (colour only)
+        let deform_end = l.colour.map_or(total, |c| c.w1);
+        self.adam.update_dense(params, &mut grads, view.end..deform_end, lr * geometry);
+        self.adam.update_dense(params, &mut grads, deform_end..total, lr);
         if let Some(a) = &mut self.appearance {
             let slots: Vec<_> = self.pool.slots.iter().map(|w| w.lock().unwrap_or_else(|e| e.into_inner())).collect();
             a.step(slots.iter().map(|w| w.appearance.grad()), crate::appearance::LR * s);

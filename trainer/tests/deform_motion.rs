@@ -146,6 +146,7 @@ fn a_deformed_field_is_evaluated_at_its_warped_points_everywhere() {
         time_resolutions: vec![4, 4],
         hidden: 8,
         deform: Some(DeformConfig { resolution: 4, modes: 4, time_resolution: 5 }),
+        colour_head: false,
     };
     let mut f = Field::new(cfg.clone(), 3).unwrap();
     let d = f.layout.deform.unwrap();

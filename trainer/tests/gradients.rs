@@ -24,6 +24,7 @@ fn small_field(dynamic: bool) -> Field {
         time_resolutions: if dynamic { vec![3, 5] } else { vec![] },
         hidden: 8,
         deform: None,
+        colour_head: false,
     };
     let mut f = Field::new(cfg, 7).unwrap();
     // Perturb so nothing sits at a symmetric or zero point.
@@ -116,8 +117,58 @@ fn encoding_backward_matches_finite_differences_static_and_dynamic() {
 
 #[test]
 fn decoder_and_activation_backward_match_finite_differences() {
-    let f = small_field(false);
-    let (inp, h) = (f.layout.input, f.layout.hidden);
+    check_decoder(&small_field(false));
+}
+
+/// A style layer's decoder: the colour outputs read a hidden layer of their own.
+#[test]
+fn colour_head_backward_matches_finite_differences_and_leaves_density_alone() {
+    let plain = small_field(false);
+    let mut f = plain.with_colour_head().unwrap();
+    let c = f.layout.colour.unwrap();
+    // as added, the head is a copy: the field's outputs are unchanged
+    let (inp, hw) = (f.layout.input, f.layout.hid_width());
+    let n = 4;
+    let mut rng = Rng::new(21);
+    let feat: Vec<f32> = (0..n * inp).map(|_| rng.uniform()).collect();
+    let decode = |f: &Field| {
+        let mut hid = vec![0.0; n * f.layout.hid_width()];
+        let mut out = vec![0.0; n * OUT];
+        f.decode_forward(n, &feat, &mut hid, &mut out);
+        (hid, out)
+    };
+    assert_eq!(decode(&plain).1, decode(&f).1, "a new colour head changed the outputs");
+    // a head that has learned changes the colours, never σ
+    for x in &mut f.params[c.w1..f.layout.total] {
+        *x += 0.3 * (rng.uniform() - 0.5);
+    }
+    let (hid, out) = decode(&f);
+    let plain_out = decode(&plain).1;
+    for r in 0..n {
+        assert_eq!(out[r * OUT], plain_out[r * OUT], "σ moved with the colour head");
+    }
+    assert!((1..OUT).any(|k| out[k] != plain_out[k]), "the colour head changed nothing");
+    check_decoder(&f);
+    // the frozen-geometry pass computes the output layer's and the head's gradients as the
+    // full pass does
+    let wo: Vec<f32> = (0..n * OUT).map(|_| rng.uniform() - 0.5).collect();
+    let mut full = vec![0.0f32; f.params.len()];
+    let mut cut = vec![0.0f32; f.params.len()];
+    let (mut d_hid, mut d_feat) = (vec![0.0; n * hw], vec![0.0; n * inp]);
+    f.decode_backward(n, &feat, &hid, &wo, &mut d_hid, &mut d_feat, &mut full);
+    f.decode_backward_output(n, &feat, &hid, &wo, &mut d_hid, &mut cut);
+    let l = &f.layout;
+    assert_eq!(&cut[l.w2..l.b2 + OUT], &full[l.w2..l.b2 + OUT]);
+    assert_eq!(&cut[c.w1..l.total], &full[c.w1..l.total]);
+    assert!(cut[c.w1..l.total].iter().any(|&g| g != 0.0));
+    assert!(cut[l.w1..l.w2].iter().all(|&g| g == 0.0), "the frozen pass reached the shared layer");
+}
+
+/// The decoder's and activation's backward against finite differences, every decoder
+/// parameter (and the colour head's) and every input feature.
+fn check_decoder(f: &Field) {
+    let f = f.clone();
+    let (inp, h) = (f.layout.input, f.layout.hid_width());
     let n = 5;
     let mut rng = Rng::new(9);
     let feat: Vec<f32> = (0..n * inp).map(|_| rng.uniform()).collect();
@@ -151,7 +202,8 @@ fn decoder_and_activation_backward_match_finite_differences() {
     let mut d_feat = vec![0.0; n * inp];
     f.decode_backward(n, &feat, &hid, &d_out, &mut d_hid, &mut d_feat, &mut grad);
     let l = &f.layout;
-    for i in (l.w1..l.view.w1).step_by(5) {
+    let head = l.colour.map_or(0..0, |c| c.w1..l.total);
+    for i in (l.w1..l.view.w1).step_by(5).chain(head.step_by(3)) {
         let mut fa = f.clone();
         fa.params[i] += 1e-3;
         let mut fb = f.clone();

@@ -128,7 +128,7 @@ fn object_space(dynamic: bool) -> SceneSpace {
 }
 
 fn dense_field(dynamic: bool, sigma_bias: f32) -> Field {
-    let cfg = FieldConfig { resolutions: vec![8, 16], time_resolutions: if dynamic { vec![4, 4] } else { vec![] }, hidden: 8, deform: None };
+    let cfg = FieldConfig { resolutions: vec![8, 16], time_resolutions: if dynamic { vec![4, 4] } else { vec![] }, hidden: 8, deform: None, colour_head: false };
     let mut f = Field::new(cfg, 1).unwrap();
     f.params[f.layout.b2] = sigma_bias;
     f

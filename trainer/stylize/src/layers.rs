@@ -83,9 +83,10 @@ impl LayersRecord {
 }
 
 /// What a layer's stylization does where the command line does not say (several `--style`):
-/// only the work an appearance-only layer needs. Its geometry is frozen, so the only thing
-/// a layer learns is the decoder's colour outputs (a few hundred numbers) over a fixed set
-/// of surface points: fewer views cover those points (a realistic run's 100 views see the
+/// only the work an appearance-only layer needs. Its geometry is frozen, so a layer learns
+/// only colour (the decoder's colour outputs and the colour head's hidden layer,
+/// `snerf_trainer::field::ColourHead`) over a fixed set of surface points: fewer views cover
+/// those points (a realistic run's 100 views see the
 /// object from every side several times over), fewer steps fit them, and the per-round
 /// measurement on the loop's own path (16 frames a round) is work for a comparison of
 /// rounds, not for the layer; `snerf consistency` scores the layer afterwards.

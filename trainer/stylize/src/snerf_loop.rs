@@ -253,6 +253,13 @@ fn trainer_from(ck: Checkpoint, data: &Dataset, opts: &StylizeOptions) -> Result
     cfg.tv = 0.0;
     cfg.area_rays = true;
     let mut model = ck.model;
+    if opts.appearance_only {
+        // colour learns through a hidden layer of its own over the frozen features
+        // (`snerf_trainer::field::ColourHead`): a linear map of the density's hidden layer
+        // alone stays visibly farther from the painting (BENCH.md, "Style layers")
+        model.field = model.field.with_colour_head()?;
+        cfg.field = model.field.cfg.clone();
+    }
     let view = model.field.layout.view;
     view.make_diffuse(&mut model.field.params);
     let adam = snerf_trainer::adam::Adam::new(model.field.params.len());

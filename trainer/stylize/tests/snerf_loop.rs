@@ -147,6 +147,10 @@ fn rounds_resume_and_appearance_only_freezes_geometry() {
     assert!(a[..l.w2 + l.hidden] == b[..l.w2 + l.hidden], "appearance-only moved the geometry");
     assert_eq!(a[l.b2], b[l.b2], "appearance-only moved the density bias");
     assert!(a[l.w2 + l.hidden..l.b2] != b[l.w2 + l.hidden..l.b2], "appearance-only did not learn colour");
+    // colour learnt through a head of its own, started from the shared layer
+    let head = app.model.field.layout.colour.expect("an appearance-only field has a colour head");
+    assert_eq!(head.w1, l.total, "the colour head comes after every parameter the source had");
+    assert!(b[head.w1..] != a[l.w1..l.w2], "the colour head did not learn");
 }
 
 #[test]
