@@ -164,8 +164,8 @@ fn bake_layers(a: &BakeArgs, record: &LayersRecord, wall: Instant) -> Result<Val
     let layers: Vec<Layer> = record
         .layers
         .iter()
-        .zip(&loaded)
-        .map(|(l, (model, pool))| Layer { name: &l.name, source: &l.source, model, pool })
+        .zip(dirs.iter().zip(&loaded))
+        .map(|(l, (dir, (model, pool)))| Layer { name: &l.name, dir, source: &l.source, model, pool })
         .collect();
     let pb = bar(1, "{spinner} {msg} {bar:30} {pos}/{len} [{elapsed}]");
     let first = record.layers[0].name.clone();
@@ -173,8 +173,7 @@ fn bake_layers(a: &BakeArgs, record: &LayersRecord, wall: Instant) -> Result<Val
         pb.set_message(format!("{first}: {what}"));
         pb.set_length(total);
         pb.set_position(done);
-    })
-    .with_context(|| format!("{}: baking its style layers", a.run.display()))?;
+    })?;
     pb.finish_and_clear();
     let LayeredBake { asset: layered, report, seconds } = baked;
     layered.write(&a.out)?;

@@ -99,8 +99,9 @@ pub struct TrainArgs {
     /// Free-space carving for COLMAP captures (`snerf capture` output): each sparse point's
     /// observations are lines of sight, and occupancy cells that several of them cross
     /// (stopping 10% short of the point, never next to a point) are marked empty for good, so
-    /// the field cannot grow fog there and rendering skips them. Only datasets with a
-    /// sparse/0/points3D.bin have the points; every other dataset is unaffected. Default: on
+    /// the field cannot grow fog there and rendering skips them. Only COLMAP models with a
+    /// points3D.bin beside the images.bin/.txt the poses come from have the points; every
+    /// other dataset is unaffected. Default: on
     /// for COLMAP datasets (fewer samples per pixel and higher held-out PSNR on both ViSP
     /// captures, BENCH.md §2d); `--sparse-carving false` turns it off.
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]

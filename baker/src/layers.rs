@@ -100,6 +100,8 @@ pub fn bake_colour(model: &Model, pool: &WorkspacePool, geometry_model: &Model, 
 /// One style layer to bake: its name, the painting it came from and its trained field.
 pub struct Layer<'a> {
     pub name: &'a str,
+    /// Where the layer's run is, for messages.
+    pub dir: &'a std::path::Path,
     pub source: &'a str,
     pub model: &'a Model,
     pub pool: &'a WorkspacePool,
@@ -131,7 +133,8 @@ pub fn bake_layered(
     for l in &layers[1..] {
         let (asset, lr) = bake_colour(l.model, l.pool, first.model, &assets[0]).map_err(|e| {
             anyhow::anyhow!(
-                "layer {:?} was trained on another geometry than layer {:?} ({:#}); stylize every layer from the same run with --appearance-only",
+                "{}: layer {:?} was trained on another geometry than layer {:?} ({:#}); stylize every layer from the same run with --appearance-only",
+                l.dir.display(),
                 l.name,
                 first.name,
                 e

@@ -80,8 +80,10 @@ pub fn carve(occ: &mut Occupancy, space: &SceneSpace, cameras: &[Vec3], points: 
     // Per-cell segment count and a 64-bit camera set (camera index mod 64: distinct cameras
     // may share a bit, which only undercounts them).
     let occ_ref = &*occ;
+    // one chunk of segments a thread, so at most that many pairs of full-grid counters exist
+    let per_thread = segments.len().div_ceil(rayon::current_num_threads()).max(1);
     let (count, cams) = segments
-        .par_chunks(256)
+        .par_chunks(per_thread)
         .fold(
             || (vec![0u32; n], vec![0u64; n]),
             |(mut count, mut cams), chunk| {
@@ -98,7 +100,7 @@ pub fn carve(occ: &mut Occupancy, space: &SceneSpace, cameras: &[Vec3], points: 
             || (vec![0u32; n], vec![0u64; n]),
             |(mut c1, mut m1), (c2, m2)| {
                 for i in 0..n {
-                    c1[i] += c2[i];
+                    c1[i] = c1[i].saturating_add(c2[i]);
                     m1[i] |= m2[i];
                 }
                 (c1, m1)

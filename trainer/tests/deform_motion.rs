@@ -81,6 +81,7 @@ fn dataset(n: usize) -> Dataset {
         near_far: None,
         aabb: Some(([-1.0; 3], [1.0; 3])),
         detection_note: String::new(),
+        pose_file: Default::default(),
     }
 }
 

@@ -38,6 +38,7 @@ fn dataset(times: &[f32]) -> Dataset {
         near_far: None,
         aabb: None,
         detection_note: String::new(),
+        pose_file: Default::default(),
     }
 }
 

@@ -199,6 +199,7 @@ fn opaque_dataset(format: &str, root: &std::path::Path) -> Dataset {
         near_far: Some((2.0, 8.0)),
         aabb: None,
         detection_note: String::new(),
+        pose_file: root.join("sparse").join("0").join("images.bin"),
     }
 }
 

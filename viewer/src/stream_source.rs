@@ -38,6 +38,10 @@ struct Styles {
     names: Arc<Mutex<Option<Names>>>,
     /// After a switch: the style shown (its asset and information) and its `Recolour`.
     held: Option<Held>,
+    /// The style on screen after the last switch that worked (a failed switch leaves no
+    /// `held`: the window still shows this one, and the next switch starts from the live
+    /// asset, which a switch recolours whole).
+    shown: Option<String>,
     running: Option<(String, mpsc::Receiver<anyhow::Result<Held>>)>,
 }
 
@@ -67,7 +71,7 @@ impl StreamSource {
                 }
             }
         });
-        s.styles = Some(Styles { base, pin: pin.to_string(), token: token.to_string(), names, held: None, running: None });
+        s.styles = Some(Styles { base, pin: pin.to_string(), token: token.to_string(), names, held: None, shown: None, running: None });
         Ok(s)
     }
 
@@ -91,6 +95,7 @@ impl AssetSource for StreamSource {
                     Ok(Ok((asset, info, recolour))) => {
                         st.running = None;
                         let whole = asset.clone();
+                        st.shown = Some(info.name.clone());
                         st.held = Some((asset, info, recolour));
                         return Some(AssetUpdate::Whole(Box::new(whole)));
                     }
@@ -140,9 +145,9 @@ impl AssetSource for StreamSource {
         let (stem, names) = st.names.lock().unwrap_or_else(|p| p.into_inner()).clone()?;
         let style = names.get(i)?.clone();
         let target = format!("{stem}.{style}");
-        let shown = match (&st.running, &st.held) {
+        let shown = match (&st.running, &st.shown) {
             (Some((n, _)), _) => n.clone(),
-            (None, Some((_, info, _))) => info.name.clone(),
+            (None, Some(n)) => n.clone(),
             (None, None) => self.live.info().name.clone(),
         };
         let first = shown == stem && i == 0;

@@ -131,5 +131,6 @@ pub(crate) fn finish(raw: RawDataset, opts: &LoadOptions) -> Result<Dataset> {
         near_far: raw.near_far,
         aabb: raw.aabb,
         detection_note: format!("{kind_note}; {dyn_note}"),
+        pose_file: raw.pose_file,
     })
 }

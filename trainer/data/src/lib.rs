@@ -96,6 +96,9 @@ pub struct Dataset {
     /// Why `kind` and `dynamic` have their values (override, file hint or detection measures),
     /// for the CLI to print.
     pub detection_note: String,
+    /// The file the poses were read from (transforms.json, images.bin, poses_bounds.npy):
+    /// a COLMAP model's sparse points are read beside it, from the same reconstruction.
+    pub pose_file: PathBuf,
 }
 
 impl Intrinsics {

@@ -37,25 +37,33 @@ pub fn sparse_tracks(data: &Dataset) -> Result<Option<SparseTracks>> {
     if data.format != "colmap" {
         return Ok(None);
     }
-    let Some(model_dir) = model_dir(&data.root) else {
+    // the points of the reconstruction the poses came from (a folder may hold several)
+    let Some(model_dir) = data.pose_file.parent() else {
         return Ok(None);
     };
     let points_path = model_dir.join("points3D.bin");
+    if !points_path.is_file() {
+        return Ok(None);
+    }
     let read = |p: &Path| std::fs::read(p).map_err(|e| anyhow!("{}: cannot read: {e}", p.display()));
     let points = read_points_bin(&read(&points_path)?).map_err(|e| anyhow!("{}: {e}", points_path.display()))?;
-    let images = if model_dir.join("images.bin").is_file() {
-        let p = model_dir.join("images.bin");
-        read_images_bin(&read(&p)?).map_err(|e| anyhow!("{}: {e}", p.display()))?
+    let p = &data.pose_file;
+    let images = if p.extension().is_some_and(|e| e == "bin") {
+        read_images_bin(&read(p)?).map_err(|e| anyhow!("{}: {e}", p.display()))?
     } else {
-        let p = model_dir.join("images.txt");
-        let text = std::fs::read_to_string(&p).map_err(|e| anyhow!("{}: cannot read: {e}", p.display()))?;
+        let text = std::fs::read_to_string(p).map_err(|e| anyhow!("{}: cannot read: {e}", p.display()))?;
         read_images_txt(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?
     };
-    // COLMAP image id -> training view index, by the image's name (the loader reads
-    // `images/NAME`, or `images_N/NAME`, so the view's path ends with it).
+    // COLMAP image id -> training view index, by the image's name: the loader reads
+    // `images/NAME` (or `images_N/NAME`), so a view is the image whose whole name ends its
+    // path right below that folder (`000.jpg` is not `cam1/000.jpg`).
+    let is_view_of = |v: &crate::View, name: &Path| {
+        let below = v.path.ancestors().nth(name.components().count());
+        v.path.ends_with(name) && below.and_then(Path::file_name).is_some_and(|f| f.to_string_lossy().starts_with("images"))
+    };
     let mut train_of: HashMap<u32, u32> = HashMap::new();
     for img in &images {
-        if let Some(i) = data.train.iter().position(|v| v.path.ends_with(Path::new(&img.name))) {
+        if let Some(i) = data.train.iter().position(|v| is_view_of(v, Path::new(&img.name))) {
             train_of.insert(img.id, i as u32);
         }
     }
@@ -72,14 +80,6 @@ pub fn sparse_tracks(data: &Dataset) -> Result<Option<SparseTracks>> {
         out.push(TrackedPoint { xyz: p.xyz.map(|v| v as f32), seen_by: seen });
     }
     Ok(Some(SparseTracks { file: points_path, points: out, observations }))
-}
-
-/// Where the loader found the model (`sparse/0`, `sparse` or the root itself), if it has
-/// sparse points.
-fn model_dir(root: &Path) -> Option<PathBuf> {
-    [root.join("sparse").join("0"), root.join("sparse"), root.to_path_buf()]
-        .into_iter()
-        .find(|d| d.join("points3D.bin").is_file() && (d.join("images.bin").is_file() || d.join("images.txt").is_file()))
 }
 
 #[cfg(test)]

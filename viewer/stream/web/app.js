@@ -1561,9 +1561,13 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
           sw.bytes += 16 + len;
           const tag = td.decode(head.subarray(4, 8));
           q = q.then(() => apply(index, tag, p));
+          // a record that does not fit fails the switch (the server sends no END to wait for)
+          q.catch(applyFailed);
         }
       };
+      let applyFailed;
       const failed = new Promise((_, rej) => {
+        applyFailed = rej;
         w2.closed.then((i) => rej(new Error(`the server closed the switch (code ${i.closeCode}: ${i.reason})`)), (e) => rej(e));
         (async () => {
           const uni = w2.incomingUnidirectionalStreams.getReader();
