@@ -7,6 +7,7 @@
 //! target/test-assets/playwright (`.ci/run` installs them); skips with a message without
 //! them, unless SNERF_REQUIRE_BROWSER=1 (CI), where it fails.
 
+mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -25,24 +26,6 @@ fn ok(out: Output) -> Value {
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
-fn have_browser() -> bool {
-    let chromium = std::env::var_os("SNERF_CHROMIUM").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
-    let pw = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-assets/playwright/node_modules");
-    let why = if !chromium.exists() {
-        format!("no Chromium at {}", chromium.display())
-    } else if !pw.join("playwright-core/package.json").exists() || !pw.join("iwer/build/iwer.min.js").exists() {
-        format!("no playwright-core and iwer under {}", pw.display())
-    } else if Command::new("node").arg("--version").output().is_err() {
-        "no node".to_string()
-    } else {
-        return true;
-    };
-    if std::env::var("SNERF_REQUIRE_BROWSER").as_deref() == Ok("1") {
-        panic!("SNERF_REQUIRE_BROWSER=1 but {why} (.ci/run installs it)");
-    }
-    eprintln!("skipping the bench web test: {why} (.ci/run installs chromium, playwright-core and iwer)");
-    false
-}
 
 /// A small real asset: scene -> train -> bake, in `d`.
 fn bake_small(d: &Path) -> PathBuf {
@@ -86,7 +69,7 @@ fn spread(v: &Value, n: usize, what: &str) {
 
 #[test]
 fn bench_web_measures_first_frame_transfer_and_quest3_frame_on_both_renderers() {
-    if !have_browser() {
+    if !common::have_browser("the bench web test") {
         return;
     }
     let d = ScratchDir::new("snerf-bench-web", "tiny").unwrap();

@@ -7,31 +7,13 @@
 //! target/test-assets/playwright (`.ci/run` installs them); skips with a message without
 //! them, unless SNERF_REQUIRE_BROWSER=1 (CI), where it fails.
 
-use std::path::{Path, PathBuf};
+mod common;
 use std::process::Command;
 
 use serde_json::Value;
 use snerf_asset::{AssetBuilder, Header, Kind, LayeredAsset, StyleInfo, ViewMlp};
 use snerf_files::ScratchDir;
 
-fn have_browser() -> bool {
-    let chromium = std::env::var_os("SNERF_CHROMIUM").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));
-    let pw = Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-assets/playwright/node_modules");
-    let why = if !chromium.exists() {
-        format!("no Chromium at {}", chromium.display())
-    } else if !pw.join("playwright-core/package.json").exists() || !pw.join("iwer/build/iwer.min.js").exists() {
-        format!("no playwright-core and iwer under {}", pw.display())
-    } else if Command::new("node").arg("--version").output().is_err() {
-        "no node".to_string()
-    } else {
-        return true;
-    };
-    if std::env::var("SNERF_REQUIRE_BROWSER").as_deref() == Ok("1") {
-        panic!("SNERF_REQUIRE_BROWSER=1 but {why} (.ci/run installs it)");
-    }
-    eprintln!("skipping the bench web-switch test: {why} (.ci/run installs chromium, playwright-core and iwer)");
-    false
-}
 
 /// Two styles on one small ball: the second's colours the first's inverted.
 fn two_styles() -> LayeredAsset {
@@ -71,7 +53,7 @@ fn two_styles() -> LayeredAsset {
 
 #[test]
 fn bench_web_switch_reports_each_switchs_bytes_and_latencies() {
-    if !have_browser() {
+    if !common::have_browser("the bench web-switch test") {
         return;
     }
     let d = ScratchDir::new("snerf-bench-web-switch", "t").unwrap();

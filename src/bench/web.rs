@@ -127,14 +127,7 @@ pub fn run(a: &BenchWebArgs) -> Result<Value> {
     let t_start = Instant::now();
     let asset = snerf_asset::Asset::read(&a.asset)?;
     let size = std::fs::metadata(&a.asset)?.len() as f64;
-    let state = std::env::temp_dir().join(format!("snerf-bench-web-{}", std::process::id()));
-    std::fs::create_dir_all(&state)?;
-    // Loopback only: the server, its web page and every client stay on 127.0.0.1.
-    let mut o = snerf_stream::ServeOptions::new(&a.asset, "127.0.0.1:0".parse()?);
-    o.state_dir = Some(state.join("state"));
-    o.quiet = true;
-    o.web = Some("127.0.0.1:0".parse()?);
-    let server = snerf_stream::spawn(o)?;
+    let (state, server) = loopback_server(&a.asset, "snerf-bench-web")?;
     let result = measure(a, &chromium, &pw, &server, &asset, &state, (w, h), eye, &backends, size);
     server.shutdown();
     let _ = std::fs::remove_dir_all(&state);
@@ -400,4 +393,17 @@ pub(super) fn urlencode(s: &str) -> String {
             _ => format!("%{:02X}", b),
         })
         .collect()
+}
+
+/// A `snerf serve` of `asset` with its web page, on loopback only (the server, its page and
+/// every client stay on 127.0.0.1), and the scratch folder (`prefix-PID`) holding its state.
+pub(super) fn loopback_server(asset: &std::path::Path, prefix: &str) -> Result<(std::path::PathBuf, snerf_stream::ServerHandle)> {
+    let state = std::env::temp_dir().join(format!("{prefix}-{}", std::process::id()));
+    std::fs::create_dir_all(&state)?;
+    let mut o = snerf_stream::ServeOptions::new(asset, "127.0.0.1:0".parse()?);
+    o.state_dir = Some(state.join("state"));
+    o.quiet = true;
+    o.web = Some("127.0.0.1:0".parse()?);
+    let server = snerf_stream::spawn(o)?;
+    Ok((state, server))
 }

@@ -46,13 +46,7 @@ pub fn run(a: &BenchWebSwitchArgs) -> Result<Value> {
     let style_name = |i: usize| format!("{stem}.{}", names[i]);
     let load_start = load_average();
     let t0 = Instant::now();
-    let state = std::env::temp_dir().join(format!("snerf-bench-web-switch-{}", std::process::id()));
-    std::fs::create_dir_all(&state)?;
-    let mut o = snerf_stream::ServeOptions::new(&a.asset, "127.0.0.1:0".parse()?);
-    o.state_dir = Some(state.join("state"));
-    o.quiet = true;
-    o.web = Some("127.0.0.1:0".parse()?);
-    let server = snerf_stream::spawn(o)?;
+    let (state, server) = super::web::loopback_server(&a.asset, "snerf-bench-web-switch")?;
     let r = measure(a, &chromium, &pw, &server, &style_name, &state);
     server.shutdown();
     let _ = std::fs::remove_dir_all(&state);

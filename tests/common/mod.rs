@@ -27,3 +27,24 @@ pub fn fails(out: Output, needles: &[&str]) -> String {
     }
     stderr
 }
+
+/// Whether Chromium, playwright-core, iwer and node are here for `test` (a browser test);
+/// panics when `SNERF_REQUIRE_BROWSER=1` and one is missing.
+pub fn have_browser(test: &str) -> bool {
+    let chromium = std::env::var_os("SNERF_CHROMIUM").map(std::path::PathBuf::from).unwrap_or_else(|| std::path::PathBuf::from("/usr/bin/chromium"));
+    let pw = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/test-assets/playwright/node_modules");
+    let why = if !chromium.exists() {
+        format!("no Chromium at {}", chromium.display())
+    } else if !pw.join("playwright-core/package.json").exists() || !pw.join("iwer/build/iwer.min.js").exists() {
+        format!("no playwright-core and iwer under {}", pw.display())
+    } else if Command::new("node").arg("--version").output().is_err() {
+        "no node".to_string()
+    } else {
+        return true;
+    };
+    if std::env::var("SNERF_REQUIRE_BROWSER").as_deref() == Ok("1") {
+        panic!("SNERF_REQUIRE_BROWSER=1 but {why} (.ci/run installs it)");
+    }
+    eprintln!("skipping {test}: {why} (.ci/run installs chromium, playwright-core and iwer)");
+    false
+}
