@@ -11,6 +11,8 @@ use clap::Args;
 use serde_json::{json, Value};
 use snerf_stream::{Congestion, Limits, ServeOptions};
 
+mod styles_dir;
+
 #[derive(Args, Debug)]
 pub struct ServeArgs {
     /// A directory of .snerf files, or one file.
@@ -72,6 +74,26 @@ pub struct ServeArgs {
     /// Do not serve the web viewer.
     #[arg(long)]
     pub no_web: bool,
+    /// Add styles while serving: a painting (PNG, JPEG) put in this folder is trained as a new
+    /// layer of --styles-run (its first layer's options, as `snerf stylize` trains one), baked
+    /// onto the served asset's geometry, written into the asset (atomically, the styles there
+    /// kept) and offered to every client; sessions watching the listing are told. A painting
+    /// whose style the asset has is not trained again. Each added style prints a JSON line on
+    /// stdout (`"event": "style_added"`, train and bake seconds). PATH must be the multi-style
+    /// asset `snerf bake SRUN` wrote.
+    #[arg(long, requires = "styles_run")]
+    pub styles_dir: Option<PathBuf>,
+    /// The layered stylize run (`snerf stylize --style A --style B --out SRUN`) the served
+    /// asset was baked from: new layers go to SRUN/layers/NAME and SRUN/layers.json.
+    #[arg(long, requires = "styles_dir")]
+    pub styles_run: Option<PathBuf>,
+    /// Seconds between looks at --styles-dir.
+    #[arg(long, default_value_t = 2.0, value_parser = crate::args::positive)]
+    pub styles_poll: f64,
+    /// Model directory for the new layers' stylizer (default $SNERF_MODELS or
+    /// ~/.cache/snerf/models), as `snerf stylize --models`.
+    #[arg(long, requires = "styles_dir")]
+    pub models: Option<PathBuf>,
 }
 
 /// The web viewer's address: `--web`, else the QUIC address's port + 1 (0 stays 0).
@@ -112,7 +134,15 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
         ..Limits::default()
     };
     let path = crate::args::pj(&a.path);
+    // Checked before the server starts: a wrong run or asset is an error now, not later.
+    let styles = match (&a.styles_dir, &a.styles_run) {
+        (Some(d), Some(r)) => Some(styles_dir::StylesDir::open(d, r, &a.path, a.models.clone(), Duration::from_secs_f64(a.styles_poll.min(3600.0)))?),
+        _ => None,
+    };
     snerf_stream::serve_blocking_with(o, |h| {
+        if let Some(Err(e)) = styles.map(|s| s.spawn(h.announcer())) {
+            eprintln!("snerf serve: --styles-dir: {e:#}");
+        }
         if json {
             let v = json!({
                 "command": "serve",

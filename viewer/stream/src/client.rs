@@ -152,7 +152,7 @@ impl Session {
         self.conn.close_reason().map(|e| self.explain(&e))
     }
 
-    async fn read_msg(&mut self) -> Result<ServerMsg> {
+    pub(crate) async fn read_msg(&mut self) -> Result<ServerMsg> {
         match read_frame(&mut self.recv, self.max_message).await {
             Ok(Some(b)) => decode_server_msg(&b),
             Ok(None) => Err(self
@@ -165,7 +165,7 @@ impl Session {
     /// Ask for the server's asset list.
     pub async fn list(&mut self) -> Result<Vec<ListEntry>> {
         self.send
-            .write_all(&encode_frame(&ClientMsg::List { thumbs: false }))
+            .write_all(&encode_frame(&ClientMsg::List { thumbs: false, watch: false }))
             .await
             .map_err(|e| anyhow!("control stream: {}", e))?;
         match self.read_msg().await? {

@@ -147,7 +147,8 @@ async fn control(shared: &Shared, body: &[u8]) -> Result<Vec<u8>, Close> {
     };
     out.extend(encode_frame(&welcome));
     for m in &msgs[1..] {
-        if let ClientMsg::List { thumbs } = m {
+        // `watch` asks for later messages, which a request's one answer cannot carry: ignored.
+        if let ClientMsg::List { thumbs, .. } = m {
             let mut assets = shared.list();
             if *thumbs {
                 // Rendering a thumbnail blocks: off the async workers' queue.

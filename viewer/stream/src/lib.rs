@@ -6,7 +6,8 @@
 //! - `client`: `fetch` — headless download to a complete, checksum-verified file, resumable.
 //! - `live`: `LiveAsset` — progressive client for the viewer (renders while blocks arrive).
 //! - `restyle`: `switch_style` — a style switch by colour alone (a multi-style asset's other
-//!   style, written over the one held).
+//!   style, written over the one held); `watch`: hearing of styles a server adds while it
+//!   serves (`server::Announcer` on the server's side).
 //! - `bench`: `snerf bench stream` (QUIC vs TCP side by side, time to first view).
 //! - `web`: the web viewer — its certificate (every name in `lan`), `snerf/1` over
 //!   WebTransport beside the native endpoint (`ServeOptions::web`), and `page`: the page
@@ -53,6 +54,7 @@ mod shared;
 mod stats;
 pub mod tls;
 pub mod url;
+pub mod watch;
 pub mod web;
 mod web_cert;
 

@@ -54,7 +54,7 @@ pub struct ServedAsset {
 /// another style of the file is sent to switch to this one (`Hello::colour_of`). The density
 /// stays, so only the view MLP and, per block, the colour of its stored voxels travel.
 pub struct ColourPart {
-    /// Hex SHA-256 of the multi-style file: the geometry its styles share.
+    /// The geometry its styles share (`geometry_id`): what a client's `colour_of` must name.
     pub geometry: String,
     /// The style's `SMLP` and `SCOL` chunks, headers included, as the file has them.
     pub bytes: Bytes,
@@ -96,9 +96,36 @@ struct RawColour {
     scol: Vec<(u32, Range<usize>)>,
 }
 
+/// The id of a multi-style file's geometry: the hex SHA-256 of its preamble, its header
+/// without the style list, its GRID chunks and its BLKS chunks (the density), in file order.
+/// Adding a style to the file (`snerf serve --styles-dir`) leaves it as it was, so a client
+/// that holds a style from before can still switch by colour to every style, the new one
+/// included; anything that changes what a held style's bytes are (the grids, the density,
+/// the header's other fields) changes it, and such a switch is refused.
+pub fn geometry_id(raw: &[u8]) -> Result<String> {
+    let mut h = Sha256::new();
+    h.update(&raw[..PREAMBLE_LEN.min(raw.len())]);
+    for c in chunks(raw)? {
+        match c.tag {
+            TAG_HEAD => {
+                let mut v: serde_json::Value = serde_json::from_slice(&raw[c.payload.clone()]).context("header is not JSON")?;
+                if let Some(o) = v.as_object_mut() {
+                    o.remove("styles");
+                }
+                let json = serde_json::to_vec(&v)?;
+                h.update((json.len() as u64).to_le_bytes());
+                h.update(&json);
+            }
+            TAG_GRID | TAG_BLKS => h.update(&raw[c.range.clone()]),
+            _ => {}
+        }
+    }
+    Ok(to_hex(&h.finalize()))
+}
+
 fn raw_colour(raw: &[u8], served: usize) -> Result<RawColour> {
     use snerf_asset::chunk::{TAG_SCOL, TAG_SMLP};
-    let mut out = RawColour { geometry: to_hex(&Sha256::digest(raw)), bytes: Vec::new(), mlp: None, scol: Vec::new() };
+    let mut out = RawColour { geometry: geometry_id(raw)?, bytes: Vec::new(), mlp: None, scol: Vec::new() };
     for c in chunks(raw)? {
         if c.tag != TAG_SMLP && c.tag != TAG_SCOL {
             continue;

@@ -205,9 +205,13 @@ pub enum ClientMsg {
         colour_of: Option<String>,
     },
     /// Ask for the asset list (after Hello); with `thumbs`, each entry carries a thumbnail.
+    /// With `watch`, the server also sends a `Styles` message whenever a served asset gains a
+    /// style, for as long as this session lasts (a server that predates `watch` ignores it).
     List {
         #[serde(default, skip_serializing_if = "std::ops::Not::not")]
         thumbs: bool,
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        watch: bool,
     },
 }
 
@@ -250,9 +254,10 @@ pub struct AssetInfo {
     pub preamble: String,
     pub atlas_blocks: u32,
     pub frames: u32,
-    /// One style of a multi-style file: the hex SHA-256 of that file, the geometry its
-    /// styles share. A client holding this asset may switch to another of its styles by
-    /// colour alone (`Hello::colour_of`).
+    /// One style of a multi-style file: the id of the geometry its styles share
+    /// (`plan::geometry_id`: a hex SHA-256 of the file's header without its style list, grids
+    /// and density, so a style added to the file later keeps it). A client holding this asset
+    /// may switch to another of its styles by colour alone (`Hello::colour_of`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub geometry: Option<String>,
 }
@@ -281,6 +286,12 @@ pub enum ServerMsg {
     },
     Listing {
         assets: Vec<ListEntry>,
+    },
+    /// To a session that asked for a listing with `watch`: the multi-style asset `asset` now
+    /// has these styles (all of them, in its header's order; `asset.STYLE` streams each).
+    Styles {
+        asset: String,
+        styles: Vec<snerf_asset::StyleInfo>,
     },
 }
 
@@ -335,6 +346,10 @@ pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
 pub fn decode_server_msg(b: &[u8]) -> Result<ServerMsg> {
     let m: ServerMsg =
         serde_json::from_slice(b).map_err(|e| anyhow!("bad server message: {}", e))?;
+    if let ServerMsg::Styles { asset, styles } = &m {
+        ensure!(valid_asset_name(asset), "bad asset name in Styles");
+        ensure!(styles.iter().all(|s| valid_asset_name(&format!("{asset}.{}", s.name))), "bad style name in Styles");
+    }
     if let ServerMsg::Welcome { asset: Some(a), .. } = &m {
         ensure!(a.chunks >= 2, "asset has {} chunks", a.chunks);
         ensure!(a.size <= 1 << 40, "asset size {} implausible", a.size);
@@ -575,7 +590,7 @@ mod tests {
 
     #[tokio::test]
     async fn read_frame_limits() {
-        let f = encode_frame(&ClientMsg::List { thumbs: false });
+        let f = encode_frame(&ClientMsg::List { thumbs: false, watch: false });
         let mut r: &[u8] = &f;
         assert!(read_frame(&mut r, 1024).await.unwrap().is_some());
         assert!(read_frame(&mut r, 1024).await.unwrap().is_none());

@@ -61,6 +61,23 @@ impl ServeOptions {
     }
 }
 
+/// Tells a running server's watching sessions (`List::watch`) that an asset's styles
+/// changed: a new style was added to its file (PROTOCOL.md, "New styles"). Cheap to clone;
+/// usable from any thread.
+#[derive(Clone)]
+pub struct Announcer {
+    shared: Arc<Shared>,
+}
+
+impl Announcer {
+    /// Send every watching session asset `asset`'s style list as its file's header has it
+    /// now; returns how many sessions were told. Sessions opened later read the file anew
+    /// (its mtime and size changed), so they see the new style without this.
+    pub fn styles_changed(&self, asset: &str) -> Result<usize> {
+        self.shared.announce_styles(asset)
+    }
+}
+
 /// A running server. `shutdown` stops it; dropping the handle stops it too.
 pub struct ServerHandle {
     addr: SocketAddr,
@@ -70,6 +87,7 @@ pub struct ServerHandle {
     created: bool,
     stats: Arc<ServerStats>,
     web: Option<crate::web::WebInfo>,
+    announcer: Announcer,
     stop: watch::Sender<bool>,
     thread: Option<std::thread::JoinHandle<()>>,
     task: Option<tokio::task::JoinHandle<()>>,
@@ -105,6 +123,10 @@ impl ServerHandle {
     /// The web viewer's address and certificate hash, when it is served.
     pub fn web(&self) -> Option<&crate::web::WebInfo> {
         self.web.as_ref()
+    }
+    /// What tells this server's watching sessions of new styles.
+    pub fn announcer(&self) -> Announcer {
+        self.announcer.clone()
     }
     /// `quic://ADDR/ASSET` for this server.
     pub fn url(&self, asset: &str) -> String {
@@ -146,6 +168,7 @@ pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
     let web_info = web.as_ref().map(|w| w.info.clone());
     let (stop, stop_rx) = watch::channel(false);
     let stats = shared.stats.clone();
+    let announcer = Announcer { shared: shared.clone() };
     let web_task = web.map(|w| tokio::spawn(crate::web::run(shared.clone(), w, stop_rx.clone())));
     let native = tokio::spawn(accept_loop(shared, endpoint, stop_rx));
     let task = tokio::spawn(async move {
@@ -162,6 +185,7 @@ pub async fn start(opts: ServeOptions) -> Result<ServerHandle> {
         created: id.created,
         stats,
         web: web_info,
+        announcer,
         stop,
         thread: None,
         task: Some(task),
@@ -205,6 +229,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
                             h.created,
                             h.stats.clone(),
                             h.web.clone(),
+                            h.announcer.clone(),
                             real_stop,
                         );
                         drop(h);
@@ -218,7 +243,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
             });
         })
         .context("cannot spawn the server thread")?;
-    let (addr, fingerprint, token, token_file, created, stats, web, stop) = rx
+    let (addr, fingerprint, token, token_file, created, stats, web, announcer, stop) = rx
         .recv()
         .map_err(|_| anyhow!("server thread ended during start"))??;
     Ok(ServerHandle {
@@ -229,6 +254,7 @@ pub fn spawn(opts: ServeOptions) -> Result<ServerHandle> {
         created,
         stats,
         web,
+        announcer,
         stop,
         thread: Some(thread),
         task: None,
@@ -397,6 +423,9 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
         stats,
         quiet: opts.quiet,
         thumbs: Default::default(),
+        // Watchers that fall this far behind miss messages (each names a whole style list,
+        // so the next one for that asset makes up for it).
+        updates: tokio::sync::broadcast::channel(64).0,
     });
     Ok((shared, endpoint, id))
 }

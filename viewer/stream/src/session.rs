@@ -286,14 +286,25 @@ async fn session(
     // Control loop: List may follow; anything else is out of order.
     let mut control_open = true;
     let mut linger: Option<tokio::time::Instant> = None;
+    // Set by a `list` with `watch`: the `styles` messages this session forwards.
+    let mut watching: Option<tokio::sync::broadcast::Receiver<ServerMsg>> = None;
     loop {
         tokio::select! {
+            m = next_update(&mut watching), if watching.is_some() => {
+                if let Some(m) = m {
+                    send_msg(&mut send, &m).await?;
+                }
+            }
             f = read_frame(recv.quic(), limits.max_message), if control_open => {
                 match f {
                     Err(e) => return Err(frame_close(conn, e)),
                     Ok(None) => control_open = false,
                     Ok(Some(b)) => match decode_client_msg(&b).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))? {
-                        ClientMsg::List { thumbs } => {
+                        ClientMsg::List { thumbs, watch } => {
+                            // Subscribed before the listing is read, so no change falls between.
+                            if watch && watching.is_none() {
+                                watching = Some(shared.updates.subscribe());
+                            }
                             let mut assets = shared.list();
                             if thumbs {
                                 // Rendered (or read from the cache) off the async workers.
@@ -329,6 +340,21 @@ async fn session(
                 return Err(Close(code::DONE, "transfer complete".into()));
             }
             _ = conn.quic().closed() => return Ok(()),
+        }
+    }
+}
+
+/// The next message for a watching session; None when it fell behind (what it missed is
+/// dropped: each message names an asset's whole style list, so the next one makes up for it)
+/// or when the server is stopping (the watch then ends).
+async fn next_update(rx: &mut Option<tokio::sync::broadcast::Receiver<ServerMsg>>) -> Option<ServerMsg> {
+    use tokio::sync::broadcast::error::RecvError;
+    match rx.as_mut()?.recv().await {
+        Ok(m) => Some(m),
+        Err(RecvError::Lagged(_)) => None,
+        Err(RecvError::Closed) => {
+            *rx = None;
+            None
         }
     }
 }
@@ -383,7 +409,7 @@ fn colour_part<'a>(name: &str, a: &'a ServedAsset, geometry: &str) -> Result<&'a
         return Err(Close(
             code::NOT_FOUND,
             format!(
-                "colour_of {:?} is not the geometry of {:?} (the file changed, or it is another asset's): ask for the whole asset",
+                "colour_of {:?} is not the geometry of {:?} (the file's geometry changed, or it is another asset's): ask for the whole asset",
                 geometry, name
             ),
         ));

@@ -34,6 +34,8 @@ pub(crate) struct Shared {
     pub(crate) stats: Arc<ServerStats>,
     pub(crate) quiet: bool,
     pub(crate) thumbs: crate::thumbs::Thumbs,
+    /// `Styles` messages for the sessions that watch (`List::watch`; `server::Announcer`).
+    pub(crate) updates: tokio::sync::broadcast::Sender<crate::proto::ServerMsg>,
 }
 
 /// A connection-ending error: QUIC application code + reason sent to the client.
@@ -100,6 +102,21 @@ fn entry(name: String, size: u64, path: &Path) -> ListEntry {
 }
 
 impl Shared {
+    /// Tell every watching session the styles `asset` has now (as its file's header lists
+    /// them). Returns how many sessions were told; an error when `asset` is not served or has
+    /// no styles.
+    pub(crate) fn announce_styles(&self, asset: &str) -> Result<usize> {
+        let entry = self.list().into_iter().find(|e| e.name == asset);
+        let Some(styles) = entry.as_ref().and_then(|e| e.styles.clone()) else {
+            anyhow::bail!("{asset:?} is not a multi-style asset this server serves");
+        };
+        let told = self.updates.send(crate::proto::ServerMsg::Styles { asset: asset.to_string(), styles }).unwrap_or(0);
+        if !self.quiet {
+            eprintln!("snerf serve: {asset}: told {told} watching session(s) of its new style list");
+        }
+        Ok(told)
+    }
+
     pub(crate) fn list(&self) -> Vec<ListEntry> {
         match &self.source {
             Source::File { name, path } => {

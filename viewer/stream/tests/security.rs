@@ -235,7 +235,7 @@ fn hostile_control_messages_close_only_that_connection() {
             ),
             (
                 "List before Hello",
-                encode_frame(&ClientMsg::List { thumbs: false }),
+                encode_frame(&ClientMsg::List { thumbs: false, watch: false }),
                 false,
                 code::PROTOCOL,
             ),
@@ -392,7 +392,7 @@ fn no_panic_on_arbitrary_network_bytes() {
             colour_of: None,
         })
         .unwrap(),
-        serde_json::to_vec(&ClientMsg::List { thumbs: false }).unwrap(),
+        serde_json::to_vec(&ClientMsg::List { thumbs: false, watch: false }).unwrap(),
         br#"{"type":"welcome","version":1,"asset":{"name":"a","size":100,"chunks":4,"sha256":"0000000000000000000000000000000000000000000000000000000000000000","preamble":"534e4552464153540100000000000000","atlas_blocks":1,"frames":1},"resumed":false}"#.to_vec(),
         br#"{"type":"listing","assets":[{"name":"a","size":1}]}"#.to_vec(),
         proto::encode_pose(7, &Pose::new([0.0; 3], [1.0, 0.0, 0.0])).to_vec(),
