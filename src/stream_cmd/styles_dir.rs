@@ -49,7 +49,7 @@ enum Seen {
     Done(u64, SystemTime),
 }
 
-const PAINTING_EXTENSIONS: [&str; 3] = ["png", "jpg", "jpeg"];
+const PAINTING_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "webp"];
 
 fn say(msg: &str) {
     eprintln!("snerf serve: {msg}");
@@ -96,7 +96,7 @@ impl StylesDir {
     /// Watch on a thread of its own until the process ends.
     pub fn spawn(mut self, announcer: Announcer) -> Result<()> {
         say(&format!(
-            "watching {} for new paintings (png, jpg) to add as styles of {} (layers in {}); styles now: {}",
+            "watching {} for new paintings (png, jpg, webp) to add as styles of {} (layers in {}); styles now: {}",
             self.dir.display(),
             self.asset_name,
             self.srun.display(),
@@ -142,7 +142,7 @@ impl StylesDir {
             seen.insert(path.clone(), Seen::Done(now.0, now.1));
             let ext = path.extension().map(|x| x.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
             if !PAINTING_EXTENSIONS.contains(&ext.as_str()) {
-                say(&format!("{}: not a painting (png or jpg): ignored", path.display()));
+                say(&format!("{}: not a painting (png, jpg or webp): ignored", path.display()));
                 continue;
             }
             let name = style_name(&path.to_string_lossy());

@@ -1512,6 +1512,66 @@ fn the_page_lists_a_multi_style_assets_styles_and_streams_one() {
     h.shutdown();
 }
 
+/// A style the server adds while the page shows the asset (what `snerf serve --styles-dir`
+/// does once a layer is trained: the file written again with the style appended, then
+/// `Announcer::styles_changed`): the page, watching, shows the new swatch, its key switches
+/// to the style by colour alone, and the page rebuilds that style's file byte for byte.
+#[test]
+fn a_style_added_while_the_page_shows_the_asset_gets_a_swatch_and_a_switch_by_colour() {
+    use std::io::BufRead;
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-new-style");
+    let state = TempDir::new("web-new-style-state");
+    let file = dir.join("scene.snerf");
+    let layered = two_styles();
+    layered.write(&file).unwrap();
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene.warm")]));
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/newstyle.mjs");
+    let mut node = Command::new(&b.0)
+        .arg(&script)
+        .arg(&b.2)
+        .arg(&url)
+        .env("SNERF_CHROMIUM", &b.1)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run node");
+    let mut out = std::io::BufReader::new(node.stdout.take().unwrap()).lines();
+    let first = out.next().and_then(Result::ok).unwrap_or_default();
+    assert_eq!(first, "watching");
+    // a third style: the first's colours halved
+    let mut green = layered.layers[0].clone();
+    for v in green.atlas.chunks_exact_mut(8) {
+        for c in &mut v[1..] {
+            *c /= 2;
+        }
+    }
+    let (mut styles, mut layers) = (layered.styles.clone(), layered.layers.clone());
+    styles.push(snerf_asset::StyleInfo { name: "green".into(), source: None, swatch: [0.2, 0.6, 0.2] });
+    layers.push(green);
+    let three = snerf_asset::LayeredAsset::new(styles, layers).unwrap();
+    three.write(&file).unwrap();
+    let want = three.clone().into_style(2).unwrap().to_bytes();
+    assert_eq!(h.announcer().styles_changed("scene").unwrap(), 1, "the page's watching session is told");
+    let rest: Vec<String> = out.map_while(Result::ok).collect();
+    let status = node.wait().unwrap();
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut node.stderr.take().unwrap(), &mut stderr).unwrap();
+    assert!(status.success(), "newstyle.mjs failed: {stderr}");
+    let r: serde_json::Value = serde_json::from_str(rest.last().map(String::as_str).unwrap_or("")).unwrap_or_else(|e| panic!("page report: {e} ({stderr})"));
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+    assert_eq!(r["swatches"], serde_json::json!(["warm", "cold", "green"]));
+    assert_eq!(r["styles"], serde_json::json!(["scene.warm", "scene.cold", "scene.green"]));
+    let sw = &r["switches"][0];
+    assert_eq!((&sw["state"], &sw["name"]), (&"done".into(), &"scene.green".into()), "{sw}");
+    let records = three.header().atlas_blocks as u64 + 1;
+    assert_eq!(sw["bytes"].as_u64(), Some(three.style_bytes()[2].bytes + 4 * records), "the colour part and an index per record: {sw}");
+    assert_eq!(r["sha256"], snerf_stream::proto::to_hex(&Sha256::digest(&want)).as_str());
+    h.shutdown();
+}
+
 /// Run switch.mjs (URL, then the keys pressed one switch after another); its JSON report.
 fn switch_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, keys: &str) -> serde_json::Value {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/switch.mjs");

@@ -1725,24 +1725,72 @@ function showListing(assets) {
     const td2 = document.createElement('td'); td2.appendChild(b); tr.appendChild(td2);
     // A multi-style asset: a swatch per style (its header's mean colour); the server streams
     // style S of asset A as `A.S`. Keys 1..9 switch the asset on screen to its styles.
-    if (a.styles) {
-      const td3 = document.createElement('td');
-      a.styles.forEach((st, i) => {
-        const sw = document.createElement('button');
-        sw.className = 'swatch'; sw.textContent = String(i + 1); sw.title = st.name;
-        sw.style.background = `rgb(${st.swatch.map((c) => Math.round(255 * Math.min(Math.max(c, 0), 1))).join(',')})`;
-        sw.onclick = () => viewAsset(`${a.name}.${st.name}`);
-        td3.appendChild(sw);
-      });
-      tr.appendChild(td3);
-      const shown = frag.get('asset');
-      if (shown === a.name || (shown && shown.startsWith(a.name + '.') && a.styles.some((st) => shown === `${a.name}.${st.name}`))) {
-        report.styles = a.styles.map((st) => `${a.name}.${st.name}`);
-      }
-    }
+    const td3 = document.createElement('td');
+    td3.className = 'styles';
+    tr.appendChild(td3);
+    swatchRow.set(a.name, td3);
+    if (a.styles) showSwatches(a.name, a.styles);
     tbody.appendChild(tr);
   }
   return assets;
+}
+
+// The swatch cell of each listed asset, by name.
+const swatchRow = new Map();
+function showSwatches(asset, styles) {
+  const td3 = swatchRow.get(asset);
+  if (!td3) return;
+  td3.replaceChildren();
+  styles.forEach((st, i) => {
+    const sw = document.createElement('button');
+    sw.className = 'swatch'; sw.textContent = String(i + 1); sw.title = st.name;
+    sw.style.background = `rgb(${st.swatch.map((c) => Math.round(255 * Math.min(Math.max(c, 0), 1))).join(',')})`;
+    sw.onclick = () => viewAsset(`${asset}.${st.name}`);
+    td3.appendChild(sw);
+  });
+  const shown = frag.get('asset');
+  if (shown === asset || (shown && shown.startsWith(asset + '.') && styles.some((st) => shown === `${asset}.${st.name}`))) {
+    report.styles = styles.map((st) => `${asset}.${st.name}`);
+  }
+}
+
+// New styles (PROTOCOL.md, "New styles"): a session of its own that lists with `watch` and
+// is then sent an asset's style list each time the server adds a style to it (`snerf serve
+// --styles-dir`); the asset's row gets the new swatch and, for the asset on screen, the keys
+// reach it (a switch to it goes by colour, as to any other). WebTransport only: over HTTPS an
+// answer ends with its request. A lost session is opened again (the server restarting), up
+// to 5 times in a row.
+async function watchStyles() {
+  for (let failures = 0; failures < 5; failures++) {
+    try {
+      const { wt, writer, ctl } = await connect({ type: 'hello', version: 1, token, asset: null });
+      try {
+        const welcome = await readMsg(ctl);
+        if (welcome.type !== 'welcome') throw new Error('unexpected ' + welcome.type);
+        await writer.write(frame({ type: 'list', watch: true }));
+        const listing = await readMsg(ctl);
+        if (listing.type !== 'listing') throw new Error('unexpected ' + listing.type);
+        // what changed while no session watched
+        for (const a of listing.assets) if (a.styles) showSwatches(a.name, a.styles);
+        report.watching = true;
+        failures = 0;
+        for (;;) {
+          const m = await readMsg(ctl);
+          if (m.type !== 'styles') continue;
+          const entry = (report.listing || []).find((a) => a.name === m.asset);
+          if (entry) entry.styles = m.styles;
+          showSwatches(m.asset, m.styles);
+          report.stylesAdded = (report.stylesAdded || 0) + 1;
+          setStatus(`${m.asset}: a new style, ${m.styles[m.styles.length - 1].name} (key ${m.styles.length})`);
+        }
+      } finally {
+        report.watching = false;
+        try { wt.close({ closeCode: 0, reason: 'done' }); } catch (_) { /* already closed */ }
+      }
+    } catch (_) {
+      await new Promise((r) => setTimeout(r, 2000));
+    }
+  }
 }
 
 // The stream on screen, once complete: whether it can switch to another style of its file
@@ -1855,10 +1903,12 @@ async function main() {
     }
     return listing;
   };
+  const watch = () => { if (report.transport === 'webtransport') watchStyles(); };
   if (!want) {
     list();
     await gpuReady;
     const assets = await listing;
+    watch();
     report.state = 'listed';
     setStatus(`${assets.length} asset(s); choose one`);
     return;
@@ -1867,6 +1917,7 @@ async function main() {
   // A listing asked for while the session was lost (the server restarting: the stream
   // resumed) is asked for once more, now that the stream is complete.
   await list().catch(() => { listing = null; return list(); });
+  watch();
   report.state = 'done';
   setStatus(`${info.name}: ${info.size} bytes, SHA-256 verified; drag to orbit, wheel or pinch to zoom, WASD/QE to move`);
 }
