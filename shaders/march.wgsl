@@ -38,7 +38,8 @@ struct Params {
     ndc0: vec4<f32>,
     // ndc near, ndc xy_extent, march step, t_terminate
     march: vec4<f32>,
-    // logit_min, logit_max, keyframe blend weight w, unused
+    // logit_min, logit_max, keyframe blend weight w, grid offset of the motion reference
+    // keyframe (bits of a u32; motion.rs)
     dens: vec4<f32>,
     background: vec4<f32>,
     // res, grid cells per axis, atlas blocks per row (x), atlas blocks per column (y)
@@ -142,8 +143,49 @@ fn empty_vals() -> Vals {
     return o;
 }
 
-// sample.rs `sample_slot`: None when every side involved is empty. Written with two
-// interpolation sites only, so SIMD lanes that disagree run at most two block fetches.
+// ---- motion (baker/asset/src/motion.rs) ----
+// A motion entry (bit 31 set, bit 30 clear; packed atlas positions use bits 0..29) shows the
+// reference keyframe (its grid at entry offset P.dens.w, as bits) moved by three signed
+// 10-bit offsets in quarter voxels.
+fn is_motion(e: u32) -> bool {
+    return (e & 0xc0000000u) == 0x80000000u;
+}
+
+fn motion_offset(e: u32) -> vec3<f32> {
+    let q = vec3<i32>(vec3<u32>(e, e >> 10u, e >> 20u) & vec3<u32>(1023u));
+    let s = select(q, q - vec3<i32>(1024), q >= vec3<i32>(512));
+    return vec3<f32>(s) / 4.0;
+}
+
+// sample.rs `sample_moved`: the reference at the voxel position of (cell, l) moved by d.
+fn sample_moved(cell: u32, l: vec3<f32>, d: vec3<f32>) -> Vals {
+    let gd = P.grid.y;
+    let c = vec3<u32>(cell % gd, (cell / gd) % gd, cell / (gd * gd));
+    let v = l + 0.5 + vec3<f32>(c * BLOCK) - 1.0 + d;
+    let r = locate(v / f32(P.grid.x) * 2.0 - 1.0);
+    if (!r.ok) {
+        return empty_vals();
+    }
+    let e = grid_at(bitcast<u32>(P.dens.w) + r.cell);
+    if (e == EMPTY) {
+        return empty_vals();
+    }
+    return interpolate(e, r.l);
+}
+
+// One side's values: empty, a block, or the reference moved.
+fn entry_vals(e: u32, cell: u32, l: vec3<f32>) -> Vals {
+    if (e == EMPTY) {
+        return empty_vals();
+    }
+    if (DYNAMIC && is_motion(e)) {
+        return sample_moved(cell, l, motion_offset(e));
+    }
+    return interpolate(e, l);
+}
+
+// sample.rs `sample_slot`: None when every side involved is empty; two motion entries move
+// the reference by the interpolated offset and read it once.
 fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
     var s: Sample;
     let a = grid_at(P.frames.x + cell);
@@ -156,18 +198,16 @@ fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
     if (!s.ok) {
         return s;
     }
-    var va = empty_vals();
-    if (a != EMPTY) {
-        va = interpolate(a, l);
+    if (DYNAMIC && a != b && is_motion(a) && is_motion(b)) {
+        s.v = sample_moved(cell, l, (1.0 - w) * motion_offset(a) + w * motion_offset(b));
+        return s;
     }
+    let va = entry_vals(a, cell, l);
     if (!DYNAMIC || a == b) {
         s.v = va;
         return s;
     }
-    var vb = empty_vals();
-    if (b != EMPTY) {
-        vb = interpolate(b, l);
-    }
+    let vb = entry_vals(b, cell, l);
     s.v.a = (1.0 - w) * va.a + w * vb.a;
     s.v.b = (1.0 - w) * va.b + w * vb.b;
     return s;

@@ -52,6 +52,11 @@ pub struct BakeArgs {
     /// the cells that change most over time get the blocks.
     #[arg(long, default_value_t = BakeOptions::default().time_budget, value_parser = crate::args::positive_f32)]
     pub time_budget: f32,
+    /// Dynamic scenes: cells may show one reference time sample moved by an offset instead
+    /// of a block of their own, so playback moves a moving part instead of blending two
+    /// blocks (`snerf_baker::motion`; file version 4). Off: the block codebook alone.
+    #[arg(long)]
+    pub motion: bool,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
@@ -234,6 +239,7 @@ fn bake_options(a: &BakeArgs, res: u32) -> BakeOptions {
         visibility_views: a.visibility_views,
         reuse_tolerance: a.reuse_tolerance,
         time_budget: a.time_budget,
+        motion: a.motion,
         up: a.up,
     }
 }

@@ -32,6 +32,7 @@ use snerf_trainer::render::{values_batch, WorkspacePool};
 use snerf_trainer::space::{dot, norm, sub, Vec3};
 use snerf_trainer::train::Model;
 
+use crate::motion;
 use crate::temporal::{self, CellSamples};
 
 /// Largest grid per axis the time codebook's visibility is computed on (finer bakes pool
@@ -63,11 +64,14 @@ pub struct BakeOptions {
     pub time_budget: f32,
     /// The scene's world up direction, overriding the one the training cameras imply.
     pub up: Option<[f32; 3]>,
+    /// Dynamic scenes: cells may show the reference sample moved instead of a block of their
+    /// own (`motion`); playback then moves what moves instead of blending.
+    pub motion: bool,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, motion: false }
     }
 }
 
@@ -96,6 +100,11 @@ pub struct BakeReport {
     /// What the codebook leaves unexplained (sum of `temporal` errors over cells and samples).
     pub codebook_error: f64,
     pub seconds_codebook: f64,
+    /// With motion: the reference sample, the (cell, sample) entries shown by motion, and the
+    /// seconds the search took.
+    pub motion_reference: Option<usize>,
+    pub motion_entries: usize,
+    pub seconds_motion: f64,
     pub atlas_blocks: usize,
     pub density_range: [f32; 2],
     pub seconds_visibility: f64,
@@ -243,7 +252,29 @@ pub fn bake(
         0
     };
     let min_gain = opts.reuse_tolerance * opts.reuse_tolerance * block_voxels as f32;
-    let books = temporal::choose(&samples, extra, min_gain);
+    let motion = if dynamic && opts.motion {
+        let t = Instant::now();
+        progress("motion search", 0, 1);
+        // the fullest sample: every part that is ever there is most likely there too
+        let reference = (0..frames).max_by_key(|&f| (report.frame_blocks[f], usize::MAX - f.abs_diff(frames / 2))).unwrap_or(0);
+        let vol = motion::RefVolume::new(&cells, &samples, reference, res as usize, b as usize);
+        let found = motion::search(&cells, &samples, &vol, reference, frames, b as usize);
+        report.seconds_motion = t.elapsed().as_secs_f64();
+        report.motion_reference = Some(reference);
+        Some((reference, vol, found))
+    } else {
+        None
+    };
+    let books = match &motion {
+        Some((reference, _, found)) => {
+            let required: Vec<Option<usize>> = samples.iter().map(|s| s.frames.iter().position(|f| f == reference)).collect();
+            let base = required.iter().flatten().count();
+            let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - frames as f64 * grid_chunk;
+            let extra = ((budget / block_chunk).floor() - base as f64).max(0.0) as usize;
+            temporal::choose_with(&samples, extra, min_gain, Some((&found.error, &required)))
+        }
+        None => temporal::choose(&samples, extra, min_gain),
+    };
     report.seconds_codebook = t0.elapsed().as_secs_f64();
 
     // Atlas: every cell's first block (its medoid over time) in cell order, then the extra
@@ -263,12 +294,21 @@ pub fn bake(
     }
     for (i, bk) in books.iter().enumerate() {
         for (k, &j) in bk.assign.iter().enumerate() {
+            if j == temporal::MOTION {
+                let d = motion.as_ref().map_or([0.0; 3], |m| m.2.offset[i][k]);
+                grids[samples[i].frames[k]][cells[i]] = snerf_asset::motion::motion_entry(d);
+                report.motion_entries += 1;
+                continue;
+            }
             grids[samples[i].frames[k]][cells[i]] = index[i][j];
             if j != k {
                 report.shared_blocks += 1;
             }
         }
         report.codebook_error += bk.error as f64;
+    }
+    if let Some((reference, vol, _)) = &motion {
+        report.motion_entries += motion::fill_gaps(&mut grids, &cells, &samples, vol, *reference, b as usize, min_gain);
     }
     report.extra_blocks = books.iter().map(|bk| bk.stored.len().saturating_sub(1)).sum();
     report.blended_entries = temporal::blended_entries(&grids, EMPTY);
@@ -307,6 +347,7 @@ pub fn bake(
     let view = &model.field.layout.view;
     let mlp = ViewMlp::from_flat(&model.field.params[view.w1..view.end])?;
     let diffuse = mlp.output_is_zero();
+    header.motion_ref = motion.as_ref().map(|m| m.0 as u32);
     let mut asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
     if diffuse {
         // A zero output layer (a diffuse stylized field) adds nothing whatever the features

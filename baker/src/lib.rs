@@ -20,6 +20,7 @@ pub mod gltf_export;
 pub mod layers;
 pub mod marching_cubes;
 pub mod mesh_export;
+pub mod motion;
 pub mod splat_gltf;
 pub mod splats;
 pub mod temporal;

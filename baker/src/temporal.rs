@@ -131,7 +131,7 @@ impl CellSamples {
 }
 
 /// A cell's codebook: which of its samples are stored, and for every sample the stored one
-/// that stands for it (both as indices into `CellSamples::frames`).
+/// that stands for it (both as indices into `CellSamples::frames`), or `MOTION`.
 #[derive(Clone, Debug)]
 pub struct Codebook {
     pub stored: Vec<usize>,
@@ -163,6 +163,19 @@ impl State {
         }
         let cur = m[medoid * n..(medoid + 1) * n].to_vec();
         State { n, m, stored: vec![medoid], cur, cur_from: vec![medoid; n] }
+    }
+    /// With motion: the cell starts from its motion (error `motion[k]` at sample k, no
+    /// block stored) plus the block `required` must store (the reference sample's).
+    fn with_motion(m: Vec<f32>, n: usize, motion: &[f32], required: Option<usize>) -> State {
+        let mut st = State { n, m, stored: Vec::new(), cur: motion.to_vec(), cur_from: vec![MOTION; n] };
+        if let Some(j) = required {
+            st.add(j);
+            // the required block is the sample itself (motion by zero would read it anyway,
+            // but the reference's own grid must hold blocks)
+            st.cur[j] = 0.0;
+            st.cur_from[j] = j;
+        }
+        st
     }
     /// The best addition and the error it removes.
     fn best(&self) -> Option<(usize, f32)> {
@@ -200,14 +213,30 @@ impl Ord for Gain {
     }
 }
 
+/// `Codebook::assign` of a sample shown by motion (`motion`) rather than a stored block.
+pub const MOTION: usize = usize::MAX;
+
 /// Choose every cell's codebook: one block per cell, then up to `extra` more blocks in all,
 /// each the one that removes the most error, while it removes at least `min_gain`.
 pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codebook> {
+    choose_with(cells, extra, min_gain, None)
+}
+
+/// `choose`, where each cell may also show a sample by motion: `motion` holds, per cell,
+/// the motion error of each sample and the sample that must be stored (the reference's; at
+/// most one). Cells start from motion instead of their medoid, and `extra` counts every
+/// block beyond the required ones.
+pub fn choose_with(cells: &[CellSamples], extra: usize, min_gain: f32, motion: Option<(&[Vec<f32>], &[Option<usize>])>) -> Vec<Codebook> {
     let mut states: Vec<State> = cells
         .par_iter()
-        .map(|c| {
+        .enumerate()
+        .map(|(i, c)| {
             let n = c.frames.len();
-            State::new(if n > 1 { c.errors() } else { vec![0.0; n * n] }, n)
+            let m = if n > 1 { c.errors() } else { vec![0.0; n * n] };
+            match motion {
+                Some((err, req)) => State::with_motion(m, n, &err[i], req[i]),
+                None => State::new(m, n),
+            }
         })
         .collect();
     let mut heap: BinaryHeap<Gain> = states
@@ -239,8 +268,11 @@ pub fn choose(cells: &[CellSamples], extra: usize, min_gain: f32) -> Vec<Codeboo
 
 /// Entries playback fetches two blocks for: (cell, sample) pairs where the cell points at
 /// two different non-empty blocks in this sample and the next.
+/// Two motion entries are one fetch (the offset is interpolated), so they do not count.
 pub fn blended_entries(grids: &[Vec<u32>], empty: u32) -> usize {
-    grids.windows(2).map(|w| w[0].iter().zip(&w[1]).filter(|p| p.0 != p.1 && *p.0 != empty && *p.1 != empty).count()).sum()
+    use snerf_asset::motion::is_motion;
+    let two = |a: u32, b: u32| a != b && a != empty && b != empty && !(is_motion(a) && is_motion(b));
+    grids.windows(2).map(|w| w[0].iter().zip(&w[1]).filter(|p| two(*p.0, *p.1)).count()).sum()
 }
 
 #[cfg(test)]

@@ -100,4 +100,26 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     eprintln!("{f:#?}");
     assert!(f.views.iter().all(|v| v.time.is_some()));
     assert!(f.mean_baked_vs_field >= 25.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);
+
+    // The same run with motion (`snerf_baker::motion`): a version 4 file of the same size
+    // bound, whose frames other than the reference show it moved, as faithful as above.
+    let opts = BakeOptions { motion: true, ..opts };
+    let (m, mr) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
+    let r = mr.motion_reference.expect("a motion bake names its reference");
+    assert_eq!(m.header.motion_ref, Some(r as u32));
+    assert!(mr.motion_entries > 0, "{mr:?}");
+    let file = dir.join("avatar-motion.snerf");
+    m.write(&file).unwrap();
+    let back = snerf_asset::Asset::read(&file).unwrap();
+    assert_eq!(back, m);
+    let mbytes = std::fs::metadata(&file).unwrap().len();
+    let ms = m.summary(mbytes);
+    assert!(mbytes as f64 <= 2.0 * mr.static_frame_bytes as f64, "{mbytes} bytes vs a static frame of {}", mr.static_frame_bytes);
+    assert!(mr.static_frame_bytes.abs_diff(ms.static_frame_bytes) * 10 < ms.static_frame_bytes, "{} vs {}", mr.static_frame_bytes, ms.static_frame_bytes);
+    let fm = faithfulness::measure(&t.model, &t.pool, &m, &data.test, 4).unwrap();
+    eprintln!("motion: {mr:#?}\n{fm:#?}");
+    assert!(fm.mean_baked_vs_field >= 25.0, "with motion: baked vs field {:.2} dB", fm.mean_baked_vs_field);
+    // every frame's static twin resolves its motion entries into blocks
+    let twin = m.frame_as_static((r + 1) % m.num_frames()).unwrap();
+    assert!(twin.header.motion_ref.is_none() && twin.header.atlas_blocks > 0);
 }

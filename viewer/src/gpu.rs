@@ -719,7 +719,9 @@ impl GpuRenderer {
         for f in 0..frames {
             if let Some(grid) = asset.grids.get(f).filter(|g| g.len() == g3) {
                 for (d, &e) in host[f * g3..(f + 1) * g3].iter_mut().zip(grid) {
-                    if e != EMPTY && asset.present.get(e as usize).copied().unwrap_or(false) {
+                    if snerf_asset::motion::is_motion(e) {
+                        *d = e;
+                    } else if e != EMPTY && asset.present.get(e as usize).copied().unwrap_or(false) {
                         *d = self.layout.packed(e);
                     }
                 }
@@ -766,7 +768,7 @@ impl GpuRenderer {
             center_scale: [s.center[0], s.center[1], s.center[2], s.scale],
             ndc0: [n.fx, n.fy, n.width, n.height],
             march: [n.near, n.xy_extent, h.march.step, h.march.t_terminate],
-            dens: [h.density.logit_min, h.density.logit_max, w, 0.0],
+            dens: [h.density.logit_min, h.density.logit_max, w, f32::from_bits(h.motion_ref.unwrap_or(0) * g3)],
             background: [h.background[0], h.background[1], h.background[2], 0.0],
             grid: [h.res, h.grid_dim() as u32, self.layout.nx, self.layout.ny],
             frames: [k0 as u32 * g3, k1 as u32 * g3, (k0 == k1) as u32, 0],

@@ -181,6 +181,25 @@ fn codebook_4d_asset_matches_cpu_at_two_times() {
     }
 }
 
+/// A 4D asset with motion entries: the GPU matches the CPU reference where a motion entry
+/// blends with a block (t = 0.3) and where two motion entries move the reference by the
+/// interpolated offset (t = 0.8), and that time really moves the picture.
+#[test]
+fn motion_4d_asset_matches_cpu_at_two_times() {
+    if !have_gpu("motion_4d_asset_matches_cpu_at_two_times") {
+        return;
+    }
+    let a = motion_asset();
+    let mut r = GpuRenderer::new(&a).unwrap();
+    let cs = cams(&a.header, 3, W, H);
+    for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
+        check(&format!("motion 4D t={} cam {}", t, i), &a, &mut r, &cs[i], t);
+        let mut at = |t: f32| r.render(&cs[i], t).unwrap();
+        let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
+        assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} does not move");
+    }
+}
+
 #[test]
 fn stereo_pair_matches_cpu() {
     if !have_gpu("stereo_pair_matches_cpu") {

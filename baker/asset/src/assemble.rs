@@ -213,10 +213,19 @@ impl Assembler {
         ensure!(frame < frames, "GRID for frame {} but the asset has {} frames", frame, frames);
         ensure!(!self.have_grid[frame], "duplicate GRID for frame {}", frame);
         let n = self.asset.header.atlas_blocks;
+        // motion entries: in a motion asset, in any frame but the one they point into
+        let motion_ok = self.asset.header.motion_ref.is_some_and(|r| r as usize != frame);
         let mut grid = Vec::with_capacity(cells);
         for (c, b) in p[4..].chunks_exact(4).enumerate() {
             let e = le_u32(b);
-            ensure!(e == EMPTY || e < n, "frame {} cell {} points at block {} (atlas has {})", frame, c, e, n);
+            ensure!(
+                e == EMPTY || e < n || (motion_ok && crate::motion::is_motion(e)),
+                "frame {} cell {} points at block {} (atlas has {})",
+                frame,
+                c,
+                e,
+                n
+            );
             grid.push(e);
         }
         self.asset.grids[frame] = grid;

@@ -46,15 +46,32 @@ impl Asset {
 
     /// One time sample of a dynamic asset as a static asset of exactly that occupancy: frame
     /// `f`'s grid and only the blocks it uses (renumbered in order of first use). What a 4D
-    /// asset's playback cost is compared with (`snerf bench view --static-twin`).
+    /// asset's playback cost is compared with (`snerf bench view --static-twin`). A motion
+    /// entry becomes the block it shows (the reference moved, re-quantized), or nothing where
+    /// that block is transparent.
     pub fn frame_as_static(&self, f: usize) -> Result<Asset> {
         ensure!(f < self.grids.len(), "frame {} of {}", f, self.grids.len());
         let bb = self.block_bytes();
         let mut remap = std::collections::HashMap::new();
         let mut atlas = Vec::new();
         let mut grid = self.grids[f].clone();
-        for e in grid.iter_mut() {
+        let mut moved = 0u32;
+        for (cell, e) in grid.iter_mut().enumerate() {
             if *e == EMPTY {
+                continue;
+            }
+            if let Some(d) = crate::motion::motion_offset(*e) {
+                let blk = self.moved_block(cell, d);
+                if blk.chunks_exact(crate::quantize::CHANNELS).all(|v| v[0] == 0) {
+                    *e = EMPTY;
+                    continue;
+                }
+                // a unique key per moved block (motion entries never repeat a cell)
+                let next = remap.len() as u32;
+                remap.insert(crate::motion::MOTION_TAG | 0x4000_0000 | moved, next);
+                moved += 1;
+                atlas.extend_from_slice(&blk);
+                *e = next;
                 continue;
             }
             let next = remap.len() as u32;
@@ -68,10 +85,33 @@ impl Asset {
         let mut header = self.header.clone();
         header.frames = None;
         header.time_range = None;
+        header.motion_ref = None;
         header.atlas_blocks = remap.len() as u32;
         let a = Asset { header, mlp: self.mlp.clone(), grids: vec![grid], atlas, present: vec![true; remap.len()] };
         a.validate()?;
         Ok(a)
+    }
+
+    /// The apron-inclusive block of `cell` that the reference moved by `d` voxels shows,
+    /// quantized like a stored block.
+    fn moved_block(&self, cell: usize, d: [f32; 3]) -> Vec<u8> {
+        let e = self.header.block as usize + 2;
+        let mut out = Vec::with_capacity(self.block_bytes());
+        for z in 0..e {
+            for y in 0..e {
+                for x in 0..e {
+                    let loc = crate::sample::Loc { cell, local: [x as f32, y as f32, z as f32] };
+                    let v = self.sample_moved(&loc, d);
+                    out.extend_from_slice(&crate::quantize::encode_voxel(
+                        v[0],
+                        [v[1], v[2], v[3]],
+                        [v[4], v[5], v[6], v[7]],
+                        &self.header.density,
+                    ));
+                }
+            }
+        }
+        out
     }
 
     /// Makes the asset diffuse (FORMAT.md, version 2): a zero view MLP, zero specular
@@ -105,7 +145,7 @@ impl Asset {
     /// Decode a whole file. Requires every frame's grid, every block and the END chunk. A
     /// multi-style file (`layers`) reads as its first style; `LayeredAsset` reads them all.
     pub fn from_bytes(bytes: &[u8]) -> Result<Asset> {
-        if crate::chunk::check_preamble(bytes)? >= 3 {
+        if crate::chunk::check_preamble(bytes)? == 3 {
             return crate::layers::LayeredAsset::from_bytes(bytes)?.into_style(0);
         }
         Asset::geometry_from_bytes(bytes).map(|(a, _)| a)
@@ -226,7 +266,12 @@ impl Asset {
         let g = self.grid_dim();
         for (f, grid) in self.grids.iter().enumerate() {
             ensure!(grid.len() == g * g * g, "frame {} grid has {} entries, expected {}", f, grid.len(), g * g * g);
-            if let Some((c, e)) = grid.iter().enumerate().find(|(_, &e)| e != EMPTY && e >= h.atlas_blocks) {
+            let motion_ok = h.motion_ref.is_some_and(|r| r as usize != f);
+            let bad = |e: u32| e != EMPTY && e >= h.atlas_blocks && !(motion_ok && crate::motion::is_motion(e));
+            if let Some((c, e)) = grid.iter().enumerate().find(|(_, &e)| bad(e)) {
+                if crate::motion::is_motion(*e) {
+                    anyhow::bail!("frame {} cell {} holds a motion entry {:#x}, which this frame cannot (motion_ref {:?})", f, c, e, h.motion_ref);
+                }
                 anyhow::bail!("frame {} cell {} points at block {} (atlas has {})", f, c, e, h.atlas_blocks);
             }
         }

@@ -7,9 +7,10 @@ use std::ops::Range;
 
 pub const MAGIC: [u8; 8] = *b"SNERFAST";
 /// The newest version this reader knows. Version 2 is version 1 plus `diffuse` assets,
-/// version 3 adds multi-style assets (FORMAT.md); a writer uses the lowest version that
+/// version 3 adds multi-style assets, version 4 motion entries in dynamic assets (FORMAT.md;
+/// `motion`); a writer uses the lowest version that
 /// holds its asset, so older readers still read every asset of their versions.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 pub const PREAMBLE_LEN: usize = 16;
 /// tag (4) + length (4) + CRC-32 (4).
 pub const CHUNK_HEADER_LEN: usize = 12;

@@ -118,6 +118,10 @@ pub struct Header {
     /// every single-style asset. `diffuse` then says whether every style is diffuse.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub styles: Option<Vec<StyleInfo>>,
+    /// A dynamic asset whose grids may hold motion entries (version 4, `motion`): the
+    /// keyframe they point into. Its grid holds blocks only. Absent in every other asset.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_ref: Option<u32>,
 }
 
 /// Largest number of styles in one asset.
@@ -184,6 +188,7 @@ impl Header {
             train_pixel: None,
             diffuse: false,
             styles: None,
+            motion_ref: None,
         }
     }
 
@@ -242,7 +247,9 @@ impl Header {
     /// The lowest file version that holds this asset: 3 for a multi-style one, 2 for a
     /// `diffuse` one, else 1 (so older readers read every asset they can).
     pub fn file_version(&self) -> u32 {
-        if self.styles.is_some() {
+        if self.motion_ref.is_some() {
+            4
+        } else if self.styles.is_some() {
             3
         } else if self.diffuse {
             2
@@ -381,6 +388,15 @@ impl Header {
                 ensure!(styles[..i].iter().all(|o| o.name != s.name), "header names style {:?} twice", s.name);
                 ensure!(s.swatch.iter().all(|x| x.is_finite()), "header style {:?} has a non-finite swatch", s.name);
             }
+        }
+        if let Some(r) = self.motion_ref {
+            ensure!(
+                (r as usize) < self.num_frames() && self.frames.is_some(),
+                "header motion_ref {} names no keyframe of this asset ({} frames)",
+                r,
+                self.num_frames()
+            );
+            ensure!(self.styles.is_none(), "header has both motion_ref and styles (one asset holds one or the other)");
         }
         match (&self.time_range, &self.frames) {
             (None, None) => {}

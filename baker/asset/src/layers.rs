@@ -59,9 +59,10 @@ pub struct StyleBytes {
     pub bytes: u64,
 }
 
-/// Whether a file's bytes are a multi-style asset (version 3 preamble).
+/// Whether a file's bytes are a multi-style asset (version 3 preamble; version 4 is a
+/// motion asset, which holds one style).
 pub fn is_layered(bytes: &[u8]) -> bool {
-    check_preamble(bytes).is_ok_and(|v| v >= 3)
+    check_preamble(bytes).is_ok_and(|v| v == 3)
 }
 
 /// Where the apron voxels of a static asset's blocks are stored: an apron voxel repeats a

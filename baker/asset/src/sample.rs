@@ -13,6 +13,15 @@ pub struct Loc {
     pub local: [f32; 3],
 }
 
+/// What a keyframe shows in a cell (`Asset::source`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Source {
+    Empty,
+    Block(u32),
+    /// The reference keyframe moved by this many voxels.
+    Motion([f32; 3]),
+}
+
 /// Which keyframes a time falls between, and how far: value = (1-w)*k0 + w*k1.
 pub use snerf_geometry::TimeSlot;
 
@@ -108,24 +117,99 @@ impl Asset {
         snerf_geometry::time_slot(self.header.frames.as_deref().unwrap_or(&[]), |k| k.time, t)
     }
 
+    /// What frame `frame` shows in `cell`: nothing, a block of its own, or the reference
+    /// keyframe moved (`motion`). A block not yet arrived counts as nothing.
+    #[inline]
+    pub fn source(&self, frame: usize, cell: usize) -> Source {
+        let Some(&e) = self.grids.get(frame).and_then(|g| g.get(cell)) else { return Source::Empty };
+        if let Some(d) = crate::motion::motion_offset(e) {
+            if self.header.motion_ref.is_some() {
+                return Source::Motion(d);
+            }
+            return Source::Empty;
+        }
+        match self.block_at(frame, cell) {
+            Some(b) => Source::Block(b),
+            None => Source::Empty,
+        }
+    }
+
+    /// The reference keyframe's values at the voxel-space position of `loc` moved by `d`
+    /// voxels (empty values outside the grid or in an empty cell of the reference).
+    pub fn sample_moved(&self, loc: &Loc, d: [f32; 3]) -> [f32; CHANNELS] {
+        let Some(r) = self.header.motion_ref else { return self.empty_values() };
+        let b = self.header.block as usize;
+        let gd = self.grid_dim();
+        let cell = [loc.cell % gd, (loc.cell / gd) % gd, loc.cell / (gd * gd)];
+        // back to the grid point: local = v - 0.5 - c·b + 1 (see `locate`)
+        let res = self.header.res as f32;
+        let g: [f32; 3] = std::array::from_fn(|a| {
+            let v = loc.local[a] + 0.5 + (cell[a] * b) as f32 - 1.0 + d[a];
+            v / res * 2.0 - 1.0
+        });
+        match self.locate(g) {
+            Some(l) => match self.block_at(r as usize, l.cell) {
+                Some(blk) => self.interpolate(blk, l.local),
+                None => self.empty_values(),
+            },
+            None => self.empty_values(),
+        }
+    }
+
+    /// Does a motion entry of `cell` with offset `d` read any block of the reference? (The
+    /// block moved by `d` overlaps at most 8 reference cells.)
+    pub fn motion_reads_a_block(&self, cell: usize, d: [f32; 3]) -> bool {
+        let Some(r) = self.header.motion_ref else { return false };
+        let b = self.header.block as i64;
+        let gd = self.grid_dim() as i64;
+        let c = [cell as i64 % gd, (cell as i64 / gd) % gd, cell as i64 / (gd * gd)];
+        // voxel span the cell's samples read, moved: [c·b - 1 + d, (c+1)·b + d] with the apron
+        let lo: [i64; 3] = std::array::from_fn(|a| ((c[a] * b) as f32 - 1.0 + d[a]).floor().div_euclid(b as f32) as i64);
+        let hi: [i64; 3] = std::array::from_fn(|a| (((c[a] + 1) * b) as f32 + d[a]).floor().div_euclid(b as f32) as i64);
+        for z in lo[2].max(0)..=hi[2].min(gd - 1) {
+            for y in lo[1].max(0)..=hi[1].min(gd - 1) {
+                for x in lo[0].max(0)..=hi[0].min(gd - 1) {
+                    if self.block_at(r as usize, ((z * gd + y) * gd + x) as usize).is_some() {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
+    }
+
+    #[inline]
+    fn source_values(&self, s: Source, loc: &Loc) -> [f32; CHANNELS] {
+        match s {
+            Source::Empty => self.empty_values(),
+            Source::Block(b) => self.interpolate(b, loc.local),
+            Source::Motion(d) => self.sample_moved(loc, d),
+        }
+    }
+
     /// Values at a located point for a time slot; None when every side involved is empty.
     #[inline]
     pub fn sample_slot(&self, slot: &TimeSlot, loc: &Loc) -> Option<[f32; CHANNELS]> {
-        let a = self.block_at(slot.k0, loc.cell);
+        let a = self.source(slot.k0, loc.cell);
         if slot.w == 0.0 || slot.k0 == slot.k1 {
-            return a.map(|b| self.interpolate(b, loc.local));
+            return (a != Source::Empty).then(|| self.source_values(a, loc));
         }
-        let b = self.block_at(slot.k1, loc.cell);
-        if a.is_none() && b.is_none() {
-            return None;
-        }
-        // Same block on both sides (shared, unchanged): no blend needed.
-        if a == b {
-            return a.map(|x| self.interpolate(x, loc.local));
-        }
-        let va = a.map_or_else(|| self.empty_values(), |x| self.interpolate(x, loc.local));
-        let vb = b.map_or_else(|| self.empty_values(), |x| self.interpolate(x, loc.local));
+        let b = self.source(slot.k1, loc.cell);
         let w = slot.w;
+        match (a, b) {
+            (Source::Empty, Source::Empty) => return None,
+            // Same block on both sides (shared, unchanged): no blend needed.
+            (Source::Block(x), Source::Block(y)) if x == y => return Some(self.interpolate(x, loc.local)),
+            // Both sides move the reference: move it by the interpolated offset, read once.
+            (Source::Motion(da), Source::Motion(db)) => {
+                // equal entries read as one side (no lerp rounding), like the shader
+                let d = if da == db { da } else { std::array::from_fn(|i| (1.0 - w) * da[i] + w * db[i]) };
+                return Some(self.sample_moved(loc, d));
+            }
+            _ => {}
+        }
+        let va = self.source_values(a, loc);
+        let vb = self.source_values(b, loc);
         let mut out = [0.0f32; CHANNELS];
         for c in 0..CHANNELS {
             out[c] = (1.0 - w) * va[c] + w * vb[c];
@@ -142,7 +226,7 @@ impl Asset {
     /// Is `cell` empty at this time slot (no block on any side that contributes)?
     #[inline]
     pub fn cell_empty(&self, slot: &TimeSlot, cell: usize) -> bool {
-        self.block_at(slot.k0, cell).is_none()
-            && (slot.w == 0.0 || slot.k0 == slot.k1 || self.block_at(slot.k1, cell).is_none())
+        self.source(slot.k0, cell) == Source::Empty
+            && (slot.w == 0.0 || slot.k0 == slot.k1 || self.source(slot.k1, cell) == Source::Empty)
     }
 }

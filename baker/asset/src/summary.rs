@@ -86,8 +86,13 @@ impl Asset {
         for grid in &self.grids {
             let mut occ = 0u64;
             let mut new_blocks = 0u64;
-            for &e in grid {
+            for (c, &e) in grid.iter().enumerate() {
                 if e == EMPTY {
+                    continue;
+                }
+                // a motion entry stands for a block where it moves one into the cell
+                if let Some(d) = crate::motion::motion_offset(e) {
+                    occ += self.motion_reads_a_block(c, d) as u64;
                     continue;
                 }
                 occ += 1;

@@ -245,7 +245,8 @@ impl ServedAsset {
         let mut frames: Vec<Vec<(u32, u32)>> = vec![Vec::new(); n];
         for (f, grid) in asset.grids.iter().enumerate() {
             for (c, &e) in grid.iter().enumerate() {
-                if e == EMPTY {
+                // a motion entry reads the reference frame's blocks (below)
+                if e == EMPTY || snerf_asset::motion::is_motion(e) {
                     continue;
                 }
                 let b = e as usize;
@@ -257,6 +258,15 @@ impl ServedAsset {
                 match fr.last_mut() {
                     Some(last) if last.1 == f || last.1 + 1 == f => last.1 = f,
                     _ => fr.push((f, f)),
+                }
+            }
+        }
+        // Motion: every frame may read the reference frame's blocks.
+        if let Some(r) = header.motion_ref {
+            let last = header.num_frames().saturating_sub(1) as u32;
+            for &e in asset.grids.get(r as usize).map_or(&[][..], |g| &g[..]) {
+                if let Some(fr) = frames.get_mut(e as usize) {
+                    *fr = vec![(0, last)];
                 }
             }
         }

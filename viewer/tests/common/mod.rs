@@ -305,6 +305,20 @@ pub fn dynamic_asset() -> Asset {
     )
 }
 
+/// A 4D asset with motion (`snerf_asset::motion`): `dynamic_asset`'s first frame is the
+/// reference; frames 1 and 2 show it moved (every cell a motion entry, quarter-voxel
+/// offsets), so playback between them moves the reference by the interpolated offset.
+#[allow(dead_code)]
+pub fn motion_asset() -> Asset {
+    let mut a = dynamic_asset();
+    a.header.motion_ref = Some(0);
+    let n = a.grids[0].len();
+    a.grids[1] = vec![snerf_asset::motion::motion_entry([-3.25, 0.75, 0.0]); n];
+    a.grids[2] = vec![snerf_asset::motion::motion_entry([-6.5, 1.5, -0.75]); n];
+    a.validate().unwrap();
+    a
+}
+
 /// Per-channel differences between two frames' rgb (and opacity).
 #[derive(Debug)]
 pub struct Diff {

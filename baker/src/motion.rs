@@ -1,0 +1,276 @@
+//! Motion for dynamic bakes: every cell at every time sample may show the reference sample
+//! moved by an offset (`snerf_asset::motion`) instead of a block of its own. This is a video
+//! codec's motion compensation, applied to voxel blocks: a body that moves as a whole (a
+//! skinned figure walking) is stored once, and between samples playback moves it by the
+//! interpolated offset instead of blending two blocks (which draws a limb twice, half-faded).
+//!
+//! The search is block matching: for each cell and sample, the offset whose moved reference
+//! block differs least from the field's block there (the codebook's visibility-weighted error,
+//! `temporal::CellSamples`). Samples are solved outward from the reference, each cell trying
+//! the offsets its neighbourhood had one sample closer to the reference (motion is continuous
+//! in time, and a part entering a cell came from a neighbour), then a local search in whole
+//! voxels and a refinement in quarter voxels. What motion cannot explain (appearance,
+//! shape change) is left to the codebook, which weighs each stored block against it.
+
+use rayon::prelude::*;
+use snerf_asset::motion::MOTION_MAX;
+
+use crate::temporal::CellSamples;
+
+/// The reference sample's codes on the whole fine grid (8 channels a voxel; empty voxels
+/// code 0: the lowest density, zero colour), for reading moved blocks.
+pub struct RefVolume {
+    res: usize,
+    codes: Vec<u8>,
+}
+
+impl RefVolume {
+    /// Scatter the blocks the reference frame keeps (interior voxels) into a dense volume.
+    pub fn new(cells: &[usize], samples: &[CellSamples], reference: usize, res: usize, b: usize) -> RefVolume {
+        let g = res / b;
+        let bb = b + 2;
+        let mut codes = vec![0u8; res * res * res * 8];
+        for (i, &c) in cells.iter().enumerate() {
+            let Some(j) = samples[i].frames.iter().position(|&f| f == reference) else { continue };
+            let blk = &samples[i].blocks[j];
+            let (cx, cy, cz) = (c % g, (c / g) % g, c / (g * g));
+            for z in 0..b {
+                for y in 0..b {
+                    let src = (((z + 1) * bb + y + 1) * bb + 1) * 8;
+                    let dst = (((cz * b + z) * res + cy * b + y) * res + cx * b) * 8;
+                    codes[dst..dst + b * 8].copy_from_slice(&blk[src..src + b * 8]);
+                }
+            }
+        }
+        RefVolume { res, codes }
+    }
+
+    /// Codes at integer voxel `p` (zero outside the grid).
+    #[inline]
+    fn at(&self, p: [i32; 3]) -> &[u8] {
+        const ZERO: [u8; 8] = [0; 8];
+        let r = self.res as i32;
+        if p.iter().any(|&x| x < 0 || x >= r) {
+            return &ZERO;
+        }
+        let i = ((p[2] as usize * self.res + p[1] as usize) * self.res + p[0] as usize) * 8;
+        &self.codes[i..i + 8]
+    }
+
+    /// The codes of the apron-inclusive block of `cell` read at an offset of `d` voxels
+    /// (trilinear on the codes, as every renderer interpolates them).
+    pub fn moved_block(&self, cell: usize, b: usize, d: [f32; 3]) -> Vec<u8> {
+        let g = self.res / b;
+        let bb = b + 2;
+        let c = [cell % g, (cell / g) % g, cell / (g * g)];
+        let fl = d.map(f32::floor);
+        let di = fl.map(|x| x as i32);
+        let w = [d[0] - fl[0], d[1] - fl[1], d[2] - fl[2]];
+        let whole = w.iter().all(|&x| x == 0.0);
+        let mut out = vec![0u8; bb * bb * bb * 8];
+        for z in 0..bb {
+            for y in 0..bb {
+                for x in 0..bb {
+                    let p = [
+                        (c[0] * b + x) as i32 - 1 + di[0],
+                        (c[1] * b + y) as i32 - 1 + di[1],
+                        (c[2] * b + z) as i32 - 1 + di[2],
+                    ];
+                    let o = ((z * bb + y) * bb + x) * 8;
+                    if whole {
+                        out[o..o + 8].copy_from_slice(self.at(p));
+                        continue;
+                    }
+                    let mut acc = [0.0f32; 8];
+                    for corner in 0..8 {
+                        let s = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+                        let mut wt = 1.0;
+                        for a in 0..3 {
+                            wt *= if s[a] == 1 { w[a] } else { 1.0 - w[a] };
+                        }
+                        if wt == 0.0 {
+                            continue;
+                        }
+                        let v = self.at([p[0] + s[0] as i32, p[1] + s[1] as i32, p[2] + s[2] as i32]);
+                        for ch in 0..8 {
+                            acc[ch] += wt * v[ch] as f32;
+                        }
+                    }
+                    for ch in 0..8 {
+                        out[o + ch] = acc[ch].round().clamp(0.0, 255.0) as u8;
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Error of showing `moved` where the field holds `target` (visibility `vis`, per voxel):
+/// `CellSamples::error`'s measure with the target's visibility. `target` None: the field is
+/// transparent there (every voxel counted as seen).
+pub fn moved_error(alpha: &[f32; 256], moved: &[u8], target: Option<(&[u8], &[u8])>) -> f32 {
+    let mut e = 0.0f32;
+    for (i, pm) in moved.chunks_exact(8).enumerate() {
+        let (w, pt): (u8, [u8; 8]) = match target {
+            Some((t, v)) => (v[i], t[i * 8..i * 8 + 8].try_into().unwrap()),
+            None => (255, [0; 8]),
+        };
+        if w == 0 {
+            continue;
+        }
+        let (aa, ab) = (alpha[pm[0] as usize], alpha[pt[0] as usize]);
+        let m = aa.max(ab);
+        let mut c2 = 0i32;
+        for c in 1..8 {
+            let d = pm[c] as i32 - pt[c] as i32;
+            c2 += d * d;
+        }
+        e += w as f32 * ((aa - ab) * (aa - ab) + m * m * c2 as f32 * (1.0 / (255.0 * 255.0)));
+    }
+    e / 255.0
+}
+
+/// Offsets (voxels) and their errors, per candidate cell and per entry of its
+/// `CellSamples::frames`: the best motion found for the cell at that sample. The reference
+/// sample's own entry is (0, 0).
+pub struct Motion {
+    pub offset: Vec<Vec<[f32; 3]>>,
+    pub error: Vec<Vec<f32>>,
+}
+
+/// Search every cell's motion at every sample it holds a block at (module doc).
+pub fn search(cells: &[usize], samples: &[CellSamples], vol: &RefVolume, reference: usize, frames: usize, b: usize) -> Motion {
+    let g = vol.res / b;
+    let index: std::collections::HashMap<usize, usize> = cells.iter().enumerate().map(|(i, &c)| (c, i)).collect();
+    // best offset per (candidate cell, frame), None where the cell holds no block
+    let mut best: Vec<Vec<Option<([f32; 3], f32)>>> = vec![vec![None; frames]; cells.len()];
+    for i in 0..cells.len() {
+        if samples[i].frames.contains(&reference) {
+            best[i][reference] = Some(([0.0; 3], 0.0));
+        }
+    }
+    let order: Vec<(usize, usize)> =
+        (reference + 1..frames).map(|k| (k, k - 1)).chain((0..reference).rev().map(|k| (k, k + 1))).collect();
+    for (k, prev) in order {
+        let solved: Vec<Option<([f32; 3], f32)>> = (0..cells.len())
+            .into_par_iter()
+            .map(|i| {
+                let s = &samples[i];
+                let j = s.frames.iter().position(|&f| f == k)?;
+                let target = (&s.blocks[j][..], &s.vis[j][..]);
+                let c = cells[i];
+                let cc = [c % g, (c / g) % g, c / (g * g)];
+                // predictors: no motion, and the neighbourhood's offsets one sample closer
+                let mut cand: Vec<[f32; 3]> = vec![[0.0; 3]];
+                for dz in -1i32..=1 {
+                    for dy in -1i32..=1 {
+                        for dx in -1i32..=1 {
+                            let n = [cc[0] as i32 + dx, cc[1] as i32 + dy, cc[2] as i32 + dz];
+                            if n.iter().any(|&x| x < 0 || x >= g as i32) {
+                                continue;
+                            }
+                            let nc = (n[2] as usize * g + n[1] as usize) * g + n[0] as usize;
+                            if let Some(&ni) = index.get(&nc) {
+                                if let Some((d, _)) = best[ni][prev] {
+                                    if !cand.contains(&d) {
+                                        cand.push(d);
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+                let err = |d: [f32; 3]| moved_error(&s.alpha, &vol.moved_block(c, b, d), Some(target));
+                let mut scored: Vec<([f32; 3], f32)> = cand.into_iter().map(|d| (d, err(d))).collect();
+                scored.sort_by(|a, b| a.1.total_cmp(&b.1));
+                let mut top = scored[0];
+                // whole-voxel search around the two best predictors, then quarter voxels
+                for &(start, _) in scored.iter().take(2) {
+                    let start = start.map(f32::round);
+                    for dz in -2..=2 {
+                        for dy in -2..=2 {
+                            for dx in -2..=2 {
+                                let d = [start[0] + dx as f32, start[1] + dy as f32, start[2] + dz as f32];
+                                if d.iter().any(|x| x.abs() > MOTION_MAX) {
+                                    continue;
+                                }
+                                let e = err(d);
+                                if e < top.1 {
+                                    top = (d, e);
+                                }
+                            }
+                        }
+                    }
+                }
+                for step in [0.5f32, 0.25] {
+                    let centre = top.0;
+                    for dz in -1..=1 {
+                        for dy in -1..=1 {
+                            for dx in -1..=1 {
+                                let d = [centre[0] + dx as f32 * step, centre[1] + dy as f32 * step, centre[2] + dz as f32 * step];
+                                if d.iter().any(|x| x.abs() > MOTION_MAX) {
+                                    continue;
+                                }
+                                let e = err(d);
+                                if e < top.1 {
+                                    top = (d, e);
+                                }
+                            }
+                        }
+                    }
+                }
+                Some(top)
+            })
+            .collect();
+        for (i, r) in solved.into_iter().enumerate() {
+            best[i][k] = r;
+        }
+    }
+    let offset = samples.iter().enumerate().map(|(i, s)| s.frames.iter().map(|&f| best[i][f].map_or([0.0; 3], |x| x.0)).collect()).collect();
+    let error = samples.iter().enumerate().map(|(i, s)| s.frames.iter().map(|&f| best[i][f].map_or(f32::INFINITY, |x| x.1)).collect()).collect();
+    Motion { offset, error }
+}
+
+/// Give an empty entry next (in time) to a motion entry that same motion, where the moved
+/// reference is transparent there too (error at most `tolerance`): a part moving into or
+/// out of a cell is then moved in between samples instead of faded in or out. Returns the
+/// entries set. The reference sample's grid keeps blocks only.
+pub fn fill_gaps(grids: &mut [Vec<u32>], cells: &[usize], samples: &[CellSamples], vol: &RefVolume, reference: usize, b: usize, tolerance: f32) -> usize {
+    use snerf_asset::motion::{is_motion, motion_offset};
+    use snerf_asset::EMPTY;
+    let before: Vec<Vec<u32>> = grids.to_vec();
+    let mut set = 0;
+    for k in 0..grids.len() {
+        if k == reference {
+            continue;
+        }
+        let found: Vec<(usize, u32)> = cells
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, &c)| {
+                if before[k][c] != EMPTY {
+                    return None;
+                }
+                let mut best: Option<(u32, f32)> = None;
+                for n in [k.wrapping_sub(1), k + 1] {
+                    let Some(&e) = before.get(n).and_then(|g| g.get(c)) else { continue };
+                    if !is_motion(e) {
+                        continue;
+                    }
+                    let d = motion_offset(e)?;
+                    let err = moved_error(&samples[i].alpha, &vol.moved_block(c, b, d), None);
+                    if err <= tolerance && best.is_none_or(|x| err < x.1) {
+                        best = Some((e, err));
+                    }
+                }
+                best.map(|(e, _)| (c, e))
+            })
+            .collect();
+        set += found.len();
+        for (c, e) in found {
+            grids[k][c] = e;
+        }
+    }
+    set
+}
