@@ -152,9 +152,10 @@ fn is_motion(e: u32) -> bool {
 }
 
 fn motion_offset(e: u32) -> vec3<f32> {
-    let q = vec3<i32>(vec3<u32>(e, e >> 10u, e >> 20u) & vec3<u32>(1023u));
-    let s = select(q, q - vec3<i32>(1024), q >= vec3<i32>(512));
-    return vec3<f32>(s) / 4.0;
+    // each field shifted to the top bits, then an arithmetic shift back sign-extends it
+    // (no integer select: GLSL ES 3.00, the WebGL2 target, has none)
+    let q = bitcast<vec3<i32>>(vec3<u32>(e << 22u, e << 12u, e << 2u)) >> vec3<u32>(22u);
+    return vec3<f32>(q) / 4.0;
 }
 
 // sample.rs `sample_moved`: the reference at the voxel position of (cell, l) moved by d.

@@ -318,9 +318,14 @@ fn a_4d_asset_at_two_times_an_unbounded_and_a_forward_scene_render_like_the_cpu_
     cyc.grids[3] = cyc.grids[1].clone();
     let cycle = Asset::from_bytes(&write_asset(&cyc, dir.path(), "cycle")).unwrap();
     check_render(&b, &h, &cycle, "cycle", 2.5);
+    // With motion (FORMAT.md "Motion"): a motion entry blended with a block (t = 0.5), and two
+    // motion entries moving the reference by the interpolated offset (t = 2.5).
+    let moved = Asset::from_bytes(&write_asset(&motion_asset(), dir.path(), "motion")).unwrap();
+    check_render(&b, &h, &moved, "motion", 0.5);
+    check_render(&b, &h, &moved, "motion", 2.5);
     let r = check_render(&b, &h, &outdoor, "outdoor", 0.0);
     let kinds: Vec<&str> = r["listing"].as_array().unwrap().iter().map(|e| e["kind"].as_str().unwrap()).collect();
-    assert_eq!(kinds, ["object", "forward", "object", "unbounded"]);
+    assert_eq!(kinds, ["object", "forward", "object", "object", "unbounded"]);
     check_render(&b, &h, &front, "front", 0.0);
     h.shutdown();
 }
@@ -1145,13 +1150,14 @@ fn without_webgpu_the_page_draws_with_webgl2_from_the_same_wgsl_like_the_cpu_ref
     let mut d = static_asset(32, 8, 0.8, 13);
     d.make_diffuse();
     let flat = put(&d, "flat");
+    let moved = put(&motion_asset(), "motion");
     // A field trained with 2 x 2 rays a pixel: the silhouette pass (the fragment shader reads
     // the first pass's output as textures) redraws the silhouette pixels as their means.
     let mut e = static_asset(32, 8, 0.8, 17);
     e.header.pixel_rays = 4;
     let edges = put(&e, "edges");
     let h = start(dir.path(), state.path());
-    for (asset, name, time) in [(&scene, "scene", 0.0), (&moving, "moving", 0.5), (&outdoor, "outdoor", 0.0), (&front, "front", 0.0), (&flat, "flat", 0.0)] {
+    for (asset, name, time) in [(&scene, "scene", 0.0), (&moving, "moving", 0.5), (&outdoor, "outdoor", 0.0), (&front, "front", 0.0), (&flat, "flat", 0.0), (&moved, "motion", 2.5)] {
         let r = check_render_webgl(&b, &h, asset, name, time);
         assert_eq!(r["lastFrame"]["pixelSides"], serde_json::json!([1]), "{name}");
     }

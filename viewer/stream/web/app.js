@@ -624,7 +624,9 @@ class MarchHost {
       if (!g) continue;
       for (let i = 0; i < this.g3; i++) {
         const e = g[i];
-        if (e !== EMPTY && this.present[e]) host[f * this.g3 + i] = this.packed(e);
+        // motion entries (bit 31 set, bit 30 clear; FORMAT.md "Motion") pass as they are
+        if ((e & 0xc0000000) >>> 0 === 0x80000000) host[f * this.g3 + i] = e;
+        else if (e !== EMPTY && this.present[e]) host[f * this.g3 + i] = this.packed(e);
       }
     }
     return host;
@@ -655,7 +657,8 @@ class MarchHost {
     f.set([s.center[0], s.center[1], s.center[2], s.scale], 32);
     f.set([n.fx, n.fy, n.width, n.height], 36);
     f.set([n.near, n.xy_extent, h.march.step, h.march.t_terminate], 40);
-    f.set([h.density.logit_min, h.density.logit_max, w, 0], 44);
+    f.set([h.density.logit_min, h.density.logit_max, w], 44);
+    u[47] = (h.motion_ref || 0) * this.g3; // the motion reference's grid offset, as bits
     f.set([h.background[0], h.background[1], h.background[2], 0], 48);
     u.set([h.res, this.g, this.layout.nx, this.layout.ny], 52);
     u.set([k0 * this.g3, k1 * this.g3, k0 === k1 ? 1 : 0, side], 56);

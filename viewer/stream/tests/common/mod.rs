@@ -96,6 +96,20 @@ pub fn static_asset(res: u32, block: u32, radius: f32, seed: u64) -> Asset {
     b.finish().unwrap()
 }
 
+/// A 4-keyframe asset with motion (FORMAT.md "Motion"): keyframe 1 is the reference, and
+/// every cell of keyframes 0, 2 and 3 shows it moved by its own quarter-voxel offset.
+#[allow(dead_code)]
+pub fn motion_asset() -> Asset {
+    let mut a = dynamic_asset(16, 8, 0.9, 4, 41);
+    a.header.motion_ref = Some(1);
+    let n = a.grids[1].len();
+    for (f, d) in [(0, [1.5f32, -0.75, 0.25]), (2, [-2.0, 1.0, 0.5]), (3, [0.75, 0.5, -1.25])] {
+        a.grids[f] = vec![snerf_asset::motion::motion_entry(d); n];
+    }
+    a.validate().unwrap();
+    a
+}
+
 /// Dynamic asset with `frames` keyframes (times 0,1,2,..): frame 0 as `static_asset`; in each
 /// later frame a third of the cells change (new blocks), the rest are shared.
 pub fn dynamic_asset(res: u32, block: u32, radius: f32, frames: usize, seed: u64) -> Asset {
