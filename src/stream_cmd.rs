@@ -78,9 +78,11 @@ pub struct ServeArgs {
     /// layer of --styles-run (its first layer's options, as `snerf stylize` trains one), baked
     /// onto the served asset's geometry, written into the asset (atomically, the styles there
     /// kept) and offered to every client; sessions watching the listing are told. A painting
-    /// whose style the asset has is not trained again. Each added style prints a JSON line on
-    /// stdout (`"event": "style_added"`, train and bake seconds). PATH must be the multi-style
-    /// asset `snerf bake SRUN` wrote.
+    /// whose style the asset has is not trained again. Clients may also ask for one of the
+    /// installed paintings (`painting:KEY`, `bash scripts/setup-styles.sh`) the listing
+    /// offers; they never send a file. Each added style prints a JSON line on stdout
+    /// (`"event": "style_added"`, train and bake seconds). PATH must be the multi-style asset
+    /// `snerf bake SRUN` wrote.
     #[arg(long, requires = "styles_run")]
     pub styles_dir: Option<PathBuf>,
     /// The layered stylize run (`snerf stylize --style A --style B --out SRUN`) the served
@@ -135,10 +137,11 @@ pub fn serve_cmd(a: &ServeArgs, json: bool) -> Result<Value> {
     };
     let path = crate::args::pj(&a.path);
     // Checked before the server starts: a wrong run or asset is an error now, not later.
-    let styles = match (&a.styles_dir, &a.styles_run) {
+    let mut styles = match (&a.styles_dir, &a.styles_run) {
         (Some(d), Some(r)) => Some(styles_dir::StylesDir::open(d, r, &a.path, a.models.clone(), Duration::from_secs_f64(a.styles_poll.min(3600.0)))?),
         _ => None,
     };
+    o.offer = styles.as_mut().map(|s| s.offer());
     snerf_stream::serve_blocking_with(o, |h| {
         if let Some(Err(e)) = styles.map(|s| s.spawn(h.announcer())) {
             eprintln!("snerf serve: --styles-dir: {e:#}");

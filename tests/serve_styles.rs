@@ -4,7 +4,8 @@
 //! switches to it by colour alone and ends with the new style's bytes (SHA-256 checked), and
 //! the styles already there are served byte for byte as before. A file that is not an image
 //! is reported by name and the server keeps serving; a painting whose style the asset has is
-//! not trained again.
+//! not trained again. A client may also ask for a painting the server's listing offers (the
+//! installed ones), and for nothing else.
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -70,8 +71,18 @@ fn a_painting_dropped_into_the_styles_dir_becomes_a_style_every_client_can_switc
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::copy(&warm, dir.join("warm.png")).unwrap();
     std::fs::write(dir.join("broken.png"), b"this is not an image").unwrap();
+    // The paintings the server offers clients are the installed ones: here one painting's
+    // pieces, copied from where `bash scripts/setup-styles.sh` installs them (when it has).
+    let installed = snerf_stylize::paintings::styles_dir();
+    let offered = snerf_stylize::paintings::all().find(|p| p.pieces.iter().all(|q| installed.join(q.file).is_file()));
+    let styles_home = d.join("installed-paintings");
+    std::fs::create_dir_all(&styles_home).unwrap();
+    for q in offered.iter().flat_map(|p| p.pieces) {
+        std::fs::copy(installed.join(q.file), styles_home.join(q.file)).unwrap();
+    }
     let log = d.join("serve.log");
     let mut child = snerf()
+        .env("SNERF_STYLES", &styles_home)
         .args(["--json", "serve"])
         .arg(&file)
         .args(["--listen", "127.0.0.1:0", "--no-web", "--styles-poll", "0.3", "--state"])
@@ -149,4 +160,28 @@ fn a_painting_dropped_into_the_styles_dir_becomes_a_style_every_client_can_switc
     // the file on disk is the three-style asset
     let layered = snerf_asset::LayeredAsset::read(&file).unwrap();
     assert_eq!(layered.names(), ["warm", "cold", "green"]);
+
+    // A painting chosen from the server's list: only what it offers is trained.
+    let Some(p) = offered else {
+        assert_eq!(listed[0].paintings, Some(vec![]), "no painting installed, none offered");
+        eprintln!("no painting installed in {} (bash scripts/setup-styles.sh): the request of one is not tested", installed.display());
+        return;
+    };
+    assert_eq!(listed[0].paintings, Some(vec![p.key.to_string()]));
+    assert_eq!(watch.add_style("scene", p.key).unwrap(), p.key);
+    let told = watch.next(Duration::from_secs(120)).unwrap().unwrap_or_else(|| panic!("no new style within 120 s: {}", read_log()));
+    assert_eq!(names(&told.styles), ["warm", "cold", "green", p.key]);
+    let added = lines.recv_timeout(Duration::from_secs(10)).unwrap();
+    assert_eq!((&added["style"], &added["painting"]), (&p.key.into(), &format!("painting:{}", p.key).into()), "{added}");
+    let listed = snerf_stream::list_blocking(&url(""), &pin, &token).unwrap();
+    assert_eq!(listed[0].paintings, Some(vec![]), "a painting the asset has is offered no more");
+    let mut held = Asset::read(&held_file).unwrap();
+    snerf_stream::restyle::switch_style_blocking(&url(&format!("scene.{}", p.key)), &pin, &token, &mut held, &held_info, None, &mut recolour).unwrap();
+    // asking again, or for anything not offered, is refused by name; nothing is trained
+    for bad in [p.key, "vangogh-not-a-key"] {
+        let mut w = snerf_stream::watch::StyleWatch::open(&url(""), &pin, &token).unwrap();
+        let e = format!("{:#}", w.add_style("scene", bad).unwrap_err());
+        assert!(e.contains("not offered") && e.contains(bad), "{e}");
+    }
+    assert_eq!(snerf_asset::LayeredAsset::read(&file).unwrap().names().len(), 4);
 }

@@ -14,14 +14,16 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc;
 use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 use snerf_asset::{LayeredAsset, StyleInfo};
-use snerf_stream::server::Announcer;
+use snerf_stream::server::{Announcer, Offer};
 use snerf_stylize::consistency::StyleMeters;
 use snerf_stylize::layers::{style_name, LayerRecord, LayersRecord};
+use snerf_stylize::paintings;
 use snerf_stylize::snerf_loop::{self, Progress, RoundRecord, StylizeState};
 use snerf_stylize::stylizer::{self, StylizerOptions};
 use snerf_trainer::checkpoint;
@@ -38,6 +40,15 @@ pub struct StylesDir {
     poll: Duration,
     /// The asset's style names (what is not trained again).
     styles: Vec<String>,
+    /// Paintings clients asked for (`Offer`), by key.
+    requests: Option<mpsc::Receiver<String>>,
+}
+
+/// The installed paintings (`painting:KEY`, `bash scripts/setup-styles.sh`), by key: what a
+/// client may ask the server to train. Only these: a client never names a file.
+fn installed_paintings() -> Vec<String> {
+    let dir = paintings::styles_dir();
+    paintings::all().filter(|p| p.pieces.iter().all(|q| dir.join(q.file).is_file())).map(|p| p.key.to_string()).collect()
 }
 
 /// A painting as last seen: its size and modification time, and what became of it.
@@ -90,7 +101,16 @@ impl StylesDir {
             models,
             poll,
             styles: layered.names(),
+            requests: None,
         })
+    }
+
+    /// What the server offers clients to train (`ServeOptions::offer`): the installed
+    /// paintings; their requests come to this watcher.
+    pub fn offer(&mut self) -> Offer {
+        let (tx, rx) = mpsc::channel();
+        self.requests = Some(rx);
+        Offer { asset: self.asset_name.clone(), paintings: installed_paintings(), requests: tx }
     }
 
     /// Watch on a thread of its own until the process ends.
@@ -106,9 +126,20 @@ impl StylesDir {
             .name("snerf-styles-dir".into())
             .spawn(move || {
                 let mut seen = BTreeMap::new();
+                let requests = self.requests.take();
                 loop {
                     self.poll_once(&mut seen, &announcer);
-                    std::thread::sleep(self.poll);
+                    // a client's request wakes the watcher at once
+                    let key = match &requests {
+                        Some(rx) => rx.recv_timeout(self.poll).ok(),
+                        None => {
+                            std::thread::sleep(self.poll);
+                            None
+                        }
+                    };
+                    for key in key.into_iter().chain(requests.iter().flat_map(|rx| rx.try_iter())) {
+                        self.requested(&key, &announcer);
+                    }
                 }
             })
             .context("cannot start the styles-dir thread")?;
@@ -150,16 +181,37 @@ impl StylesDir {
                 say(&format!("{}: {} already has the style {name:?}: not trained again", path.display(), self.asset_name));
                 continue;
             }
-            if let Err(e) = self.add(&path, &name, first_seen, announcer) {
+            if let Err(e) = self.add_file(&path, &name, first_seen, announcer) {
                 say(&format!("{}: cannot add it as a style: {e:#}", path.display()));
             }
         }
     }
 
-    /// Train, bake and offer the style `name` after `painting`.
-    fn add(&mut self, painting: &Path, name: &str, first_seen: Instant, announcer: &Announcer) -> Result<()> {
+    /// A client asked for the installed painting `key` (offered, so known).
+    fn requested(&mut self, key: &str, announcer: &Announcer) {
+        let spec = format!("{}{key}", paintings::STYLE_PREFIX);
+        let name = style_name(&spec);
+        if self.styles.contains(&name) {
+            return say(&format!("{spec}: {} already has the style {name:?}: not trained again", self.asset_name));
+        }
+        let t0 = Instant::now();
+        let r = paintings::resolve_style(Path::new(&spec)).and_then(|path| self.add(&path, spec.clone(), &name, t0, announcer));
+        if let Err(e) = r {
+            say(&format!("{spec}: cannot add it as a style: {e:#}"));
+        }
+    }
+
+    /// `add` of a painting file from the folder (the run records its absolute path).
+    fn add_file(&mut self, painting: &Path, name: &str, first_seen: Instant, announcer: &Announcer) -> Result<()> {
         let painting = std::path::absolute(painting).unwrap_or_else(|_| painting.to_path_buf());
         let spec = painting.to_str().context("not a UTF-8 name (the run records it): rename it")?.to_string();
+        self.add(&painting, spec, name, first_seen, announcer)
+    }
+
+    /// Train, bake and offer the style `name` after the image `painting` (`spec`: the style
+    /// as the run records it, as `--style` would give it).
+    fn add(&mut self, painting: &Path, spec: String, name: &str, first_seen: Instant, announcer: &Announcer) -> Result<()> {
+        let painting = painting.to_path_buf();
         // Read before any work: a file that is not an image fails here, by name.
         let style_img = stylizer::load_style_image(&painting)?;
         let mut record = LayersRecord::read(&self.srun)?.with_context(|| format!("{}: its layers record is gone", self.srun.display()))?;
@@ -195,7 +247,7 @@ impl StylesDir {
         bigger.write(&self.asset)?;
         // the record after the asset: a layer it lists is in the asset
         record.layers.retain(|l| l.name != name);
-        record.layers.push(LayerRecord { name: name.to_string(), source: spec, seconds: Some(train_seconds) });
+        record.layers.push(LayerRecord { name: name.to_string(), source: spec.clone(), seconds: Some(train_seconds) });
         record.write(&self.srun)?;
         let bake_seconds = t1.elapsed().as_secs_f64();
         self.styles = bigger.names();
@@ -211,7 +263,7 @@ impl StylesDir {
             "asset": self.asset_name,
             "file": crate::args::pj(&self.asset),
             "style": name,
-            "painting": crate::args::pj(&painting),
+            "painting": spec,
             "train_seconds": train_seconds,
             "bake_seconds": bake_seconds,
             "bake_colour_seconds": report.seconds,

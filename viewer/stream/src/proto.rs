@@ -204,6 +204,13 @@ pub enum ClientMsg {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         colour_of: Option<String>,
     },
+    /// Ask the server to train the painting `painting` (a key its listing offers for `asset`,
+    /// `ListEntry::paintings`) as a new style of `asset` (after Hello). Answered `Training`;
+    /// the style is announced (`Styles`) once it is added.
+    AddStyle {
+        asset: String,
+        painting: String,
+    },
     /// Ask for the asset list (after Hello); with `thumbs`, each entry carries a thumbnail.
     /// With `watch`, the server also sends a `Styles` message whenever a served asset gains a
     /// style, for as long as this session lasts (a server that predates `watch` ignores it).
@@ -230,6 +237,10 @@ pub struct ListEntry {
     /// `name` streams the first, `name.STYLE` each (`plan::ServedStyle`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub styles: Option<Vec<snerf_asset::StyleInfo>>,
+    /// Paintings the server offers to train as new styles of this asset (`AddStyle`), by
+    /// key (`snerf serve --styles-dir`: the installed paintings the asset has no style of).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub paintings: Option<Vec<String>>,
 }
 
 /// A small picture: `width` x `height` RGB8 pixels, row-major from the top, base64.
@@ -293,6 +304,12 @@ pub enum ServerMsg {
         asset: String,
         styles: Vec<snerf_asset::StyleInfo>,
     },
+    /// The answer to `AddStyle`: the painting is queued to be trained as the style `style` of
+    /// `asset` (a `Styles` message follows once it is added, to sessions that watch).
+    Training {
+        asset: String,
+        style: String,
+    },
 }
 
 pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
@@ -339,6 +356,13 @@ pub fn decode_client_msg(b: &[u8]) -> Result<ClientMsg> {
         if let Some(p) = pose {
             p.validate()?;
         }
+    }
+    if let ClientMsg::AddStyle { asset, painting } = &m {
+        ensure!(valid_asset_name(asset), "add_style: invalid asset name");
+        ensure!(
+            !painting.is_empty() && painting.len() <= 64 && painting.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-' || b == b'_'),
+            "add_style: a painting is named by its key (a-z, 0-9, - and _)"
+        );
     }
     Ok(m)
 }

@@ -43,6 +43,17 @@ pub struct ServeOptions {
     /// Also serve the web viewer: its page over HTTP (TCP) and WebTransport (UDP), both on
     /// this address's port (0: a free port). See `web.rs`.
     pub web: Option<SocketAddr>,
+    /// Paintings clients may ask to have trained as new styles (PROTOCOL.md, "New styles").
+    pub offer: Option<Offer>,
+}
+
+/// What a server offers to train as new styles of one multi-style asset: painting keys; a
+/// client's accepted `add_style` sends its key to `requests` (whoever trains them listens).
+#[derive(Clone, Debug)]
+pub struct Offer {
+    pub asset: String,
+    pub paintings: Vec<String>,
+    pub requests: std::sync::mpsc::Sender<String>,
 }
 
 impl ServeOptions {
@@ -57,6 +68,7 @@ impl ServeOptions {
             limits: Limits::default(),
             quiet: false,
             web: None,
+            offer: None,
         }
     }
 }
@@ -426,6 +438,7 @@ fn setup(opts: &ServeOptions) -> Result<(Arc<Shared>, Endpoint, tls::Identity)> 
         // Watchers that fall this far behind miss messages (each names a whole style list,
         // so the next one for that asset makes up for it).
         updates: tokio::sync::broadcast::channel(64).0,
+        offer: opts.offer.clone(),
     });
     Ok((shared, endpoint, id))
 }

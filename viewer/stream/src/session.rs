@@ -156,6 +156,7 @@ async fn read_hello(
     let msg = decode_client_msg(&first).map_err(|e| Close(code::MALFORMED, format!("{:#}", e)))?;
     match msg {
         ClientMsg::List { .. } => Err(Close(code::PROTOCOL, "List before Hello".into())),
+        ClientMsg::AddStyle { .. } => Err(Close(code::PROTOCOL, "AddStyle before Hello".into())),
         ClientMsg::Hello {
             version,
             token,
@@ -319,6 +320,11 @@ async fn session(
                                 .map_err(|_| Close(code::INTERNAL, "thumbnail task failed".into()))?;
                             }
                             send_msg(&mut send, &ServerMsg::Listing { assets }).await?
+                        }
+                        ClientMsg::AddStyle { asset, painting } => {
+                            let style = shared.add_style(&asset, &painting)?;
+                            log(shared, who, &format!("asked to train {painting:?} as a style of {asset}"));
+                            send_msg(&mut send, &ServerMsg::Training { asset, style }).await?
                         }
                         ClientMsg::Hello { .. } => return Err(Close(code::PROTOCOL, "duplicate Hello".into())),
                     },

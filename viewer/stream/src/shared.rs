@@ -36,6 +36,8 @@ pub(crate) struct Shared {
     pub(crate) thumbs: crate::thumbs::Thumbs,
     /// `Styles` messages for the sessions that watch (`List::watch`; `server::Announcer`).
     pub(crate) updates: tokio::sync::broadcast::Sender<crate::proto::ServerMsg>,
+    /// Paintings clients may ask to have trained as new styles (`ClientMsg::AddStyle`).
+    pub(crate) offer: Option<crate::server::Offer>,
 }
 
 /// A connection-ending error: QUIC application code + reason sent to the client.
@@ -98,7 +100,7 @@ fn entry(name: String, size: u64, path: &Path) -> ListEntry {
         Some((k, s)) => (Some(k), s),
         None => (None, None),
     };
-    ListEntry { name, size, kind, thumb: None, styles }
+    ListEntry { name, size, kind, thumb: None, styles, paintings: None }
 }
 
 impl Shared {
@@ -118,7 +120,7 @@ impl Shared {
     }
 
     pub(crate) fn list(&self) -> Vec<ListEntry> {
-        match &self.source {
+        let mut entries = match &self.source {
             Source::File { name, path } => {
                 let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
                 vec![entry(name.clone(), size, path)]
@@ -141,7 +143,31 @@ impl Shared {
                 out.sort_by(|a, b| a.name.cmp(&b.name));
                 out
             }
+        };
+        // the offer, less the styles the asset has by now
+        if let Some(o) = &self.offer {
+            for e in entries.iter_mut().filter(|e| e.name == o.asset) {
+                let has = |k: &String| e.styles.iter().flatten().any(|s| &s.name == k);
+                e.paintings = Some(o.paintings.iter().filter(|k| !has(k)).cloned().collect());
+            }
         }
+        entries
+    }
+
+    /// A client's `AddStyle`: queued when this server offers that painting for that asset.
+    pub(crate) fn add_style(&self, asset: &str, painting: &str) -> Result<String, Close> {
+        let Some(o) = self.offer.as_ref().filter(|o| o.asset == asset) else {
+            return Err(Close(code::NOT_FOUND, format!("this server trains no new styles of {asset:?}")));
+        };
+        // what the listing offers now: not a painting whose style the asset has by now
+        let offered = self.list().into_iter().find(|e| e.name == asset).and_then(|e| e.paintings).unwrap_or_default();
+        if !offered.iter().any(|k| k == painting) {
+            return Err(Close(code::NOT_FOUND, format!("painting {painting:?} is not offered for {asset:?} (offered: {})", offered.join(", "))));
+        }
+        o.requests
+            .send(painting.to_string())
+            .map_err(|_| Close(code::INTERNAL, "the server no longer trains new styles".into()))?;
+        Ok(painting.to_string())
     }
 
     /// The file of a listed asset.

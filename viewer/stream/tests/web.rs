@@ -1518,10 +1518,12 @@ fn the_page_lists_a_multi_style_assets_styles_and_streams_one() {
     h.shutdown();
 }
 
-/// A style the server adds while the page shows the asset (what `snerf serve --styles-dir`
-/// does once a layer is trained: the file written again with the style appended, then
-/// `Announcer::styles_changed`): the page, watching, shows the new swatch, its key switches
-/// to the style by colour alone, and the page rebuilds that style's file byte for byte.
+/// A style asked for in the page and added while it shows the asset: the page offers the
+/// server's paintings (`ServeOptions::offer`), its button sends the choice, and what `snerf
+/// serve --styles-dir` does once that layer is trained (the file written again with the
+/// style appended, then `Announcer::styles_changed`) reaches the page, watching: it shows the
+/// new swatch, its key switches to the style by colour alone, and the page rebuilds that
+/// style's file byte for byte.
 #[test]
 fn a_style_added_while_the_page_shows_the_asset_gets_a_swatch_and_a_switch_by_colour() {
     use std::io::BufRead;
@@ -1531,7 +1533,13 @@ fn a_style_added_while_the_page_shows_the_asset_gets_a_swatch_and_a_switch_by_co
     let file = dir.join("scene.snerf");
     let layered = two_styles();
     layered.write(&file).unwrap();
-    let h = start(dir.path(), state.path());
+    let (tx, requests) = std::sync::mpsc::channel();
+    let mut o = ServeOptions::new(dir.path(), "127.0.0.1:0".parse().unwrap());
+    o.state_dir = Some(state.path().to_path_buf());
+    o.quiet = std::env::var_os("SNERF_STREAM_LOG").is_none();
+    o.web = Some("127.0.0.1:0".parse().unwrap());
+    o.offer = Some(snerf_stream::server::Offer { asset: "scene".into(), paintings: vec!["green".into(), "warm".into()], requests: tx });
+    let h = snerf_stream::spawn(o).unwrap();
     let web = h.web().unwrap().clone();
     let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "scene.warm")]));
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/web/newstyle.mjs");
@@ -1547,6 +1555,9 @@ fn a_style_added_while_the_page_shows_the_asset_gets_a_swatch_and_a_switch_by_co
     let mut out = std::io::BufReader::new(node.stdout.take().unwrap()).lines();
     let first = out.next().and_then(Result::ok).unwrap_or_default();
     assert_eq!(first, "watching");
+    // the page asked for the painting it was offered (warm, a style the asset has, is not)
+    let asked = requests.recv_timeout(std::time::Duration::from_secs(60)).expect("the page asks for a painting");
+    assert_eq!(asked, "green");
     // a third style: the first's colours halved
     let mut green = layered.layers[0].clone();
     for v in green.atlas.chunks_exact_mut(8) {
@@ -1569,6 +1580,9 @@ fn a_style_added_while_the_page_shows_the_asset_gets_a_swatch_and_a_switch_by_co
     let r: serde_json::Value = serde_json::from_str(rest.last().map(String::as_str).unwrap_or("")).unwrap_or_else(|e| panic!("page report: {e} ({stderr})"));
     assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
     assert_eq!(r["swatches"], serde_json::json!(["warm", "cold", "green"]));
+    assert_eq!(r["offered"], serde_json::json!(["green"]), "what the page offered");
+    assert_eq!(r["training"], "scene.green");
+    assert_eq!(r["offeredAfter"], serde_json::json!([]), "nothing is offered once the asset has it");
     assert_eq!(r["styles"], serde_json::json!(["scene.warm", "scene.cold", "scene.green"]));
     let sw = &r["switches"][0];
     assert_eq!((&sw["state"], &sw["name"]), (&"done".into(), &"scene.green".into()), "{sw}");

@@ -1732,14 +1732,46 @@ function showListing(assets) {
     td3.className = 'styles';
     tr.appendChild(td3);
     swatchRow.set(a.name, td3);
+    const td4 = document.createElement('td');
+    td4.className = 'offer';
+    tr.appendChild(td4);
+    offerRow.set(a.name, td4);
     if (a.styles) showSwatches(a.name, a.styles);
     tbody.appendChild(tr);
   }
   return assets;
 }
 
-// The swatch cell of each listed asset, by name.
+// The swatch cell and the offer cell of each listed asset, by name.
 const swatchRow = new Map();
+const offerRow = new Map();
+// The watching session's control stream writer, while it lasts (`add_style` goes on it).
+let watchWriter = null;
+
+// The paintings the server offers to train as new styles of `asset` (PROTOCOL.md, "New
+// styles"): a choice and a button that asks for it; the new style's swatch comes when it is
+// added. Keys of installed paintings only: the page never sends a file.
+function showOffer(asset, paintings) {
+  const td = offerRow.get(asset);
+  if (!td) return;
+  td.replaceChildren();
+  if (!paintings || !paintings.length || !watchWriter) return;
+  const sel = document.createElement('select');
+  sel.className = 'paintings';
+  for (const k of paintings) {
+    const o = document.createElement('option');
+    o.value = k; o.textContent = k;
+    sel.appendChild(o);
+  }
+  const b = document.createElement('button');
+  b.className = 'train'; b.textContent = 'train style';
+  b.onclick = () => {
+    if (!watchWriter) return;
+    b.disabled = true;
+    watchWriter.write(frame({ type: 'add_style', asset, painting: sel.value })).catch(() => {});
+  };
+  td.append(sel, b);
+}
 function showSwatches(asset, styles) {
   const td3 = swatchRow.get(asset);
   if (!td3) return;
@@ -1760,7 +1792,8 @@ function showSwatches(asset, styles) {
 // New styles (PROTOCOL.md, "New styles"): a session of its own that lists with `watch` and
 // is then sent an asset's style list each time the server adds a style to it (`snerf serve
 // --styles-dir`); the asset's row gets the new swatch and, for the asset on screen, the keys
-// reach it (a switch to it goes by colour, as to any other). WebTransport only: over HTTPS an
+// reach it (a switch to it goes by colour, as to any other). The paintings the server offers
+// are asked for on this session (`showOffer`). WebTransport only: over HTTPS an
 // answer ends with its request. A lost session is opened again (the server restarting), up
 // to 5 times in a row.
 async function watchStyles() {
@@ -1773,21 +1806,36 @@ async function watchStyles() {
         await writer.write(frame({ type: 'list', watch: true }));
         const listing = await readMsg(ctl);
         if (listing.type !== 'listing') throw new Error('unexpected ' + listing.type);
-        // what changed while no session watched
-        for (const a of listing.assets) if (a.styles) showSwatches(a.name, a.styles);
+        watchWriter = writer;
+        // what changed while no session watched, and what the server offers to train
+        const offered = new Map(listing.assets.map((a) => [a.name, a.paintings || []]));
+        for (const a of listing.assets) {
+          if (a.styles) showSwatches(a.name, a.styles);
+          showOffer(a.name, offered.get(a.name));
+        }
         report.watching = true;
         failures = 0;
         for (;;) {
           const m = await readMsg(ctl);
+          if (m.type === 'training') {
+            report.training = `${m.asset}.${m.style}`;
+            setStatus(`${m.asset}: training the style ${m.style}; its swatch comes when it is added`);
+            continue;
+          }
           if (m.type !== 'styles') continue;
           const entry = (report.listing || []).find((a) => a.name === m.asset);
           if (entry) entry.styles = m.styles;
           showSwatches(m.asset, m.styles);
+          const left = (offered.get(m.asset) || []).filter((k) => !m.styles.some((st) => st.name === k));
+          offered.set(m.asset, left);
+          showOffer(m.asset, left);
           report.stylesAdded = (report.stylesAdded || 0) + 1;
           setStatus(`${m.asset}: a new style, ${m.styles[m.styles.length - 1].name} (key ${m.styles.length})`);
         }
       } finally {
         report.watching = false;
+        watchWriter = null;
+        for (const a of offerRow.keys()) showOffer(a, []);
         try { wt.close({ closeCode: 0, reason: 'done' }); } catch (_) { /* already closed */ }
       }
     } catch (_) {

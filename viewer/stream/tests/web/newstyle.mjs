@@ -1,7 +1,7 @@
 // A style the server adds while the page shows the asset, for tests/web.rs: opens URL (a
 // style of a multi-style asset), waits until it is done and watching for new styles, prints
-// "watching" on a line of its own (the test then adds a style), waits for the new style's
-// swatch, presses the key of the newest style once the page could switch, waits for the
+// "watching" on a line of its own, asks for the first painting the page offers (the test
+// then adds that style), waits for the new style's swatch, presses the key of the newest style once the page could switch, waits for the
 // switch, and prints the page's report as JSON (with `swatches`: the swatch buttons shown).
 // Usage: node newstyle.mjs PLAYWRIGHT_DIR URL
 import { launchChromium } from './launch.mjs';
@@ -18,7 +18,10 @@ try {
   await wait(() => window.snerf && ((window.snerf.state === 'done' && window.snerf.watching) || window.snerf.state === 'error'));
   // (counted before the test is told to add the style: it may arrive at once)
   const before = await page.evaluate(() => (window.snerf.styles || []).length);
+  // the paintings offered, and the first asked for
+  const offered = await page.evaluate(() => Array.from(document.querySelectorAll('select.paintings option')).map((o) => o.value));
   console.log('watching');
+  if (offered.length) await page.click('button.train');
   const swatches = (n) => window.snerf.state === 'error' || (window.snerf.stylesAdded >= 1 && document.querySelectorAll('.swatch').length === n);
   if (await page.evaluate(() => window.snerf.state !== 'error')) {
     await wait(swatches, before + 1);
@@ -33,7 +36,12 @@ try {
       return s.state === 'error' || (sw && (sw.state === 'error' || (sw.state === 'done' && sw.completeAt)));
     });
   }
-  const r = await page.evaluate(() => ({ ...window.snerf, lastRender: null, benchFrames: undefined, swatches: Array.from(document.querySelectorAll('.swatch')).map((b) => b.title) }));
+  const r = await page.evaluate(() => ({
+    ...window.snerf, lastRender: null, benchFrames: undefined,
+    swatches: Array.from(document.querySelectorAll('.swatch')).map((b) => b.title),
+    offeredAfter: Array.from(document.querySelectorAll('select.paintings option')).map((o) => o.value),
+  }));
+  r.offered = offered;
   console.log(JSON.stringify(r));
 } finally {
   await browser.close();
