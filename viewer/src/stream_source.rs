@@ -58,17 +58,29 @@ impl StreamSource {
         let (n2, base) = (names.clone(), format!("quic://{hp}/"));
         let (b2, p2, t2) = (base.clone(), pin.to_string(), token.to_string());
         // The listing says whether the asset is a style of a multi-style file and names its
-        // styles; without it (an older server, an error) there are simply no style keys.
+        // styles; without it (an older server, an error) there are simply no style keys. The
+        // session stays open for such a file: a style the server adds later (`snerf serve
+        // --styles-dir`) gets the next key.
         std::thread::spawn(move || {
-            let Ok(list) = snerf_stream::list_blocking(&b2, &p2, &t2) else { return };
-            for e in list {
+            let Ok(mut watch) = snerf_stream::watch::StyleWatch::open(&b2, &p2, &t2) else { return };
+            let mut file = None;
+            for e in std::mem::take(&mut watch.listing) {
                 let Some(st) = e.styles else { continue };
                 let ours = asset == e.name || st.iter().any(|s| asset == format!("{}.{}", e.name, s.name));
                 if ours {
                     let names: Vec<String> = st.into_iter().map(|s| s.name).collect();
                     eprintln!("snerf view: styles {} (keys 1..{} switch, by colour alone)", names.join(", "), names.len().min(9));
+                    file = Some(e.name.clone());
                     *n2.lock().unwrap_or_else(|p| p.into_inner()) = Some((e.name, names));
                 }
+            }
+            let Some(file) = file else { return };
+            // until the session ends (the server stopping, the window closed)
+            while let Ok(next) = watch.next(std::time::Duration::from_secs(3600)) {
+                let Some(n) = next.filter(|n| n.asset == file) else { continue };
+                let names: Vec<String> = n.styles.into_iter().map(|s| s.name).collect();
+                eprintln!("snerf view: a new style, {} (key {}): styles {}", names.last().map(String::as_str).unwrap_or(""), names.len(), names.join(", "));
+                *n2.lock().unwrap_or_else(|p| p.into_inner()) = Some((n.asset, names));
             }
         });
         s.styles = Some(Styles { base, pin: pin.to_string(), token: token.to_string(), names, held: None, shown: None, running: None });

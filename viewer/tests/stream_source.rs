@@ -136,5 +136,24 @@ fn a_streamed_style_switches_by_its_colour_part() {
     assert_eq!(src.select_style(5), None, "no sixth style");
     let a = switch(&mut src, 0, "warm");
     assert!(a == layered.layers[0], "and back");
+
+    // A style the server adds while the viewer shows the file (what `snerf serve --styles-dir`
+    // does once a layer is trained: the file written again with it, the watching sessions
+    // told): the next key reaches it, by colour.
+    assert_eq!(src.select_style(2), None, "no third style yet");
+    let mut green = layered.layers[0].clone();
+    for v in green.atlas.chunks_exact_mut(8) {
+        for c in &mut v[1..] {
+            *c /= 2;
+        }
+    }
+    let (mut styles, mut layers) = (layered.styles.clone(), layered.layers.clone());
+    styles.push(info("green"));
+    layers.push(green);
+    let three = LayeredAsset::new(styles, layers).unwrap();
+    three.write(dir.join("assets").join("scene.snerf")).unwrap();
+    assert_eq!(server.announcer().styles_changed("scene").unwrap(), 1, "the viewer watches");
+    let a = switch(&mut src, 2, "green");
+    assert!(a == three.layers[2], "the new style exactly");
     server.shutdown();
 }
