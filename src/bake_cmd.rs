@@ -54,8 +54,9 @@ pub struct BakeArgs {
     pub time_budget: f32,
     /// Dynamic scenes: cells may show one reference time sample moved by an offset instead
     /// of a block of their own, so playback moves a moving part instead of blending two
-    /// blocks (`snerf_baker::motion`; file version 4). Off: the block codebook alone.
-    #[arg(long)]
+    /// blocks (`snerf_baker::motion`; file version 4). `--motion false`: the block codebook
+    /// alone (version 1 files, for readers from before motion).
+    #[arg(long, default_value_t = BakeOptions::default().motion, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub motion: bool,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
@@ -294,8 +295,14 @@ fn bake_one(
             summary.cells_occupied_any_frame,
             report.extra_blocks
         );
+        if let Some(r) = report.motion_reference {
+            eprintln!(
+                "motion: {} entries show time sample {} moved ({:.1} s of search); {} entries blend two blocks in playback",
+                report.motion_entries, r, report.seconds_motion, report.blended_entries
+            );
+        }
     }
-    if asset.is_dynamic() && summary.size_vs_static_frame > a.time_budget as f64 * 1.005 {
+    if asset.is_dynamic() && report.motion_reference.is_none() && summary.size_vs_static_frame > a.time_budget as f64 * 1.005 {
         eprintln!(
             "note: over --time-budget {}: one block for each of the {} cells occupied at some time, plus {} grids, already costs this much",
             a.time_budget,

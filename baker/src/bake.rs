@@ -65,13 +65,14 @@ pub struct BakeOptions {
     /// The scene's world up direction, overriding the one the training cameras imply.
     pub up: Option<[f32; 3]>,
     /// Dynamic scenes: cells may show the reference sample moved instead of a block of their
-    /// own (`motion`); playback then moves what moves instead of blending.
+    /// own (`motion`); playback then moves what moves instead of blending. On by default:
+    /// better against the field on six animated models at equal size (BENCH.md §6).
     pub motion: bool,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, motion: false }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, motion: true }
     }
 }
 

@@ -106,6 +106,75 @@ impl RefVolume {
     }
 }
 
+impl RefVolume {
+    /// `moved_error(alpha, moved_block(cell, b, d), Some((target, vis)))` without building
+    /// the block, reading only voxels someone sees, and giving up (returning a value above
+    /// `bound`) once the sum passes `bound`: the search's inner loop.
+    pub fn error_at(&self, cell: usize, b: usize, d: [f32; 3], alpha: &[f32; 256], target: &[u8], vis: &[u8], bound: f32) -> f32 {
+        let g = self.res / b;
+        let bb = b + 2;
+        let c = [cell % g, (cell / g) % g, cell / (g * g)];
+        let fl = d.map(f32::floor);
+        let di = fl.map(|x| x as i32);
+        let w = [d[0] - fl[0], d[1] - fl[1], d[2] - fl[2]];
+        let whole = w.iter().all(|&x| x == 0.0);
+        let limit = bound * 255.0;
+        let mut e = 0.0f32;
+        for z in 0..bb {
+            for y in 0..bb {
+                for x in 0..bb {
+                    let i = (z * bb + y) * bb + x;
+                    let wv = vis[i];
+                    if wv == 0 {
+                        continue;
+                    }
+                    let p = [
+                        (c[0] * b + x) as i32 - 1 + di[0],
+                        (c[1] * b + y) as i32 - 1 + di[1],
+                        (c[2] * b + z) as i32 - 1 + di[2],
+                    ];
+                    let mut pm = [0u8; 8];
+                    if whole {
+                        pm.copy_from_slice(self.at(p));
+                    } else {
+                        let mut acc = [0.0f32; 8];
+                        for corner in 0..8 {
+                            let s = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+                            let mut wt = 1.0;
+                            for a in 0..3 {
+                                wt *= if s[a] == 1 { w[a] } else { 1.0 - w[a] };
+                            }
+                            if wt == 0.0 {
+                                continue;
+                            }
+                            let v = self.at([p[0] + s[0] as i32, p[1] + s[1] as i32, p[2] + s[2] as i32]);
+                            for ch in 0..8 {
+                                acc[ch] += wt * v[ch] as f32;
+                            }
+                        }
+                        for ch in 0..8 {
+                            pm[ch] = acc[ch].round().clamp(0.0, 255.0) as u8;
+                        }
+                    }
+                    let pt = &target[i * 8..i * 8 + 8];
+                    let (aa, ab) = (alpha[pm[0] as usize], alpha[pt[0] as usize]);
+                    let m = aa.max(ab);
+                    let mut c2 = 0i32;
+                    for ch in 1..8 {
+                        let dd = pm[ch] as i32 - pt[ch] as i32;
+                        c2 += dd * dd;
+                    }
+                    e += wv as f32 * ((aa - ab) * (aa - ab) + m * m * c2 as f32 * (1.0 / (255.0 * 255.0)));
+                }
+            }
+            if e > limit {
+                return e / 255.0;
+            }
+        }
+        e / 255.0
+    }
+}
+
 /// Error of showing `moved` where the field holds `target` (visibility `vis`, per voxel):
 /// `CellSamples::error`'s measure with the target's visibility. `target` None: the field is
 /// transparent there (every voxel counted as seen).
@@ -181,8 +250,8 @@ pub fn search(cells: &[usize], samples: &[CellSamples], vol: &RefVolume, referen
                         }
                     }
                 }
-                let err = |d: [f32; 3]| moved_error(&s.alpha, &vol.moved_block(c, b, d), Some(target));
-                let mut scored: Vec<([f32; 3], f32)> = cand.into_iter().map(|d| (d, err(d))).collect();
+                let err = |d: [f32; 3], bound: f32| vol.error_at(c, b, d, &s.alpha, target.0, target.1, bound);
+                let mut scored: Vec<([f32; 3], f32)> = cand.into_iter().map(|d| (d, err(d, f32::INFINITY))).collect();
                 scored.sort_by(|a, b| a.1.total_cmp(&b.1));
                 let mut top = scored[0];
                 // whole-voxel search around the two best predictors, then quarter voxels
@@ -195,7 +264,7 @@ pub fn search(cells: &[usize], samples: &[CellSamples], vol: &RefVolume, referen
                                 if d.iter().any(|x| x.abs() > MOTION_MAX) {
                                     continue;
                                 }
-                                let e = err(d);
+                                let e = err(d, top.1);
                                 if e < top.1 {
                                     top = (d, e);
                                 }
@@ -212,7 +281,7 @@ pub fn search(cells: &[usize], samples: &[CellSamples], vol: &RefVolume, referen
                                 if d.iter().any(|x| x.abs() > MOTION_MAX) {
                                     continue;
                                 }
-                                let e = err(d);
+                                let e = err(d, top.1);
                                 if e < top.1 {
                                     top = (d, e);
                                 }
@@ -273,4 +342,107 @@ pub fn fill_gaps(grids: &mut [Vec<u32>], cells: &[usize], samples: &[CellSamples
         }
     }
     set
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 4³-cell grid (block 4, res 16) holding a dense ball at `centre` (voxels), quantized
+    /// like a bake: density code 255 inside, colour varying in space.
+    fn ball(centre: [f32; 3], res: usize, b: usize) -> (Vec<usize>, Vec<CellSamples>) {
+        let g = res / b;
+        let bb = b + 2;
+        let mut alpha = [0.0f32; 256];
+        for (i, a) in alpha.iter_mut().enumerate() {
+            *a = i as f32 / 255.0;
+        }
+        let mut cells = Vec::new();
+        let mut samples = Vec::new();
+        for c in 0..g * g * g {
+            let cc = [c % g, (c / g) % g, c / (g * g)];
+            let mut blk = vec![0u8; bb * bb * bb * 8];
+            let mut any = false;
+            for z in 0..bb {
+                for y in 0..bb {
+                    for x in 0..bb {
+                        let p = [(cc[0] * b + x) as f32 - 0.5, (cc[1] * b + y) as f32 - 0.5, (cc[2] * b + z) as f32 - 0.5];
+                        let r2: f32 = (0..3).map(|a| (p[a] - centre[a]).powi(2)).sum();
+                        if r2 < 9.0 {
+                            let o = ((z * bb + y) * bb + x) * 8;
+                            blk[o] = 255;
+                            blk[o + 1] = (40.0 + 20.0 * (p[0] - centre[0])) as u8;
+                            blk[o + 2] = (120.0 + 25.0 * (p[1] - centre[1])) as u8;
+                            blk[o + 3] = (90.0 + 15.0 * (p[2] - centre[2])) as u8;
+                            any |= (1..=b).contains(&x) && (1..=b).contains(&y) && (1..=b).contains(&z);
+                        }
+                    }
+                }
+            }
+            if any {
+                cells.push(c);
+                samples.push(CellSamples { frames: vec![0], blocks: vec![blk], vis: vec![vec![255; bb * bb * bb]], alpha });
+            }
+        }
+        (cells, samples)
+    }
+
+    #[test]
+    fn the_fused_error_equals_the_error_of_the_moved_block() {
+        let (res, b) = (16, 4);
+        let (cells, samples) = ball([8.0, 7.5, 8.2], res, b);
+        let vol = RefVolume::new(&cells, &samples, 0, res, b);
+        let (_, other) = ball([9.0, 6.5, 7.7], res, b);
+        let s = &other[0];
+        let c = cells[0];
+        for d in [[0.0, 0.0, 0.0], [1.0, -1.0, 0.0], [0.25, 0.5, -0.75], [-2.5, 1.25, 3.0]] {
+            let want = moved_error(&s.alpha, &vol.moved_block(c, b, d), Some((&s.blocks[0], &s.vis[0])));
+            let got = vol.error_at(c, b, d, &s.alpha, &s.blocks[0], &s.vis[0], f32::INFINITY);
+            assert!((got - want).abs() <= 1e-4 * (1.0 + want), "{d:?}: {got} vs {want}");
+            // with a bound below the error it stops early, above the bound
+            if want > 0.0 {
+                assert!(vol.error_at(c, b, d, &s.alpha, &s.blocks[0], &s.vis[0], want * 0.5) > want * 0.5);
+            }
+        }
+    }
+
+    #[test]
+    fn block_matching_recovers_a_known_translation() {
+        // the ball at sample 0 (the reference) and moved by (1.5, -1, 0.75) voxels at sample 1:
+        // a cell at sample 1 shows the reference at v + d with d the opposite move
+        let (res, b) = (16, 4);
+        let centre = [7.5f32, 8.0, 8.5];
+        let mv = [1.5f32, -1.0, 0.75];
+        let (c0, s0) = ball(centre, res, b);
+        let (c1, s1) = ball([centre[0] + mv[0], centre[1] + mv[1], centre[2] + mv[2]], res, b);
+        // merge into one list of cells with samples at frames 0 and 1
+        let mut cells: Vec<usize> = c0.iter().chain(&c1).copied().collect();
+        cells.sort();
+        cells.dedup();
+        let mut samples: Vec<CellSamples> = cells
+            .iter()
+            .map(|_| CellSamples { frames: vec![], blocks: vec![], vis: vec![], alpha: s0[0].alpha })
+            .collect();
+        for (f, (cs, ss)) in [(0usize, (&c0, &s0)), (1, (&c1, &s1))] {
+            for (c, s) in cs.iter().zip(ss.iter()) {
+                let i = cells.iter().position(|x| x == c).unwrap();
+                samples[i].frames.push(f);
+                samples[i].blocks.push(s.blocks[0].clone());
+                samples[i].vis.push(s.vis[0].clone());
+            }
+        }
+        let vol = RefVolume::new(&cells, &samples, 0, res, b);
+        let m = search(&cells, &samples, &vol, 0, 2, b);
+        let mut checked = 0;
+        for (i, s) in samples.iter().enumerate() {
+            if let Some(k) = s.frames.iter().position(|&f| f == 1) {
+                let d = m.offset[i][k];
+                for a in 0..3 {
+                    assert!((d[a] + mv[a]).abs() <= 0.25, "cell {}: offset {d:?}, moved {mv:?}", cells[i]);
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked >= 4, "{checked} cells checked");
+    }
 }
