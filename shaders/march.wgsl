@@ -158,57 +158,79 @@ fn motion_offset(e: u32) -> vec3<f32> {
     return vec3<f32>(q) / 4.0;
 }
 
-// sample.rs `sample_moved`: the reference at the voxel position of (cell, l) moved by d.
-fn sample_moved(cell: u32, l: vec3<f32>, d: vec3<f32>) -> Vals {
-    let gd = P.grid.y;
-    let c = vec3<u32>(cell % gd, (cell / gd) % gd, cell / (gd * gd));
-    let v = l + 0.5 + vec3<f32>(c * BLOCK) - 1.0 + d;
-    let r = locate(v / f32(P.grid.x) * 2.0 - 1.0);
-    if (!r.ok) {
-        return empty_vals();
-    }
-    let e = grid_at(bitcast<u32>(P.dens.w) + r.cell);
-    if (e == EMPTY) {
-        return empty_vals();
-    }
-    return interpolate(e, r.l);
+// Where one side reads: a block entry (packed, or EMPTY) and the block-local coordinate.
+struct Fetch {
+    e: u32,
+    l: vec3<f32>,
 }
 
-// One side's values: empty, a block, or the reference moved.
-fn entry_vals(e: u32, cell: u32, l: vec3<f32>) -> Vals {
-    if (e == EMPTY) {
-        return empty_vals();
+// sample.rs `sample_moved`, up to the fetch: the reference's block and local coordinate at
+// the voxel position of (cell c, l) moved by d (EMPTY outside the grid or in an empty cell).
+fn moved(c: vec3<u32>, l: vec3<f32>, d: vec3<f32>) -> Fetch {
+    var f: Fetch;
+    f.e = EMPTY;
+    let v = l + 0.5 + vec3<f32>(c * BLOCK) - 1.0 + d;
+    let r = locate(v / f32(P.grid.x) * 2.0 - 1.0);
+    if (r.ok) {
+        f.e = grid_at(bitcast<u32>(P.dens.w) + r.cell);
+        f.l = r.l;
     }
-    if (DYNAMIC && is_motion(e)) {
-        return sample_moved(cell, l, motion_offset(e));
-    }
-    return interpolate(e, l);
+    return f;
 }
 
 // sample.rs `sample_slot`: None when every side involved is empty; two motion entries move
-// the reference by the interpolated offset and read it once.
-fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
+// the reference by the interpolated offset and read it once. Motion only changes where a
+// side reads, through one `moved` site, so SIMD lanes that disagree (and a rasterizer that
+// runs every branch under a mask) still run at most two block fetches and one move.
+fn sample_cell(loc: Loc) -> Sample {
     var s: Sample;
-    let a = grid_at(P.frames.x + cell);
+    let a = grid_at(P.frames.x + loc.cell);
     var b = a;
     let w = P.dens.z;
     if (DYNAMIC && w != 0.0 && P.frames.z == 0u) {
-        b = grid_at(P.frames.y + cell);
+        b = grid_at(P.frames.y + loc.cell);
     }
     s.ok = a != EMPTY || b != EMPTY;
     if (!s.ok) {
         return s;
     }
-    if (DYNAMIC && a != b && is_motion(a) && is_motion(b)) {
-        s.v = sample_moved(cell, l, (1.0 - w) * motion_offset(a) + w * motion_offset(b));
-        return s;
+    var fa: Fetch;
+    fa.e = a;
+    fa.l = loc.l;
+    var fb = fa;
+    fb.e = b;
+    // one side only: a static asset, equal entries, or two motion entries (moved once)
+    var one = !DYNAMIC || a == b;
+    if (DYNAMIC) {
+        let ma = is_motion(a);
+        let mb = is_motion(b);
+        if (ma || mb) {
+            // which offset: both moving (and different): the interpolated one; else the side's
+            var d = motion_offset(select(b, a, ma));
+            if (ma && mb && !one) {
+                d = (1.0 - w) * d + w * motion_offset(b);
+                one = true;
+            }
+            let f = moved(loc.c, loc.l, d);
+            if (ma) {
+                fa = f;
+            } else {
+                fb = f;
+            }
+        }
     }
-    let va = entry_vals(a, cell, l);
-    if (!DYNAMIC || a == b) {
+    var va = empty_vals();
+    if (fa.e != EMPTY) {
+        va = interpolate(fa.e, fa.l);
+    }
+    if (one) {
         s.v = va;
         return s;
     }
-    let vb = entry_vals(b, cell, l);
+    var vb = empty_vals();
+    if (fb.e != EMPTY) {
+        vb = interpolate(fb.e, fb.l);
+    }
     s.v.a = (1.0 - w) * va.a + w * vb.a;
     s.v.b = (1.0 - w) * va.b + w * vb.b;
     return s;
@@ -217,6 +239,8 @@ fn sample_cell(cell: u32, l: vec3<f32>) -> Sample {
 struct Loc {
     ok: bool,
     cell: u32,
+    // the cell's coordinates (motion reads the voxel position back from them)
+    c: vec3<u32>,
     l: vec3<f32>,
 }
 
@@ -233,6 +257,7 @@ fn locate(g: vec3<f32>) -> Loc {
     let vi = min(vec3<u32>(v), vec3<u32>(res - 1u));
     let c = min(vi / BLOCK, vec3<u32>(gd - 1u));
     r.ok = true;
+    r.c = c;
     r.cell = (c.z * gd + c.y) * gd + c.x;
     r.l = v - 0.5 - vec3<f32>(c * BLOCK) + 1.0;
     return r;
@@ -330,7 +355,7 @@ fn march_affine(go: vec3<f32>, gdir: vec3<f32>, t_base: f32, t_end: f32, dt: f32
             i += 1u;
             continue;
         }
-        let s = sample_cell(loc.cell, loc.l);
+        let s = sample_cell(loc);
         if (s.ok) {
             if (accum_add(s.v, delta, t)) {
                 break;
@@ -377,7 +402,7 @@ fn march_unbounded(o: vec3<f32>, d: vec3<f32>) {
         let c = contract(p);
         let loc = locate(c * 0.5);
         if (loc.ok) {
-            let s = sample_cell(loc.cell, loc.l);
+            let s = sample_cell(loc);
             if (s.ok) {
                 if (accum_add(s.v, dt, t)) {
                     break;
