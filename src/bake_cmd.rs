@@ -58,6 +58,10 @@ pub struct BakeArgs {
     /// alone (version 1 files, for readers from before motion).
     #[arg(long, default_value_t = BakeOptions::default().motion, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub motion: bool,
+    /// With motion: reference time samples to try, spread evenly from the fullest; the one
+    /// whose moves leave the least error is kept (1: the fullest alone; each costs a search).
+    #[arg(long, default_value_t = BakeOptions::default().motion_references, value_parser = crate::args::int_in::<usize>(1, 64, ""))]
+    pub motion_references: usize,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
@@ -241,6 +245,7 @@ fn bake_options(a: &BakeArgs, res: u32) -> BakeOptions {
         reuse_tolerance: a.reuse_tolerance,
         time_budget: a.time_budget,
         motion: a.motion,
+        motion_references: a.motion_references,
         up: a.up,
     }
 }

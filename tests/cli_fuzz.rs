@@ -82,6 +82,8 @@ fn case(rng: &mut Rng, ds: &Path, run: &Path, asset: &Path, out: &Path) -> Case 
                 ("--min-alpha", vec!["0", "0.5", "1", "1.5"]),
                 ("--reuse-tolerance", vec!["0", "0.03"]),
                 ("--time-budget", vec!["1.8", "0", "1e9", "nan"]),
+                ("--motion", vec!["false", "true", "maybe"]),
+                ("--motion-references", vec!["1", "3", "0", "65"]),
                 ("--visibility-views", vec!["0", "2"]),
                 ("--eval-views", vec!["0", "1"]),
             ],

@@ -68,11 +68,14 @@ pub struct BakeOptions {
     /// own (`motion`); playback then moves what moves instead of blending. On by default:
     /// better against the field on six animated models at equal size (BENCH.md §6).
     pub motion: bool,
+    /// With motion: how many reference samples to try (evenly spread from the fullest); the
+    /// one that leaves the least motion error is kept.
+    pub motion_references: usize,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, motion: true }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, motion: true, motion_references: 3 }
     }
 }
 
@@ -104,6 +107,8 @@ pub struct BakeReport {
     /// With motion: the reference sample, the (cell, sample) entries shown by motion, and the
     /// seconds the search took.
     pub motion_reference: Option<usize>,
+    /// The references tried and the motion error each left (sum over cells and samples).
+    pub motion_candidates: Vec<(usize, f64)>,
     pub motion_entries: usize,
     pub seconds_motion: f64,
     pub atlas_blocks: usize,
@@ -257,9 +262,24 @@ pub fn bake(
         let t = Instant::now();
         progress("motion search", 0, 1);
         // the fullest sample: every part that is ever there is most likely there too
-        let reference = (0..frames).max_by_key(|&f| (report.frame_blocks[f], usize::MAX - f.abs_diff(frames / 2))).unwrap_or(0);
-        let vol = motion::RefVolume::new(&cells, &samples, reference, res as usize, b as usize);
-        let found = motion::search(&cells, &samples, &vol, reference, frames, b as usize);
+        // Candidates: the fullest sample (every part that is ever there is most likely there
+        // too) and others spread evenly over the time range from it; the one whose moves
+        // leave the least error over all cells and samples is the reference.
+        let fullest = (0..frames).max_by_key(|&f| (report.frame_blocks[f], usize::MAX - f.abs_diff(frames / 2))).unwrap_or(0);
+        let n = opts.motion_references.clamp(1, frames);
+        let mut best: Option<(f64, usize, motion::RefVolume, motion::Motion)> = None;
+        for k in 0..n {
+            let candidate = (fullest + k * frames / n) % frames;
+            progress(&format!("motion search, reference {}/{n}", k + 1), k as u64, n as u64);
+            let vol = motion::RefVolume::new(&cells, &samples, candidate, res as usize, b as usize);
+            let found = motion::search(&cells, &samples, &vol, candidate, frames, b as usize);
+            let total: f64 = found.error.iter().flatten().map(|&e| e as f64).sum();
+            report.motion_candidates.push((candidate, total));
+            if best.as_ref().is_none_or(|x| total < x.0) {
+                best = Some((total, candidate, vol, found));
+            }
+        }
+        let Some((_, reference, vol, found)) = best else { bail!("no motion reference among {frames} samples") };
         report.seconds_motion = t.elapsed().as_secs_f64();
         report.motion_reference = Some(reference);
         Some((reference, vol, found))
