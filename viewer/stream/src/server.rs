@@ -47,14 +47,8 @@ pub struct ServeOptions {
     pub offer: Option<Offer>,
 }
 
-/// What a server offers to train as new styles of one multi-style asset: painting keys; a
-/// client's accepted `add_style` sends its key to `requests` (whoever trains them listens).
-#[derive(Clone, Debug)]
-pub struct Offer {
-    pub asset: String,
-    pub paintings: Vec<String>,
-    pub requests: std::sync::mpsc::Sender<String>,
-}
+// (lives with the sessions' shared state, which reads it; named here for servers' callers)
+pub use crate::shared::Offer;
 
 impl ServeOptions {
     pub fn new(path: impl Into<PathBuf>, listen: SocketAddr) -> ServeOptions {

@@ -37,7 +37,7 @@ pub(crate) struct Shared {
     /// `Styles` messages for the sessions that watch (`List::watch`; `server::Announcer`).
     pub(crate) updates: tokio::sync::broadcast::Sender<crate::proto::ServerMsg>,
     /// Paintings clients may ask to have trained as new styles (`ClientMsg::AddStyle`).
-    pub(crate) offer: Option<crate::server::Offer>,
+    pub(crate) offer: Option<Offer>,
 }
 
 /// A connection-ending error: QUIC application code + reason sent to the client.
@@ -280,3 +280,11 @@ impl Shared {
     }
 }
 
+/// What a server offers to train as new styles of one multi-style asset: painting keys; a
+/// client's accepted `add_style` sends its key to `requests` (whoever trains them listens).
+#[derive(Clone, Debug)]
+pub struct Offer {
+    pub asset: String,
+    pub paintings: Vec<String>,
+    pub requests: std::sync::mpsc::Sender<String>,
+}
