@@ -328,9 +328,6 @@ pub fn bake(
         }
         report.codebook_error += bk.error as f64;
     }
-    if let Some((reference, vol, _)) = &motion {
-        report.motion_entries += motion::fill_gaps(&mut grids, &cells, &samples, vol, *reference, b as usize, min_gain);
-    }
     report.extra_blocks = books.iter().map(|bk| bk.stored.len().saturating_sub(1)).sum();
     report.blended_entries = temporal::blended_entries(&grids, EMPTY);
     drop(samples);

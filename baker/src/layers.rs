@@ -10,7 +10,7 @@
 //! is refused ("trained on another geometry") instead of drawing one style's colours on
 //! another's surface.
 
-use anyhow::{bail, Result};
+use anyhow::{bail, ensure, Result};
 use rayon::prelude::*;
 use snerf_asset::mlp::ViewMlp;
 use snerf_asset::quantize::{encode_density, encode_voxel, CHANNELS};
@@ -36,6 +36,7 @@ pub struct LayerReport {
 pub fn bake_colour(model: &Model, pool: &WorkspacePool, geometry_model: &Model, geometry: &Asset) -> Result<(Asset, LayerReport)> {
     let t0 = std::time::Instant::now();
     let h = &geometry.header;
+    ensure!(h.motion_ref.is_none(), "style layers need a geometry of blocks only; bake it with --motion false");
     let (g, b, res) = (h.grid_dim(), h.block as usize, h.res as usize);
     let nb = h.atlas_blocks as usize;
     // each block's cell and field time: where it is first used
@@ -127,6 +128,8 @@ pub fn bake_layered(
 ) -> Result<LayeredBake> {
     let Some(first) = layers.first() else { bail!("no style layers to bake") };
     let t0 = std::time::Instant::now();
+    // a multi-style asset holds blocks only (motion entries are for one style: FORMAT.md)
+    let opts = &crate::bake::BakeOptions { motion: false, ..opts.clone() };
     let (geometry, report) = crate::bake::bake(first.model, first.pool, views, bg, opts, progress)?;
     let mut seconds = vec![t0.elapsed().as_secs_f64()];
     let mut assets = vec![geometry];

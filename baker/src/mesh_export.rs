@@ -132,7 +132,13 @@ pub struct ExportReport {
 /// Write `asset` as a GLB: one mesh, or a flipbook of keyframe meshes for 4D assets.
 pub fn export_glb(asset: &Asset, iso: f32, path: &Path) -> Result<(ExportReport, Vec<Mesh>)> {
     let opts = GltfOptions { name: "snerf".into(), iso: Some(iso), ..GltfOptions::default() };
-    let meshes: Vec<Mesh> = (0..asset.num_frames()).map(|f| asset_mesh(asset, f, iso)).collect();
+    // a frame with motion entries is meshed as the blocks it shows (`frame_as_static`)
+    let meshes: Vec<Mesh> = (0..asset.num_frames())
+        .map(|f| match asset.header.motion_ref {
+            Some(_) => asset.frame_as_static(f).map(|s| asset_mesh(&s, 0, iso)),
+            None => Ok(asset_mesh(asset, f, iso)),
+        })
+        .collect::<Result<_>>()?;
     let stats: GlbStats = if asset.is_dynamic() {
         let times: Vec<f32> = (0..asset.num_frames()).map(|f| asset.header.frame_time(f)).collect();
         let opts = GltfOptions { animation: Some(FlipbookOptions::default()), ..opts };

@@ -301,49 +301,6 @@ pub fn search(cells: &[usize], samples: &[CellSamples], vol: &RefVolume, referen
     Motion { offset, error }
 }
 
-/// Give an empty entry next (in time) to a motion entry that same motion, where the moved
-/// reference is transparent there too (error at most `tolerance`): a part moving into or
-/// out of a cell is then moved in between samples instead of faded in or out. Returns the
-/// entries set. The reference sample's grid keeps blocks only.
-pub fn fill_gaps(grids: &mut [Vec<u32>], cells: &[usize], samples: &[CellSamples], vol: &RefVolume, reference: usize, b: usize, tolerance: f32) -> usize {
-    use snerf_asset::motion::{is_motion, motion_offset};
-    use snerf_asset::EMPTY;
-    let before: Vec<Vec<u32>> = grids.to_vec();
-    let mut set = 0;
-    for k in 0..grids.len() {
-        if k == reference {
-            continue;
-        }
-        let found: Vec<(usize, u32)> = cells
-            .par_iter()
-            .enumerate()
-            .filter_map(|(i, &c)| {
-                if before[k][c] != EMPTY {
-                    return None;
-                }
-                let mut best: Option<(u32, f32)> = None;
-                for n in [k.wrapping_sub(1), k + 1] {
-                    let Some(&e) = before.get(n).and_then(|g| g.get(c)) else { continue };
-                    if !is_motion(e) {
-                        continue;
-                    }
-                    let d = motion_offset(e)?;
-                    let err = moved_error(&samples[i].alpha, &vol.moved_block(c, b, d), None);
-                    if err <= tolerance && best.is_none_or(|x| err < x.1) {
-                        best = Some((e, err));
-                    }
-                }
-                best.map(|(e, _)| (c, e))
-            })
-            .collect();
-        set += found.len();
-        for (c, e) in found {
-            grids[k][c] = e;
-        }
-    }
-    set
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

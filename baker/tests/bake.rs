@@ -123,4 +123,11 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     // every frame's static twin resolves its motion entries into blocks
     let twin = m.frame_as_static((r + 1) % m.num_frames()).unwrap();
     assert!(twin.header.motion_ref.is_none() && twin.header.atlas_blocks > 0);
+    // and the GLB flipbook meshes what every frame shows, as it does for the codebook alone
+    let (_, meshes) = snerf_baker::mesh_export::export_glb(&m, 0.5, &dir.join("m.glb")).unwrap();
+    let (_, plain) = snerf_baker::mesh_export::export_glb(&asset, 0.5, &dir.join("p.glb")).unwrap();
+    for (f, (a, b)) in meshes.iter().zip(&plain).enumerate() {
+        let (ta, tb) = (a.triangle_count() as f64, b.triangle_count() as f64);
+        assert!(ta > 0.5 * tb && ta < 2.0 * tb, "frame {f}: {ta} triangles with motion, {tb} without");
+    }
 }

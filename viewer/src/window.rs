@@ -95,9 +95,9 @@ impl AssetUpdate {
             AssetUpdate::Grid { frame, entries } => {
                 let g3 = asset.grid_dim().pow(3);
                 let n = asset.header.atlas_blocks;
-                if entries.len() != g3
-                    || frame as usize >= asset.grids.len()
-                    || entries.iter().any(|&e| e != snerf_asset::EMPTY && e >= n)
+                let motion_ok = asset.header.motion_ref.is_some_and(|r| r != frame);
+                let bad = |e: u32| e != snerf_asset::EMPTY && e >= n && !(motion_ok && snerf_asset::motion::is_motion(e));
+                if entries.len() != g3 || frame as usize >= asset.grids.len() || entries.iter().any(|&e| bad(e))
                 {
                     eprintln!("snerf view: ignoring a bad grid for frame {}", frame);
                     return Applied::Nothing;

@@ -157,15 +157,16 @@ impl Asset {
     }
 
     /// Does a motion entry of `cell` with offset `d` read any block of the reference? (The
-    /// block moved by `d` overlaps at most 8 reference cells.)
+    /// cell moved by `d` overlaps at most 8 reference cells.)
     pub fn motion_reads_a_block(&self, cell: usize, d: [f32; 3]) -> bool {
         let Some(r) = self.header.motion_ref else { return false };
         let b = self.header.block as i64;
         let gd = self.grid_dim() as i64;
         let c = [cell as i64 % gd, (cell as i64 / gd) % gd, cell as i64 / (gd * gd)];
-        // voxel span the cell's samples read, moved: [c·b - 1 + d, (c+1)·b + d] with the apron
-        let lo: [i64; 3] = std::array::from_fn(|a| ((c[a] * b) as f32 - 1.0 + d[a]).floor().div_euclid(b as f32) as i64);
-        let hi: [i64; 3] = std::array::from_fn(|a| (((c[a] + 1) * b) as f32 + d[a]).floor().div_euclid(b as f32) as i64);
+        // the cell's points have voxel positions in [c·b, (c+1)·b); moved, each is read from
+        // the reference cell holding it (trilinear through that block's apron)
+        let lo: [i64; 3] = std::array::from_fn(|a| ((c[a] * b) as f32 + d[a]).floor() as i64).map(|v| v.div_euclid(b));
+        let hi: [i64; 3] = std::array::from_fn(|a| (((c[a] + 1) * b) as f32 + d[a]).ceil() as i64 - 1).map(|v| v.div_euclid(b));
         for z in lo[2].max(0)..=hi[2].min(gd - 1) {
             for y in lo[1].max(0)..=hi[1].min(gd - 1) {
                 for x in lo[0].max(0)..=hi[0].min(gd - 1) {
