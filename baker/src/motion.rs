@@ -15,7 +15,7 @@
 use rayon::prelude::*;
 use snerf_asset::motion::MOTION_MAX;
 
-use crate::temporal::CellSamples;
+use crate::temporal::{voxel_error, CellSamples};
 
 /// The reference sample's codes on the whole fine grid (8 channels a voxel; empty voxels
 /// code 0: the lowest density, zero colour), for reading moved blocks.
@@ -60,47 +60,68 @@ impl RefVolume {
     /// The codes of the apron-inclusive block of `cell` read at an offset of `d` voxels
     /// (trilinear on the codes, as every renderer interpolates them).
     pub fn moved_block(&self, cell: usize, b: usize, d: [f32; 3]) -> Vec<u8> {
-        let g = self.res / b;
+        let m = Move::new(self.res / b, cell, b, d);
         let bb = b + 2;
-        let c = [cell % g, (cell / g) % g, cell / (g * g)];
-        let fl = d.map(f32::floor);
-        let di = fl.map(|x| x as i32);
-        let w = [d[0] - fl[0], d[1] - fl[1], d[2] - fl[2]];
-        let whole = w.iter().all(|&x| x == 0.0);
         let mut out = vec![0u8; bb * bb * bb * 8];
         for z in 0..bb {
             for y in 0..bb {
                 for x in 0..bb {
-                    let p = [
-                        (c[0] * b + x) as i32 - 1 + di[0],
-                        (c[1] * b + y) as i32 - 1 + di[1],
-                        (c[2] * b + z) as i32 - 1 + di[2],
-                    ];
                     let o = ((z * bb + y) * bb + x) * 8;
-                    if whole {
-                        out[o..o + 8].copy_from_slice(self.at(p));
-                        continue;
-                    }
-                    let mut acc = [0.0f32; 8];
-                    for corner in 0..8 {
-                        let s = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
-                        let mut wt = 1.0;
-                        for a in 0..3 {
-                            wt *= if s[a] == 1 { w[a] } else { 1.0 - w[a] };
-                        }
-                        if wt == 0.0 {
-                            continue;
-                        }
-                        let v = self.at([p[0] + s[0] as i32, p[1] + s[1] as i32, p[2] + s[2] as i32]);
-                        for ch in 0..8 {
-                            acc[ch] += wt * v[ch] as f32;
-                        }
-                    }
-                    for ch in 0..8 {
-                        out[o + ch] = acc[ch].round().clamp(0.0, 255.0) as u8;
-                    }
+                    out[o..o + 8].copy_from_slice(&m.read(self, [x, y, z]));
                 }
             }
+        }
+        out
+    }
+}
+
+/// One cell's block read from the reference at an offset: the whole-voxel part and the
+/// trilinear weights of the rest.
+struct Move {
+    /// Global voxel of the block's first (apron) voxel, offset included.
+    origin: [i32; 3],
+    w: [f32; 3],
+    whole: bool,
+}
+
+impl Move {
+    fn new(g: usize, cell: usize, b: usize, d: [f32; 3]) -> Move {
+        let c = [cell % g, (cell / g) % g, cell / (g * g)];
+        let fl = d.map(f32::floor);
+        let w = [d[0] - fl[0], d[1] - fl[1], d[2] - fl[2]];
+        Move {
+            origin: std::array::from_fn(|a| (c[a] * b) as i32 - 1 + fl[a] as i32),
+            w,
+            whole: w.iter().all(|&x| x == 0.0),
+        }
+    }
+
+    /// The codes the moved block holds at block-local voxel `v` (apron-inclusive).
+    #[inline]
+    fn read(&self, vol: &RefVolume, v: [usize; 3]) -> [u8; 8] {
+        let p: [i32; 3] = std::array::from_fn(|a| self.origin[a] + v[a] as i32);
+        let mut out = [0u8; 8];
+        if self.whole {
+            out.copy_from_slice(vol.at(p));
+            return out;
+        }
+        let mut acc = [0.0f32; 8];
+        for corner in 0..8 {
+            let s = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
+            let mut wt = 1.0;
+            for a in 0..3 {
+                wt *= if s[a] == 1 { self.w[a] } else { 1.0 - self.w[a] };
+            }
+            if wt == 0.0 {
+                continue;
+            }
+            let v = vol.at([p[0] + s[0] as i32, p[1] + s[1] as i32, p[2] + s[2] as i32]);
+            for ch in 0..8 {
+                acc[ch] += wt * v[ch] as f32;
+            }
+        }
+        for ch in 0..8 {
+            out[ch] = acc[ch].round().clamp(0.0, 255.0) as u8;
         }
         out
     }
@@ -111,60 +132,18 @@ impl RefVolume {
     /// the block, reading only voxels someone sees, and giving up (returning a value above
     /// `bound`) once the sum passes `bound`: the search's inner loop.
     pub fn error_at(&self, cell: usize, b: usize, d: [f32; 3], alpha: &[f32; 256], target: &[u8], vis: &[u8], bound: f32) -> f32 {
-        let g = self.res / b;
+        let m = Move::new(self.res / b, cell, b, d);
         let bb = b + 2;
-        let c = [cell % g, (cell / g) % g, cell / (g * g)];
-        let fl = d.map(f32::floor);
-        let di = fl.map(|x| x as i32);
-        let w = [d[0] - fl[0], d[1] - fl[1], d[2] - fl[2]];
-        let whole = w.iter().all(|&x| x == 0.0);
         let limit = bound * 255.0;
         let mut e = 0.0f32;
         for z in 0..bb {
             for y in 0..bb {
                 for x in 0..bb {
                     let i = (z * bb + y) * bb + x;
-                    let wv = vis[i];
-                    if wv == 0 {
+                    if vis[i] == 0 {
                         continue;
                     }
-                    let p = [
-                        (c[0] * b + x) as i32 - 1 + di[0],
-                        (c[1] * b + y) as i32 - 1 + di[1],
-                        (c[2] * b + z) as i32 - 1 + di[2],
-                    ];
-                    let mut pm = [0u8; 8];
-                    if whole {
-                        pm.copy_from_slice(self.at(p));
-                    } else {
-                        let mut acc = [0.0f32; 8];
-                        for corner in 0..8 {
-                            let s = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
-                            let mut wt = 1.0;
-                            for a in 0..3 {
-                                wt *= if s[a] == 1 { w[a] } else { 1.0 - w[a] };
-                            }
-                            if wt == 0.0 {
-                                continue;
-                            }
-                            let v = self.at([p[0] + s[0] as i32, p[1] + s[1] as i32, p[2] + s[2] as i32]);
-                            for ch in 0..8 {
-                                acc[ch] += wt * v[ch] as f32;
-                            }
-                        }
-                        for ch in 0..8 {
-                            pm[ch] = acc[ch].round().clamp(0.0, 255.0) as u8;
-                        }
-                    }
-                    let pt = &target[i * 8..i * 8 + 8];
-                    let (aa, ab) = (alpha[pm[0] as usize], alpha[pt[0] as usize]);
-                    let m = aa.max(ab);
-                    let mut c2 = 0i32;
-                    for ch in 1..8 {
-                        let dd = pm[ch] as i32 - pt[ch] as i32;
-                        c2 += dd * dd;
-                    }
-                    e += wv as f32 * ((aa - ab) * (aa - ab) + m * m * c2 as f32 * (1.0 / (255.0 * 255.0)));
+                    e += voxel_error(alpha, &m.read(self, [x, y, z]), &target[i * 8..i * 8 + 8], vis[i]);
                 }
             }
             if e > limit {
@@ -181,21 +160,14 @@ impl RefVolume {
 pub fn moved_error(alpha: &[f32; 256], moved: &[u8], target: Option<(&[u8], &[u8])>) -> f32 {
     let mut e = 0.0f32;
     for (i, pm) in moved.chunks_exact(8).enumerate() {
-        let (w, pt): (u8, [u8; 8]) = match target {
-            Some((t, v)) => (v[i], t[i * 8..i * 8 + 8].try_into().unwrap()),
-            None => (255, [0; 8]),
+        let (w, pt): (u8, &[u8]) = match target {
+            Some((t, v)) => (v[i], &t[i * 8..i * 8 + 8]),
+            None => (255, &[0; 8]),
         };
         if w == 0 {
             continue;
         }
-        let (aa, ab) = (alpha[pm[0] as usize], alpha[pt[0] as usize]);
-        let m = aa.max(ab);
-        let mut c2 = 0i32;
-        for c in 1..8 {
-            let d = pm[c] as i32 - pt[c] as i32;
-            c2 += d * d;
-        }
-        e += w as f32 * ((aa - ab) * (aa - ab) + m * m * c2 as f32 * (1.0 / (255.0 * 255.0)));
+        e += voxel_error(alpha, pm, pt, w);
     }
     e / 255.0
 }

@@ -81,6 +81,20 @@ pub fn optical_depth_in_front(s: &[f32], res: usize) -> Vec<f32> {
     best
 }
 
+/// One voxel's term of the error (module doc), times 255: codes `a` shown where the field
+/// holds codes `b`, seen with visibility `w` (0..=255). Shared by the codebook and motion.
+#[inline]
+pub fn voxel_error(alpha: &[f32; 256], a: &[u8], b: &[u8], w: u8) -> f32 {
+    let (aa, ab) = (alpha[a[0] as usize], alpha[b[0] as usize]);
+    let m = aa.max(ab);
+    let mut c2 = 0i32;
+    for c in 1..8 {
+        let d = a[c] as i32 - b[c] as i32;
+        c2 += d * d;
+    }
+    w as f32 * ((aa - ab) * (aa - ab) + m * m * c2 as f32 * (1.0 / (255.0 * 255.0)))
+}
+
 /// One cell's samples: the quantized block (8 channels per voxel) and per-voxel visibility
 /// (0..=255) of every time sample at which the cell holds a block.
 pub struct CellSamples {
@@ -103,14 +117,7 @@ impl CellSamples {
             if w == 0 {
                 continue;
             }
-            let (aa, ab) = (self.alpha[pa[0] as usize], self.alpha[pb[0] as usize]);
-            let m = aa.max(ab);
-            let mut c2 = 0i32;
-            for c in 1..8 {
-                let d = pa[c] as i32 - pb[c] as i32;
-                c2 += d * d;
-            }
-            e += w as f32 * ((aa - ab) * (aa - ab) + m * m * c2 as f32 * (1.0 / (255.0 * 255.0)));
+            e += voxel_error(&self.alpha, pa, pb, w);
         }
         e / 255.0
     }
