@@ -18,6 +18,10 @@ photos larger than --max-size reduced, WebP/PGM/PPM converted); COLMAP extracts 
 (--matcher auto: exhaustive for 50 photos or fewer, sequential in name order above that and for video), maps \
 (incremental SfM), and undistorts the registered photos to a pinhole camera. The result is loaded once as \
 training will load it, and the scene kind is detected and explained (also `snerf data DATA`).\n\n\
+Photos before a plain backdrop (every photo's edges within a few levels of one colour, as a product on a \
+turntable before a sweep) are trained as an object: the capture writes backdrop.json (the colour, the keying \
+tolerance, the object's box from COLMAP's points) and every load keys the backdrop out as transparent, the \
+photos staying as taken; --no-backdrop turns this off.\n\n\
 DATA gets images/, sparse/0/{cameras,images,points3D}.bin (COLMAP's own format, read by `snerf train DATA`) \
 and capture.json (this command's report: registration, COLMAP's mean reprojection error, times). It is \
 written into a temp folder beside DATA and renamed into place at the end: a failure or Ctrl-C leaves no \
@@ -88,6 +92,12 @@ pub struct CaptureArgs {
     /// Debian's COLMAP 3.8 takes no seed, and its runs differ).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Keep the photos opaque even when they stand before a plain backdrop. By default the
+    /// photos' edges are checked, and a plain backdrop (a product on a turntable before a
+    /// sweep) is keyed out as transparent when the dataset loads, so the object trains alone
+    /// (on a turntable the backdrop stays with the camera while the object turns).
+    #[arg(long)]
+    pub no_backdrop: bool,
 }
 
 /// A fraction in [0, 1].
@@ -126,6 +136,7 @@ pub fn capture_cmd(a: &CaptureArgs, threads: Option<usize>) -> Result<Value> {
         threads: threads.unwrap_or(cores),
         backend: a.colmap,
         seed: Some(a.seed),
+        backdrop: !a.no_backdrop,
     };
     let mut pb: Option<ProgressBar> = None;
     let report = capture::capture(&opts, &mut |ev| match ev {
@@ -164,6 +175,9 @@ pub fn capture_cmd(a: &CaptureArgs, threads: Option<usize>) -> Result<Value> {
         report.mean_reprojection_error_px.map(|e| format!("{e:.3} px")).unwrap_or_else(|| "unknown".into()),
         report.total_seconds
     );
+    if report.backdrop.is_none() {
+        eprintln!("backdrop: {}", report.backdrop_note);
+    }
     eprintln!("scene kind {}", report.detection_note);
     eprintln!("next: snerf train {} --out RUN", a.out.display());
     Ok(serde_json::to_value(&report)?)

@@ -2,6 +2,8 @@
 //! `scene_kind` hint decides: Forward if every viewing direction is within
 //! [`FORWARD_MAX_ANGLE_DEG`] of the mean direction; otherwise Object if more than
 //! [`OBJECT_MIN_TRANSPARENT`] of the training pixels have alpha < 255; otherwise Unbounded.
+//! A dataset whose folder holds `backdrop.json` (a capture before a plain backdrop, see
+//! [`crate::backdrop`]) is an object: its backdrop is keyed out as it loads.
 //! Dynamic: frames carry times that are not all equal. The reason lands in
 //! `Dataset::detection_note`.
 
@@ -92,7 +94,8 @@ pub fn detect_kind(all: &[&View], train: &[&View]) -> (SceneKind, String) {
 }
 
 /// Applies overrides, hints and detection to a loaded dataset.
-pub(crate) fn finish(raw: RawDataset, opts: &LoadOptions) -> Result<Dataset> {
+/// `backdrop`: the note when a plain backdrop was keyed out (the scene is then an object).
+pub(crate) fn finish(raw: RawDataset, opts: &LoadOptions, backdrop: Option<String>) -> Result<Dataset> {
     let all: Vec<&View> = raw.train.iter().chain(&raw.val).chain(&raw.test).collect();
     let train: Vec<&View> = raw.train.iter().collect();
     let (kind, kind_note) = if let Some(k) = opts.kind {
@@ -102,6 +105,8 @@ pub(crate) fn finish(raw: RawDataset, opts: &LoadOptions) -> Result<Dataset> {
             k,
             format!("{k}: scene_kind hint in {}", raw.pose_file.display()),
         )
+    } else if let Some(note) = backdrop {
+        (SceneKind::Object, format!("object: {note}"))
     } else {
         detect_kind(&all, &train)
     };

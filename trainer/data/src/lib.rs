@@ -6,6 +6,7 @@
 //! `images` decodes the PNG/JPEG/WebP files in parallel and reduces them to training size, and `detect` decides the scene kind
 //! (object / forward / unbounded) and whether the scene is dynamic, unless the caller overrides it.
 
+pub mod backdrop;
 pub mod capture;
 mod colmap;
 mod colmap_points;
@@ -192,7 +193,40 @@ pub fn load(path: &Path, opts: &LoadOptions) -> anyhow::Result<Dataset> {
         source::Source::Llff { dir } => llff::load(dir, opts)?,
         source::Source::Colmap { model_dir } => colmap::load(model_dir, opts)?,
     };
-    detect::finish(raw, opts)
+    let mut raw = raw;
+    let keyed = key_backdrop(&mut raw, opts)?;
+    detect::finish(raw, opts, keyed)
+}
+
+/// Keys a plain backdrop out of every view when the dataset's folder holds
+/// [`backdrop::FILE`] (written by `snerf capture`) and the caller did not ask for a kind other
+/// than object; returns the note for the detection.
+fn key_backdrop(raw: &mut RawDataset, opts: &LoadOptions) -> anyhow::Result<Option<String>> {
+    use anyhow::Context;
+    use rayon::prelude::*;
+    let file = raw.root.join(backdrop::FILE);
+    if !file.is_file() || opts.kind.is_some_and(|k| k != SceneKind::Object) {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&file).with_context(|| format!("{}: cannot read", file.display()))?;
+    let b: backdrop::Backdrop = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a backdrop description (colour, tolerance, ...)", file.display()))?;
+    raw.train
+        .par_iter_mut()
+        .chain(raw.val.par_iter_mut())
+        .chain(raw.test.par_iter_mut())
+        .for_each(|v| {
+            let (w, h) = (v.intrinsics.width as usize, v.intrinsics.height as usize);
+            backdrop::key(&mut v.rgba, w, h, b.colour, b.tolerance);
+        });
+    if raw.aabb.is_none() {
+        raw.aabb = b.aabb;
+    }
+    Ok(Some(format!(
+        "{} ({}; `snerf capture --no-backdrop` or deleting the file keeps the photos opaque)",
+        b.describe(),
+        file.display()
+    )))
 }
 
 /// What a format loader hands to `detect::finish`.

@@ -161,6 +161,9 @@ pub struct CaptureOptions {
     /// pycolmap's mapper seed (the same seed and photos give the same capture when `threads`
     /// is 1; with more, the mapping differs from run to run); Debian's COLMAP 3.8 takes none.
     pub seed: Option<u64>,
+    /// Look for a plain backdrop and, when there is one, have it keyed out at load time
+    /// (`backdrop.json`, see [`crate::backdrop`]).
+    pub backdrop: bool,
 }
 
 /// What `capture` did, also written to `DATA/capture.json`.
@@ -189,6 +192,10 @@ pub struct CaptureReport {
     pub detection_note: String,
     pub train_views: usize,
     pub test_views: usize,
+    /// The plain backdrop that is keyed out, when one was found (also in `backdrop.json`).
+    pub backdrop: Option<crate::backdrop::Backdrop>,
+    /// Why the photos were or were not taken as standing before a plain backdrop.
+    pub backdrop_note: String,
 }
 
 /// Runs the whole capture (see the module docs); `progress` receives phases and steps.
@@ -497,8 +504,33 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     timed(&mut seconds, "undistortion", t);
 
     // Load it as training will (all images decoded): detection, and proof that it reads.
-    let ds = crate::load(&root, &crate::LoadOptions::default())
+    let mut ds = crate::load(&root, &crate::LoadOptions::default())
         .map_err(|e| anyhow!("the capture does not load as a dataset: {e:#}"))?;
+    // A plain backdrop: described for the loader to key out, then loaded again as keyed.
+    let (backdrop, backdrop_note) = if opts.backdrop {
+        let views: Vec<crate::backdrop::Rgba> = ds
+            .all_views()
+            .map(|v| crate::backdrop::Rgba {
+                pixels: &v.rgba,
+                width: v.intrinsics.width as usize,
+                height: v.intrinsics.height as usize,
+            })
+            .collect();
+        match crate::backdrop::detect(&views) {
+            Ok(mut b) => {
+                b.aabb = sparse_box(&final_sparse)?;
+                snerf_files::atomic::write_json_atomic(&root.join(crate::backdrop::FILE), &b)?;
+                let note = b.describe();
+                progress(Event::Note(note.clone()));
+                ds = crate::load(&root, &crate::LoadOptions::default())
+                    .map_err(|e| anyhow!("the capture does not load as a dataset: {e:#}"))?;
+                (Some(b), note)
+            }
+            Err(why) => (None, why),
+        }
+    } else {
+        (None, "not looked for (--no-backdrop)".to_string())
+    };
     let first = ds
         .all_views()
         .next()
@@ -524,9 +556,14 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
         seconds: Vec::new(),
         total_seconds: 0.0,
         kind: ds.kind.as_str().to_string(),
-        detection_note: ds.detection_note.clone(),
+        // The loads above read the temp folder; the note names the dataset where it will be.
+        detection_note: ds
+            .detection_note
+            .replace(&root.display().to_string(), &opts.out.display().to_string()),
         train_views: ds.train.len(),
         test_views: ds.test.len(),
+        backdrop,
+        backdrop_note,
     };
     drop(ds);
     report.seconds = seconds;
@@ -555,6 +592,17 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
     tmp.keep();
     drop(old);
     Ok(report)
+}
+
+/// The object's box from the model's sparse points (`None` without enough of them).
+fn sparse_box(model: &Path) -> Result<Option<([f32; 3], [f32; 3])>> {
+    let p = model.join("points3D.bin");
+    if !p.is_file() {
+        return Ok(None);
+    }
+    let bytes = std::fs::read(&p).with_context(|| format!("{}: cannot read", p.display()))?;
+    let pts = crate::colmap_points::read_points_bin(&bytes).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+    Ok(crate::backdrop::object_box(&pts.iter().map(|q| q.xyz).collect::<Vec<_>>()))
 }
 
 /// COLMAP's `camera_params` for a known focal length `f` (pixels of the photo as given),
