@@ -86,6 +86,18 @@ pub struct TrainArgs {
     /// changes). Off by default.
     #[arg(long)]
     pub deform: bool,
+    /// The deformation's basis grid: cells per axis over the scene's box (implies --deform;
+    /// default 16).
+    #[arg(long, value_parser = crate::args::int_in::<u32>(2, 128, ""))]
+    pub deform_grid: Option<u32>,
+    /// The deformation's motion modes, independent motions of the body (implies --deform;
+    /// default 8).
+    #[arg(long, value_parser = crate::args::int_in::<u32>(1, 32, ""))]
+    pub deform_modes: Option<u32>,
+    /// The deformation's knots over the animation, where each mode's coefficient is set
+    /// (implies --deform; default half the finest time-plane resolution, at least 4).
+    #[arg(long, value_parser = crate::args::int_in::<u32>(2, 1024, ""))]
+    pub deform_knots: Option<u32>,
     /// Per-photo appearance: learn a 3×4 affine colour transform per training photo
     /// (exposure, white balance) with the field, pulled toward identity with this weight; 0 =
     /// off (the default). Held-out photos and every render use the field's own colours.
@@ -195,8 +207,12 @@ pub fn train_cmd(a: &TrainArgs, quiet: bool) -> Result<Value> {
         anyhow::ensure!(cfg.field.dynamic(), "--time-resolution applies to dynamic scenes only; {} is static", a.data.display());
         cfg.field.time_resolutions = train::time_levels(t);
     }
-    if a.deform {
+    if a.deform || a.deform_grid.is_some() || a.deform_modes.is_some() || a.deform_knots.is_some() {
         cfg.enable_deform().with_context(|| format!("--deform: {}", a.data.display()))?;
+        let d = cfg.field.deform.as_mut().expect("enable_deform sets it");
+        d.resolution = a.deform_grid.unwrap_or(d.resolution);
+        d.modes = a.deform_modes.unwrap_or(d.modes);
+        d.time_resolution = a.deform_knots.unwrap_or(d.time_resolution);
     }
     if let Some(w) = a.time_smooth {
         cfg.time_smooth = w;
@@ -237,6 +253,9 @@ impl TrainArgs {
             ("--time-smooth", "/time_smooth", self.time_smooth.is_some()),
             ("--time-sparse", "/time_sparse", self.time_sparse.is_some()),
             ("--deform", "/field/deform", self.deform),
+            ("--deform-grid", "/field/deform", self.deform_grid.is_some()),
+            ("--deform-modes", "/field/deform", self.deform_modes.is_some()),
+            ("--deform-knots", "/field/deform", self.deform_knots.is_some()),
             ("--batch", "/batch_rays", self.batch.is_some()),
             ("--batch-samples", "/batch_samples", self.batch_samples.is_some()),
             ("--seed", "/seed", self.seed != 0),

@@ -98,6 +98,9 @@ pub fn run(
 ) -> Result<()> {
     std::fs::create_dir_all(&opts.dir).with_context(|| format!("{}: cannot create run directory", opts.dir.display()))?;
     let pixels = crate::eval::sample_pixels(&data.test, opts.curve_pixels, 0x7e57);
+    // the training views' own sample, at its own seed: what the trainer fits, measured as the
+    // held-out views are
+    let train_pixels = crate::eval::sample_pixels(t.views(), opts.curve_pixels, 0x7a19);
     let has_alpha = t.has_alpha();
     let mut next_eval = next_eval_after(t.train_seconds);
     let mut last_ckpt = t.train_seconds;
@@ -105,10 +108,16 @@ pub fn run(
     let measure = |t: &mut Trainer, last: &StepStats| {
         let test_psnr =
             (!pixels.is_empty()).then(|| sampled_psnr(&t.model, &t.pool, &data.test, has_alpha, &pixels));
+        let train_psnr = if train_pixels.is_empty() {
+            last.psnr()
+        } else {
+            sampled_psnr(&t.model, &t.pool, t.views(), has_alpha, &train_pixels)
+        };
         t.curve.push(CurvePoint {
             step: t.step,
             train_seconds: t.train_seconds,
-            train_psnr: last.psnr(),
+            train_psnr,
+            loss_psnr: Some(last.psnr()),
             test_psnr,
             samples_per_second: last.samples as f64 / last.seconds.max(1e-9),
         });
