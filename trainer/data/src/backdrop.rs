@@ -418,12 +418,14 @@ mod tests {
                     bg
                 } else if x < w / 4 + 4 {
                     light
-                } else if (w / 2..w / 2 + 8).contains(&x) && (h / 2 - 4..h / 2 + 4).contains(&y) {
-                    bg
-                } else if (w / 2 - 6..w / 2 - 4).contains(&x) && (h / 2..h / 2 + 2).contains(&y) {
-                    bg
                 } else {
-                    fg
+                    let hole = (w / 2..w / 2 + 8).contains(&x) && (h / 2 - 4..h / 2 + 4).contains(&y);
+                    let highlight = (w / 2 - 6..w / 2 - 4).contains(&x) && (h / 2..h / 2 + 2).contains(&y);
+                    if hole || highlight {
+                        bg
+                    } else {
+                        fg
+                    }
                 };
                 for v in c {
                     s = s.wrapping_mul(1664525).wrapping_add(1013904223);
