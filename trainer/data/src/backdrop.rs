@@ -16,6 +16,9 @@
 //! difference, of 255) of the rings' median colour: the object may touch an edge in some
 //! photos, but a room, a street or a table top fails it.
 //!
+//! The box: from the sparse points ([`object_box`]), then grown until the keyed photos'
+//! object pixels all look through it ([`cover_silhouettes`]).
+//!
 //! Keying: the backdrop is what is within the tolerance of its colour *and* connected to the
 //! photo's edge through such pixels, or an enclosed region of that colour of at least 1/1000 of
 //! the photo (a hole: a handle, a ring); a smaller enclosed spot of the backdrop's colour (a
@@ -400,6 +403,65 @@ pub fn object_box(points: &[[f64; 3]]) -> Option<([f32; 3], [f32; 3])> {
     Some((lo.map(|v| (v - pad) as f32), hi.map(|v| (v + pad) as f32)))
 }
 
+/// Grows `aabb` about its centre (by 10% steps, at most 3x) until the rays through 99.5% of
+/// the keyed views' object pixels (every 3rd pixel of every 3rd row) cross it, because a box
+/// from the sparse points misses parts COLMAP found no texture on. Returns the box and the
+/// factor it grew by (1 when it already held the silhouettes).
+pub fn cover_silhouettes(aabb: ([f32; 3], [f32; 3]), views: &[&crate::View]) -> (([f32; 3], [f32; 3]), f32) {
+    let mut rays: Vec<([f32; 3], [f32; 3])> = Vec::new();
+    for v in views {
+        let k = &v.intrinsics;
+        let (w, h) = (k.width as usize, k.height as usize);
+        let m = &v.c2w;
+        for y in (0..h).step_by(3) {
+            for x in (0..w).step_by(3) {
+                if v.rgba[4 * (y * w + x) + 3] < 128 {
+                    continue;
+                }
+                // OpenGL camera: x right, y up, looking down -z.
+                let c = [(x as f32 + 0.5 - k.cx) / k.fx, -(y as f32 + 0.5 - k.cy) / k.fy, -1.0];
+                let d = [0, 1, 2].map(|r| m[r][0] * c[0] + m[r][1] * c[1] + m[r][2] * c[2]);
+                rays.push((v.origin(), d));
+            }
+        }
+    }
+    if rays.is_empty() {
+        return (aabb, 1.0);
+    }
+    let centre = [0, 1, 2].map(|a| 0.5 * (aabb.0[a] + aabb.1[a]));
+    let half = [0, 1, 2].map(|a| 0.5 * (aabb.1[a] - aabb.0[a]));
+    let mut f = 1.0f32;
+    loop {
+        let lo = [0, 1, 2].map(|a| centre[a] - f * half[a]);
+        let hi = [0, 1, 2].map(|a| centre[a] + f * half[a]);
+        let miss = rays.iter().filter(|(o, d)| !ray_hits_box(*o, *d, lo, hi)).count();
+        if miss as f64 <= 0.005 * rays.len() as f64 || f >= 3.0 {
+            return ((lo, hi), f);
+        }
+        f = (f * 1.1).min(3.0);
+    }
+}
+
+/// Whether the ray `o + t d`, t > 0, crosses the box (slab test).
+fn ray_hits_box(o: [f32; 3], d: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> bool {
+    let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return false;
+            }
+            continue;
+        }
+        let (mut ta, mut tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        if ta > tb {
+            std::mem::swap(&mut ta, &mut tb);
+        }
+        t0 = t0.max(ta);
+        t1 = t1.min(tb);
+    }
+    t0 <= t1
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -512,6 +574,35 @@ mod tests {
         let blank = vec![200u8; w * h * 4].chunks(4).flat_map(|_| [200, 200, 200, 255]).collect::<Vec<u8>>();
         let e = detect(&[Rgba { pixels: &blank, width: w, height: h }]).unwrap_err();
         assert!(e.contains("no object"), "{e}");
+    }
+
+    #[test]
+    fn the_box_grows_until_the_silhouettes_rays_cross_it() {
+        // A camera at z = 5 looking down -z at a square silhouette 2 units across at z = 0
+        // (focal 50, 100x100 pixels: the silhouette spans pixels 30..70).
+        let (w, h) = (100usize, 100usize);
+        let rgba: Vec<u8> = (0..w * h)
+            .flat_map(|i| {
+                let (x, y) = (i % w, i / w);
+                let inside = (30..70).contains(&x) && (30..70).contains(&y);
+                [0, 0, 0, if inside { 255 } else { 0 }]
+            })
+            .collect();
+        let view = crate::View {
+            path: "v.png".into(),
+            intrinsics: crate::Intrinsics { width: 100, height: 100, fx: 50.0, fy: 50.0, cx: 50.0, cy: 50.0, distortion: [0.0; 4] },
+            c2w: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 5.0]],
+            time: None,
+            rgba,
+        };
+        // A box of half-size 0.5 about the origin: the ray through the silhouette's corner
+        // pixel (at 1.95 from the axis at z = 0) crosses a box of half-size s at its front face
+        // z = s when 1.95 (5 - s) / 5 <= s, s >= 1.40: a growth of 2.8 or more (2.85 in 10% steps).
+        let ((lo, hi), f) = cover_silhouettes(([-0.5; 3], [0.5; 3]), &[&view]);
+        assert!((2.8..2.9).contains(&f), "grown {f}: {lo:?} {hi:?}");
+        // A box that already holds it is left as it was.
+        let (b, f) = cover_silhouettes(([-1.5; 3], [1.5; 3]), &[&view]);
+        assert_eq!((b, f), (([-1.5; 3], [1.5; 3]), 1.0));
     }
 
     #[test]

@@ -524,6 +524,20 @@ pub fn capture(opts: &CaptureOptions, progress: &mut dyn FnMut(Event)) -> Result
                 progress(Event::Note(note.clone()));
                 ds = crate::load(&root, &crate::LoadOptions::default())
                     .map_err(|e| anyhow!("the capture does not load as a dataset: {e:#}"))?;
+                // The points' box, grown where the keyed photos show object outside it.
+                if let Some(aabb) = b.aabb {
+                    let views: Vec<&crate::View> = ds.all_views().collect();
+                    let (grown, f) = crate::backdrop::cover_silhouettes(aabb, &views);
+                    if f > 1.0 {
+                        b.aabb = Some(grown);
+                        progress(Event::Note(format!(
+                            "the object's box from the sparse points grown {f:.2}x to hold the photos' silhouettes"
+                        )));
+                        snerf_files::atomic::write_json_atomic(&root.join(crate::backdrop::FILE), &b)?;
+                        ds = crate::load(&root, &crate::LoadOptions::default())
+                            .map_err(|e| anyhow!("the capture does not load as a dataset: {e:#}"))?;
+                    }
+                }
                 (Some(b), note)
             }
             Err(why) => (None, why),
