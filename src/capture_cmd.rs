@@ -20,7 +20,7 @@ photos larger than --max-size reduced, WebP/PGM/PPM converted); COLMAP extracts 
 training will load it, and the scene kind is detected and explained (also `snerf data DATA`).\n\n\
 Photos before a plain backdrop (every photo's edges within a few levels of one colour, as a product on a \
 turntable before a sweep) are trained as an object: the capture writes backdrop.json (the colour, the keying \
-tolerance, the object's box from COLMAP's points) and every load keys the backdrop out as transparent, the \
+tolerance, the object's box from COLMAP's points, grown to hold the photos' silhouettes) and every load keys the backdrop out as transparent, the \
 photos staying as taken; --no-backdrop turns this off.\n\n\
 DATA gets images/, sparse/0/{cameras,images,points3D}.bin (COLMAP's own format, read by `snerf train DATA`) \
 and capture.json (this command's report: registration, COLMAP's mean reprojection error, times). It is \

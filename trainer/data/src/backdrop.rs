@@ -28,6 +28,11 @@
 //! alpha from their distance to the backdrop colour (full at [`SOFT_SCALE`] times the
 //! tolerance), their colour un-mixed from it, so composited back on the backdrop colour they
 //! give the photo's pixel again.
+//!
+//! Training, evaluation and baking then treat the capture as any object on transparent film:
+//! scored on white. For a white backdrop (the usual product sweep) that is the photos' own
+//! pixels; a backdrop of another colour is scored against the keyed photos on white, not the
+//! photos as taken.
 
 use serde::{Deserialize, Serialize};
 

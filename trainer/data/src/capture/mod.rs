@@ -6,7 +6,9 @@
 //! its phases as child processes (`tool`), the largest model is kept (`model`) and checked
 //! against the registration floor, the images are undistorted to a pinhole camera, and the
 //! result is loaded once with this crate's loader (so a dataset that would not train is never
-//! written) to detect and explain the scene kind.
+//! written) to detect and explain the scene kind. Photos before a plain backdrop get
+//! `backdrop.json` (see [`crate::backdrop`]): the loader keys the backdrop out and the capture
+//! trains as an object, in the box of its sparse points grown to hold its silhouettes.
 //!
 //! Matching: sequential (each frame against the next `overlap` frames in name order, default
 //! 10, plus quadratic steps) for video frames and for more than [`EXHAUSTIVE_MAX`] photos; exhaustive (every pair)
