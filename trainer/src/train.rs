@@ -474,10 +474,12 @@ impl Trainer {
     /// Silhouette carving: a cell whose projection falls on transparent background (alpha 0
     /// in a window covering the cell) in a training view is empty when that view was taken.
     /// A static scene's cell is then empty for good. A dynamic scene's cell is empty for good
-    /// only if such proofs come at least every [`Trainer::carve_time_gap`] over the whole
-    /// animation: a limb that holds a cell for longer than that is seen there by every view
-    /// of those times, which leaves a longer gap. (A cell must not be carved because one view
-    /// at another time saw it empty: that carved every limb out of the poses it swings to.)
+    /// only if such views come at least every [`Trainer::carve_time_gap`] over the whole
+    /// animation: the space-time visual hull of the views within that time, whose union over
+    /// time holds every place the object goes. A limb that holds a cell for longer than that
+    /// is seen there by every view of those times, which leaves a longer gap. (Carving a cell
+    /// because one view at another time saw it empty carved every limb out of the poses it
+    /// swings to.)
     pub fn carve(&mut self) {
         let occ = &self.model.occ;
         let space = &self.model.space;
@@ -492,24 +494,20 @@ impl Trainer {
             .into_par_iter()
             .map(|i| {
                 let pw = space.to_world(space.grid_to_march(occ.cell_center(i)));
-                let mut last_proof = t0;
-                let mut longest = 0.0f32;
+                let mut last_empty = t0;
                 for v in &views {
-                    if !seen_empty(v, &pw, cell_world) {
+                    if !matches!(cell_seen(v, &pw, cell_world), Seen::Empty) {
                         continue;
                     }
                     let Some(gap) = gap else { return false };
                     let t = v.time.unwrap_or(0.0);
-                    longest = longest.max(t - last_proof);
-                    last_proof = t;
-                    if longest > gap {
+                    if t - last_empty > gap {
                         return true;
                     }
+                    last_empty = t;
                 }
-                match gap {
-                    None => true, // static: no view saw it empty
-                    Some(gap) => longest.max(t1 - last_proof) > gap,
-                }
+                // static: never seen empty; dynamic: a view saw it empty often enough
+                gap.is_none_or(|gap| t1 - last_empty > gap)
             })
             .collect();
         self.model.occ.allowed = allowed;
@@ -720,6 +718,14 @@ impl Trainer {
             occ.depth[i] = if warm { d } else { (occ.depth[i] * 0.9).max(d) };
         }
         occ.refresh_bits();
+        // Early on, the loss of a mostly transparent scene can push the density down
+        // everywhere before the object forms; a grid that marks every cell empty then takes
+        // no samples, and no gradient ever brings the density back. Re-open the cells that
+        // carving kept, so the field goes on learning where the object is.
+        if occ.occupied_fraction() == 0.0 && occ.allowed.iter().any(|&a| a) {
+            occ.depth.fill(f32::MAX);
+            occ.refresh_bits();
+        }
     }
 }
 
@@ -728,10 +734,18 @@ fn view_names(views: &[View]) -> Vec<String> {
     views.iter().map(|v| v.path.file_name().map_or_else(|| v.path.display().to_string(), |n| n.to_string_lossy().into_owned())).collect()
 }
 
-/// Whether view `v` proves the cell centred at world point `pw` (half-diagonal `cell_world`)
-/// empty: the cell lies in front of the camera and a window covering its projection lies
-/// inside the image with alpha 0 throughout.
-fn seen_empty(v: &View, pw: &[f32; 3], cell_world: f32) -> bool {
+/// What a view shows of an occupancy cell.
+enum Seen {
+    /// Behind the camera, or its window not wholly inside the image.
+    NotInFrame,
+    /// Some pixel of the window covering the cell is not transparent.
+    Covered,
+    /// The whole window is transparent: the cell was empty when the view was taken.
+    Empty,
+}
+
+/// What view `v` shows of the cell centred at world point `pw` (half-diagonal `cell_world`).
+fn cell_seen(v: &View, pw: &[f32; 3], cell_world: f32) -> Seen {
     let k = &v.intrinsics;
     let c = &v.c2w;
     let rel = [pw[0] - c[0][3], pw[1] - c[1][3], pw[2] - c[2][3]];
@@ -740,7 +754,7 @@ fn seen_empty(v: &View, pw: &[f32; 3], cell_world: f32) -> bool {
     let yc = c[0][1] * rel[0] + c[1][1] * rel[1] + c[2][1] * rel[2];
     let zc = c[0][2] * rel[0] + c[1][2] * rel[1] + c[2][2] * rel[2];
     if zc > -1e-3 {
-        return false;
+        return Seen::NotInFrame;
     }
     let px = k.fx * xc / -zc + k.cx;
     let py = -k.fy * yc / -zc + k.cy;
@@ -749,7 +763,12 @@ fn seen_empty(v: &View, pw: &[f32; 3], cell_world: f32) -> bool {
     let (x0, y0) = (px.floor() as i64, py.floor() as i64);
     // The window must lie fully inside the image to prove emptiness.
     if x0 - r < 0 || y0 - r < 0 || x0 + r >= w || y0 + r >= h {
-        return false;
+        return Seen::NotInFrame;
     }
-    (y0 - r..=y0 + r).all(|y| (x0 - r..=x0 + r).all(|x| v.rgba[((y * w + x) * 4 + 3) as usize] == 0))
+    let empty = (y0 - r..=y0 + r).all(|y| (x0 - r..=x0 + r).all(|x| v.rgba[((y * w + x) * 4 + 3) as usize] == 0));
+    if empty {
+        Seen::Empty
+    } else {
+        Seen::Covered
+    }
 }

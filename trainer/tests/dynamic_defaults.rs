@@ -145,3 +145,20 @@ fn silhouette_carving_keeps_where_a_moving_part_goes() {
     let t = snerf_trainer::train::Trainer::new(&stat, TrainConfig::for_dataset(&stat)).unwrap();
     assert!(!allowed_at(&t, [0.6, 0.0, 0.0]) && !allowed_at(&t, [-0.6, 0.0, 0.0]));
 }
+
+#[test]
+fn an_occupancy_grid_that_empties_early_reopens() {
+    // A field whose density is ~0 everywhere, as early training of a mostly transparent
+    // scene can make it: the warm-up measurement would mark every cell empty, and a march
+    // that takes no samples can never learn the object back.
+    let n = 30;
+    let train: Vec<View> = (0..n).map(|i| sphere_view(i as f32 / (n - 1) as f32, i as f32 * 2.4, [0.0; 3], 0.3)).collect();
+    let mut data = dataset(&[0.0]);
+    data.train = train;
+    let mut t = snerf_trainer::train::Trainer::new(&data, TrainConfig::for_dataset(&data)).unwrap();
+    let b2 = t.model.field.layout.b2;
+    t.model.field.params[b2] = -30.0; // σ = exp(o0) with o0 ≈ −30
+    t.update_occupancy();
+    assert!(t.model.occ.occupied_fraction() > 0.0, "the cells carving kept must stay open to samples");
+    assert_eq!(t.model.occ.occ.iter().zip(&t.model.occ.allowed).filter(|(&o, &a)| o == 1 && !a).count(), 0, "carved cells stay carved");
+}
