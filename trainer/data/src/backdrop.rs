@@ -213,24 +213,11 @@ pub fn key(rgba: &mut [u8], w: usize, h: usize, colour: [u8; 3], tolerance: u8) 
         bg[i] = true;
     }
     while let Some(i) = stack.pop() {
-        let (x, y) = (i % w, i / w);
-        let mut visit = |j: usize| {
+        for j in neighbours4(i, w, h) {
             if !bg[j] && d[j] <= tolerance {
                 bg[j] = true;
                 stack.push(j);
             }
-        };
-        if x > 0 {
-            visit(i - 1);
-        }
-        if x + 1 < w {
-            visit(i + 1);
-        }
-        if y > 0 {
-            visit(i - w);
-        }
-        if y + 1 < h {
-            visit(i + w);
         }
     }
     // Holes: regions of the backdrop's colour enclosed by the object (a handle, a ring) when
@@ -247,24 +234,11 @@ pub fn key(rgba: &mut [u8], w: usize, h: usize, colour: [u8; 3], tolerance: u8) 
         while k < comp.len() {
             let i = comp[k];
             k += 1;
-            let (x, y) = (i % w, i / w);
-            let mut visit = |j: usize| {
+            for j in neighbours4(i, w, h) {
                 if !seen[j] && d[j] <= tolerance {
                     seen[j] = true;
                     comp.push(j);
                 }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
             }
         }
         if comp.len() >= hole {
@@ -288,18 +262,10 @@ pub fn key(rgba: &mut [u8], w: usize, h: usize, colour: [u8; 3], tolerance: u8) 
         while k < comp.len() {
             let i = comp[k];
             k += 1;
-            let (x, y) = ((i % w) as isize, (i / w) as isize);
-            for dy in -1..=1isize {
-                for dx in -1..=1isize {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
-                        continue;
-                    }
-                    let j = ny as usize * w + nx as usize;
-                    if !seen[j] {
-                        seen[j] = true;
-                        comp.push(j);
-                    }
+            for j in neighbours8(i, w, h) {
+                if !seen[j] {
+                    seen[j] = true;
+                    comp.push(j);
                 }
             }
             if comp.len() > speck {
@@ -315,18 +281,10 @@ pub fn key(rgba: &mut [u8], w: usize, h: usize, colour: [u8; 3], tolerance: u8) 
             while k < comp.len() {
                 let i = comp[k];
                 k += 1;
-                let (x, y) = ((i % w) as isize, (i / w) as isize);
-                for dy in -1..=1isize {
-                    for dx in -1..=1isize {
-                        let (nx, ny) = (x + dx, y + dy);
-                        if nx < 0 || ny < 0 || nx >= w as isize || ny >= h as isize {
-                            continue;
-                        }
-                        let j = ny as usize * w + nx as usize;
-                        if !seen[j] {
-                            seen[j] = true;
-                            comp.push(j);
-                        }
+                for j in neighbours8(i, w, h) {
+                    if !seen[j] {
+                        seen[j] = true;
+                        comp.push(j);
                     }
                 }
             }
@@ -465,6 +423,18 @@ fn ray_hits_box(o: [f32; 3], d: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> bool {
         t1 = t1.min(tb);
     }
     t0 <= t1
+}
+
+/// Pixel `i`'s 4-neighbours inside a `w`×`h` image (left, right, up, down).
+fn neighbours4(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = (i % w, i / w);
+    [(x > 0).then(|| i - 1), (x + 1 < w).then(|| i + 1), (y > 0).then(|| i - w), (y + 1 < h).then(|| i + w)].into_iter().flatten()
+}
+
+/// Pixel `i`'s 8-neighbours (and itself) inside a `w`×`h` image, row by row.
+fn neighbours8(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y) = ((i % w) as isize, (i / w) as isize);
+    (-1..=1isize).flat_map(move |dy| (-1..=1isize).map(move |dx| (x + dx, y + dy))).filter(move |&(nx, ny)| nx >= 0 && ny >= 0 && nx < w as isize && ny < h as isize).map(move |(nx, ny)| ny as usize * w + nx as usize)
 }
 
 #[cfg(test)]
