@@ -156,9 +156,10 @@ pub struct DataOpts {
     /// instead when present.
     #[arg(long, value_parser = crate::args::int_in::<u32>(1, 64, ""))]
     pub downscale: Option<u32>,
-    /// Longest image side in pixels, after --downscale [default: 1600; 0 = no cap]. Larger
-    /// images (a 4000×3000 phone photo) are resized once at load with an antialiased bicubic
-    /// filter and cached in ~/.cache/snerf/images, so the next load is fast.
+    /// Longest image side in pixels, after --downscale [default: 1600, and 512 for `snerf
+    /// stylize`, whose rounds render every view many times; 0 = no cap]. Larger images (a
+    /// 4000×3000 phone photo) are resized once at load with an antialiased bicubic filter and
+    /// cached in ~/.cache/snerf/images, so the next load is fast.
     #[arg(long, value_parser = crate::args::int_in::<u32>(0, 16384, ""))]
     pub max_size: Option<u32>,
     /// For LLFF/COLMAP/single-file data: every n-th image is held out for testing.

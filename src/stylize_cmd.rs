@@ -346,7 +346,9 @@ fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_onl
         Some(d) => d.clone(),
         None => RunDir::new(&a.run).dataset()?,
     };
-    let data = a.opts.load(&data_path)?;
+    // the loop renders every view many times a run: its own cap unless --max-size says
+    let max_size = a.opts.max_size.or(defaults().max_size);
+    let data = DataOpts { max_size, ..a.opts.clone() }.load(&data_path)?;
     let style = style.map(paintings::resolve_style).transpose()?;
     // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.
     let out = &out.to_path_buf();
@@ -388,6 +390,7 @@ fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_onl
         fuse_views: a.fuse_views,
         content: option_enum("--content", &a.content)?,
         seed: a.seed,
+        max_size,
     };
     let wall = Instant::now();
     let mut bars = Bars {
@@ -549,7 +552,8 @@ pub fn consistency_cmd(a: &ConsistencyArgs, quiet: bool) -> Result<Value> {
     )
     .with_context(|| format!("{}: unreadable", st_path.display()))?;
     let o = &state.options;
-    let data = a.opts.load(a.data.as_ref().unwrap_or(&o.data))?;
+    // the size the run painted at, unless --max-size says otherwise
+    let data = DataOpts { max_size: a.opts.max_size.or(o.max_size), ..a.opts.clone() }.load(a.data.as_ref().unwrap_or(&o.data))?;
     let (realistic, pool) = RunDir::new(&o.source_run).load_model()?;
     let (stylized, spool) = RunDir::new(&a.srun).load_model()?;
     let sargs = StylizerArgs {

@@ -172,6 +172,46 @@ fn an_animated_scene_is_scored_for_temporal_flicker_and_a_static_one_is_not() {
     fails(snerf().args(["consistency"]).arg(&srun).args(["--time-frames", "1"]).output().unwrap(), &["--time-frames 1", "2 or more"]);
 }
 
+/// `snerf stylize` paints at its own size cap (`--max-size`, recorded in stylize.json), and
+/// `snerf consistency` loads the data at the size the run painted at: the last targets are
+/// scored carried onto the path only when their size matches the views'.
+#[test]
+fn a_stylization_paints_at_its_size_cap_and_is_scored_at_it() {
+    let d = tmp("stylize-size");
+    let data = d.join("data");
+    scene("object", &data, 12, "40x32");
+    let run = d.join("run");
+    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "20"]).output().unwrap());
+    let style = d.join("style.png");
+    image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([(x * 16) as u8, (y * 16) as u8, 200])).save(&style).unwrap();
+    let stylize = |out: &Path, extra: &[&str]| {
+        ok(snerf()
+            .args(["--json", "stylize"])
+            .arg(&run)
+            .arg("--out")
+            .arg(out)
+            .arg("--style")
+            .arg(&style)
+            .args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "5", "--consistency-frames", "0"])
+            .args(extra)
+            .output()
+            .unwrap())
+    };
+    let small = d.join("small");
+    let s = stylize(&small, &["--max-size", "20"]);
+    assert_eq!(s["state"]["options"]["max_size"], 20, "{s}");
+    let target = image::open(small.join("targets/round_1/view_000.png")).unwrap();
+    assert_eq!((target.width(), target.height()), (20, 16), "the loop paints and trains at the cap");
+    let c = ok(snerf().args(["--json", "consistency"]).arg(&small).args(["--frames", "3"]).output().unwrap());
+    assert!(c.to_string().contains("Last targets carried"), "consistency loads the data at the run's size: {c}");
+    // without --max-size: stylize's own default, which leaves 40x32 as it is
+    let full = d.join("full");
+    let s = stylize(&full, &[]);
+    assert_eq!(s["state"]["options"]["max_size"], snerf_stylize::snerf_loop::DEFAULT_MAX_SIZE, "{s}");
+    let target = image::open(full.join("targets/round_1/view_000.png")).unwrap();
+    assert_eq!((target.width(), target.height()), (40, 32));
+}
+
 #[test]
 fn demo_writes_pictures_and_a_summary() {
     let d = tmp("demo");

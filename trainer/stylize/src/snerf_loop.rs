@@ -83,7 +83,7 @@ mod record;
 mod steps;
 
 pub use crate::stylize_view::{resize, stylize_at, stylize_region};
-pub use options::{Content, StylizeOptions, DEFAULT_CONTENT};
+pub use options::{Content, StylizeOptions, DEFAULT_CONTENT, DEFAULT_MAX_SIZE};
 pub use record::{differing_options, state_path, Progress, Quiet, RoundRecord, StylizeState, LOOP_VERSION, STATE_FILE};
 
 use crate::consistency::{PathGeometry, StyleMeters, StyleTargets};

@@ -34,7 +34,21 @@ pub struct StylizeOptions {
     pub content: Content,
     /// Seed of the rays each training step draws (None: the realistic run's own).
     pub seed: Option<u64>,
+    /// The longer image side the run's dataset is loaded with (`--max-size`; the caller
+    /// loads it, and `snerf consistency` loads it the same way): every round renders, paints
+    /// and trains on all its views at this size, so a round's time grows with their pixels.
+    /// None: the loader's own cap (runs recorded before this option).
+    #[serde(default)]
+    pub max_size: Option<u32>,
 }
+
+/// The default `StylizeOptions::max_size`: 512 px on the longer side. The default five rounds
+/// render every training view 13 times (each round's painting and the colour calibrations),
+/// so a photo capture at the loader's cap spends nearly all its time rendering: a 36-photo
+/// product spin at 946×491 took 56 minutes on 2 cores (BENCH.md §2d); at 512 px a view has
+/// under a third of the pixels. Synthetic 800² renders are painted at 512²; 512² and smaller
+/// data is untouched.
+pub const DEFAULT_MAX_SIZE: u32 = 512;
 
 /// The image the stylizer is given for each training view.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -95,6 +109,7 @@ impl Default for StylizeOptions {
             fuse_views: 4,
             content: Content::default(),
             seed: None,
+            max_size: Some(DEFAULT_MAX_SIZE),
         }
     }
 }
