@@ -61,6 +61,9 @@ pub struct BakeOptions {
     pub reuse_tolerance: f32,
     /// Dynamic scenes: the asset may be at most this many times one static frame (its mean
     /// blocks per sample plus one grid) in size; the cells that change most get the blocks.
+    /// Default 2.4: a 4D asset may be 2.5× a static frame, and the bytes up to that buy
+    /// fidelity at no cost in playback (BENCH.md §6, "4D: motion": up to +1.3 dB against the
+    /// field on seven animated models, the walker's playback ratio unchanged).
     pub time_budget: f32,
     /// The scene's world up direction, overriding the one the training cameras imply.
     pub up: Option<[f32; 3]>,
@@ -75,7 +78,7 @@ pub struct BakeOptions {
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 1.8, up: None, motion: true, motion_references: 3 }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 2.4, up: None, motion: true, motion_references: 3 }
     }
 }
 

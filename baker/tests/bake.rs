@@ -83,8 +83,9 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     let dir = tmp("avatar");
     let (data, t) = tiny_run("avatar", &dir, 300);
     let bg = eval_background(views_have_alpha(&data.train));
-    // the block codebook alone first (`--motion false`)
-    let opts = BakeOptions { res: 64, keyframes: 24, motion: false, ..Default::default() };
+    // the block codebook alone first (`--motion false`), under a budget below the default's
+    // 2.4, so that it has to share blocks across time to fit twice a static frame
+    let opts = BakeOptions { res: 64, keyframes: 24, motion: false, time_budget: 1.8, ..Default::default() };
     let (asset, report) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
     assert!(asset.is_dynamic() && asset.header.motion_ref.is_none());
     assert_eq!(asset.num_frames(), 24);
