@@ -346,8 +346,14 @@ fn stylize_one(a: &StylizeArgs, style: Option<&Path>, out: &Path, appearance_onl
         Some(d) => d.clone(),
         None => RunDir::new(&a.run).dataset()?,
     };
-    // the loop renders every view many times a run: its own cap unless --max-size says
-    let max_size = a.opts.max_size.or(defaults().max_size);
+    // the loop renders every view many times a run: its own cap unless --max-size says; a run
+    // recorded before the cap existed resumes at the size it was painted at (the loader's)
+    let recorded = snerf_loop::StylizeState::read(out)?.map(|s| s.options.max_size);
+    let max_size = match (a.opts.max_size, recorded) {
+        (Some(asked), _) => Some(asked),
+        (None, Some(recorded)) => recorded,
+        (None, None) => defaults().max_size,
+    };
     let data = DataOpts { max_size, ..a.opts.clone() }.load(&data_path)?;
     let style = style.map(paintings::resolve_style).transpose()?;
     // stylize.json records these paths, and JSON holds UTF-8 only: refuse now, not after a round.

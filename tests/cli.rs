@@ -210,6 +210,23 @@ fn a_stylization_paints_at_its_size_cap_and_is_scored_at_it() {
     assert_eq!(s["state"]["options"]["max_size"], snerf_stylize::snerf_loop::DEFAULT_MAX_SIZE, "{s}");
     let target = image::open(full.join("targets/round_1/view_000.png")).unwrap();
     assert_eq!((target.width(), target.height()), (40, 32));
+    // a run recorded before the cap existed (no max_size) resumes as it was, without --max-size
+    let state = full.join("stylize.json");
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
+    v["options"].as_object_mut().unwrap().remove("max_size");
+    std::fs::write(&state, v.to_string()).unwrap();
+    let s = ok(snerf()
+        .args(["--json", "stylize"])
+        .arg(&run)
+        .arg("--out")
+        .arg(&full)
+        .arg("--style")
+        .arg(&style)
+        .args(["--stylizer", "color", "--rounds", "2", "--steps-per-round", "5", "--consistency-frames", "0"])
+        .output()
+        .unwrap());
+    assert_eq!(s["state"]["rounds_done"], 2, "{s}");
+    assert!(s["state"]["options"]["max_size"].is_null(), "{s}");
 }
 
 #[test]
