@@ -137,27 +137,39 @@ fn every_scene_kind_is_detected_and_trains() {
     }
 }
 
+/// A built-in scene at 40x32 trained for `steps` in `d/run`, and a style picture of strong
+/// colours in `d/style.png` (colour transfer then moves every frame's colours).
+fn trained_run_and_style(d: &Path, name: &str, views: usize, steps: u32) -> (PathBuf, PathBuf) {
+    let data = d.join("data");
+    scene(name, &data, views, "40x32");
+    let run = d.join("run");
+    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", &steps.to_string()]).output().unwrap());
+    let style = d.join("style.png");
+    image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([(x * 16) as u8, (y * 16) as u8, 200])).save(&style).unwrap();
+    (run, style)
+}
+
+/// `snerf stylize` with colour transfer, short rounds and no per-round measurement.
+fn colour_stylize(run: &Path, style: &Path, out: &Path, rounds: usize, extra: &[&str]) -> serde_json::Value {
+    ok(snerf()
+        .args(["--json", "stylize"])
+        .arg(run)
+        .arg("--out")
+        .arg(out)
+        .arg("--style")
+        .arg(style)
+        .args(["--stylizer", "color", "--rounds", &rounds.to_string(), "--steps-per-round", "5", "--consistency-frames", "0"])
+        .args(extra)
+        .output()
+        .unwrap())
+}
+
 #[test]
 fn an_animated_scene_is_scored_for_temporal_flicker_and_a_static_one_is_not() {
     let d = tmp("flicker");
-    let data = d.join("data");
-    scene("avatar", &data, 16, "40x32");
-    let run = d.join("run");
-    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "40"]).output().unwrap());
-    // a style picture of strong colours, so colour transfer moves every frame's colours
-    let style = d.join("style.png");
-    image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([(x * 16) as u8, (y * 16) as u8, 200])).save(&style).unwrap();
+    let (run, style) = trained_run_and_style(&d, "avatar", 16, 40);
     let srun = d.join("styl");
-    ok(snerf()
-        .args(["--json", "stylize"])
-        .arg(&run)
-        .arg("--out")
-        .arg(&srun)
-        .arg("--style")
-        .arg(&style)
-        .args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "5", "--consistency-frames", "0"])
-        .output()
-        .unwrap());
+    colour_stylize(&run, &style, &srun, 1, &[]);
     let c = ok(snerf().args(["--json", "consistency"]).arg(&srun).args(["--frames", "4", "--time-frames", "5"]).output().unwrap());
     let t = &c["temporal"];
     let flicker: Vec<f64> = t["methods"].as_array().unwrap().iter().map(|m| m["flicker"].as_f64().unwrap()).collect();
@@ -178,25 +190,8 @@ fn an_animated_scene_is_scored_for_temporal_flicker_and_a_static_one_is_not() {
 #[test]
 fn a_stylization_paints_at_its_size_cap_and_is_scored_at_it() {
     let d = tmp("stylize-size");
-    let data = d.join("data");
-    scene("object", &data, 12, "40x32");
-    let run = d.join("run");
-    ok(snerf().args(["--json", "train"]).arg(&data).arg("--out").arg(&run).args(["--steps", "20"]).output().unwrap());
-    let style = d.join("style.png");
-    image::RgbImage::from_fn(16, 16, |x, y| image::Rgb([(x * 16) as u8, (y * 16) as u8, 200])).save(&style).unwrap();
-    let stylize = |out: &Path, extra: &[&str]| {
-        ok(snerf()
-            .args(["--json", "stylize"])
-            .arg(&run)
-            .arg("--out")
-            .arg(out)
-            .arg("--style")
-            .arg(&style)
-            .args(["--stylizer", "color", "--rounds", "1", "--steps-per-round", "5", "--consistency-frames", "0"])
-            .args(extra)
-            .output()
-            .unwrap())
-    };
+    let (run, style) = trained_run_and_style(&d, "object", 12, 20);
+    let stylize = |out: &Path, extra: &[&str]| colour_stylize(&run, &style, out, 1, extra);
     let small = d.join("small");
     let s = stylize(&small, &["--max-size", "20"]);
     assert_eq!(s["state"]["options"]["max_size"], 20, "{s}");
@@ -215,16 +210,7 @@ fn a_stylization_paints_at_its_size_cap_and_is_scored_at_it() {
     let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
     v["options"].as_object_mut().unwrap().remove("max_size");
     std::fs::write(&state, v.to_string()).unwrap();
-    let s = ok(snerf()
-        .args(["--json", "stylize"])
-        .arg(&run)
-        .arg("--out")
-        .arg(&full)
-        .arg("--style")
-        .arg(&style)
-        .args(["--stylizer", "color", "--rounds", "2", "--steps-per-round", "5", "--consistency-frames", "0"])
-        .output()
-        .unwrap());
+    let s = colour_stylize(&run, &style, &full, 2, &[]);
     assert_eq!(s["state"]["rounds_done"], 2, "{s}");
     assert!(s["state"]["options"]["max_size"].is_null(), "{s}");
 }
