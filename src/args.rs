@@ -46,6 +46,11 @@ pub fn positive_f32(s: &str) -> Result<f32, String> {
     Ok(v as f32)
 }
 
+/// Any finite number (a time in the data's units).
+pub fn finite_f32(s: &str) -> Result<f32, String> {
+    f64_in(s, -1e30..=1e30, "a finite number").map(|v| v as f32)
+}
+
 /// >= 0 and finite (loss weights, tolerances).
 pub fn non_negative(s: &str) -> Result<f64, String> {
     f64_in(s, 0.0..=1e12, "a finite number >= 0")

@@ -41,6 +41,12 @@ pub struct BakeArgs {
     /// Time samples (keyframes) of a dynamic scene, evenly spaced over its time range.
     #[arg(long, default_value_t = BakeOptions::default().keyframes, value_parser = crate::args::int_in::<usize>(1, 1024, ""))]
     pub keyframes: usize,
+    /// A 4D run: bake the one instant at time T (the data's time units, as its frames carry
+    /// them) as a static asset instead of the animation: a pose to place in an engine or
+    /// export with `export-gltf`, and the static frame a 4D asset's size is compared with.
+    /// Faithfulness is then measured against the field at T from the held-out cameras.
+    #[arg(long, value_name = "T", value_parser = crate::args::finite_f32)]
+    pub at_time: Option<f32>,
     /// Keep a block when some voxel reaches this opacity over one march step.
     #[arg(long, default_value_t = BakeOptions::default().min_alpha, value_parser = crate::args::unit_f32)]
     pub min_alpha: f32,
@@ -54,7 +60,7 @@ pub struct BakeArgs {
     pub time_budget: f32,
     /// Dynamic scenes: cells may show one reference time sample moved by an offset instead
     /// of a block of their own, so playback moves a moving part instead of blending two
-    /// blocks (`snerf_baker::motion`; file version 4). `--motion false`: the block codebook
+    /// blocks (`snerf_baker::motion`; file version 5, with sparse grids). `--motion false`: the block codebook
     /// alone (version 1 files, for readers from before motion).
     #[arg(long, default_value_t = BakeOptions::default().motion, action = clap::ArgAction::Set, value_name = "BOOL")]
     pub motion: bool,
@@ -108,6 +114,18 @@ pub fn bake_cmd(a: &BakeArgs) -> Result<Value> {
     let data = a.opts.load(&data_path)?;
     crate::args::guard_run_output("--out", &a.out, &a.run, Some(&data.root))?;
     let (model, pool) = RunDir::new(&a.run).load_model()?;
+    if model.space.dynamic && a.opts.force_static {
+        bail!("{}: a 4D run; --static only changes how its data loads, the field still moves. Bake one instant with --at-time T", a.run.display());
+    }
+    if let Some(t) = a.at_time {
+        let (lo, hi) = model.space.time_range;
+        if !model.space.dynamic {
+            bail!("--at-time {t}: {} is a static run (its field has no time)", a.run.display());
+        }
+        if !(lo..=hi).contains(&t) {
+            bail!("--at-time {t}: outside {}'s time range {lo}..{hi}", a.run.display());
+        }
+    }
     if !a.sweep.is_empty() {
         return sweep(a, &data, &model, &pool);
     }
@@ -247,6 +265,7 @@ fn bake_options(a: &BakeArgs, res: u32) -> BakeOptions {
         motion: a.motion,
         motion_references: a.motion_references,
         up: a.up,
+        at_time: a.at_time,
     }
 }
 
@@ -275,7 +294,9 @@ fn bake_one(
     let summary = asset.summary(file_bytes);
     let faith = if a.eval_views > 0 {
         let views = if data.test.is_empty() { &data.train } else { &data.test };
-        Some(snerf_baker::faithfulness::measure(model, pool, &asset, views, a.eval_views)?)
+        // a frozen instant is compared with the field at that instant
+        let frozen: Vec<_> = views.iter().map(|v| snerf_trainer::data::View { time: a.at_time.or(v.time), ..v.clone() }).collect();
+        Some(snerf_baker::faithfulness::measure(model, pool, &asset, &frozen, a.eval_views)?)
     } else {
         None
     };

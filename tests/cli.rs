@@ -184,6 +184,49 @@ fn an_animated_scene_is_scored_for_temporal_flicker_and_a_static_one_is_not() {
     fails(snerf().args(["consistency"]).arg(&srun).args(["--time-frames", "1"]).output().unwrap(), &["--time-frames 1", "2 or more"]);
 }
 
+/// `snerf bake --at-time T` freezes one instant of a 4D run into a static asset (the "one
+/// static frame" a 4D asset's size is reported against), and the 4D bake records that frame's
+/// blocks; `--static` on a 4D run, a time outside the run's range, or `--at-time` on a static
+/// run are refused by name.
+#[test]
+fn a_4d_run_bakes_one_instant_as_a_static_asset() {
+    let d = tmp("at-time");
+    let (run, _) = trained_run_and_style(&d, "avatar", 16, 40);
+    let small = ["--resolution", "32", "--visibility-views", "4", "--eval-views", "1"];
+    let anim = ok(snerf().args(["--json", "bake"]).arg(&run).arg("--out").arg(d.join("anim.snerf")).args(small).args(["--keyframes", "4"]).output().unwrap());
+    let frame_blocks: Vec<f64> = anim["report"]["frame_blocks"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!(frame_blocks.len(), 4, "{anim}");
+    let config: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(run.join("config.json")).unwrap()).unwrap();
+    let range = &config["space"]["time_range"];
+    let (lo, hi) = (range[0].as_f64().unwrap(), range[1].as_f64().unwrap());
+    // keyframe 2 of 4 is at 2/3 of the time range
+    let t = lo + (hi - lo) * 2.0 / 3.0;
+    let one = ok(snerf().args(["--json", "bake"]).arg(&run).arg("--out").arg(d.join("one.snerf")).args(small).args(["--at-time", &t.to_string()]).output().unwrap());
+    assert_eq!(one["asset"]["frames"].as_u64(), Some(1), "{one}");
+    assert!(one["asset"]["animation_seconds"].is_null(), "a frozen instant has no time: {one}");
+    let info = ok(snerf().args(["--json", "inspect"]).arg(d.join("one.snerf")).output().unwrap());
+    assert!(info["summary"]["animation_seconds"].is_null(), "{info}");
+    // scored against the field at that instant (a coarse 32³ bake of a 40-step field)
+    let f = &one["faithfulness"];
+    assert!((f["views"][0]["time"].as_f64().unwrap() - t).abs() < 1e-4, "{one}");
+    assert!(f["mean_baked_vs_field"].as_f64().unwrap() > 15.0, "{one}");
+    // the 4D asset is measured against the blocks such bakes keep, averaged over its keyframes
+    let blocks = one["report"]["atlas_blocks"].as_f64().unwrap();
+    assert!((blocks - frame_blocks[2]).abs() <= 0.1 * frame_blocks[2], "{blocks} blocks frozen, {} at keyframe 2", frame_blocks[2]);
+    let mean = frame_blocks.iter().sum::<f64>() / 4.0;
+    let header = std::fs::read(d.join("anim.snerf")).unwrap();
+    let head = String::from_utf8_lossy(&header[..header.len().min(4096)]).to_string();
+    assert!(head.contains("static_frame_blocks"), "{head}");
+    let est = anim["report"]["static_frame_bytes"].as_f64().unwrap();
+    let summary = anim["asset"]["static_frame_bytes"].as_f64().unwrap();
+    assert!((est - summary).abs() < 0.02 * summary, "bake {est} vs asset summary {summary} (mean {mean} blocks)");
+    fails(snerf().args(["bake"]).arg(&run).arg("--out").arg(d.join("x.snerf")).arg("--static").output().unwrap(), &["4D run", "--at-time"]);
+    fails(snerf().args(["bake"]).arg(&run).arg("--out").arg(d.join("x.snerf")).args(["--at-time", "7"]).output().unwrap(), &["--at-time 7", "outside"]);
+    let (still, _) = trained_run_and_style(&d.join("still"), "object", 8, 10);
+    fails(snerf().args(["bake"]).arg(&still).arg("--out").arg(d.join("x.snerf")).args(["--at-time", "0.5"]).output().unwrap(), &["--at-time 0.5", "static run"]);
+    assert!(!d.join("x.snerf").exists());
+}
+
 /// `snerf stylize` paints at its own size cap (`--max-size`, recorded in stylize.json), and
 /// `snerf consistency` loads the data at the size the run painted at: the last targets are
 /// scored carried onto the path only when their size matches the views'.

@@ -74,11 +74,16 @@ pub struct BakeOptions {
     /// With motion: how many reference samples to try (evenly spread from the fullest); the
     /// one that leaves the least motion error is kept.
     pub motion_references: usize,
+    /// Dynamic scenes: bake the one instant at this time (the data's time units) as a static
+    /// asset instead of the animation: a pose to place in an engine, and the "one static
+    /// frame" a 4D asset's size is measured against. The views' own times are ignored; the
+    /// visibility test looks at the scene at this time from every view's camera.
+    pub at_time: Option<f32>,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 2.4, up: None, motion: true, motion_references: 3 }
+        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 2.4, up: None, motion: true, motion_references: 3, at_time: None }
     }
 }
 
@@ -144,9 +149,21 @@ pub fn bake(
     let logit_min = (1.0e-5f32 / step).ln();
     let logit_max = (30.0f32 / step).ln().min(snerf_trainer::field::SIGMA_LOGIT_MAX);
     let range = DensityRange { logit_min, logit_max };
-    let dynamic = space.dynamic;
+    let dynamic = space.dynamic && opts.at_time.is_none();
     let frames = if dynamic { opts.keyframes.max(2) } else { 1 };
-    let field_times: Vec<f32> = (0..frames).map(|f| if dynamic { f as f32 / (frames - 1) as f32 } else { 0.0 }).collect();
+    let field_times: Vec<f32> = match opts.at_time {
+        Some(t) if space.dynamic => vec![space.field_time(Some(t))],
+        _ => (0..frames).map(|f| if dynamic { f as f32 / (frames - 1) as f32 } else { 0.0 }).collect(),
+    };
+    // A frozen instant: every camera looks at the scene at that time.
+    let frozen: Vec<View>;
+    let views = match opts.at_time {
+        Some(t) if space.dynamic => {
+            frozen = views.iter().map(|v| View { time: Some(t), ..v.clone() }).collect();
+            &frozen[..]
+        }
+        _ => views,
+    };
 
     let mut report = BakeReport { res, block: b, frames, ..Default::default() };
     report.density_range = [logit_min, logit_max];
@@ -251,11 +268,19 @@ pub fn bake(
     let fixed = 4096.0 + (CHUNK_HEADER_LEN + 4 * MLP_FLOATS) as f64;
     let mean_blocks = report.frame_blocks.iter().sum::<usize>() as f64 / frames as f64;
     report.static_frame_bytes = (fixed + grid_chunk + mean_blocks * block_chunk) as u64;
+    // The grids' bytes: a motion asset stores each as its occupied cells where that is
+    // smaller (`Asset::sparse_grids`; about the blocks the sample keeps), others densely.
+    let grids_bytes: f64 = if dynamic && opts.motion {
+        let dense = snerf_asset::asset::dense_grid_bytes(g * g * g);
+        report.frame_blocks.iter().map(|&n| (CHUNK_HEADER_LEN + dense.min(snerf_asset::asset::sparse_grid_bytes(n))) as f64).sum()
+    } else {
+        frames as f64 * grid_chunk
+    };
     let with_time = samples.iter().filter(|s| !s.frames.is_empty()).count();
     let t0 = Instant::now();
     progress("time codebook", 0, 1);
     let extra = if frames > 1 {
-        let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - frames as f64 * grid_chunk;
+        let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - grids_bytes;
         ((budget / block_chunk).floor() - with_time as f64).max(0.0) as usize
     } else {
         0
@@ -293,7 +318,7 @@ pub fn bake(
         Some((reference, _, found)) => {
             let required: Vec<Option<usize>> = samples.iter().map(|s| s.frames.iter().position(|f| f == reference)).collect();
             let base = required.iter().flatten().count();
-            let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - frames as f64 * grid_chunk;
+            let budget = opts.time_budget as f64 * report.static_frame_bytes as f64 - fixed - grids_bytes;
             let extra = ((budget / block_chunk).floor() - base as f64).max(0.0) as usize;
             temporal::choose_with(&samples, extra, min_gain, Some((&found.error, &required)))
         }
@@ -369,6 +394,9 @@ pub fn bake(
     let mlp = ViewMlp::from_flat(&model.field.params[view.w1..view.end])?;
     let diffuse = mlp.output_is_zero();
     header.motion_ref = motion.as_ref().map(|m| m.0 as u32);
+    if dynamic {
+        header.static_frame_blocks = Some(report.frame_blocks.iter().sum::<usize>() as f32 / frames as f32);
+    }
     let mut asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
     if diffuse {
         // A zero output layer (a diffuse stylized field) adds nothing whatever the features

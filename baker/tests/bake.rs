@@ -96,14 +96,18 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     let s = asset.summary(bytes);
     eprintln!("{report:#?}\n{s:#?}");
     assert!(bytes as f64 <= 2.0 * s.static_frame_bytes as f64, "{bytes} bytes vs a static frame of {}", s.static_frame_bytes);
-    assert!(report.static_frame_bytes.abs_diff(s.static_frame_bytes) * 20 < s.static_frame_bytes, "{} vs {}", report.static_frame_bytes, s.static_frame_bytes);
+    // one static frame: the blocks the bake keeps per sample, recorded in the header, so the
+    // bake's budget and the asset's summary measure against the same frame
+    let mean_blocks = report.frame_blocks.iter().sum::<usize>() as f32 / report.frame_blocks.len() as f32;
+    assert_eq!(asset.header.static_frame_blocks, Some(mean_blocks));
+    assert!(report.static_frame_bytes.abs_diff(s.static_frame_bytes) * 50 < s.static_frame_bytes, "{} vs {}", report.static_frame_bytes, s.static_frame_bytes);
     assert!(s.animation_seconds.is_some() && s.bytes_per_second.as_ref().is_some_and(|r| r.total > 0.0));
     let f = faithfulness::measure(&t.model, &t.pool, &asset, &data.test, 4).unwrap();
     eprintln!("{f:#?}");
     assert!(f.views.iter().all(|v| v.time.is_some()));
     assert!(f.mean_baked_vs_field >= 25.0, "baked vs field {:.2} dB", f.mean_baked_vs_field);
 
-    // The same run with motion (`snerf_baker::motion`, the default): a version 4 file of the same size
+    // The same run with motion (`snerf_baker::motion`, the default): a version 5 file (sparse grids) of the same size
     // bound, whose frames other than the reference show it moved, as faithful as above.
     let opts = BakeOptions { motion: true, ..opts };
     let (m, mr) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
@@ -117,7 +121,7 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     let mbytes = std::fs::metadata(&file).unwrap().len();
     let ms = m.summary(mbytes);
     assert!(mbytes as f64 <= 2.0 * mr.static_frame_bytes as f64, "{mbytes} bytes vs a static frame of {}", mr.static_frame_bytes);
-    assert!(mr.static_frame_bytes.abs_diff(ms.static_frame_bytes) * 10 < ms.static_frame_bytes, "{} vs {}", mr.static_frame_bytes, ms.static_frame_bytes);
+    assert!(mr.static_frame_bytes.abs_diff(ms.static_frame_bytes) * 50 < ms.static_frame_bytes, "{} vs {}", mr.static_frame_bytes, ms.static_frame_bytes);
     let fm = faithfulness::measure(&t.model, &t.pool, &m, &data.test, 4).unwrap();
     eprintln!("motion: {mr:#?}\n{fm:#?}");
     assert!(fm.mean_baked_vs_field >= 25.0, "with motion: baked vs field {:.2} dB", fm.mean_baked_vs_field);

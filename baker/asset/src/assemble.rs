@@ -8,7 +8,7 @@ use anyhow::{anyhow, bail, ensure, Result};
 use crate::asset::{Asset, EMPTY};
 use crate::chunk::{
     check_preamble, le_u32, parse_chunk_at, tag_name, ChunkIter, CHUNK_HEADER_LEN, MAX_HEAD_LEN, PREAMBLE_LEN,
-    TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_SCOL, TAG_SMLP, TAG_VMLP,
+    TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_SCOL, TAG_SGRD, TAG_SMLP, TAG_VMLP,
 };
 use crate::header::Header;
 use crate::mlp::{ViewMlp, MLP_FLOATS};
@@ -24,6 +24,8 @@ pub struct Assembler {
     end: Option<u32>,
     /// File mode: the chunk sequence is the file's, so order and duplicates are checked.
     strict: bool,
+    /// The file's version (from its preamble): which chunks it may hold.
+    version: u32,
     /// A multi-style file's style chunks (index, tag, payload), decoded by `layers` once
     /// the geometry they colour has been read.
     pub(crate) style_chunks: Vec<StyleChunk>,
@@ -76,7 +78,22 @@ impl Assembler {
         let remaining = (bytes.len() - head.range.end) as u64;
         let g = header.grid_dim() as u64;
         let atlas = header.atlas_blocks as u64 * header.file_block_bytes() as u64;
-        let grids = header.num_frames() as u64 * 4 * g * g * g;
+        let dense_grids = header.num_frames() as u64 * 4 * g * g * g;
+        // a sparse grid (version 5) needs its frame and count on disk, and is expanded in
+        // memory, so the expanded grids are bounded as an atlas is
+        let grids = if version >= 5 {
+            ensure!(
+                dense_grids <= crate::header::MAX_ATLAS_BYTES,
+                "header claims {} frames of {}^3 cells ({} bytes of grids in memory, max {})",
+                header.num_frames(),
+                g,
+                dense_grids,
+                crate::header::MAX_ATLAS_BYTES
+            );
+            header.num_frames() as u64 * (CHUNK_HEADER_LEN as u64 + 8)
+        } else {
+            dense_grids
+        };
         ensure!(
             atlas + grids <= remaining,
             "header claims {} atlas blocks and {} frames of {}^3 cells ({} bytes) but only {} bytes follow",
@@ -122,7 +139,11 @@ impl Assembler {
         ensure!(
             version >= header.file_version(),
             "the header says {}, which a version {} file cannot be (needs version {})",
-            if header.styles.is_some() { "multi-style" } else { "diffuse" },
+            match header.file_version() {
+                4 => "motion",
+                3 => "multi-style",
+                _ => "diffuse",
+            },
             version,
             header.file_version()
         );
@@ -142,6 +163,7 @@ impl Assembler {
             seen: 1,
             end: None,
             strict,
+            version,
             style_chunks: Vec::new(),
         })
     }
@@ -167,6 +189,8 @@ impl Assembler {
             TAG_HEAD => Err(anyhow!("duplicate HEAD")),
             TAG_VMLP => self.push_mlp(payload),
             TAG_GRID => self.push_grid(payload),
+            TAG_SGRD if self.version >= 5 => self.push_sparse_grid(payload),
+            TAG_SGRD => Err(anyhow!("a sparse grid in a version {} file (sparse grids need version 5)", self.version)),
             TAG_BLKS => self.push_blocks(payload),
             TAG_END => self.push_end(payload, index),
             TAG_SMLP | TAG_SCOL if self.asset.header.styles.is_some() => {
@@ -208,16 +232,51 @@ impl Assembler {
             4 + 4 * cells,
             g
         );
+        let frame = self.grid_frame(p)?;
+        let grid: Vec<u32> = p[4..].chunks_exact(4).map(le_u32).collect();
+        self.set_grid(frame, grid)
+    }
+
+    /// `SGRD`: frame, count, then (cell, entry) pairs in increasing cell order.
+    fn push_sparse_grid(&mut self, p: &[u8]) -> Result<()> {
+        ensure!(p.len() >= 8, "SGRD has {} bytes, needs at least 8", p.len());
+        let g = self.asset.grid_dim();
+        let cells = g * g * g;
+        let count = le_u32(&p[4..8]) as usize;
+        ensure!(count <= cells, "SGRD lists {count} cells of a grid of {g}^3");
+        ensure!(
+            p.len() == crate::asset::sparse_grid_bytes(count),
+            "SGRD has {} bytes, expected {} (frame, count + {count} cell/entry pairs)",
+            p.len(),
+            crate::asset::sparse_grid_bytes(count)
+        );
+        let frame = self.grid_frame(p)?;
+        let mut grid = vec![EMPTY; cells];
+        let mut next = 0usize;
+        for pair in p[8..].chunks_exact(8) {
+            let (c, e) = (le_u32(&pair[..4]) as usize, le_u32(&pair[4..]));
+            ensure!(c >= next && c < cells, "SGRD for frame {frame} lists cell {c} out of order or outside the {g}^3 grid");
+            ensure!(e != EMPTY, "SGRD for frame {frame} lists cell {c} as empty");
+            grid[c] = e;
+            next = c + 1;
+        }
+        self.set_grid(frame, grid)
+    }
+
+    /// The frame a grid chunk is for (its first 4 bytes), checked.
+    fn grid_frame(&self, p: &[u8]) -> Result<usize> {
         let frame = le_u32(&p[..4]) as usize;
         let frames = self.asset.num_frames();
-        ensure!(frame < frames, "GRID for frame {} but the asset has {} frames", frame, frames);
-        ensure!(!self.have_grid[frame], "duplicate GRID for frame {}", frame);
+        ensure!(frame < frames, "grid for frame {} but the asset has {} frames", frame, frames);
+        ensure!(!self.have_grid[frame], "duplicate grid for frame {}", frame);
+        Ok(frame)
+    }
+
+    fn set_grid(&mut self, frame: usize, grid: Vec<u32>) -> Result<()> {
         let n = self.asset.header.atlas_blocks;
         // motion entries: in a motion asset, in any frame but the one they point into
         let motion_ok = self.asset.header.motion_ref.is_some_and(|r| r as usize != frame);
-        let mut grid = Vec::with_capacity(cells);
-        for (c, b) in p[4..].chunks_exact(4).enumerate() {
-            let e = le_u32(b);
+        for (c, &e) in grid.iter().enumerate() {
             ensure!(
                 e == EMPTY || e < n || (motion_ok && crate::motion::is_motion(e)),
                 "frame {} cell {} points at block {} (atlas has {})",
@@ -226,7 +285,6 @@ impl Assembler {
                 e,
                 n
             );
-            grid.push(e);
         }
         self.asset.grids[frame] = grid;
         self.have_grid[frame] = true;

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use crate::assemble::Assembler;
 use crate::atomic::write_atomic;
-use crate::chunk::{encode_chunk, preamble_of, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP};
+use crate::chunk::{encode_chunk, preamble_of, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_SGRD, TAG_VMLP};
 use crate::quantize::{store_voxels, CHANNELS};
 use crate::header::Header;
 use crate::mlp::ViewMlp;
@@ -86,6 +86,7 @@ impl Asset {
         header.frames = None;
         header.time_range = None;
         header.motion_ref = None;
+        header.static_frame_blocks = None;
         header.atlas_blocks = remap.len() as u32;
         let a = Asset { header, mlp: self.mlp.clone(), grids: vec![grid], atlas, present: vec![true; remap.len()] };
         a.validate()?;
@@ -164,6 +165,24 @@ impl Asset {
         Ok((asm.take_asset(), styles))
     }
 
+    /// Whether the file stores its grids as occupied cells only (`SGRD`, version 5) where
+    /// that is smaller: the assets with motion (version 4 otherwise), whose readers are all
+    /// of this release or later. Their many grids (one a keyframe) are mostly empty cells;
+    /// static assets and the codebook alone (`--motion false`) keep dense grids, so readers
+    /// from before sparse grids still read them.
+    pub fn sparse_grids(&self) -> bool {
+        self.header.motion_ref.is_some()
+    }
+
+    /// Payload bytes of `grid`'s chunk in this asset's file: sparse where that is smaller.
+    pub fn grid_payload_bytes(&self, grid: &[u32]) -> usize {
+        let dense = dense_grid_bytes(grid.len());
+        if !self.sparse_grids() {
+            return dense;
+        }
+        dense.min(sparse_grid_bytes(grid.iter().filter(|&&e| e != EMPTY).count()))
+    }
+
     /// Encode: preamble, HEAD, VMLP, one GRID per frame, one BLKS per block, END. Blocks not
     /// present and grids not arrived are left out (such a file reads back as incomplete). A
     /// diffuse asset is version 2, without VMLP and with 4 bytes a voxel.
@@ -176,7 +195,8 @@ impl Asset {
         let mut out =
             Vec::with_capacity(64 + self.atlas.len() + self.grids.iter().map(|g| 4 * g.len() + 16).sum::<usize>());
         let diffuse = self.header.diffuse;
-        out.extend_from_slice(&preamble_of(self.header.file_version()));
+        let sparse = self.sparse_grids();
+        out.extend_from_slice(&preamble_of(if sparse { 5 } else { self.header.file_version() }));
         let mut n = 0u32;
         let mut put = |out: &mut Vec<u8>, tag, payload: &[u8]| {
             out.extend_from_slice(&encode_chunk(tag, payload));
@@ -192,7 +212,19 @@ impl Asset {
             if grid.is_empty() {
                 continue;
             }
-            let mut p = Vec::with_capacity(4 + 4 * grid.len());
+            let occupied = grid.iter().filter(|&&e| e != EMPTY).count();
+            if self.grid_payload_bytes(grid) < dense_grid_bytes(grid.len()) {
+                let mut p = Vec::with_capacity(sparse_grid_bytes(occupied));
+                p.extend_from_slice(&(f as u32).to_le_bytes());
+                p.extend_from_slice(&(occupied as u32).to_le_bytes());
+                for (c, e) in grid.iter().enumerate().filter(|(_, &e)| e != EMPTY) {
+                    p.extend_from_slice(&(c as u32).to_le_bytes());
+                    p.extend_from_slice(&e.to_le_bytes());
+                }
+                put(&mut out, TAG_SGRD, &p);
+                continue;
+            }
+            let mut p = Vec::with_capacity(dense_grid_bytes(grid.len()));
             p.extend_from_slice(&(f as u32).to_le_bytes());
             for e in grid {
                 p.extend_from_slice(&e.to_le_bytes());
@@ -277,4 +309,14 @@ impl Asset {
         }
         Ok(())
     }
+}
+
+/// Payload bytes of a dense `GRID` of `cells` cells: frame index, one entry a cell.
+pub fn dense_grid_bytes(cells: usize) -> usize {
+    4 + 4 * cells
+}
+
+/// Payload bytes of a sparse `SGRD` with `occupied` cells: frame, count, (cell, entry) pairs.
+pub fn sparse_grid_bytes(occupied: usize) -> usize {
+    8 + 8 * occupied
 }

@@ -8,9 +8,9 @@ use std::ops::Range;
 pub const MAGIC: [u8; 8] = *b"SNERFAST";
 /// The newest version this reader knows. Version 2 is version 1 plus `diffuse` assets,
 /// version 3 adds multi-style assets, version 4 motion entries in dynamic assets (FORMAT.md;
-/// `motion`); a writer uses the lowest version that
+/// `motion`), version 5 sparse grids (`SGRD`); a writer uses the lowest version that
 /// holds its asset, so older readers still read every asset of their versions.
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 pub const PREAMBLE_LEN: usize = 16;
 /// tag (4) + length (4) + CRC-32 (4).
 pub const CHUNK_HEADER_LEN: usize = 12;
@@ -22,6 +22,9 @@ pub const MAX_HEAD_LEN: usize = 1 << 20;
 pub const TAG_HEAD: [u8; 4] = *b"HEAD";
 pub const TAG_VMLP: [u8; 4] = *b"VMLP";
 pub const TAG_GRID: [u8; 4] = *b"GRID";
+/// A frame's grid as its occupied cells only (version 5): frame, count, then `count`
+/// (cell, entry) pairs in increasing cell order; every other cell is empty.
+pub const TAG_SGRD: [u8; 4] = *b"SGRD";
 pub const TAG_BLKS: [u8; 4] = *b"BLKS";
 pub const TAG_END: [u8; 4] = *b"END ";
 /// A style's view MLP in a multi-style asset (version 3).

@@ -122,6 +122,13 @@ pub struct Header {
     /// keyframe they point into. Its grid holds blocks only. Absent in every other asset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion_ref: Option<u32>,
+    /// A dynamic asset: the blocks a static bake of the field keeps at each keyframe's time,
+    /// averaged over the keyframes (`snerf bake --at-time` writes such a bake). The size of
+    /// "one static frame" the asset is measured against (`Summary::static_frame_bytes`);
+    /// absent in static assets and in dynamic ones baked before it, where the summary
+    /// estimates it from the cells the asset draws.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub static_frame_blocks: Option<f32>,
 }
 
 /// Largest number of styles in one asset.
@@ -189,6 +196,7 @@ impl Header {
             diffuse: false,
             styles: None,
             motion_ref: None,
+            static_frame_blocks: None,
         }
     }
 
@@ -397,6 +405,12 @@ impl Header {
                 self.num_frames()
             );
             ensure!(self.styles.is_none(), "header has both motion_ref and styles (one asset holds one or the other)");
+        }
+        if let Some(n) = self.static_frame_blocks {
+            ensure!(
+                self.frames.is_some() && n.is_finite() && n >= 0.0 && n as f64 <= self.atlas_blocks as f64 * self.num_frames() as f64,
+                "header static_frame_blocks {n} is not a block count of this dynamic asset"
+            );
         }
         match (&self.time_range, &self.frames) {
             (None, None) => {}

@@ -40,8 +40,10 @@ pub struct Summary {
     pub keyframe_bytes: Vec<u64>,
     /// Blocks no frame points at (wasted space; a good baker has none).
     pub unreferenced_blocks: u64,
-    /// One static frame of this scene: preamble, HEAD, VMLP, one grid, and one block per
-    /// occupied cell of the average frame (what storing a single time would cost).
+    /// One static frame of this scene: preamble, HEAD, VMLP, one grid, and the blocks a
+    /// static bake keeps at a keyframe's time, averaged over the keyframes (the header's
+    /// `static_frame_blocks`, recorded by the bake; without it, one block per cell the asset
+    /// draws in the average frame).
     pub static_frame_bytes: u64,
     /// `bytes.total / static_frame_bytes`.
     pub size_vs_static_frame: f64,
@@ -104,15 +106,21 @@ impl Asset {
                 }
             }
             occupied.push(occ);
-            per_frame.push(if grid.is_empty() { 0 } else { grid_chunk } + new_blocks * block_chunk);
+            let grid_bytes = if grid.is_empty() { 0 } else { CHUNK_HEADER_LEN as u64 + self.grid_payload_bytes(grid) as u64 };
+            per_frame.push(grid_bytes + new_blocks * block_chunk);
         }
         let present_blocks = self.present.iter().filter(|&&p| p).count() as u64;
         let head = PREAMBLE_LEN as u64 + CHUNK_HEADER_LEN as u64 + head_len;
         let mlp = if h.diffuse || h.styles.is_some() { 0 } else { CHUNK_HEADER_LEN as u64 + 4 * MLP_FLOATS as u64 };
-        let grids_bytes = self.grids.iter().filter(|g| !g.is_empty()).count() as u64 * grid_chunk;
+        let grids_bytes: u64 =
+            self.grids.iter().filter(|g| !g.is_empty()).map(|g| CHUNK_HEADER_LEN as u64 + self.grid_payload_bytes(g) as u64).sum();
         let blocks_bytes = present_blocks * block_chunk;
         let mean_occupied = occupied.iter().sum::<u64>() as f64 / occupied.len().max(1) as f64;
-        let static_frame_bytes = head + mlp + grid_chunk + (mean_occupied * block_chunk as f64).round() as u64;
+        // one static frame: what a static bake at a keyframe's time keeps (the bake records
+        // it), else the cells this asset draws at one
+        let static_blocks = h.static_frame_blocks.map_or(mean_occupied, |n| n as f64);
+        // (a static asset's one grid is dense)
+        let static_frame_bytes = head + mlp + grid_chunk + (static_blocks * block_chunk as f64).round() as u64;
         let (mut cells_changing, mut cells_occupied_any_frame) = (0u64, 0u64);
         for c in 0..cells as usize {
             let at = |g: &Vec<u32>| g.get(c).copied().unwrap_or(EMPTY);

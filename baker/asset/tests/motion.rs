@@ -82,8 +82,81 @@ fn motion_entries_are_sources_and_only_valid_in_motion_assets() {
     let mut c = a.clone();
     c.header.motion_ref = None;
     assert!(c.validate().is_err());
-    // and the file round-trips (version 4)
+    // and the file round-trips (version 5: a motion asset's grids may be sparse)
     let bytes = a.to_bytes();
-    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 4);
+    assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()), 5);
     assert_eq!(Asset::from_bytes(&bytes).unwrap(), a);
+}
+
+/// A motion asset whose frames show only the sphere's cells: each grid is stored as its
+/// occupied cells (`SGRD`), which read back as the dense grid; the same asset written with
+/// dense grids as version 4 (the release before sparse grids) reads back equal; a sparse grid
+/// in a version 4 file, or one whose cells are out of order, is refused by name.
+#[test]
+fn a_motion_asset_stores_its_grids_sparsely_and_older_files_still_read() {
+    use snerf_asset::chunk::{chunks, encode_chunk, preamble_of, TAG_END, TAG_GRID, TAG_SGRD};
+    let mut a = sphere_asset(true);
+    a.header.motion_ref = Some(0);
+    // one cell in five keeps its block (a sparse scene)
+    for (c, e) in a.grids[0].iter_mut().enumerate() {
+        if c % 5 != 0 {
+            *e = snerf_asset::EMPTY;
+        }
+    }
+    let occupied: Vec<bool> = a.grids[0].iter().map(|&e| e != snerf_asset::EMPTY).collect();
+    assert!(occupied.iter().any(|&o| o) && occupied.iter().filter(|&&o| o).count() * 2 < occupied.len());
+    for f in 1..a.grids.len() {
+        a.grids[f] = occupied.iter().map(|&o| if o { motion_entry([f as f32 * 0.25, 0.0, 0.0]) } else { snerf_asset::EMPTY }).collect();
+    }
+    a.validate().unwrap();
+    let bytes = a.to_bytes();
+    let list = chunks(&bytes).unwrap();
+    assert_eq!(list.iter().filter(|c| c.tag == TAG_SGRD).count(), a.num_frames());
+    assert!(!list.iter().any(|c| c.tag == TAG_GRID));
+    assert_eq!(Asset::from_bytes(&bytes).unwrap(), a);
+    let s = a.summary(bytes.len() as u64);
+    assert_eq!(s.bytes.total, bytes.len() as u64);
+    let sum: u64 = s.bytes.header + s.bytes.mlp + s.bytes.grids + s.bytes.blocks;
+    assert_eq!(sum + 16, bytes.len() as u64, "{s:?}"); // the header part counts the preamble; + END
+
+    // rewrite: every SGRD as a dense GRID, in a version `v` file
+    let rewrite = |v: u32, dense: bool, tamper: bool| {
+        let mut out = preamble_of(v).to_vec();
+        let mut n = 0u32;
+        for c in &list {
+            let p = &bytes[c.payload.clone()];
+            let (tag, payload) = match c.tag {
+                TAG_END => continue,
+                TAG_SGRD if dense => {
+                    let mut grid = vec![snerf_asset::EMPTY; occupied.len()];
+                    for pair in p[8..].chunks_exact(8) {
+                        grid[u32::from_le_bytes(pair[..4].try_into().unwrap()) as usize] = u32::from_le_bytes(pair[4..].try_into().unwrap());
+                    }
+                    let mut q = p[..4].to_vec();
+                    q.extend(grid.iter().flat_map(|e| e.to_le_bytes()));
+                    (TAG_GRID, q)
+                }
+                TAG_SGRD if tamper => {
+                    // the first two pairs swapped: cells out of order
+                    let mut q = p.to_vec();
+                    let (x, y) = (q[8..16].to_vec(), q[16..24].to_vec());
+                    q[8..16].copy_from_slice(&y);
+                    q[16..24].copy_from_slice(&x);
+                    (TAG_SGRD, q)
+                }
+                t => (t, p.to_vec()),
+            };
+            out.extend(encode_chunk(tag, &payload));
+            n += 1;
+        }
+        out.extend(encode_chunk(TAG_END, &n.to_le_bytes()));
+        out
+    };
+    let old = rewrite(4, true, false);
+    assert!(old.len() > bytes.len());
+    assert_eq!(Asset::from_bytes(&old).unwrap(), a);
+    let e = format!("{:#}", Asset::from_bytes(&rewrite(4, false, false)).unwrap_err());
+    assert!(e.contains("SGRD") && e.contains("version 5"), "{e}");
+    let e = format!("{:#}", Asset::from_bytes(&rewrite(5, false, true)).unwrap_err());
+    assert!(e.contains("SGRD") && e.contains("out of order"), "{e}");
 }

@@ -6,7 +6,7 @@ use anyhow::{anyhow, ensure, Context, Result};
 use bytes::Bytes;
 use sha2::{Digest, Sha256};
 use snerf_asset::chunk::{
-    chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_VMLP,
+    chunks, le_u32, tag_name, PREAMBLE_LEN, TAG_BLKS, TAG_END, TAG_GRID, TAG_HEAD, TAG_SGRD, TAG_VMLP,
 };
 use snerf_asset::layers::is_layered;
 use snerf_asset::{Asset, Header, LayeredAsset, EMPTY};
@@ -116,7 +116,7 @@ pub fn geometry_id(raw: &[u8]) -> Result<String> {
                 h.update((json.len() as u64).to_le_bytes());
                 h.update(&json);
             }
-            TAG_GRID | TAG_BLKS => h.update(&raw[c.range.clone()]),
+            TAG_GRID | TAG_SGRD | TAG_BLKS => h.update(&raw[c.range.clone()]),
             _ => {}
         }
     }
@@ -283,7 +283,7 @@ impl ServedAsset {
             let idx = c.index as u32;
             ranges.push(c.range.clone());
             match c.tag {
-                TAG_HEAD | TAG_VMLP | TAG_GRID => meta.push(idx),
+                TAG_HEAD | TAG_VMLP | TAG_GRID | TAG_SGRD => meta.push(idx),
                 TAG_BLKS => {
                     let first = le_u32(&raw[c.payload.start..c.payload.start + 4]) as usize;
                     let count = le_u32(&raw[c.payload.start + 4..c.payload.start + 8]) as usize;

@@ -1366,6 +1366,12 @@ async function stream(name, backendReady, gpuReady, firstConfig, onFirstFrame) {
       for (const q of pendingChunks.splice(0)) await onChunk(q[0], q[1], q[2]);
     } else if (tag === 'VMLP') { r.setMlp(p); r.mlp = true; }
     else if (tag === 'GRID') { r.setGrid(u32(p, 0), new Uint32Array(p.slice(4).buffer)); }
+    else if (tag === 'SGRD') {
+      // a sparse grid (FORMAT.md, version 5): (cell, entry) pairs, every other cell empty
+      const grid = new Uint32Array(r.g3).fill(EMPTY);
+      for (let k = 0, n = u32(p, 4); k < n; k++) grid[u32(p, 8 + 8 * k)] = u32(p, 12 + 8 * k);
+      r.setGrid(u32(p, 0), grid);
+    }
     else if (tag === 'BLKS') {
       const first = u32(p, 0), n = u32(p, 4);
       r.setBlocks(first, n, p.subarray(8));

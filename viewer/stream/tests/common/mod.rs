@@ -104,9 +104,13 @@ pub fn motion_asset() -> Asset {
     a.header.motion_ref = Some(1);
     let n = a.grids[1].len();
     for (f, d) in [(0, [1.5f32, -0.75, 0.25]), (2, [-2.0, 1.0, 0.5]), (3, [0.75, 0.5, -1.25])] {
-        a.grids[f] = vec![snerf_asset::motion::motion_entry(d); n];
+        // frame 3 moves three cells of eight, the rest empty: a grid the file stores sparsely
+        a.grids[f] = (0..n).map(|c| if f != 3 || c % 3 == 0 { snerf_asset::motion::motion_entry(d) } else { snerf_asset::EMPTY }).collect();
     }
     a.validate().unwrap();
+    let bytes = a.to_bytes();
+    let tags: Vec<[u8; 4]> = snerf_asset::chunk::chunks(&bytes).unwrap().iter().map(|c| c.tag).collect();
+    assert!(tags.contains(&snerf_asset::chunk::TAG_SGRD) && tags.contains(&snerf_asset::chunk::TAG_GRID), "a sparse and a dense grid");
     a
 }
 
