@@ -4,7 +4,9 @@
 //!
 //! The geometry (which blocks are kept, every voxel's density, the occupancy that floors
 //! density in cells training never sampled) is the first layer's bake; a further layer is only
-//! evaluated at the voxels of that asset's blocks, for its colour, features and view MLP.
+//! evaluated at the voxels of that asset's blocks, for its colour, features and view MLP
+//! (a dynamic geometry's block at the time sample it was taken from: the time codebook shares
+//! blocks among frames, so that need not be the first frame showing it).
 //! Its own density there must give the same 8-bit codes: a layer stylized with
 //! `--appearance-only` from the same run has its density frozen bit for bit, anything else
 //! is refused ("trained on another geometry") instead of drawing one style's colours on
@@ -39,16 +41,18 @@ pub fn bake_colour(model: &Model, pool: &WorkspacePool, geometry_model: &Model, 
     ensure!(h.motion_ref.is_none(), "style layers need a geometry of blocks only; bake it with --motion false");
     let (g, b, res) = (h.grid_dim(), h.block as usize, h.res as usize);
     let nb = h.atlas_blocks as usize;
-    // each block's cell and field time: where it is first used
-    let mut origin: Vec<Option<(usize, f32)>> = vec![None; nb];
+    // each block's uses: (cell, field time) of every frame that points at it, in frame order.
+    // A dynamic geometry's time codebook shares a block among frames, and the block holds the
+    // field at the one sample it was taken from, which need not be the first frame using it.
+    let mut uses: Vec<Vec<(usize, f32)>> = vec![Vec::new(); nb];
     for (f, grid) in geometry.grids.iter().enumerate() {
         let tau = match h.time_range {
             Some([lo, hi]) if hi > lo => (h.frame_time(f) - lo) / (hi - lo),
             _ => 0.0,
         };
         for (c, &e) in grid.iter().enumerate() {
-            if e != EMPTY && origin[e as usize].is_none() {
-                origin[e as usize] = Some((c, tau));
+            if e != EMPTY {
+                uses[e as usize].push((c, tau));
             }
         }
     }
@@ -60,16 +64,25 @@ pub fn bake_colour(model: &Model, pool: &WorkspacePool, geometry_model: &Model, 
     let mismatches: Vec<usize> = asset
         .atlas
         .par_chunks_exact_mut(bb)
-        .zip(origin.par_iter())
-        .map(|(blk, o)| {
-            let Some((c, tau)) = *o else { return 0 };
-            let pts = block_points(c, g, b, res);
-            let vals = pool.with(|ws| block_values(model, geometry_model, &pts, tau, ws));
-            let mut bad = 0;
-            for (v, val) in blk.chunks_exact_mut(CHANNELS).zip(&vals) {
-                if encode_density(val[0], &h.density) != v[0] {
-                    bad += 1;
+        .zip(uses.par_iter())
+        .map(|(blk, u)| {
+            // the layer at the first use whose density gives the block's codes (its sample),
+            // else at the use that came closest
+            let mut best: Option<(usize, Vec<[f32; 8]>)> = None;
+            for &(c, tau) in u {
+                let pts = block_points(c, g, b, res);
+                let vals = pool.with(|ws| block_values(model, geometry_model, &pts, tau, ws));
+                let bad = blk.chunks_exact(CHANNELS).zip(&vals).filter(|(v, val)| encode_density(val[0], &h.density) != v[0]).count();
+                let done = bad == 0;
+                if best.as_ref().is_none_or(|(b, _)| bad < *b) {
+                    best = Some((bad, vals));
                 }
+                if done {
+                    break;
+                }
+            }
+            let Some((bad, vals)) = best else { return 0 };
+            for (v, val) in blk.chunks_exact_mut(CHANNELS).zip(&vals) {
                 let code = v[0];
                 v.copy_from_slice(&encode_voxel(val[0], [val[1], val[2], val[3]], [val[4], val[5], val[6], val[7]], &h.density));
                 v[0] = code;

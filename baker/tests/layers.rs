@@ -75,3 +75,53 @@ fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
     let e = bake_colour(&moved.model, &moved.pool, &t.model, &first).unwrap_err().to_string();
     assert!(e.contains("density differs from the geometry's"), "{e}");
 }
+
+/// A 4D field's layers: the time codebook shares a block among frames, and a layer is
+/// evaluated at the sample each block was taken from (not the first frame that shows it), so
+/// the same field bakes exactly the first bake and a frozen-geometry layer bakes onto it at
+/// every time.
+#[test]
+fn a_4d_field_bakes_layers_at_each_blocks_own_sample() {
+    let dir = snerf_files::ScratchDir::new("snerf-bake-layers", "avatar").unwrap();
+    let source = snerf_scene::Source::parse("avatar").unwrap();
+    let mut spec = snerf_scene::SceneSpec::default_for(source);
+    (spec.train_views, spec.test_views, spec.width, spec.height, spec.supersample) = (24, 2, 48, 48, 1);
+    snerf_scene::write_dataset(&spec, &dir.join("data"), &|_, _| {}).unwrap();
+    let data = load(&dir.join("data"), &LoadOptions::default()).unwrap();
+    let cfg = TrainConfig::for_dataset(&data);
+    let mut t = Trainer::new(&data, cfg.clone()).unwrap();
+    for s in 0..120 {
+        t.step(s as f64 / 120.0);
+    }
+    assert!(t.model.space.dynamic);
+    let bg = eval_background(views_have_alpha(&data.train));
+    // style layers hold blocks only (no motion entries), and a tight budget makes the
+    // codebook share blocks across samples
+    let opts = BakeOptions { res: 64, visibility_views: 8, keyframes: 8, motion: false, time_budget: 1.5, ..Default::default() };
+    let (first, report) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
+    assert!(first.is_dynamic() && report.shared_blocks > 0, "{report:?}");
+    let (same, r) = bake_colour(&t.model, &t.pool, &t.model, &first).unwrap();
+    assert_eq!(r.density_mismatches, 0);
+    assert_eq!(same, first, "the same field as a layer is exactly the bake");
+
+    let mut c = cfg.clone();
+    c.freeze_geometry = true;
+    let adam = snerf_trainer::adam::Adam::new(t.model.field.params.len());
+    let mut l = Trainer::from_parts(&data, c, t.model.clone(), adam).unwrap();
+    for s in 0..30 {
+        l.step(s as f64 / 30.0);
+    }
+    let (second, r) = bake_colour(&l.model, &l.pool, &t.model, &first).unwrap();
+    assert_eq!(r.density_mismatches, 0);
+    assert_eq!(second.grids, first.grids);
+    let two = LayeredAsset::new(vec![style("a"), style("b")], vec![first.clone(), second.clone()]).unwrap();
+    let back = LayeredAsset::from_bytes(&two.to_bytes()).unwrap();
+    assert_eq!(back, two);
+    let (lo, hi) = (first.header.frame_time(0), first.header.frame_time(first.num_frames() - 1));
+    for time in [lo, 0.37 * lo + 0.63 * hi] {
+        let cam = snerf_asset::orbit(&second.header, 2, 1, 40, 40, 40.0);
+        let (a, b) = (snerf_asset::render(&second, &cam, time), snerf_asset::render(&back.layers[1], &cam, time));
+        let d = a.rgb.iter().zip(&b.rgb).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
+        assert!(d <= 1.0 / 255.0, "t = {time}: {d}");
+    }
+}
