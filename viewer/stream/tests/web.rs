@@ -1605,6 +1605,48 @@ fn switch_page(b: &(PathBuf, PathBuf, PathBuf), url: &str, keys: &str) -> serde_
     serde_json::from_str(stdout.trim()).unwrap_or_else(|e| panic!("page report {:?}: {} (stderr: {})", stdout, e, stderr))
 }
 
+/// The same switch on a 4D asset (a two-style asset over a time codebook, as `snerf bake`
+/// writes one from a 4D run stylized after two paintings): the page, showing an instant
+/// between two keyframes, switches to the second style and draws that style's CPU reference
+/// at that time.
+#[test]
+fn a_style_switch_on_a_4d_asset_draws_the_new_style_between_keyframes() {
+    let Some(b) = browser() else { return };
+    let dir = TempDir::new("web-switch-4d");
+    let state = TempDir::new("web-switch-4d-state");
+    let file = dir.join("moving.snerf");
+    let a = dynamic_asset(32, 8, 0.9, 3, 21);
+    let mut c = a.clone();
+    for v in c.atlas.chunks_exact_mut(8) {
+        for x in &mut v[1..] {
+            *x = 255 - *x;
+        }
+    }
+    let style = |name: &str| snerf_asset::StyleInfo { name: name.into(), source: None, swatch: [0.5; 3] };
+    let layered = snerf_asset::LayeredAsset::new(vec![style("warm"), style("cold")], vec![a, c]).unwrap();
+    layered.write(&file).unwrap();
+    let styles: Vec<Asset> = (0..2).map(|i| layered.clone().into_style(i).unwrap()).collect();
+    let h = start(dir.path(), state.path());
+    let web = h.web().unwrap().clone();
+    let time = 0.5;
+    let cam = snerf_asset::orbit(&styles[0].header, 1, 0, 64, 48, 40.0);
+    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "moving.warm"), ("time", "0.5"), ("cam", &cam_json(&cam))]));
+    let r = switch_page(&b, &url, "2");
+    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
+    let sws = r["switches"].as_array().unwrap();
+    assert_eq!(sws.len(), 1, "{sws:?}");
+    assert_eq!(sws[0]["state"], "done", "{}", sws[0]);
+    assert_eq!(r["asset"]["name"], "moving.cold");
+    let fr = &r["lastRender"];
+    assert_eq!(fr["complete"], true);
+    let rgba = fr["rgba"].as_array().unwrap();
+    let d = mean_abs_diff(rgba, &snerf_asset::render(&styles[1], &cam, time));
+    let left = mean_abs_diff(rgba, &snerf_asset::render(&styles[0], &cam, time));
+    eprintln!("4D switch at t = {time}: mean |diff| {d:?} to the new style's CPU reference, {left:?} to the old one's");
+    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
+    assert!(left.iter().any(|&x| x > 10.0 / 255.0), "the two styles' frames are too alike for the test to mean something: {left:?}");
+}
+
 /// A style switch in the page (keys 2, 1, 2 on `scene.warm`): each streams only the new
 /// style's colour part (the page's count and the server's: the style's SMLP and SCOL chunks
 /// and a 4-byte index per record, well below the whole style), the page rebuilds the new
