@@ -356,6 +356,7 @@ fn bake_one(
         "command": "bake",
         "run": pj(&a.run),
         "out": pj(out),
+        "at_time": a.at_time,
         "bake_seconds": bake_seconds,
         "peak_rss_mb": peak_rss_mb(),
         "report": report,

@@ -203,6 +203,7 @@ fn a_4d_run_bakes_one_instant_as_a_static_asset() {
     let t = lo + (hi - lo) * 2.0 / 3.0;
     let one = ok(snerf().args(["--json", "bake"]).arg(&run).arg("--out").arg(d.join("one.snerf")).args(small).args(["--at-time", &t.to_string()]).output().unwrap());
     assert_eq!(one["asset"]["frames"].as_u64(), Some(1), "{one}");
+    assert!((one["at_time"].as_f64().unwrap() - t).abs() < 1e-6 && anim["at_time"].is_null(), "{one}");
     assert!(one["asset"]["animation_seconds"].is_null(), "a frozen instant has no time: {one}");
     let info = ok(snerf().args(["--json", "inspect"]).arg(d.join("one.snerf")).output().unwrap());
     assert!(info["summary"]["animation_seconds"].is_null(), "{info}");
