@@ -8,23 +8,11 @@
 //! them, unless SNERF_REQUIRE_BROWSER=1 (CI), where it fails.
 
 mod common;
+use common::{ok, snerf};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
 use serde_json::Value;
 use snerf_files::ScratchDir;
-
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
-
-fn ok(out: Output) -> Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
 
 
 /// A small real asset: scene -> train -> bake, in `d`.

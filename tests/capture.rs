@@ -8,9 +8,11 @@
 //!
 //! Needs `colmap` and visp-images-data (`scripts/setup-capture.sh`, run by .ci/run, which sets
 //! SNERF_REQUIRE_COLMAP=1: then a missing tool fails the tests instead of skipping them).
+mod common;
+use common::{ok, snerf};
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use serde_json::Value;
 use snerf_files::ScratchDir;
@@ -18,12 +20,6 @@ use snerf_trainer::data::{self, LoadOptions};
 
 const CUBE: &str = "/usr/share/visp-images-data/ViSP-images/cube";
 const CASTEL: &str = "/usr/share/visp-images-data/ViSP-images/mbt-depth/castel/castel";
-
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
 
 fn tmp(name: &str) -> ScratchDir {
     ScratchDir::new("snerf-capture", name).unwrap()
@@ -56,12 +52,6 @@ fn pycolmap_ready() -> bool {
         eprintln!("pycolmap part skipped: {} cannot import pycolmap (bash scripts/setup-capture.sh)", python.display());
     }
     ready
-}
-
-fn ok(out: Output) -> Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 /// Copies `names` from `from` into a new folder `to`.

@@ -2,17 +2,12 @@
 //! out of range, non-finite, not numbers) on a tiny dataset, run, and baked asset. No
 //! combination may panic, and every `--json` output — success or error — must be JSON with
 //! only finite numbers. Deterministic: the seed is fixed and printed with each case.
+mod common;
+use common::snerf;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use snerf_files::ScratchDir;
-
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
 
 struct Rng(u64);
 impl Rng {

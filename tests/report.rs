@@ -1,28 +1,17 @@
 //! `snerf report`, `snerf compare`, `snerf bake --sweep` and the reports `snerf train` and
 //! `snerf stylize` keep in their run directories, on real short runs: every plotted number
 //! is the recorded one, and the pictures show axes and one line per run.
+mod common;
+use common::{ok, snerf};
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use serde_json::Value;
 use snerf_files::ScratchDir;
 
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
-
 /// This test's directory: removed when it passes, kept (and named) when it fails.
 fn tmp(name: &str) -> ScratchDir {
     ScratchDir::new("snerf-report", name).unwrap()
-}
-
-fn ok(out: Output) -> Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 fn read(p: &Path) -> Value {

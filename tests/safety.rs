@@ -1,39 +1,18 @@
 //! Nothing lost, nothing faked: each test here reproduces a way a realistic (or hostile) user
 //! could lose data or be told a failure was a success, and checks the command now refuses
 //! clearly, exits honestly and leaves every file it did not create alone.
+mod common;
+use common::{fails, ok, snerf};
 
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use snerf_files::ScratchDir;
 
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
-
 /// This test's directory: removed when it passes, kept (and named) when it fails.
 fn tmp(name: &str) -> ScratchDir {
     ScratchDir::new("snerf-safety", name).unwrap()
-}
-
-fn ok(out: Output) -> serde_json::Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
-
-fn fails(out: Output, needles: &[&str]) -> String {
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(!out.status.success(), "expected failure, got success: {stderr}");
-    assert_ne!(out.status.code(), Some(101), "must not panic: {stderr}");
-    assert!(!stderr.contains("panicked"), "must not panic: {stderr}");
-    for n in needles {
-        assert!(stderr.contains(n), "error should mention {n:?}: {stderr}");
-    }
-    stderr
 }
 
 fn dataset(dir: &Path, views: usize, size: &str) {

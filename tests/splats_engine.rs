@@ -8,25 +8,15 @@
 //! Needs Chromium, playwright-core (target/test-assets/playwright) and Babylon.js
 //! (target/test-assets/babylon), which `.ci/run` installs; skips with a message without them,
 //! unless SNERF_REQUIRE_SPLAT_ENGINE=1 (CI), where it fails.
+mod common;
+use common::{ok, snerf};
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use snerf_asset::render::{self as asset_render};
 use snerf_asset::{encode_voxel, Asset, AssetBuilder, Header, Kind, ViewMlp};
 use snerf_files::ScratchDir;
-
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
-
-fn ok(out: Output) -> serde_json::Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -5,24 +5,14 @@
 //! Needs /usr/bin/chromium (or SNERF_CHROMIUM) and playwright-core under
 //! target/test-assets/playwright (`.ci/run` installs both); skips with a message without
 //! them, unless SNERF_REQUIRE_BROWSER=1 (CI), where it fails.
+mod common;
+use common::{ok, snerf};
 
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 
 use snerf_files::ScratchDir;
-
-fn snerf() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_snerf"));
-    c.env("RAYON_NUM_THREADS", "2");
-    c
-}
-
-fn ok(out: Output) -> serde_json::Value {
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "command failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
 
 fn browser() -> Option<(PathBuf, PathBuf)> {
     let chromium = std::env::var_os("SNERF_CHROMIUM").map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/usr/bin/chromium"));

@@ -21,6 +21,7 @@ pub fn ok(out: Output) -> serde_json::Value {
 pub fn fails(out: Output, needles: &[&str]) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr).to_string();
     assert!(!out.status.success(), "expected failure, got success: {stderr}");
+    assert_ne!(out.status.code(), Some(101), "must not panic: {stderr}");
     assert!(!stderr.contains("panicked"), "must not panic: {stderr}");
     for n in needles {
         assert!(stderr.contains(n), "error should mention {n:?}: {stderr}");
