@@ -42,7 +42,7 @@ pub fn preamble_of(version: u32) -> [u8; PREAMBLE_LEN] {
     let mut p = [0u8; PREAMBLE_LEN];
     p[..8].copy_from_slice(&MAGIC);
     p[8..12].copy_from_slice(&version.to_le_bytes());
-    // bytes 12..16: flags, 0 in versions 1 to 3
+    // bytes 12..16: flags, 0 in versions 1 to 5
     p
 }
 
