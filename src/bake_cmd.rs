@@ -295,8 +295,8 @@ fn bake_one(
     let faith = if a.eval_views > 0 {
         let views = if data.test.is_empty() { &data.train } else { &data.test };
         // a frozen instant is compared with the field at that instant
-        let frozen: Vec<_> = views.iter().map(|v| snerf_trainer::data::View { time: a.at_time.or(v.time), ..v.clone() }).collect();
-        Some(snerf_baker::faithfulness::measure(model, pool, &asset, &frozen, a.eval_views)?)
+        let frozen = a.at_time.map(|t| snerf_baker::bake::at_time(views, t));
+        Some(snerf_baker::faithfulness::measure(model, pool, &asset, frozen.as_deref().unwrap_or(views), a.eval_views)?)
     } else {
         None
     };

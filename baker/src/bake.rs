@@ -159,7 +159,7 @@ pub fn bake(
     let frozen: Vec<View>;
     let views = match opts.at_time {
         Some(t) if space.dynamic => {
-            frozen = views.iter().map(|v| View { time: Some(t), ..v.clone() }).collect();
+            frozen = at_time(views, t);
             &frozen[..]
         }
         _ => views,
@@ -395,7 +395,7 @@ pub fn bake(
     let diffuse = mlp.output_is_zero();
     header.motion_ref = motion.as_ref().map(|m| m.0 as u32);
     if dynamic {
-        header.static_frame_blocks = Some(report.frame_blocks.iter().sum::<usize>() as f32 / frames as f32);
+        header.static_frame_blocks = Some(mean_blocks as f32);
     }
     let mut asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
     if diffuse {
@@ -406,6 +406,11 @@ pub fn bake(
     asset.validate()?;
     report.seconds_total = t_all.elapsed().as_secs_f64();
     Ok((asset, report))
+}
+
+/// `views` with their cameras looking at the scene at time `t` (a frozen instant of a 4D run).
+pub fn at_time(views: &[View], t: f32) -> Vec<View> {
+    views.iter().map(|v| View { time: Some(t), ..v.clone() }).collect()
 }
 
 /// Visibility (0..=255) of every voxel of every kept block of one sample: the light from

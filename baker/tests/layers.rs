@@ -14,10 +14,11 @@ fn style(name: &str) -> StyleInfo {
     StyleInfo { name: name.into(), source: None, swatch: [0.0; 3] }
 }
 
-#[test]
-fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
-    let dir = snerf_files::ScratchDir::new("snerf-bake-layers", "object").unwrap();
-    let source = snerf_scene::Source::parse("object").unwrap();
+/// A built-in scene at 48², 24 views, trained 120 steps (the directory lives as long as the
+/// returned guard).
+fn trained(scene: &str) -> (snerf_files::ScratchDir, snerf_data::Dataset, TrainConfig, Trainer) {
+    let dir = snerf_files::ScratchDir::new("snerf-bake-layers", scene).unwrap();
+    let source = snerf_scene::Source::parse(scene).unwrap();
     let mut spec = snerf_scene::SceneSpec::default_for(source);
     (spec.train_views, spec.test_views, spec.width, spec.height, spec.supersample) = (24, 2, 48, 48, 1);
     snerf_scene::write_dataset(&spec, &dir.join("data"), &|_, _| {}).unwrap();
@@ -27,6 +28,24 @@ fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
     for s in 0..120 {
         t.step(s as f64 / 120.0);
     }
+    (dir, data, cfg, t)
+}
+
+/// `t`'s field trained 30 more steps, its geometry frozen (what `snerf stylize
+/// --appearance-only` sets) or not.
+fn trained_further(data: &snerf_data::Dataset, cfg: &TrainConfig, t: &Trainer, freeze_geometry: bool) -> Trainer {
+    let c = TrainConfig { freeze_geometry, ..cfg.clone() };
+    let adam = snerf_trainer::adam::Adam::new(t.model.field.params.len());
+    let mut l = Trainer::from_parts(data, c, t.model.clone(), adam).unwrap();
+    for s in 0..30 {
+        l.step(s as f64 / 30.0);
+    }
+    l
+}
+
+#[test]
+fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
+    let (_dir, data, cfg, t) = trained("object");
     let bg = eval_background(views_have_alpha(&data.train));
     let opts = BakeOptions { res: 64, visibility_views: 8, ..Default::default() };
     let (first, _) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
@@ -36,16 +55,7 @@ fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
     assert_eq!(same, first, "{report:?}");
 
     // further training with the geometry frozen: same density, other colours
-    let train_on = |freeze: bool| {
-        let mut c = cfg.clone();
-        c.freeze_geometry = freeze;
-        let adam = snerf_trainer::adam::Adam::new(t.model.field.params.len());
-        let mut l = Trainer::from_parts(&data, c, t.model.clone(), adam).unwrap();
-        for s in 0..30 {
-            l.step(s as f64 / 30.0);
-        }
-        l
-    };
+    let train_on = |freeze: bool| trained_further(&data, &cfg, &t, freeze);
     let frozen = train_on(true);
     let (second, report) = bake_colour(&frozen.model, &frozen.pool, &t.model, &first).unwrap();
     assert_eq!(report.density_mismatches, 0);
@@ -82,17 +92,7 @@ fn layers_bake_onto_one_geometry_and_a_moved_geometry_is_refused() {
 /// every time.
 #[test]
 fn a_4d_field_bakes_layers_at_each_blocks_own_sample() {
-    let dir = snerf_files::ScratchDir::new("snerf-bake-layers", "avatar").unwrap();
-    let source = snerf_scene::Source::parse("avatar").unwrap();
-    let mut spec = snerf_scene::SceneSpec::default_for(source);
-    (spec.train_views, spec.test_views, spec.width, spec.height, spec.supersample) = (24, 2, 48, 48, 1);
-    snerf_scene::write_dataset(&spec, &dir.join("data"), &|_, _| {}).unwrap();
-    let data = load(&dir.join("data"), &LoadOptions::default()).unwrap();
-    let cfg = TrainConfig::for_dataset(&data);
-    let mut t = Trainer::new(&data, cfg.clone()).unwrap();
-    for s in 0..120 {
-        t.step(s as f64 / 120.0);
-    }
+    let (_dir, data, cfg, t) = trained("avatar");
     assert!(t.model.space.dynamic);
     let bg = eval_background(views_have_alpha(&data.train));
     // style layers hold blocks only (no motion entries), and a tight budget makes the
@@ -104,13 +104,7 @@ fn a_4d_field_bakes_layers_at_each_blocks_own_sample() {
     assert_eq!(r.density_mismatches, 0);
     assert_eq!(same, first, "the same field as a layer is exactly the bake");
 
-    let mut c = cfg.clone();
-    c.freeze_geometry = true;
-    let adam = snerf_trainer::adam::Adam::new(t.model.field.params.len());
-    let mut l = Trainer::from_parts(&data, c, t.model.clone(), adam).unwrap();
-    for s in 0..30 {
-        l.step(s as f64 / 30.0);
-    }
+    let l = trained_further(&data, &cfg, &t, true);
     let (second, r) = bake_colour(&l.model, &l.pool, &t.model, &first).unwrap();
     assert_eq!(r.density_mismatches, 0);
     assert_eq!(second.grids, first.grids);

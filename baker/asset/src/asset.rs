@@ -212,9 +212,10 @@ impl Asset {
             if grid.is_empty() {
                 continue;
             }
-            let occupied = grid.iter().filter(|&&e| e != EMPTY).count();
-            if self.grid_payload_bytes(grid) < dense_grid_bytes(grid.len()) {
-                let mut p = Vec::with_capacity(sparse_grid_bytes(occupied));
+            let payload = self.grid_payload_bytes(grid);
+            if payload < dense_grid_bytes(grid.len()) {
+                let occupied = grid.iter().filter(|&&e| e != EMPTY).count();
+                let mut p = Vec::with_capacity(payload);
                 p.extend_from_slice(&(f as u32).to_le_bytes());
                 p.extend_from_slice(&(occupied as u32).to_le_bytes());
                 for (c, e) in grid.iter().enumerate().filter(|(_, &e)| e != EMPTY) {
