@@ -41,6 +41,8 @@ struct Params {
     // logit_min, logit_max, keyframe blend weight w, grid offset of the motion reference
     // keyframe (bits of a u32; motion.rs)
     dens: vec4<f32>,
+    // background rgb; w: 1 where a dynamic asset blends colour by density (header
+    // colour_by_density), else 0
     background: vec4<f32>,
     // res, grid cells per axis, atlas blocks per row (x), atlas blocks per column (y)
     grid: vec4<u32>,
@@ -231,9 +233,22 @@ fn sample_cell(loc: Loc) -> Sample {
     if (fb.e != EMPTY) {
         vb = interpolate(fb.e, fb.l);
     }
-    s.v.a = (1.0 - w) * va.a + w * vb.a;
-    s.v.b = (1.0 - w) * va.b + w * vb.b;
+    // sample.rs `blend`: the logit by w; colour and features by w, or by density share
+    var wc = w;
+    if (P.background.w != 0.0) {
+        wc = blend_weight(va.a.x, vb.a.x, w);
+    }
+    s.v.a = (1.0 - wc) * va.a + wc * vb.a;
+    s.v.a.x = (1.0 - w) * va.a.x + w * vb.a.x;
+    s.v.b = (1.0 - wc) * va.b + wc * vb.b;
     return s;
+}
+
+// sample.rs `blend_weight`: side b's colour weight when the sides weigh (1 - w) exp(la) and
+// w exp(lb), as a logistic that neither overflows nor divides by zero.
+fn blend_weight(la: f32, lb: f32, w: f32) -> f32 {
+    let x = clamp(lb - la + log(max(w, 1.0e-30)) - log(max(1.0 - w, 1.0e-30)), -80.0, 80.0);
+    return 1.0 / (1.0 + exp(-x));
 }
 
 struct Loc {

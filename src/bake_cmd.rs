@@ -68,6 +68,11 @@ pub struct BakeArgs {
     /// whose moves leave the least error is kept (1: the fullest alone; each costs a search).
     #[arg(long, default_value_t = BakeOptions::default().motion_references, value_parser = crate::args::int_in::<usize>(1, 64, ""))]
     pub motion_references: usize,
+    /// Dynamic scenes: test visibility at each time sample with every camera looking at the
+    /// scene at that time (as `--at-time` does for its instant) instead of once with each
+    /// view at its own time, kept for all samples. Costs one visibility pass per keyframe.
+    #[arg(long, default_value_t = BakeOptions::default().visibility_per_sample, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub visibility_per_sample: bool,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
@@ -266,6 +271,7 @@ fn bake_options(a: &BakeArgs, res: u32) -> BakeOptions {
         motion_references: a.motion_references,
         up: a.up,
         at_time: a.at_time,
+        visibility_per_sample: a.visibility_per_sample,
     }
 }
 

@@ -79,11 +79,30 @@ pub struct BakeOptions {
     /// frame" a 4D asset's size is measured against. The views' own times are ignored; the
     /// visibility test looks at the scene at this time from every view's camera.
     pub at_time: Option<f32>,
+    /// Dynamic scenes: test each time sample's visibility with every camera looking at the
+    /// scene at that sample's time (what `at_time` does for its one instant), instead of once
+    /// with each view at its own time, the union kept for every sample. The union keeps
+    /// blocks that some other instant exposes but this one hides (a body's inside where a
+    /// limb was); per sample costs one visibility pass per keyframe.
+    pub visibility_per_sample: bool,
 }
 
 impl Default for BakeOptions {
     fn default() -> Self {
-        BakeOptions { res: 192, block: 8, keyframes: 24, min_alpha: 0.005, visibility_views: 32, reuse_tolerance: 0.01, time_budget: 2.4, up: None, motion: true, motion_references: 3, at_time: None }
+        BakeOptions {
+            res: 192,
+            block: 8,
+            keyframes: 24,
+            min_alpha: 0.005,
+            visibility_views: 32,
+            reuse_tolerance: 0.01,
+            time_budget: 2.4,
+            up: None,
+            motion: true,
+            motion_references: 3,
+            at_time: None,
+            visibility_per_sample: false,
+        }
     }
 }
 
@@ -169,8 +188,9 @@ pub fn bake(
     report.density_range = [logit_min, logit_max];
 
     let candidates = candidate_cells(model, g);
+    let per_sample = dynamic && opts.visibility_per_sample && opts.visibility_views > 0;
     let t0 = Instant::now();
-    let visible = if opts.visibility_views > 0 {
+    let visible = if opts.visibility_views > 0 && !per_sample {
         visible_cells(model, pool, views, bg, opts.visibility_views, g, &candidates, progress)
     } else {
         candidates.clone()
@@ -198,6 +218,16 @@ pub fn bake(
     let t0 = Instant::now();
     for (f, &tau) in field_times.iter().enumerate() {
         report.candidate_blocks += cells.len();
+        let visible_now;
+        let visible = if per_sample {
+            let tv = Instant::now();
+            let (lo, hi) = space.time_range;
+            visible_now = visible_cells(model, pool, &at_time(views, lo + tau * (hi - lo)), bg, opts.visibility_views, g, &candidates, progress);
+            report.seconds_visibility += tv.elapsed().as_secs_f64();
+            &visible_now
+        } else {
+            &visible
+        };
         // Evaluate candidate blocks in parallel.
         let done = std::sync::atomic::AtomicU64::new(0);
         let blocks: Vec<Evaluated> = cells
@@ -396,6 +426,7 @@ pub fn bake(
     header.motion_ref = motion.as_ref().map(|m| m.0 as u32);
     if dynamic {
         header.static_frame_blocks = Some(mean_blocks as f32);
+        header.colour_by_density = true;
     }
     let mut asset = Asset { header, mlp, grids, present: vec![true; atlas_blocks], atlas };
     if diffuse {

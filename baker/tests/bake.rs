@@ -88,6 +88,8 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     let opts = BakeOptions { res: 64, keyframes: 24, motion: false, time_budget: 1.8, ..Default::default() };
     let (asset, report) = bake(&t.model, &t.pool, &data.train, bg, &opts, &|_, _, _| {}).unwrap();
     assert!(asset.is_dynamic() && asset.header.motion_ref.is_none());
+    // playback blends colour by density (FORMAT.md, "Sampling a grid point")
+    assert!(asset.header.colour_by_density);
     assert_eq!(asset.num_frames(), 24);
     assert!(report.shared_blocks > 0, "no block was shared between samples: {report:?}");
     let file = dir.join("avatar.snerf");
@@ -134,5 +136,19 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
     for (f, (a, b)) in meshes.iter().zip(&plain).enumerate() {
         let (ta, tb) = (a.triangle_count() as f64, b.triangle_count() as f64);
         assert!(ta > 0.5 * tb && ta < 2.0 * tb, "frame {f}: {ta} triangles with motion, {tb} without");
+    }
+
+    // Visibility per sample: each sample keeps exactly the blocks a static bake at its time
+    // (`--at-time`) keeps, and never more than the union over the views' own times keeps.
+    let few = BakeOptions { res: 64, keyframes: 3, motion: false, ..Default::default() };
+    let (_, union) = bake(&t.model, &t.pool, &data.train, bg, &few, &|_, _, _| {}).unwrap();
+    let per = BakeOptions { visibility_per_sample: true, ..few.clone() };
+    let (ps, pr) = bake(&t.model, &t.pool, &data.train, bg, &per, &|_, _, _| {}).unwrap();
+    eprintln!("blocks per sample: union {:?}, per sample {:?}", union.frame_blocks, pr.frame_blocks);
+    for f in 0..3 {
+        let at = BakeOptions { at_time: Some(ps.header.frame_time(f)), ..few.clone() };
+        let (_, one) = bake(&t.model, &t.pool, &data.train, bg, &at, &|_, _, _| {}).unwrap();
+        assert_eq!(pr.frame_blocks[f], one.frame_blocks[0], "sample {f}");
+        assert!(pr.frame_blocks[f] <= union.frame_blocks[f], "sample {f}");
     }
 }

@@ -111,6 +111,18 @@ fn a_4d_field_bakes_layers_at_each_blocks_own_sample() {
     let two = LayeredAsset::new(vec![style("a"), style("b")], vec![first.clone(), second.clone()]).unwrap();
     let back = LayeredAsset::from_bytes(&two.to_bytes()).unwrap();
     assert_eq!(back, two);
+    // blended by density (every dynamic bake), a 4D layer stores only its live voxels'
+    // colours, as a static one does; lerped, it would need every voxel's
+    assert!(first.header.colour_by_density);
+    let lerped: Vec<_> = [&first, &second].map(|a| {
+        let mut a = a.clone();
+        a.header.colour_by_density = false;
+        a
+    }).into();
+    let all = LayeredAsset::new(vec![style("a"), style("b")], lerped).unwrap();
+    let (live, every) = (two.style_bytes()[1].bytes as f64, all.style_bytes()[1].bytes as f64);
+    eprintln!("a 4D layer: {live} bytes blended by density, {every} lerped ({:.3})", live / every);
+    assert!(live < 0.9 * every, "{live} against {every}");
     let (lo, hi) = (first.header.frame_time(0), first.header.frame_time(first.num_frames() - 1));
     for time in [lo, 0.37 * lo + 0.63 * hi] {
         let cam = snerf_asset::orbit(&second.header, 2, 1, 40, 40, 40.0);

@@ -769,7 +769,7 @@ impl GpuRenderer {
             ndc0: [n.fx, n.fy, n.width, n.height],
             march: [n.near, n.xy_extent, h.march.step, h.march.t_terminate],
             dens: [h.density.logit_min, h.density.logit_max, w, f32::from_bits(h.motion_ref.unwrap_or(0) * g3)],
-            background: [h.background[0], h.background[1], h.background[2], 0.0],
+            background: [h.background[0], h.background[1], h.background[2], if h.colour_by_density { 1.0 } else { 0.0 }],
             grid: [h.res, h.grid_dim() as u32, self.layout.nx, self.layout.ny],
             frames: [k0 as u32 * g3, k1 as u32 * g3, (k0 == k1) as u32, 0],
             inv_tex: [1.0 / t[0] as f32, 1.0 / t[1] as f32, 1.0 / t[2] as f32, 0.0],

@@ -162,23 +162,32 @@ fn dynamic_keyframes_match_cpu() {
 
 /// A 4D asset as the baker's time codebook writes it: frame 2 points at frame 0's blocks
 /// (A-B-A), frame 1 at its own. The GPU matches the CPU reference at two times between
-/// samples, and each of those times is a blend (differs from both samples around it).
+/// samples, and each of those times is a blend (differs from both samples around it), with
+/// colour blended by the keyframe weight (older assets) and by density (`colour_by_density`,
+/// every dynamic bake now), and the two blends draw different pictures.
 #[test]
 fn codebook_4d_asset_matches_cpu_at_two_times() {
     if !have_gpu("codebook_4d_asset_matches_cpu_at_two_times") {
         return;
     }
-    let mut a = dynamic_asset();
-    a.grids[2] = a.grids[0].clone();
-    a.validate().unwrap();
-    let mut r = GpuRenderer::new(&a).unwrap();
-    let cs = cams(&a.header, 3, W, H);
-    for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
-        check(&format!("codebook 4D t={} cam {}", t, i), &a, &mut r, &cs[i], t);
-        let mut at = |t: f32| r.render(&cs[i], t).unwrap();
-        let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
-        assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} is not a blend");
+    let mut frames = Vec::new();
+    for by_density in [false, true] {
+        let mut a = dynamic_asset();
+        a.grids[2] = a.grids[0].clone();
+        a.header.colour_by_density = by_density;
+        a.validate().unwrap();
+        let mut r = GpuRenderer::new(&a).unwrap();
+        let cs = cams(&a.header, 3, W, H);
+        for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
+            check(&format!("codebook 4D by density {by_density} t={} cam {}", t, i), &a, &mut r, &cs[i], t);
+            let mut at = |t: f32| r.render(&cs[i], t).unwrap();
+            let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
+            assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} is not a blend");
+        }
+        frames.push(r.render(&cs[0], 0.3).unwrap());
     }
+    let d = diff(&frames[0], &frames[1]);
+    assert!(d.max > 2.0 / 255.0, "blending colour by density changed nothing on the GPU: {d:?}");
 }
 
 /// A 4D asset with motion entries: the GPU matches the CPU reference where a motion entry
@@ -189,7 +198,9 @@ fn motion_4d_asset_matches_cpu_at_two_times() {
     if !have_gpu("motion_4d_asset_matches_cpu_at_two_times") {
         return;
     }
-    let a = motion_asset();
+    let mut a = motion_asset();
+    // as the baker writes motion assets
+    a.header.colour_by_density = true;
     let mut r = GpuRenderer::new(&a).unwrap();
     let cs = cams(&a.header, 3, W, H);
     for (i, &t) in [0.3f32, 0.8].iter().enumerate() {

@@ -87,6 +87,7 @@ impl Asset {
         header.time_range = None;
         header.motion_ref = None;
         header.static_frame_blocks = None;
+        header.colour_by_density = false;
         header.atlas_blocks = remap.len() as u32;
         let a = Asset { header, mlp: self.mlp.clone(), grids: vec![grid], atlas, present: vec![true; remap.len()] };
         a.validate()?;

@@ -129,6 +129,15 @@ pub struct Header {
     /// estimates it from the cells the asset draws.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub static_frame_blocks: Option<f32>,
+    /// A dynamic asset whose playback between two keyframes weights each side's colour (and
+    /// features) by that side's density (`Asset::sample_slot`), so a side with no density
+    /// there adds no colour: a surface that moves keeps its colour between keyframes instead
+    /// of fading through the empty side's zero, and a voxel whose neighbourhood has no
+    /// density is never read for colour (style layers leave it out, `layers`). Every dynamic
+    /// asset the baker writes sets it; absent (false: both sides weighted 1 − w and w) in
+    /// static assets and in dynamic ones baked before it.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub colour_by_density: bool,
 }
 
 /// Largest number of styles in one asset.
@@ -197,6 +206,7 @@ impl Header {
             styles: None,
             motion_ref: None,
             static_frame_blocks: None,
+            colour_by_density: false,
         }
     }
 
@@ -412,6 +422,7 @@ impl Header {
                 "header static_frame_blocks {n} is not a block count of this dynamic asset"
             );
         }
+        ensure!(!self.colour_by_density || self.frames.is_some(), "header colour_by_density is set on a static asset (it is how keyframes blend)");
         match (&self.time_range, &self.frames) {
             (None, None) => {}
             (Some(r), Some(frames)) => {

@@ -16,8 +16,10 @@
 //! reads exactly the colours the style was baked with. Samples whose 8 voxels are all at the
 //! floor (σ·step = 1e-5 in the baker's range) read colour 0 instead of the baked colour; that
 //! is the only difference to a single-style bake of the same style (tested: within 1/255 of
-//! its CPU reference). Dynamic assets blend voxels of two blocks, so there every voxel is
-//! live. What the file leaves out reads back as colour 0, so `LayeredAsset::new` clears it too
+//! its CPU reference). A dynamic asset blends the voxels of two blocks: where it weights
+//! colour by density (`Header::colour_by_density`, every dynamic bake since) a side whose 8
+//! voxels sit at the floor adds at most exp(logit_min) of the other side's share of colour,
+//! so the same rule holds there; in dynamic assets blended without it every voxel is live. What the file leaves out reads back as colour 0, so `LayeredAsset::new` clears it too
 //! and a round trip is exact.
 //!
 //! A block's apron repeats voxels of its neighbours (the baker evaluates both at one point).
@@ -152,7 +154,7 @@ impl Owners {
 
 /// Live voxels of one block (module doc) from its density codes ((block+2)³, x fastest).
 pub fn live_voxels(header: &Header, density: &[u8]) -> Vec<bool> {
-    if header.is_dynamic() {
+    if header.is_dynamic() && !header.colour_by_density {
         return vec![true; density.len()];
     }
     let e = header.block as usize + 2;

@@ -211,11 +211,22 @@ impl Asset {
         }
         let va = self.source_values(a, loc);
         let vb = self.source_values(b, loc);
+        Some(self.blend(va, vb, w))
+    }
+
+    /// Two keyframes' values at one point, `w` of the way from `va` to `vb`. The density's
+    /// logit always blends linearly. The colour and features blend by the same `w`, or, where
+    /// the header says `colour_by_density`, by each side's share of the density
+    /// ((1 − w)·σa against w·σb, σ = exp(logit)): `blend_weight`.
+    #[inline]
+    pub fn blend(&self, va: [f32; CHANNELS], vb: [f32; CHANNELS], w: f32) -> [f32; CHANNELS] {
+        let wc = if self.header.colour_by_density { blend_weight(va[0], vb[0], w) } else { w };
         let mut out = [0.0f32; CHANNELS];
-        for c in 0..CHANNELS {
-            out[c] = (1.0 - w) * va[c] + w * vb[c];
+        out[0] = (1.0 - w) * va[0] + w * vb[0];
+        for c in 1..CHANNELS {
+            out[c] = (1.0 - wc) * va[c] + wc * vb[c];
         }
-        Some(out)
+        out
     }
 
     /// Like `sample`, at time `t` for dynamic assets: lerp of the two keyframes around t.
@@ -230,4 +241,15 @@ impl Asset {
         self.source(slot.k0, cell) == Source::Empty
             && (slot.w == 0.0 || slot.k0 == slot.k1 || self.source(slot.k1, cell) == Source::Empty)
     }
+}
+
+/// The colour weight of side b when the two sides weigh (1 − w)·exp(la) and w·exp(lb):
+/// the logistic of lb − la + ln w − ln(1 − w), its logarithms and argument bounded so that
+/// nothing overflows or divides by zero on any GPU (w = 0 gives under 1e-20, w = 1 gives 1,
+/// equal logits give w). shaders/march.wgsl `blend_weight` is the same.
+#[inline]
+pub fn blend_weight(la: f32, lb: f32, w: f32) -> f32 {
+    const TINY: f32 = 1.0e-30;
+    let x = (lb - la + w.max(TINY).ln() - (1.0 - w).max(TINY).ln()).clamp(-80.0, 80.0);
+    1.0 / (1.0 + (-x).exp())
 }

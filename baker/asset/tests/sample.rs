@@ -149,3 +149,51 @@ fn empty_side_counts_as_lowest_density_and_zero() {
     }
     assert!(a.sample_at_time(1.0, p).is_none());
 }
+
+/// With `colour_by_density` the empty side adds no colour: a surface that is present at one
+/// keyframe and gone at the next keeps its colour while its density fades (the logit still
+/// blends linearly), instead of fading through black.
+#[test]
+fn colour_by_density_keeps_the_dense_sides_colour() {
+    let mut h = Header::new(Kind::Object, 8, 4);
+    h.time_range = Some([0.0, 1.0]);
+    h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }]);
+    h.colour_by_density = true;
+    let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
+    let blk = b.block_from_fn([0, 0, 0], |_| encode_voxel(5.0, [1.0, 0.5, 0.0], [1.0; 4], &h.density));
+    b.set_block(0, [0, 0, 0], &blk).unwrap();
+    let a = b.finish().unwrap();
+    let p = [-0.5, -0.5, -0.5];
+    let v0 = a.sample(0, p).unwrap();
+    let lo = h.density.logit_min;
+    for t in [0.1f32, 0.5, 0.9] {
+        let mid = a.sample_at_time(t, p).unwrap();
+        assert!((mid[0] - ((1.0 - t) * v0[0] + t * lo)).abs() < 1e-4, "logit at {t}");
+        // the empty side weighs t·exp(lo) against (1 − t)·exp(v0): exp(−15) of the colour here
+        for c in 1..8 {
+            assert!((mid[c] - v0[c]).abs() < 1e-4, "channel {c} at {t}: {} against {}", mid[c], v0[c]);
+        }
+    }
+}
+
+/// The colour weight: w where both sides are equally dense, each side's density share
+/// otherwise, 0 and 1 at the ends, finite (never NaN) at any logits.
+#[test]
+fn blend_weight_is_the_density_share() {
+    use snerf_asset::sample::blend_weight;
+    for w in [0.1f32, 0.5, 0.75] {
+        assert!((blend_weight(2.0, 2.0, w) - w).abs() < 1e-6);
+        let (sa, sb) = (1.5f32.exp(), (-0.5f32).exp());
+        let want = w * sb / ((1.0 - w) * sa + w * sb);
+        assert!((blend_weight(1.5, -0.5, w) - want).abs() < 1e-6, "{w}");
+    }
+    assert!(blend_weight(3.0, -3.0, 0.0) < 1e-20);
+    assert_eq!(blend_weight(3.0, -3.0, 1.0), 1.0);
+    assert_eq!(blend_weight(-3.0, 3.0, 1.0), 1.0);
+    for (la, lb) in [(-1e30f32, 1e30f32), (1e30, -1e30), (0.0, 0.0)] {
+        for w in [0.0f32, 1e-7, 0.5, 1.0 - 1e-7, 1.0] {
+            let x = blend_weight(la, lb, w);
+            assert!((0.0..=1.0).contains(&x), "{la} {lb} {w}: {x}");
+        }
+    }
+}

@@ -316,11 +316,21 @@ fn a_4d_asset_at_two_times_an_unbounded_and_a_forward_scene_render_like_the_cpu_
     // As the baker's time codebook writes them: frame 3's cells point at frame 1's blocks.
     let mut cyc = dynamic_asset(16, 8, 0.9, 4, 33);
     cyc.grids[3] = cyc.grids[1].clone();
+    // colour blended by density, as every dynamic bake is ("moving" above: as older ones)
+    cyc.header.colour_by_density = true;
     let cycle = Asset::from_bytes(&write_asset(&cyc, dir.path(), "cycle")).unwrap();
     check_render(&b, &h, &cycle, "cycle", 2.5);
     // With motion (FORMAT.md "Motion"): a motion entry blended with a block (t = 0.5), and two
     // motion entries moving the reference by the interpolated offset (t = 2.5).
-    let moved = Asset::from_bytes(&write_asset(&motion_asset(), dir.path(), "motion")).unwrap();
+    let mut moved = motion_asset();
+    moved.header.colour_by_density = true;
+    let moved = Asset::from_bytes(&write_asset(&moved, dir.path(), "motion")).unwrap();
+    // (the two blends draw this camera differently, so the page is seen to apply the key)
+    let mut lerped = moved.clone();
+    lerped.header.colour_by_density = false;
+    let cam = snerf_asset::orbit(&moved.header, 1, 0, 48, 32, 40.0);
+    let (x, y) = (snerf_asset::render(&moved, &cam, 0.5), snerf_asset::render(&lerped, &cam, 0.5));
+    assert!(x.rgb.iter().zip(&y.rgb).any(|(p, q)| (p - q).abs() > 8.0 / 255.0), "blending by density changes nothing here");
     check_render(&b, &h, &moved, "motion", 0.5);
     check_render(&b, &h, &moved, "motion", 2.5);
     let r = check_render(&b, &h, &outdoor, "outdoor", 0.0);
@@ -1150,14 +1160,17 @@ fn without_webgpu_the_page_draws_with_webgl2_from_the_same_wgsl_like_the_cpu_ref
     let mut d = static_asset(32, 8, 0.8, 13);
     d.make_diffuse();
     let flat = put(&d, "flat");
-    let moved = put(&motion_asset(), "motion");
+    // colour blended by density between keyframes, as every dynamic bake is ("moving": as older ones)
+    let mut m = motion_asset();
+    m.header.colour_by_density = true;
+    let moved = put(&m, "motion");
     // A field trained with 2 x 2 rays a pixel: the silhouette pass (the fragment shader reads
     // the first pass's output as textures) redraws the silhouette pixels as their means.
     let mut e = static_asset(32, 8, 0.8, 17);
     e.header.pixel_rays = 4;
     let edges = put(&e, "edges");
     let h = start(dir.path(), state.path());
-    for (asset, name, time) in [(&scene, "scene", 0.0), (&moving, "moving", 0.5), (&outdoor, "outdoor", 0.0), (&front, "front", 0.0), (&flat, "flat", 0.0), (&moved, "motion", 2.5)] {
+    for (asset, name, time) in [(&scene, "scene", 0.0), (&moving, "moving", 0.5), (&outdoor, "outdoor", 0.0), (&front, "front", 0.0), (&flat, "flat", 0.0), (&moved, "motion", 0.5), (&moved, "motion", 2.5)] {
         let r = check_render_webgl(&b, &h, asset, name, time);
         assert_eq!(r["lastFrame"]["pixelSides"], serde_json::json!([1]), "{name}");
     }

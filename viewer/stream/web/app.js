@@ -659,7 +659,7 @@ class MarchHost {
     f.set([n.near, n.xy_extent, h.march.step, h.march.t_terminate], 40);
     f.set([h.density.logit_min, h.density.logit_max, w], 44);
     u[47] = (h.motion_ref || 0) * this.g3; // the motion reference's grid offset, as bits
-    f.set([h.background[0], h.background[1], h.background[2], 0], 48);
+    f.set([h.background[0], h.background[1], h.background[2], h.colour_by_density ? 1 : 0], 48); // w: keyframes blend colour by density
     u.set([h.res, this.g, this.layout.nx, this.layout.ny], 52);
     u.set([k0 * this.g3, k1 * this.g3, k0 === k1 ? 1 : 0, side], 56);
     f.set([1 / t[0], 1 / t[1], 1 / t[2], 0], 60);
