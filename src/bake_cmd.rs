@@ -68,11 +68,13 @@ pub struct BakeArgs {
     /// whose moves leave the least error is kept (1: the fullest alone; each costs a search).
     #[arg(long, default_value_t = BakeOptions::default().motion_references, value_parser = crate::args::int_in::<usize>(1, 64, ""))]
     pub motion_references: usize,
-    /// Dynamic scenes: test visibility at each time sample with every camera looking at the
-    /// scene at that time (as `--at-time` does for its instant) instead of once with each
-    /// view at its own time, kept for all samples. Costs one visibility pass per keyframe.
-    #[arg(long, default_value_t = BakeOptions::default().visibility_per_sample, action = clap::ArgAction::Set, value_name = "BOOL")]
-    pub visibility_per_sample: bool,
+    /// Dynamic scenes: measure "one static frame" (the unit of --time-budget and of the
+    /// asset's "× one static frame") as static bakes at the time samples (--at-time) keep it,
+    /// each sample's visibility tested with every camera at that time, instead of with each
+    /// view at its own time. What the bake keeps is the same; it costs one visibility pass
+    /// per keyframe, and matters where an instant hides what another exposes.
+    #[arg(long, default_value_t = BakeOptions::default().static_frame_per_sample, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub static_frame_per_sample: bool,
     /// Training views for the visibility test (0 keeps hidden blocks too).
     #[arg(long, default_value_t = BakeOptions::default().visibility_views, value_parser = crate::args::int_in::<usize>(0, 100000, ""))]
     pub visibility_views: usize,
@@ -271,7 +273,7 @@ fn bake_options(a: &BakeArgs, res: u32) -> BakeOptions {
         motion_references: a.motion_references,
         up: a.up,
         at_time: a.at_time,
-        visibility_per_sample: a.visibility_per_sample,
+        static_frame_per_sample: a.static_frame_per_sample,
     }
 }
 

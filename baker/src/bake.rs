@@ -79,12 +79,14 @@ pub struct BakeOptions {
     /// frame" a 4D asset's size is measured against. The views' own times are ignored; the
     /// visibility test looks at the scene at this time from every view's camera.
     pub at_time: Option<f32>,
-    /// Dynamic scenes: test each time sample's visibility with every camera looking at the
-    /// scene at that sample's time (what `at_time` does for its one instant), instead of once
-    /// with each view at its own time, the union kept for every sample. The union keeps
-    /// blocks that some other instant exposes but this one hides (a body's inside where a
-    /// limb was); per sample costs one visibility pass per keyframe.
-    pub visibility_per_sample: bool,
+    /// Dynamic scenes: count "one static frame" (the unit of `time_budget` and the header's
+    /// `static_frame_blocks`) as static bakes at the samples' times (`at_time`) keep it,
+    /// testing each sample's visibility with every camera looking at the scene at that time.
+    /// Off, the count uses the bake's own visibility (each view at its own time, the union
+    /// kept for every sample), which also keeps blocks some other instant exposes (a body's
+    /// inside where a limb was) and so can overstate the frame. What the bake keeps is the
+    /// same either way; on costs one visibility pass per keyframe.
+    pub static_frame_per_sample: bool,
 }
 
 impl Default for BakeOptions {
@@ -101,7 +103,7 @@ impl Default for BakeOptions {
             motion: true,
             motion_references: 3,
             at_time: None,
-            visibility_per_sample: false,
+            static_frame_per_sample: false,
         }
     }
 }
@@ -121,6 +123,9 @@ pub struct BakeReport {
     pub shared_blocks: usize,
     /// Blocks each sample keeps (what a static bake at that time would store).
     pub frame_blocks: Vec<usize>,
+    /// Blocks a static bake at each sample's time keeps: `frame_blocks`, or with
+    /// `static_frame_per_sample` those of them the cameras see at that time.
+    pub static_blocks: Vec<usize>,
     /// Estimated size of one static frame: mean kept blocks, one grid, header and MLP.
     pub static_frame_bytes: u64,
     /// Blocks stored beyond one per cell (dynamic scenes).
@@ -188,9 +193,9 @@ pub fn bake(
     report.density_range = [logit_min, logit_max];
 
     let candidates = candidate_cells(model, g);
-    let per_sample = dynamic && opts.visibility_per_sample && opts.visibility_views > 0;
+    let per_sample = dynamic && opts.static_frame_per_sample && opts.visibility_views > 0;
     let t0 = Instant::now();
-    let visible = if opts.visibility_views > 0 && !per_sample {
+    let visible = if opts.visibility_views > 0 {
         visible_cells(model, pool, views, bg, opts.visibility_views, g, &candidates, progress)
     } else {
         candidates.clone()
@@ -218,16 +223,14 @@ pub fn bake(
     let t0 = Instant::now();
     for (f, &tau) in field_times.iter().enumerate() {
         report.candidate_blocks += cells.len();
-        let visible_now;
-        let visible = if per_sample {
+        // what a static bake at this sample's time would call visible
+        let visible_now = per_sample.then(|| {
             let tv = Instant::now();
             let (lo, hi) = space.time_range;
-            visible_now = visible_cells(model, pool, &at_time(views, lo + tau * (hi - lo)), bg, opts.visibility_views, g, &candidates, progress);
+            let v = visible_cells(model, pool, &at_time(views, lo + tau * (hi - lo)), bg, opts.visibility_views, g, &candidates, progress);
             report.seconds_visibility += tv.elapsed().as_secs_f64();
-            &visible_now
-        } else {
-            &visible
-        };
+            v
+        });
         // Evaluate candidate blocks in parallel.
         let done = std::sync::atomic::AtomicU64::new(0);
         let blocks: Vec<Evaluated> = cells
@@ -280,7 +283,12 @@ pub fn bake(
                 Evaluated::Kept(bytes) => Some(bytes),
             })
             .collect();
-        report.frame_blocks.push(kept.iter().filter(|k| k.is_some()).count());
+        let count = kept.iter().filter(|k| k.is_some()).count();
+        report.frame_blocks.push(count);
+        report.static_blocks.push(match &visible_now {
+            Some(v) => kept.iter().zip(&cells).filter(|(k, &c)| k.is_some() && v[c]).count(),
+            None => count,
+        });
         let vis = if dynamic { visibility(&cells, &kept, &samples, res as usize, b as usize) } else { Vec::new() };
         for (i, blk) in kept.into_iter().enumerate() {
             if let Some(bytes) = blk {
@@ -296,7 +304,7 @@ pub fn bake(
     let block_chunk = (CHUNK_HEADER_LEN + 8 + block_voxels * 8) as f64;
     let grid_chunk = (CHUNK_HEADER_LEN + 4 + 4 * g * g * g) as f64;
     let fixed = 4096.0 + (CHUNK_HEADER_LEN + 4 * MLP_FLOATS) as f64;
-    let mean_blocks = report.frame_blocks.iter().sum::<usize>() as f64 / frames as f64;
+    let mean_blocks = report.static_blocks.iter().sum::<usize>() as f64 / frames as f64;
     report.static_frame_bytes = (fixed + grid_chunk + mean_blocks * block_chunk) as u64;
     // The grids' bytes: a motion asset stores each as its occupied cells where that is
     // smaller (`Asset::sparse_grids`; about the blocks the sample keeps), others densely.

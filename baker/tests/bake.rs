@@ -138,17 +138,20 @@ fn dynamic_avatar_bakes_24_samples_within_twice_a_static_frame() {
         assert!(ta > 0.5 * tb && ta < 2.0 * tb, "frame {f}: {ta} triangles with motion, {tb} without");
     }
 
-    // Visibility per sample: each sample keeps exactly the blocks a static bake at its time
-    // (`--at-time`) keeps, and never more than the union over the views' own times keeps.
+    // One static frame counted per sample: each sample counts exactly the blocks a static
+    // bake at its time (`--at-time`) keeps, never more than the bake keeps there, and the
+    // blocks each sample keeps are the same without the option.
     let few = BakeOptions { res: 64, keyframes: 3, motion: false, ..Default::default() };
     let (_, union) = bake(&t.model, &t.pool, &data.train, bg, &few, &|_, _, _| {}).unwrap();
-    let per = BakeOptions { visibility_per_sample: true, ..few.clone() };
+    assert_eq!(union.static_blocks, union.frame_blocks);
+    let per = BakeOptions { static_frame_per_sample: true, ..few.clone() };
     let (ps, pr) = bake(&t.model, &t.pool, &data.train, bg, &per, &|_, _, _| {}).unwrap();
-    eprintln!("blocks per sample: union {:?}, per sample {:?}", union.frame_blocks, pr.frame_blocks);
+    eprintln!("blocks per sample: kept {:?}, one static frame {:?}", pr.frame_blocks, pr.static_blocks);
+    assert_eq!(pr.frame_blocks, union.frame_blocks);
     for f in 0..3 {
         let at = BakeOptions { at_time: Some(ps.header.frame_time(f)), ..few.clone() };
         let (_, one) = bake(&t.model, &t.pool, &data.train, bg, &at, &|_, _, _| {}).unwrap();
-        assert_eq!(pr.frame_blocks[f], one.frame_blocks[0], "sample {f}");
-        assert!(pr.frame_blocks[f] <= union.frame_blocks[f], "sample {f}");
+        assert_eq!(pr.static_blocks[f], one.frame_blocks[0], "sample {f}");
+        assert!(pr.static_blocks[f] <= pr.frame_blocks[f], "sample {f}");
     }
 }

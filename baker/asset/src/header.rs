@@ -123,7 +123,9 @@ pub struct Header {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub motion_ref: Option<u32>,
     /// A dynamic asset: the blocks a static bake of the field keeps at each keyframe's time,
-    /// averaged over the keyframes (`snerf bake --at-time` writes such a bake). The size of
+    /// averaged over the keyframes (`snerf bake --at-time` writes such a bake; the 4D bake
+    /// counts them exactly with `--static-frame-per-sample`, else with its own visibility
+    /// test, which can overstate them where one instant hides what another exposes). The size of
     /// "one static frame" the asset is measured against (`Summary::static_frame_bytes`);
     /// absent in static assets and in dynamic ones baked before it, where the summary
     /// estimates it from the cells the asset draws.
