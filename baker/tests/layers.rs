@@ -111,8 +111,8 @@ fn a_4d_field_bakes_layers_at_each_blocks_own_sample() {
     let two = LayeredAsset::new(vec![style("a"), style("b")], vec![first.clone(), second.clone()]).unwrap();
     let back = LayeredAsset::from_bytes(&two.to_bytes()).unwrap();
     assert_eq!(back, two);
-    // blended by density (every dynamic bake), a 4D layer stores only its live voxels'
-    // colours, as a static one does; lerped, it would need every voxel's
+    // blended by density (every dynamic bake), a 4D layer stores only its live interior
+    // voxels' colours; lerped, it would need every voxel's
     assert!(first.header.colour_by_density);
     let lerped: Vec<_> = [&first, &second].map(|a| {
         let mut a = a.clone();
@@ -122,12 +122,15 @@ fn a_4d_field_bakes_layers_at_each_blocks_own_sample() {
     let all = LayeredAsset::new(vec![style("a"), style("b")], lerped).unwrap();
     let (live, every) = (two.style_bytes()[1].bytes as f64, all.style_bytes()[1].bytes as f64);
     eprintln!("a 4D layer: {live} bytes blended by density, {every} lerped ({:.3})", live / every);
-    assert!(live < 0.9 * every, "{live} against {every}");
+    assert!(live < 0.6 * every, "{live} against {every}");
     let (lo, hi) = (first.header.frame_time(0), first.header.frame_time(first.num_frames() - 1));
     for time in [lo, 0.37 * lo + 0.63 * hi] {
         let cam = snerf_asset::orbit(&second.header, 2, 1, 40, 40, 40.0);
         let (a, b) = (snerf_asset::render(&second, &cam, time), snerf_asset::render(&back.layers[1], &cam, time));
+        // a 4D layer's colour stops at its block's edge (no apron colours; FORMAT.md)
         let d = a.rgb.iter().zip(&b.rgb).map(|(x, y)| (x - y).abs()).fold(0.0, f32::max);
-        assert!(d <= 1.0 / 255.0, "t = {time}: {d}");
+        let mean = a.rgb.iter().zip(&b.rgb).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.rgb.len() as f32;
+        eprintln!("t = {time}: layer against its single-style bake, mean {mean:.5}, max {d:.4}");
+        assert!(mean <= 1.0 / 255.0 && d <= 0.1, "t = {time}: mean {mean}, max {d}");
     }
 }

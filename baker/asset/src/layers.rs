@@ -26,7 +26,11 @@
 //! In a static asset whose blocks each serve one cell, a colour part stores an apron voxel
 //! only where the neighbouring cell is empty; a reader copies the rest from the neighbour's
 //! block (`LayeredAsset::new` does the same, so the round trip stays exact). That halves a
-//! colour part at 8³ blocks.
+//! colour part at 8³ blocks. A dynamic asset's block may serve its cell at several times,
+//! beside different neighbours, so there (blended by density) a colour part stores no apron
+//! voxel: each takes the colour of the nearest interior voxel of its own block. A style's
+//! colour then stops at its block's edge instead of reaching halfway into the neighbour's;
+//! the density, and so the geometry, is untouched.
 //!
 //! Each `SCOL` carries the CRC-32 of the density codes of the block it colours: a colour part
 //! spliced from an asset of another geometry is refused by name, not drawn on the wrong
@@ -76,10 +80,14 @@ struct Owners {
     /// Per block: its cell, when it is one static asset's block of exactly one cell.
     cell_of: Vec<Option<usize>>,
     grid: Vec<u32>,
+    /// A dynamic asset blended by density: every apron voxel is held by the nearest
+    /// interior voxel of its own block (module doc).
+    clamp: bool,
 }
 
 impl Owners {
     fn new(h: &Header, grids: &[Vec<u32>]) -> Owners {
+        let clamp = h.is_dynamic() && h.colour_by_density;
         let (g, b) = (h.grid_dim(), h.block as usize);
         let n = h.atlas_blocks as usize;
         let mut cell_of = vec![None; n];
@@ -97,18 +105,27 @@ impl Owners {
                 }
             }
         }
-        Owners { g, b, cell_of, grid: grids.first().cloned().unwrap_or_default() }
+        Owners { g, b, cell_of, grid: grids.first().cloned().unwrap_or_default(), clamp }
     }
 
-    /// The (block, voxel) that holds voxel `v` of block `blk`, when another block does.
+    /// Whether some voxels of block `blk` are held by another voxel.
+    fn holds(&self, blk: usize) -> bool {
+        self.clamp || self.cell_of[blk].is_some()
+    }
+
+    /// The (block, voxel) that holds voxel `v` of block `blk`, when another voxel does.
     fn owner(&self, blk: usize, v: usize) -> Option<(usize, usize)> {
-        let c = self.cell_of[blk]?;
         let (g, b) = (self.g, self.b);
         let e = b + 2;
         let l = [v % e, (v / e) % e, v / (e * e)];
         if l.iter().all(|&x| (1..=b).contains(&x)) {
             return None;
         }
+        if self.clamp {
+            let i = l.map(|x| x.clamp(1, b));
+            return Some((blk, (i[2] * e + i[1]) * e + i[0]));
+        }
+        let c = self.cell_of[blk]?;
         let cell = [c % g, (c / g) % g, c / (g * g)];
         let mut oc = [0usize; 3];
         let mut ol = [0usize; 3];
@@ -132,7 +149,7 @@ impl Owners {
     fn fill(&self, atlas: &mut [u8], bb: usize) {
         let voxels = bb / CHANNELS;
         for blk in 0..atlas.len() / bb {
-            if self.cell_of[blk].is_none() {
+            if !self.holds(blk) {
                 continue;
             }
             for v in 0..voxels {
@@ -259,7 +276,7 @@ impl Recolour {
             .collect();
         let voxels = bb / CHANNELS;
         for (blk, links) in from.iter_mut().enumerate() {
-            if owners.cell_of[blk].is_none() {
+            if !owners.holds(blk) {
                 continue;
             }
             for v in 0..voxels {

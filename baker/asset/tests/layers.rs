@@ -299,3 +299,87 @@ fn recolouring_one_style_with_anothers_colour_part_gives_that_style_exactly() {
     let e = r.apply(&mut held, *b"BLKS", &[0; 16]).unwrap_err().to_string();
     assert!(e.contains("BLKS"), "{e}");
 }
+
+/// A ball moving along x over two keyframes, blended by density, painted by `paint`.
+fn moving_ball(paint: impl Fn([f32; 3]) -> [f32; 3]) -> Asset {
+    let mut h = Header::new(Kind::Object, RES, BLOCK);
+    h.background = [0.1, 0.2, 0.3];
+    h.time_range = Some([0.0, 1.0]);
+    h.frames = Some(vec![snerf_asset::Keyframe { time: 0.0 }, snerf_asset::Keyframe { time: 1.0 }]);
+    h.colour_by_density = true;
+    let g = h.grid_dim();
+    let at = |i: usize| -1.0 + (i as f32 + 0.5) * 2.0 / RES as f32;
+    let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
+    for f in 0..2 {
+        for z in 0..g {
+            for y in 0..g {
+                for x in 0..g {
+                    let blk = b.block_from_fn([x, y, z], |v| {
+                        let p = v.map(at);
+                        let q = [p[0] - 0.15 * f as f32, p[1], p[2]];
+                        let d = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+                        let logit = if d < 0.55 { 2.0 + 4.0 * (0.55 - d) } else { -10.0 };
+                        encode_voxel(logit, paint(p), [0.0; 4], &h.density)
+                    });
+                    if blk.chunks_exact(8).any(|v| v[0] > 0) {
+                        b.set_block(f, [x, y, z], &blk).unwrap();
+                    }
+                }
+            }
+        }
+    }
+    let mut a = b.finish().unwrap();
+    a.make_diffuse();
+    a
+}
+
+/// A 4D two-style asset blended by density stores no apron colour: each apron voxel takes
+/// its block's nearest interior voxel's colour, the file round-trips exactly, a switch by
+/// colour part gives the other style byte for byte, and each style draws close to its own
+/// single-style asset between the keyframes.
+#[test]
+fn a_4d_layer_stores_interior_colours_only_and_switches_exactly() {
+    let singles = [moving_ball(warm), moving_ball(cold)];
+    let l = LayeredAsset::new(vec![info("warm"), info("cold")], singles.to_vec()).unwrap();
+    let bytes = l.to_bytes();
+    assert_eq!(LayeredAsset::from_bytes(&bytes).unwrap(), l);
+    let e = (BLOCK + 2) as usize;
+    let bb = l.layers[0].block_bytes();
+    for (i, blk) in l.layers[0].atlas.chunks_exact(bb).enumerate() {
+        for v in 0..e * e * e {
+            let c = [v % e, (v / e) % e, v / (e * e)];
+            let k = c.map(|x| x.clamp(1, BLOCK as usize));
+            let iv = (k[2] * e + k[1]) * e + k[0];
+            assert_eq!(blk[v * 8 + 1..v * 8 + 4], blk[iv * 8 + 1..iv * 8 + 4], "block {i} voxel {c:?}");
+        }
+    }
+    // the colour part against the same styles lerped (every voxel stored)
+    let lerped: Vec<Asset> = singles.iter().map(|a| {
+        let mut a = a.clone();
+        a.header.colour_by_density = false;
+        a
+    }).collect();
+    let all = LayeredAsset::new(vec![info("warm"), info("cold")], lerped).unwrap();
+    let (part, every) = (l.style_bytes()[1].bytes as f64, all.style_bytes()[1].bytes as f64);
+    eprintln!("4D colour part: {part} bytes, every voxel {every} ({:.3})", part / every);
+    assert!(part < 0.55 * every, "{part} against {every}");
+    // a switch by colour part
+    let want = l.clone().into_style(1).unwrap();
+    let mut held = l.clone().into_style(0).unwrap();
+    let mut r = snerf_asset::Recolour::new(&held);
+    for c in chunks(&bytes).unwrap().into_iter().filter(|c| (c.tag == TAG_SMLP || c.tag == TAG_SCOL) && bytes[c.payload.start] == 1) {
+        r.apply(&mut held, c.tag, &bytes[c.payload.clone()]).unwrap();
+    }
+    assert!(r.is_complete());
+    assert!(held.to_bytes() == want.to_bytes(), "the recoloured 4D asset is not style 1's");
+    // near its single-style asset: only colour across block edges differs
+    for (single, layer) in singles.iter().zip(&l.layers) {
+        for t in [0.0f32, 0.4] {
+            let cam = orbit(&single.header, 2, 1, 40, 40, 40.0);
+            let (a, b) = (render(single, &cam, t), render(layer, &cam, t));
+            let mean = a.rgb.iter().zip(&b.rgb).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.rgb.len() as f32;
+            eprintln!("t {t}: mean {mean:.5}, max {:.4}", max_diff(&a.rgb, &b.rgb));
+            assert!(mean < 2.0 / 255.0 && max_diff(&a.rgb, &b.rgb) < 0.1, "t {t}: mean {mean}");
+        }
+    }
+}

@@ -1627,37 +1627,45 @@ fn a_style_switch_on_a_4d_asset_draws_the_new_style_between_keyframes() {
     let Some(b) = browser() else { return };
     let dir = TempDir::new("web-switch-4d");
     let state = TempDir::new("web-switch-4d-state");
-    let file = dir.join("moving.snerf");
-    let a = dynamic_asset(32, 8, 0.9, 3, 21);
-    let mut c = a.clone();
-    for v in c.atlas.chunks_exact_mut(8) {
-        for x in &mut v[1..] {
-            *x = 255 - *x;
+    // lerped between keyframes (every voxel's colour stored), and blended by density (every
+    // dynamic bake: live interior voxels only, aprons from their block's interior)
+    let mut cases = Vec::new();
+    for (name, by_density) in [("moving", false), ("dense", true)] {
+        let mut a = dynamic_asset(32, 8, 0.9, 3, 21);
+        a.header.colour_by_density = by_density;
+        let mut c = a.clone();
+        for v in c.atlas.chunks_exact_mut(8) {
+            for x in &mut v[1..] {
+                *x = 255 - *x;
+            }
         }
+        let style = |name: &str| snerf_asset::StyleInfo { name: name.into(), source: None, swatch: [0.5; 3] };
+        let layered = snerf_asset::LayeredAsset::new(vec![style("warm"), style("cold")], vec![a, c]).unwrap();
+        layered.write(&dir.join(&format!("{name}.snerf"))).unwrap();
+        let styles: Vec<Asset> = (0..2).map(|i| layered.clone().into_style(i).unwrap()).collect();
+        cases.push((name, styles));
     }
-    let style = |name: &str| snerf_asset::StyleInfo { name: name.into(), source: None, swatch: [0.5; 3] };
-    let layered = snerf_asset::LayeredAsset::new(vec![style("warm"), style("cold")], vec![a, c]).unwrap();
-    layered.write(&file).unwrap();
-    let styles: Vec<Asset> = (0..2).map(|i| layered.clone().into_style(i).unwrap()).collect();
     let h = start(dir.path(), state.path());
     let web = h.web().unwrap().clone();
     let time = 0.5;
-    let cam = snerf_asset::orbit(&styles[0].header, 1, 0, 64, 48, 40.0);
-    let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", "moving.warm"), ("time", "0.5"), ("cam", &cam_json(&cam))]));
-    let r = switch_page(&b, &url, "2");
-    assert_eq!(r["error"], serde_json::Value::Null, "page error: {}", r["error"]);
-    let sws = r["switches"].as_array().unwrap();
-    assert_eq!(sws.len(), 1, "{sws:?}");
-    assert_eq!(sws[0]["state"], "done", "{}", sws[0]);
-    assert_eq!(r["asset"]["name"], "moving.cold");
-    let fr = &r["lastRender"];
-    assert_eq!(fr["complete"], true);
-    let rgba = fr["rgba"].as_array().unwrap();
-    let d = mean_abs_diff(rgba, &snerf_asset::render(&styles[1], &cam, time));
-    let left = mean_abs_diff(rgba, &snerf_asset::render(&styles[0], &cam, time));
-    eprintln!("4D switch at t = {time}: mean |diff| {d:?} to the new style's CPU reference, {left:?} to the old one's");
-    assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "mean |diff| {:?} > 2/255", d);
-    assert!(left.iter().any(|&x| x > 10.0 / 255.0), "the two styles' frames are too alike for the test to mean something: {left:?}");
+    for (name, styles) in &cases {
+        let cam = snerf_asset::orbit(&styles[0].header, 1, 0, 64, 48, 40.0);
+        let url = format!("{}#{}", web.url(), fragment(&[("token", h.token()), ("asset", &format!("{name}.warm")), ("time", "0.5"), ("cam", &cam_json(&cam))]));
+        let r = switch_page(&b, &url, "2");
+        assert_eq!(r["error"], serde_json::Value::Null, "{name}: page error: {}", r["error"]);
+        let sws = r["switches"].as_array().unwrap();
+        assert_eq!(sws.len(), 1, "{sws:?}");
+        assert_eq!(sws[0]["state"], "done", "{name}: {}", sws[0]);
+        assert_eq!(r["asset"]["name"], format!("{name}.cold"));
+        let fr = &r["lastRender"];
+        assert_eq!(fr["complete"], true);
+        let rgba = fr["rgba"].as_array().unwrap();
+        let d = mean_abs_diff(rgba, &snerf_asset::render(&styles[1], &cam, time));
+        let left = mean_abs_diff(rgba, &snerf_asset::render(&styles[0], &cam, time));
+        eprintln!("{name}: 4D switch at t = {time}: mean |diff| {d:?} to the new style's CPU reference, {left:?} to the old one's");
+        assert!(d.iter().all(|&x| x <= 2.0 / 255.0), "{name}: mean |diff| {:?} > 2/255", d);
+        assert!(left.iter().any(|&x| x > 10.0 / 255.0), "{name}: the two styles' frames are too alike for the test to mean something: {left:?}");
+    }
 }
 
 /// A style switch in the page (keys 2, 1, 2 on `scene.warm`): each streams only the new

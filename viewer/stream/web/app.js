@@ -490,9 +490,10 @@ function orbitOf(h) {
 // A style switch (PROTOCOL.md, "Style switches"): another style's colour part written over
 // the style held, chunk by chunk as it streams; the density stays. snerf_asset::Recolour in
 // JavaScript (FORMAT.md, multi-style assets): a block's SCOL holds the colour of its *stored*
-// voxels, those that are live (some voxel of their 3x3x3 neighbourhood has density) and not
-// held by a neighbouring block (an apron voxel of a static asset whose blocks each serve one
-// cell is copied from the block of the cell it lies in). `chunks`: the held file's chunks by
+// voxels, those that are live (some voxel of their 3x3x3 neighbourhood has density; in a 4D
+// asset lerped between keyframes, every voxel) and not held by another voxel (an apron voxel
+// of a static asset whose blocks each serve one cell is copied from the block of the cell it
+// lies in; of a 4D asset blended by density, from the nearest interior voxel of its block). `chunks`: the held file's chunks by
 // index (BLKS chunks are rewritten in place); `blkChunk[b]`: the chunk holding block b.
 class Recolour {
   constructor(h, grid, chunks, blkChunk, voxelBytes) {
@@ -528,7 +529,7 @@ class Recolour {
       for (let v = 0; v < nv; v++) dens[v] = d[v * n];
       this.crc[k] = crc32(dens);
       let live = new Uint8Array(nv);
-      if (h.frames) live.fill(1);
+      if (h.frames && !h.colour_by_density) live.fill(1);
       else {
         for (let v = 0; v < nv; v++) live[v] = dens[v] > 0 ? 1 : 0;
         for (const stride of [1, e, e * e]) {
@@ -540,7 +541,16 @@ class Recolour {
         }
       }
       const from = [];
-      if (cellOf[k] >= 0) {
+      if (h.frames && h.colour_by_density) {
+        // a 4D block blended by density: every apron voxel is held by the nearest interior
+        // voxel of its own block
+        const cl = (q) => Math.min(Math.max(q, 1), b);
+        for (let z = 0, v = 0; z < e; z++) for (let y = 0; y < e; y++) for (let x = 0; x < e; x++, v++) {
+          if (x >= 1 && x <= b && y >= 1 && y <= b && z >= 1 && z <= b) continue;
+          const ov = (cl(z) * e + cl(y)) * e + cl(x);
+          from.push(v, k, ov); live[v] = 0;
+        }
+      } else if (cellOf[k] >= 0) {
         for (let z = 0, v = 0; z < e; z++) for (let y = 0; y < e; y++) for (let x = 0; x < e; x++, v++) {
           if (x >= 1 && x <= b && y >= 1 && y <= b && z >= 1 && z <= b) continue; // interior: its own
           const o = owner(cellOf[k], x, y, z);
