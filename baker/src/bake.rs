@@ -121,7 +121,7 @@ pub struct BakeReport {
     pub dropped_invisible: usize,
     /// (cell, sample) entries served by a block sampled at another time.
     pub shared_blocks: usize,
-    /// Blocks each sample keeps (what a static bake at that time would store).
+    /// Blocks each sample keeps (visible to some view at that view's own time).
     pub frame_blocks: Vec<usize>,
     /// Blocks a static bake at each sample's time keeps: `frame_blocks`, or with
     /// `static_frame_per_sample` those of them the cameras see at that time.
