@@ -178,12 +178,7 @@ fn codebook_4d_asset_matches_cpu_at_two_times() {
         a.validate().unwrap();
         let mut r = GpuRenderer::new(&a).unwrap();
         let cs = cams(&a.header, 3, W, H);
-        for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
-            check(&format!("codebook 4D by density {by_density} t={} cam {}", t, i), &a, &mut r, &cs[i], t);
-            let mut at = |t: f32| r.render(&cs[i], t).unwrap();
-            let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
-            assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} is not a blend");
-        }
+        matches_cpu_between_keyframes(&format!("codebook 4D by density {by_density}"), &a, &mut r, &cs, "is not a blend");
         frames.push(r.render(&cs[0], 0.3).unwrap());
     }
     let d = diff(&frames[0], &frames[1]);
@@ -203,11 +198,18 @@ fn motion_4d_asset_matches_cpu_at_two_times() {
     a.header.colour_by_density = true;
     let mut r = GpuRenderer::new(&a).unwrap();
     let cs = cams(&a.header, 3, W, H);
+    matches_cpu_between_keyframes("motion 4D", &a, &mut r, &cs, "does not move");
+}
+
+/// At t = 0.3 and 0.8 (between the keyframes 0, 0.5, 1 of `dynamic_asset`) the GPU matches
+/// the CPU reference, and each frame differs from both keyframes around it (`what` says how
+/// the test fails otherwise).
+fn matches_cpu_between_keyframes(label: &str, a: &Asset, r: &mut GpuRenderer, cs: &[Camera], what: &str) {
     for (i, &t) in [0.3f32, 0.8].iter().enumerate() {
-        check(&format!("motion 4D t={} cam {}", t, i), &a, &mut r, &cs[i], t);
+        check(&format!("{label} t={} cam {}", t, i), a, r, &cs[i], t);
         let mut at = |t: f32| r.render(&cs[i], t).unwrap();
         let (here, lo, hi) = (at(t), at(if t < 0.5 { 0.0 } else { 0.5 }), at(if t < 0.5 { 0.5 } else { 1.0 }));
-        assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "t={t} does not move");
+        assert!(diff(&here, &lo).mean > 1e-4 && diff(&here, &hi).mean > 1e-4, "{label}: t={t} {what}");
     }
 }
 

@@ -129,15 +129,21 @@ fn dynamic_interpolation() {
     assert!(changed > 50, "{}", changed);
 }
 
-#[test]
-fn empty_side_counts_as_lowest_density_and_zero() {
+/// Two keyframes, one block at the first and nothing at the second (a surface that goes).
+fn one_block_then_empty(colour_by_density: bool) -> (Header, snerf_asset::Asset) {
     let mut h = Header::new(Kind::Object, 8, 4);
     h.time_range = Some([0.0, 1.0]);
     h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }]);
+    h.colour_by_density = colour_by_density;
     let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
     let blk = b.block_from_fn([0, 0, 0], |_| encode_voxel(5.0, [1.0, 0.5, 0.0], [1.0; 4], &h.density));
     b.set_block(0, [0, 0, 0], &blk).unwrap();
-    let a = b.finish().unwrap();
+    (h, b.finish().unwrap())
+}
+
+#[test]
+fn empty_side_counts_as_lowest_density_and_zero() {
+    let (h, a) = one_block_then_empty(false);
     let p = [-0.5, -0.5, -0.5];
     let v0 = a.sample(0, p).unwrap();
     assert!(a.sample(1, p).is_none());
@@ -155,14 +161,7 @@ fn empty_side_counts_as_lowest_density_and_zero() {
 /// blends linearly), instead of fading through black.
 #[test]
 fn colour_by_density_keeps_the_dense_sides_colour() {
-    let mut h = Header::new(Kind::Object, 8, 4);
-    h.time_range = Some([0.0, 1.0]);
-    h.frames = Some(vec![Keyframe { time: 0.0 }, Keyframe { time: 1.0 }]);
-    h.colour_by_density = true;
-    let mut b = AssetBuilder::new(h.clone(), ViewMlp::zeros()).unwrap();
-    let blk = b.block_from_fn([0, 0, 0], |_| encode_voxel(5.0, [1.0, 0.5, 0.0], [1.0; 4], &h.density));
-    b.set_block(0, [0, 0, 0], &blk).unwrap();
-    let a = b.finish().unwrap();
+    let (h, a) = one_block_then_empty(true);
     let p = [-0.5, -0.5, -0.5];
     let v0 = a.sample(0, p).unwrap();
     let lo = h.density.logit_min;
