@@ -196,3 +196,12 @@ fn blend_weight_is_the_density_share() {
         }
     }
 }
+
+/// The key only means something between keyframes: a static header with it is refused.
+#[test]
+fn colour_by_density_on_a_static_header_is_refused() {
+    let mut h = Header::new(Kind::Object, 8, 4);
+    h.colour_by_density = true;
+    let e = h.validate().unwrap_err().to_string();
+    assert!(e.contains("colour_by_density") && e.contains("static"), "{e}");
+}
